@@ -1,0 +1,1 @@
+"""Bringup and command line of ext_sense: the node-graph descriptions, the launch files, and the ext-sense command."""

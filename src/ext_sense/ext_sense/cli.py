@@ -1,0 +1,57 @@
+"""The ``ext-sense`` command: one entry point, subcommands contributed by each package.
+
+Each module in :data:`COMMAND_MODULES` has ``register(subparsers)`` that adds its
+subcommand(s); every subcommand sets ``func(args) -> int`` as its handler. Modules import their
+heavy dependencies (rclpy, onnxruntime, scikit-learn) inside the handlers, so ``--help`` is fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+COMMAND_MODULES: tuple[str, ...] = (
+    "ext_sense.commands.run",  # run GRAPH
+    "ext_sense.commands.bags",  # record, replay
+    "ext_sense_drivers.cli",  # nuskin ..., biotac ...
+    "ext_sense_sim.cli",  # sim list|run|serve
+    "ext_sense_perception.cli",  # features, train, evaluate, report
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser with every package's subcommands."""
+    parser = argparse.ArgumentParser(
+        prog="ext-sense",
+        description="Extended tactile perception: drivers, simulator, learning and the ROS 2 "
+        "node graphs of ext_sense.",
+    )
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    subparsers.required = True
+    for name in COMMAND_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as err:
+            if err.name is not None and name.startswith(err.name):
+                continue  # that package is not installed on this machine
+            raise
+        module.register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``ext-sense``; returns the process exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:  # e.g. piped into `head`
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

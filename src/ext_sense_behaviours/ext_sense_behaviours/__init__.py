@@ -1,0 +1,1 @@
+"""Behaviour nodes: Robotiq 2F gripper over Modbus RTU, Panda arm adapter, handover, food probing and tap marker."""

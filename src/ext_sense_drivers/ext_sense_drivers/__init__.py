@@ -1,0 +1,1 @@
+"""Device drivers: NUSkin receiver words and ACES line, BioTac serial bridge; transports (serial, CAN, file)."""

@@ -1,0 +1,1 @@
+"""Scene simulator: sensor signals and device byte streams from declared physical effects."""
