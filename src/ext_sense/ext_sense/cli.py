@@ -15,6 +15,7 @@ from collections.abc import Sequence
 COMMAND_MODULES: tuple[str, ...] = (
     "ext_sense.commands.run",  # run GRAPH
     "ext_sense.commands.bags",  # record, replay
+    "ext_sense.commands.demo",  # demo (the main job)
     "ext_sense_drivers.cli",  # nuskin ..., biotac ...
     "ext_sense_sim.cli",  # sim list|run|serve
     "ext_sense_perception.cli",  # features, train, evaluate, report

@@ -1,0 +1,49 @@
+# ext_sense: the two commands a newcomer needs are `make demo` and `make test`.
+# Each runs scripts/setup.sh first (idempotent; well under a second when nothing changed).
+
+VENV        ?= .venv
+JAZZY_VENV  ?= .venv-jazzy
+PY          := $(VENV)/bin/python
+
+.PHONY: setup demo test lint format bench bench-quick test-jazzy setup-jazzy colcon clean
+
+setup:
+	@scripts/setup.sh kilted
+
+## The main job: tap localization on the emulated NUSkin, printing estimates beside ground truth.
+demo: setup
+	@$(VENV)/bin/ext-sense demo
+
+## Lint and every test (unit, node, system). CI runs exactly this.
+test: setup lint
+	@$(VENV)/bin/pytest
+
+lint: setup
+	@$(VENV)/bin/ruff check .
+	@$(VENV)/bin/ruff format --check .
+
+format: setup
+	@$(VENV)/bin/ruff format .
+	@$(VENV)/bin/ruff check --fix .
+
+## Benchmarks: figures and ratios measured side by side in one run (see docs/benchmarks.md).
+bench: setup
+	@set -e; for f in bench/bench_*.py; do echo "== $$f"; $(PY) $$f; done
+
+bench-quick: setup
+	@set -e; for f in bench/bench_*.py; do echo "== $$f"; $(PY) $$f --quick; done
+
+## The node tests again on ROS 2 Jazzy (LTS), in a second venv built from the ros-jazzy-* wheels.
+setup-jazzy:
+	@scripts/setup.sh jazzy
+
+test-jazzy: setup-jazzy
+	@$(JAZZY_VENV)/bin/pytest -m ros
+
+## Build the workspace with colcon (as the Docker image does), into ros2_ws/{build,install}.
+colcon: setup
+	@cd ros2_ws && AMENT_PREFIX_PATH=$(abspath $(VENV)) ../$(VENV)/bin/colcon build \
+	  --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE=$(abspath $(PY))
+
+clean:
+	rm -rf build ros2_ws/build ros2_ws/install ros2_ws/log

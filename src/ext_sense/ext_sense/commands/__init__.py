@@ -1,0 +1,1 @@
+"""Subcommands of ``ext-sense`` that belong to the bringup package."""

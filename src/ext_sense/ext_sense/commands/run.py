@@ -1,0 +1,61 @@
+"""``ext-sense run GRAPH [name:=value ...]``: a node graph without ``ros2 launch``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ext_sense.graph import GraphError, parse_assignments
+from ext_sense.graphs import GRAPHS
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``run`` subcommand."""
+    graphs = "\n".join(f"  {name:<22}{g.description}" for name, g in GRAPHS.items())
+    parser = subparsers.add_parser(
+        "run",
+        help="run a node graph (the same one the launch files start)",
+        description="Run a node graph without ros2 launch, one process per node.\n\n"
+        f"graphs:\n{graphs}\n\n"
+        "Arguments are given as name:=value, as with ros2 launch; "
+        "--show-args lists a graph's arguments.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("graph", choices=sorted(GRAPHS), metavar="GRAPH")
+    parser.add_argument("assignments", nargs="*", metavar="name:=value")
+    parser.add_argument(
+        "--in-process", action="store_true", help="all nodes on one executor in this process"
+    )
+    parser.add_argument(
+        "--show-args", action="store_true", help="list the graph's arguments and exit"
+    )
+    parser.add_argument(
+        "--dry-run", action="store_true", help="print the nodes that would start and exit"
+    )
+    parser.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    graph = GRAPHS[args.graph]
+    if args.show_args:
+        for a in graph.arguments:
+            choices = f" {{{'|'.join(a.choices)}}}" if a.choices else ""
+            print(f"{a.name}:={a.default!r}{choices}\n    {a.description}")
+        return 0
+    try:
+        overrides = parse_assignments(args.assignments)
+        nodes = graph.nodes(overrides)
+    except GraphError as err:
+        print(f"ext-sense run: {err}", file=sys.stderr)
+        return 2
+    if args.dry_run:
+        for spec in nodes:
+            remaps = " ".join(f"{a}:={b}" for a, b in spec.remappings)
+            params = " ".join(f"{k}:={v!r}" for k, v in spec.parameters.items())
+            required = " (required)" if spec.required else ""
+            print(f"{spec.name}: {spec.package}/{spec.executable}{required}")
+            print(f"    parameters: {params}\n    remappings: {remaps}")
+        return 0
+    from ext_sense.runner import run_graph
+
+    return run_graph(graph, overrides, in_process=args.in_process)

@@ -1,0 +1,147 @@
+"""The shape of a node-graph description, shared by the launch files and ``ext-sense run``.
+
+A :class:`GraphSpec` lists its launch arguments and a function that, given the arguments'
+values as strings (as ``ros2 launch`` resolves them), returns the nodes to start. Both the
+launch files (through :mod:`ext_sense.launch_support`) and the runner (:mod:`ext_sense.runner`)
+call that same function, so the two can never drift apart. Nothing here imports ``launch``
+or ``rclpy``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+ParameterValue = bool | int | float | str | list[int] | list[float] | list[str]
+
+
+class GraphError(ValueError):
+    """A graph, its arguments or a node spec is malformed."""
+
+
+@dataclass(frozen=True)
+class ArgumentSpec:
+    """One launch argument: ``name:=value`` on the command line of both front ends."""
+
+    name: str
+    default: str
+    description: str
+    choices: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node to start.
+
+    Attributes:
+        package: ROS package that installs the executable.
+        executable: Console script (``ros2 run package executable``).
+        name: Node name.
+        plugin: ``"module:Class"`` of the Node subclass; the runner imports it.
+        parameters: Parameter overrides (typed, never strings for numbers).
+        remappings: ``(from, to)`` topic remappings.
+        required: When this node exits, the whole graph stops (launch's ``Shutdown``).
+    """
+
+    package: str
+    executable: str
+    name: str
+    plugin: str
+    parameters: Mapping[str, ParameterValue] = field(default_factory=dict)
+    remappings: tuple[tuple[str, str], ...] = ()
+    required: bool = False
+
+    def node_class(self) -> type:
+        """Import and return the Node subclass named by :attr:`plugin`."""
+        module_name, _, class_name = self.plugin.partition(":")
+        try:
+            return getattr(importlib.import_module(module_name), class_name)
+        except (ImportError, AttributeError) as err:
+            raise GraphError(f"Node '{self.name}': cannot import plugin '{self.plugin}'") from err
+
+    def ros_args(self) -> list[str]:
+        """Remappings as ``--ros-args -r from:=to ...`` (what launch_ros passes too)."""
+        args: list[str] = []
+        for src, dst in self.remappings:
+            args += ["-r", f"{src}:={dst}"]
+        return ["--ros-args", *args] if args else []
+
+
+@dataclass(frozen=True)
+class GraphSpec:
+    """A named node graph: its arguments and the function that builds its nodes."""
+
+    name: str
+    description: str
+    arguments: tuple[ArgumentSpec, ...]
+    build: Callable[[Mapping[str, str]], tuple[NodeSpec, ...]]
+
+    def resolve(self, overrides: Mapping[str, str] | None = None) -> dict[str, str]:
+        """Argument values: defaults updated with ``overrides``, checked against choices.
+
+        Raises:
+            GraphError: An unknown argument, or a value outside the argument's choices.
+        """
+        values = {a.name: a.default for a in self.arguments}
+        known = {a.name: a for a in self.arguments}
+        for key, value in (overrides or {}).items():
+            if key not in known:
+                raise GraphError(
+                    f"Graph '{self.name}' has no argument '{key}'. "
+                    f"Expected one of: {', '.join(sorted(known))}."
+                )
+            if known[key].choices and value not in known[key].choices:
+                raise GraphError(
+                    f"The '{key}' argument must be one of {list(known[key].choices)}. "
+                    f"Got '{value}' instead."
+                )
+            values[key] = value
+        return values
+
+    def nodes(self, overrides: Mapping[str, str] | None = None) -> tuple[NodeSpec, ...]:
+        """The nodes to start for these argument values."""
+        return self.build(self.resolve(overrides))
+
+
+def parse_assignments(items: list[str]) -> dict[str, str]:
+    """Parse ``name:=value`` items as ``ros2 launch`` does.
+
+    Raises:
+        GraphError: An item without ``:=``.
+    """
+    out = {}
+    for item in items:
+        key, sep, value = item.partition(":=")
+        if not sep or not key:
+            raise GraphError(f"Launch arguments are written name:=value. Got '{item}' instead.")
+        out[key] = value
+    return out
+
+
+def launch_node_kwargs(spec: NodeSpec, use_sim_time: bool) -> dict[str, Any]:
+    """Keyword arguments of ``launch_ros.actions.Node`` for one node spec."""
+    return {
+        "package": spec.package,
+        "executable": spec.executable,
+        "name": spec.name,
+        "parameters": [{**dict(spec.parameters), "use_sim_time": use_sim_time}],
+        "remappings": list(spec.remappings),
+        "output": "screen",
+        "emulate_tty": True,
+    }
+
+
+def as_bool(value: str) -> bool:
+    """Interpret a launch-argument string as a bool (``true``/``false``, ``1``/``0``).
+
+    Raises:
+        GraphError: Anything else.
+    """
+    lowered = value.strip().lower()
+    if lowered in ("true", "1", "yes", "on"):
+        return True
+    if lowered in ("false", "0", "no", "off"):
+        return False
+    raise GraphError(f"Expected a boolean (true/false). Got '{value}' instead.")

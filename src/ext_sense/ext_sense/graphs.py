@@ -1,0 +1,298 @@
+"""The node graphs of ext_sense: one description each, for launch files and ``ext-sense run``.
+
+Every graph runs the same chain, fed by one of four sources::
+
+    source ──> driver ──events/frames──> contact_window ──window──> contact_inference
+      (sim device on a pty or CAN,                                        │
+       serial, CAN, or a bag)                          /extsense/contact_estimate
+                                                                          │
+                                                 behaviours, estimate_monitor
+
+The functions here only describe; :mod:`ext_sense.launch_support` turns a description into
+``launch_ros`` actions and :mod:`ext_sense.runner` starts the same nodes without ``launch``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from ext_sense.graph import ArgumentSpec, GraphSpec, NodeSpec, as_bool
+
+NS = "/extsense"
+TOPIC_EVENTS = f"{NS}/nuskin/events"
+TOPIC_FRAMES = f"{NS}/biotac/frames"
+TOPIC_WINDOW = f"{NS}/contact_window"
+TOPIC_ESTIMATE = f"{NS}/contact_estimate"
+TOPIC_GROUND_TRUTH = f"{NS}/ground_truth"
+TOPIC_TAP_MARKER = f"{NS}/tap_marker"
+
+SENSORS = ("nuskin", "biotac")
+SOURCES = ("sim", "serial", "can", "bag")
+BACKENDS = ("onnx", "sklearn")
+
+DEFAULT_SCENES = {
+    ("tap_localization", "nuskin"): "tap_rod30_nuskin",
+    ("tap_localization", "biotac"): "tap_rod30_biotac",
+    ("handover_stability", "nuskin"): "handover_rod_nuskin",
+    ("handover_stability", "biotac"): "handover_rod_biotac",
+    ("food_identification", "nuskin"): "food_nuskin",
+    ("food_identification", "biotac"): "food_biotac",
+}
+
+
+def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
+    return (
+        ArgumentSpec("sensor", "nuskin", "Tactile sensor on the fingers.", SENSORS),
+        ArgumentSpec(
+            "source",
+            "sim",
+            "Where the sensor bytes come from: the scene simulator's emulated device, a "
+            "serial port, a CAN channel, or a recorded bag.",
+            SOURCES,
+        ),
+        ArgumentSpec(
+            "port",
+            "",
+            "Serial device of the sensor (source serial), or the path where the simulated "
+            "device links its pty (source sim; empty: a path under /tmp).",
+        ),
+        ArgumentSpec("baud", "4000000", "Serial baud rate (source serial)."),
+        ArgumentSpec(
+            "can_channel",
+            "",
+            "CAN channel (source can, or source sim over CAN when set, e.g. 'vcan_extsense').",
+        ),
+        ArgumentSpec("can_interface", "socketcan", "python-can interface (source can)."),
+        ArgumentSpec("bag", "", "rosbag2 directory or .mcap file to replay (source bag)."),
+        ArgumentSpec("scene", "", "Simulator scene name or YAML path (empty: the task's default)."),
+        ArgumentSpec("trials", default_trials, "Simulated trials; 0 runs until stopped."),
+        ArgumentSpec("seed", "0", "Simulator random seed."),
+        ArgumentSpec("model", "", "Model bundle directory (empty: the task's default model)."),
+        ArgumentSpec("backend", "onnx", "Inference backend.", BACKENDS),
+        ArgumentSpec(
+            "monitor",
+            "true",
+            "Print estimates beside ground truth and stop after the last trial.",
+            ("true", "false"),
+        ),
+        ArgumentSpec(
+            "behaviours", "false", "Start the task's behaviour nodes.", ("true", "false")
+        ),
+        ArgumentSpec(
+            "use_sim_time", "false", "Use /clock (bag replay with clock).", ("true", "false")
+        ),
+    )
+
+
+def _sensor_topic(sensor: str) -> tuple[str, str]:
+    """The driver's relative output topic and its absolute name."""
+    return ("events", TOPIC_EVENTS) if sensor == "nuskin" else ("frames", TOPIC_FRAMES)
+
+
+def _port(task: str, args: Mapping[str, str]) -> str:
+    return args["port"] or f"/tmp/ext_sense_{task}_{args['sensor']}.pty"
+
+
+def _source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
+    """The device emulator or bag player, and the driver."""
+    sensor, source = args["sensor"], args["source"]
+    rel, topic = _sensor_topic(sensor)
+    nodes: list[NodeSpec] = []
+    if source == "bag":
+        return (
+            NodeSpec(
+                package="ext_sense",
+                executable="bag_player",
+                name="bag_player",
+                plugin="ext_sense.nodes.bag_player:BagPlayerNode",
+                parameters={"bag": args["bag"], "rate": 1.0},
+                remappings=((rel, topic), ("ground_truth", TOPIC_GROUND_TRUTH)),
+            ),
+        )
+    over_can = source == "can" or (source == "sim" and bool(args["can_channel"]))
+    if source == "sim":
+        nodes.append(
+            NodeSpec(
+                package="ext_sense_sim",
+                executable="sim_device",
+                name="sim_device",
+                plugin="ext_sense_sim.nodes.sim_device:SimDeviceNode",
+                parameters={
+                    "device": sensor,
+                    "scene": args["scene"] or DEFAULT_SCENES[(task, sensor)],
+                    "link": "can" if over_can else "pty",
+                    "port_link": _port(task, args),
+                    "can_channel": args["can_channel"],
+                    "trials": int(args["trials"]),
+                    "seed": int(args["seed"]),
+                },
+                remappings=(("ground_truth", TOPIC_GROUND_TRUTH),),
+            )
+        )
+    driver = "nuskin_driver" if sensor == "nuskin" else "biotac_driver"
+    driver_class = "NuskinDriverNode" if sensor == "nuskin" else "BioTacDriverNode"
+    nodes.append(
+        NodeSpec(
+            package="ext_sense_drivers",
+            executable=driver,
+            name=driver,
+            plugin=f"ext_sense_drivers.nodes.{driver}:{driver_class}",
+            parameters={
+                "transport": "can" if over_can else "serial",
+                "port": _port(task, args),
+                "baud": int(args["baud"]),
+                "can_interface": "virtual" if source == "sim" else args["can_interface"],
+                "can_channel": args["can_channel"],
+                "frame_id": sensor,
+            },
+            remappings=((rel, topic),),
+        )
+    )
+    return tuple(nodes)
+
+
+def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
+    sensor = args["sensor"]
+    rel, topic = _sensor_topic(sensor)
+    return (
+        NodeSpec(
+            package="ext_sense_perception",
+            executable="contact_window",
+            name="contact_window",
+            plugin="ext_sense_perception.nodes.contact_window:ContactWindowNode",
+            parameters={"task": task, "sensor": sensor},
+            remappings=((rel, topic), ("window", TOPIC_WINDOW)),
+        ),
+        NodeSpec(
+            package="ext_sense_perception",
+            executable="contact_inference",
+            name="contact_inference",
+            plugin="ext_sense_perception.nodes.contact_inference:ContactInferenceNode",
+            parameters={
+                "task": task,
+                "sensor": sensor,
+                "backend": args["backend"],
+                "model_path": args["model"],
+            },
+            remappings=(("window", TOPIC_WINDOW), ("contact_estimate", TOPIC_ESTIMATE)),
+        ),
+    )
+
+
+def _monitor_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
+    if not as_bool(args["monitor"]):
+        return ()
+    trials = int(args["trials"])
+    return (
+        NodeSpec(
+            package="ext_sense",
+            executable="estimate_monitor",
+            name="estimate_monitor",
+            plugin="ext_sense.nodes.estimate_monitor:EstimateMonitorNode",
+            parameters={"task": task, "expected": trials},
+            remappings=(
+                ("contact_estimate", TOPIC_ESTIMATE),
+                ("ground_truth", TOPIC_GROUND_TRUTH),
+            ),
+            required=trials > 0,
+        ),
+    )
+
+
+def _build_tap(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
+    task = "tap_localization"
+    behaviours: tuple[NodeSpec, ...] = ()
+    if as_bool(args["behaviours"]):
+        behaviours = (
+            NodeSpec(
+                package="ext_sense_behaviours",
+                executable="tap_marker",
+                name="tap_marker",
+                plugin="ext_sense_behaviours.nodes.tap_marker:TapMarkerNode",
+                parameters={},
+                remappings=(("contact_estimate", TOPIC_ESTIMATE), ("marker", TOPIC_TAP_MARKER)),
+            ),
+        )
+    return (
+        _source_nodes(task, args)
+        + _perception_nodes(task, args)
+        + behaviours
+        + _monitor_nodes(task, args)
+    )
+
+
+def _build_handover(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
+    task = "handover_stability"
+    behaviours: tuple[NodeSpec, ...] = ()
+    if as_bool(args["behaviours"]):
+        behaviours = (
+            NodeSpec(
+                package="ext_sense_behaviours",
+                executable="robotiq_gripper",
+                name="robotiq_gripper",
+                plugin="ext_sense_behaviours.nodes.robotiq_gripper:RobotiqGripperNode",
+                parameters={"port": args["gripper_port"]},
+                remappings=(),
+            ),
+            NodeSpec(
+                package="ext_sense_behaviours",
+                executable="handover_behaviour",
+                name="handover_behaviour",
+                plugin="ext_sense_behaviours.nodes.handover_behaviour:HandoverBehaviourNode",
+                parameters={},
+                remappings=(("contact_estimate", TOPIC_ESTIMATE),),
+            ),
+        )
+    return (
+        _source_nodes(task, args)
+        + _perception_nodes(task, args)
+        + behaviours
+        + _monitor_nodes(task, args)
+    )
+
+
+def _build_food(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
+    task = "food_identification"
+    behaviours: tuple[NodeSpec, ...] = ()
+    if as_bool(args["behaviours"]):
+        behaviours = (
+            NodeSpec(
+                package="ext_sense_behaviours",
+                executable="food_behaviour",
+                name="food_behaviour",
+                plugin="ext_sense_behaviours.nodes.food_behaviour:FoodBehaviourNode",
+                parameters={},
+                remappings=(("contact_estimate", TOPIC_ESTIMATE),),
+            ),
+        )
+    return (
+        _source_nodes(task, args)
+        + _perception_nodes(task, args)
+        + behaviours
+        + _monitor_nodes(task, args)
+    )
+
+
+GRAPHS: dict[str, GraphSpec] = {
+    "tap_localization": GraphSpec(
+        name="tap_localization",
+        description="Where was the held rod tapped? Tap position on /extsense/contact_estimate.",
+        arguments=_common_arguments("30"),
+        build=_build_tap,
+    ),
+    "handover": GraphSpec(
+        name="handover",
+        description="Is the person's grasp stable during a robot-to-human handover?",
+        arguments=(
+            *_common_arguments("10"),
+            ArgumentSpec("gripper_port", "", "Serial device of the Robotiq 2F gripper."),
+        ),
+        build=_build_handover,
+    ),
+    "food_identification": GraphSpec(
+        name="food_identification",
+        description="Which food did the fork touch?",
+        arguments=_common_arguments("7"),
+        build=_build_food,
+    ),
+}

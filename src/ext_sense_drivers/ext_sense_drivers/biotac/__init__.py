@@ -1,0 +1,9 @@
+"""SynTouch BioTac over the ext_sense serial/CAN bridge: SPI reply words, bridge frames, timing.
+
+Pure Python/NumPy (no rclpy): :mod:`.words` (reply word codec and the standard 44-word
+sequence), :mod:`.crc` (CRC-16/CCITT-FALSE), :mod:`.bridge` (frame encoder and the vectorised
+streaming :class:`~.bridge.BridgeDecoder`), :mod:`.reference` (a plain per-byte decoder kept as
+the reference for tests and the benchmark), :mod:`.clock` (integer-nanosecond sample times) and
+:mod:`.jsonl` (the JSON-lines form used by ``ext-sense biotac``). The protocol is documented in
+``docs/biotac_bridge.md``.
+"""

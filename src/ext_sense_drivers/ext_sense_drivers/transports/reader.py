@@ -1,0 +1,186 @@
+"""A reader thread that owns one transport, reconnects with backoff and queues what arrives.
+
+Device reads must never block a ROS executor, so drivers run their transport here and drain the
+queued chunks from a timer. The link state and counters are plain attributes, read by the
+node's diagnostics task without locking (each is a single int or enum, written by one thread).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from ext_sense_drivers.transports.base import Chunk, LinkState, Transport
+from ext_sense_drivers.transports.errors import TransportError
+
+
+@dataclass(frozen=True)
+class Backoff:
+    """Exponential reconnect delays: ``initial_s``, then times ``factor`` up to ``max_s``.
+
+    Raises:
+        TransportError: A delay is not > 0, ``max_s < initial_s`` or ``factor < 1``.
+    """
+
+    initial_s: float = 0.1
+    max_s: float = 5.0
+    factor: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not self.initial_s > 0:
+            raise TransportError(
+                f"The 'initial_s' parameter must be > 0. Got {self.initial_s} instead."
+            )
+        if not self.max_s >= self.initial_s:
+            raise TransportError(
+                f"The 'max_s' parameter must be >= initial_s ({self.initial_s}). "
+                f"Got {self.max_s} instead."
+            )
+        if not self.factor >= 1:
+            raise TransportError(f"The 'factor' parameter must be >= 1. Got {self.factor} instead.")
+
+    def delay(self, failures: int) -> float:
+        """Seconds to wait after ``failures`` consecutive failures (1 = the first)."""
+        return min(self.max_s, self.initial_s * self.factor ** max(0, failures - 1))
+
+
+class StreamReader:
+    """Runs ``transport`` in a daemon thread; :meth:`drain` hands over what arrived.
+
+    The thread opens the transport, reads with ``read_timeout_s`` and queues non-empty chunks.
+    When opening or reading raises :class:`TransportError` it closes the transport, waits the
+    backoff delay and tries again, for ever, until :meth:`stop`. A finite source that is
+    exhausted ends the thread in :attr:`LinkState.EXHAUSTED`. When more than
+    ``max_pending_bytes`` wait in the queue (the consumer stalled) the oldest chunks are dropped
+    and counted in :attr:`dropped_bytes`.
+
+    Args:
+        transport: The byte source; only this thread touches it once started.
+        backoff: Reconnect delays.
+        read_timeout_s: Longest single read; bounds how late :meth:`stop` takes effect.
+        max_pending_bytes: Queue bound in bytes.
+        on_data: Called from the reader thread after each queued chunk (e.g. to wake an
+            executor); must be quick and must not raise.
+    """
+
+    def __init__(
+        self,
+        transport: Transport,
+        *,
+        backoff: Backoff | None = None,
+        read_timeout_s: float = 0.02,
+        max_pending_bytes: int = 16 << 20,
+        on_data: Callable[[], None] | None = None,
+    ) -> None:
+        self.transport = transport
+        self.backoff = backoff or Backoff()
+        self.read_timeout_s = float(read_timeout_s)
+        self.max_pending_bytes = int(max_pending_bytes)
+        self._on_data = on_data
+        self._queue: deque[Chunk] = deque()
+        self._pending = 0
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.state = LinkState.STOPPED
+        self.bytes_total = 0
+        self.chunks_total = 0
+        self.connects = 0
+        """Successful opens."""
+        self.disconnects = 0
+        """Open links lost to a TransportError."""
+        self.open_failures = 0
+        self.dropped_bytes = 0
+        self.last_error = ""
+        self.failures_in_row = 0
+
+    @property
+    def description(self) -> str:
+        """The transport's description (the diagnostics hardware_id)."""
+        return self.transport.description
+
+    def start(self) -> None:
+        """Start the thread (once)."""
+        if self._thread is not None:
+            return
+        self._stop.clear()
+        self._thread = threading.Thread(
+            target=self._run, name=f"reader {self.description}", daemon=True
+        )
+        self._thread.start()
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        """Ask the thread to end, wait for it, and close the transport."""
+        self._stop.set()
+        thread, self._thread = self._thread, None
+        if thread is not None:
+            thread.join(timeout_s)
+        self.transport.close()
+        self.state = LinkState.STOPPED
+
+    def drain(self) -> list[Chunk]:
+        """Every chunk queued since the last call, oldest first."""
+        with self._lock:
+            chunks = list(self._queue)
+            self._queue.clear()
+            self._pending = 0
+        return chunks
+
+    @property
+    def alive(self) -> bool:
+        """Whether the reader thread runs."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            self.state = LinkState.CONNECTING
+            try:
+                self.transport.open()
+            except TransportError as err:
+                self.open_failures += 1
+                self._fail(err)
+                continue
+            self.connects += 1
+            self.failures_in_row = 0
+            self.state = LinkState.CONNECTED
+            try:
+                self._pump()
+            except TransportError as err:
+                self.disconnects += 1
+                self._fail(err)
+                continue
+            if self.transport.exhausted:
+                self.state = LinkState.EXHAUSTED
+                return
+        self.transport.close()
+
+    def _pump(self) -> None:
+        while not self._stop.is_set():
+            chunk = self.transport.read(self.read_timeout_s)
+            if chunk.data:
+                self._push(chunk)
+            elif self.transport.exhausted:
+                return
+
+    def _push(self, chunk: Chunk) -> None:
+        with self._lock:
+            self._queue.append(chunk)
+            self._pending += len(chunk.data)
+            while self._pending > self.max_pending_bytes and len(self._queue) > 1:
+                old = self._queue.popleft()
+                self._pending -= len(old.data)
+                self.dropped_bytes += len(old.data)
+        self.bytes_total += len(chunk.data)
+        self.chunks_total += 1
+        if self._on_data is not None:
+            self._on_data()
+
+    def _fail(self, err: TransportError) -> None:
+        self.transport.close()
+        self.last_error = str(err)
+        self.failures_in_row += 1
+        self.state = LinkState.BACKOFF
+        self._stop.wait(self.backoff.delay(self.failures_in_row))

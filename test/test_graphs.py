@@ -1,0 +1,171 @@
+"""The launch files and ``ext-sense run`` derive from one graph description."""
+
+from __future__ import annotations
+
+import ast
+import importlib.metadata
+import importlib.util
+import itertools
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ext_sense.graph import GraphError, NodeSpec, launch_node_kwargs, parse_assignments
+from ext_sense.graphs import GRAPHS, TOPIC_ESTIMATE
+
+ROOT = Path(__file__).resolve().parents[1]
+LAUNCH_DIR = ROOT / "launch"
+LAUNCH_NAMES = {
+    "tap_localization": "tap_localization.launch.py",
+    "handover": "handover.launch.py",
+    "food_identification": "food_identification.launch.py",
+}
+
+
+def _argument_combinations(graph_name):
+    graph = GRAPHS[graph_name]
+    for sensor, source, behaviours, monitor in itertools.product(
+        ("nuskin", "biotac"), ("sim", "serial", "can", "bag"), ("true", "false"), ("true", "false")
+    ):
+        yield graph, {
+            "sensor": sensor,
+            "source": source,
+            "behaviours": behaviours,
+            "monitor": monitor,
+            "can_channel": "vcan0" if source == "can" else "",
+        }
+
+
+def test_every_graph_has_a_launch_file_and_back():
+    files = {p.name for p in LAUNCH_DIR.glob("*.launch.py")}
+    assert files == set(LAUNCH_NAMES.values())
+    assert set(GRAPHS) == set(LAUNCH_NAMES)
+
+
+@pytest.mark.parametrize("graph_name", sorted(LAUNCH_NAMES))
+def test_launch_file_only_delegates_to_the_shared_description(graph_name):
+    tree = ast.parse((LAUNCH_DIR / LAUNCH_NAMES[graph_name]).read_text())
+    funcs = [n for n in tree.body if isinstance(n, ast.FunctionDef)]
+    assert [f.name for f in funcs] == ["generate_launch_description"]
+    body = [s for s in funcs[0].body if not isinstance(s, ast.Expr)]  # drop the docstring
+    assert len(body) == 1
+    assert isinstance(body[0], ast.Return)
+    call = body[0].value
+    assert isinstance(call, ast.Call)
+    assert call.func.id == "generate_launch_description_for"
+    assert [a.value for a in call.args] == [graph_name]
+
+
+@pytest.mark.parametrize("graph_name", sorted(GRAPHS))
+def test_launch_actions_and_runner_start_the_same_nodes(graph_name):
+    from ext_sense.runner import _node_kwargs
+
+    for graph, overrides in _argument_combinations(graph_name):
+        for spec in graph.nodes(overrides):
+            launch_kwargs = launch_node_kwargs(spec, use_sim_time=False)
+            runner_kwargs = _node_kwargs(spec, use_sim_time=False)
+            assert launch_kwargs["name"] == runner_kwargs["node_name"] == spec.name
+            runner_params = {p.name: p.value for p in runner_kwargs["parameter_overrides"]}
+            assert launch_kwargs["parameters"] == [runner_params]
+            remaps = runner_kwargs["cli_args"][1:]
+            pairs = [tuple(r.split(":=")) for r in remaps[1::2]]
+            assert launch_kwargs["remappings"] == pairs == list(spec.remappings)
+
+
+@pytest.mark.parametrize("graph_name", sorted(GRAPHS))
+def test_every_node_is_a_console_script_of_its_package_with_its_plugin(graph_name):
+    scripts = {
+        (ep.dist.name, ep.name): ep.value.split(":")[0]
+        for ep in importlib.metadata.entry_points(group="console_scripts")
+        if ep.dist is not None and ep.dist.name.startswith("ext_sense")
+    }
+    for graph, overrides in _argument_combinations(graph_name):
+        for spec in graph.nodes(overrides):
+            module = spec.plugin.split(":")[0]
+            assert scripts.get((spec.package, spec.executable)) == module, spec
+
+
+def test_estimates_are_published_on_the_documented_topic():
+    assert TOPIC_ESTIMATE == "/extsense/contact_estimate"
+    for graph in GRAPHS.values():
+        inference = [n for n in graph.nodes() if n.executable == "contact_inference"]
+        assert inference
+        assert ("contact_estimate", TOPIC_ESTIMATE) in inference[0].remappings
+
+
+def test_monitor_is_required_only_when_trials_are_bounded():
+    graph = GRAPHS["tap_localization"]
+    monitor = [n for n in graph.nodes({"trials": "5"}) if n.name == "estimate_monitor"]
+    assert monitor[0].required
+    monitor = [n for n in graph.nodes({"trials": "0"}) if n.name == "estimate_monitor"]
+    assert not monitor[0].required
+
+
+def test_bad_arguments_are_named():
+    graph = GRAPHS["tap_localization"]
+    with pytest.raises(GraphError, match="has no argument 'sensr'"):
+        graph.nodes({"sensr": "nuskin"})
+    with pytest.raises(GraphError, match="'sensor' argument must be one of"):
+        graph.nodes({"sensor": "camera"})
+    with pytest.raises(GraphError, match="name:=value"):
+        parse_assignments(["sensor=nuskin"])
+
+
+def test_node_spec_ros_args():
+    spec = NodeSpec("p", "e", "n", "m:C", remappings=(("a", "/x/a"), ("b", "/x/b")))
+    assert spec.ros_args() == ["--ros-args", "-r", "a:=/x/a", "-r", "b:=/x/b"]
+    assert NodeSpec("p", "e", "n", "m:C").ros_args() == []
+
+
+def test_cli_lists_subcommands_and_graphs():
+    out = subprocess.run(
+        [sys.executable, "-m", "ext_sense.cli", "--help"], capture_output=True, text=True, check=True
+    ).stdout
+    for command in ("run", "record", "replay", "demo", "nuskin", "biotac", "sim", "features",
+                    "train", "evaluate", "report"):
+        assert command in out, command
+    out = subprocess.run(
+        [sys.executable, "-m", "ext_sense.cli", "run", "--help"],
+        capture_output=True, text=True, check=True,
+    ).stdout
+    for graph in GRAPHS:
+        assert graph in out
+
+
+def test_run_dry_run_prints_the_graph():
+    out = subprocess.run(
+        [sys.executable, "-m", "ext_sense.cli", "run", "tap_localization", "--dry-run",
+         "sensor:=biotac", "source:=serial", "port:=/dev/ttyACM0"],
+        capture_output=True, text=True, check=True,
+    ).stdout
+    assert "biotac_driver: ext_sense_drivers/biotac_driver" in out
+    assert "port:='/dev/ttyACM0'" in out
+    assert "sim_device" not in out
+
+
+LAUNCH_ROS = importlib.util.find_spec("launch_ros") is not None
+
+
+@pytest.mark.skipif(
+    not LAUNCH_ROS, reason="launch_ros is not on PyPI; this check runs on a ROS 2 install"
+)
+@pytest.mark.parametrize("graph_name", sorted(LAUNCH_NAMES))
+def test_launch_file_loads_with_launch_ros(graph_name):  # pragma: no cover - ROS install only
+    from launch import LaunchContext
+    from launch.actions import DeclareLaunchArgument, OpaqueFunction
+
+    path = LAUNCH_DIR / LAUNCH_NAMES[graph_name]
+    spec = importlib.util.spec_from_file_location("launch_file", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    description = module.generate_launch_description()
+    declared = [e for e in description.entities if isinstance(e, DeclareLaunchArgument)]
+    assert {d.name for d in declared} == {a.name for a in GRAPHS[graph_name].arguments}
+    context = LaunchContext()
+    for d in declared:
+        d.visit(context)
+    opaque = [e for e in description.entities if isinstance(e, OpaqueFunction)][0]
+    nodes = opaque.execute(context)
+    assert [n.node_name for n in nodes] == [s.name for s in GRAPHS[graph_name].nodes()]
