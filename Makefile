@@ -42,8 +42,9 @@ test-jazzy: setup-jazzy
 
 ## Build the workspace with colcon (as the Docker image does), into ros2_ws/{build,install}.
 colcon: setup
-	@cd ros2_ws && AMENT_PREFIX_PATH=$(abspath $(VENV)) ../$(VENV)/bin/colcon build \
-	  --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE=$(abspath $(PY))
+	@$(VENV)/bin/python -m pip install -q colcon-core colcon-ros colcon-cmake colcon-python-setup-py
+	@PATH=$(abspath $(VENV))/bin:$$PATH AMENT_PREFIX_PATH=$(abspath $(VENV)) PYTHON=$(abspath $(PY)) \
+	  scripts/build_workspace.sh
 
 clean:
 	rm -rf build ros2_ws/build ros2_ws/install ros2_ws/log

@@ -7,7 +7,6 @@ Shared-memory segments that crashed participants leave in /dev/shm are cleaned a
 
 from __future__ import annotations
 
-import glob
 import os
 from pathlib import Path
 
@@ -26,7 +25,9 @@ os.environ.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "1")
 def shared_data() -> Path:
     """``../shared/data``; tests that need it skip with a clear message when it is absent."""
     if not SHARED_DATA.is_dir():
-        pytest.skip(f"real captures not available: {SHARED_DATA} is absent (it lives beside the repo)")
+        pytest.skip(
+            f"real captures not available: {SHARED_DATA} is absent (it lives beside the repo)"
+        )
     return SHARED_DATA
 
 
@@ -39,13 +40,52 @@ def food_poking_dir(shared_data: Path) -> Path:
     return path
 
 
-def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
-    """Remove Fast DDS shared-memory files left by processes this run started and killed."""
-    for path in glob.glob("/dev/shm/fastdds_*") + glob.glob("/dev/shm/fast_datasharing*"):
+SHM = Path("/dev/shm")
+_SHM_AT_START: set[str] = set()
+
+
+def _fastdds_files() -> set[str]:
+    try:
+        return {p.name for p in SHM.iterdir() if p.name.startswith(("fastdds_", "fastrtps_"))}
+    except OSError:
+        return set()
+
+
+def _files_in_use() -> set[str]:
+    """Names under /dev/shm that a live process has open or mapped."""
+    used: set[str] = set()
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
         try:
-            if Path(path).stat().st_uid == os.getuid():
-                lock = path + "_el"
-                if not os.path.exists(lock):
-                    pass
+            for line in (proc / "maps").read_text().splitlines():
+                if "/dev/shm/" in line:
+                    used.add(line.rsplit("/", 1)[-1])
+            for fd in (proc / "fd").iterdir():
+                target = os.readlink(fd)
+                if target.startswith("/dev/shm/"):
+                    used.add(target.rsplit("/", 1)[-1])
+        except OSError:
+            continue
+    return used
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Remember the Fast DDS shared-memory files that existed before this run."""
+    _SHM_AT_START.update(_fastdds_files())
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Remove the Fast DDS shared-memory files this run created and nothing uses any more.
+
+    Processes killed hard (as fault tests do) leave their segments and port locks behind.
+    """
+    leftover = _fastdds_files() - _SHM_AT_START
+    if not leftover:
+        return
+    in_use = _files_in_use()
+    for name in leftover - in_use:
+        try:
+            (SHM / name).unlink()
         except OSError:
             continue

@@ -1,4 +1,6 @@
-"""Launch the food_identification graph: `ros2 launch ext_sense food_identification.launch.py [name:=value ...]`.
+"""Launch the food_identification graph.
+
+`ros2 launch ext_sense food_identification.launch.py [name:=value ...]`.
 
 The nodes, parameters and remappings come from `ext_sense.graphs`, the description that
 `ext-sense run food_identification` also starts, so both front ends always run the same graph.

@@ -1,4 +1,6 @@
-"""Launch the handover graph: `ros2 launch ext_sense handover.launch.py [name:=value ...]`.
+"""Launch the handover graph.
+
+`ros2 launch ext_sense handover.launch.py [name:=value ...]`.
 
 The nodes, parameters and remappings come from `ext_sense.graphs`, the description that
 `ext-sense run handover` also starts, so both front ends always run the same graph.

@@ -1,4 +1,6 @@
-"""Launch the tap_localization graph: `ros2 launch ext_sense tap_localization.launch.py [name:=value ...]`.
+"""Launch the tap_localization graph.
+
+`ros2 launch ext_sense tap_localization.launch.py [name:=value ...]`.
 
 The nodes, parameters and remappings come from `ext_sense.graphs`, the description that
 `ext-sense run tap_localization` also starts, so both front ends always run the same graph.

@@ -18,7 +18,7 @@ case "$DISTRO" in
   *) echo "setup.sh: unknown distribution '$DISTRO' (expected kilted or jazzy)" >&2; exit 2 ;;
 esac
 PY=${PYTHON:-python3}
-PIP_FLAGS=(--disable-pip-version-check --quiet)
+PIP_FLAGS=(--disable-pip-version-check --quiet --no-warn-script-location)
 
 stamp_of() { cat "$@" 2>/dev/null | sha256sum | cut -c1-16; }
 fresh() { [ -f "$VENV/.stamp-$1" ] && [ "$(cat "$VENV/.stamp-$1")" = "$2" ]; }
@@ -78,6 +78,8 @@ s=$(stamp_of "${PKGS[@]/%//setup.py}" "$0")
 if [ ${#PKGS[@]} -gt 0 ] && ! fresh editable "$s"; then
   echo "setup: installing ${#PKGS[@]} packages of src/ editable" >&2
   args=(); for d in "${PKGS[@]}"; do args+=(-e "$d"); done
-  "$VPY" -m pip install "${PIP_FLAGS[@]}" --no-deps --no-build-isolation "${args[@]}"
+  mkdir -p "$ROOT/build"
+  "$VPY" -m pip install "${PIP_FLAGS[@]}" --no-deps --no-build-isolation "${args[@]}" \
+    >"$ROOT/build/editable-$DISTRO.log" 2>&1 || { cat "$ROOT/build/editable-$DISTRO.log" >&2; exit 1; }
   mark editable "$s"
 fi

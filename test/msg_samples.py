@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from builtin_interfaces.msg import Duration
+
 from ext_sense_msgs.msg import (
     BioTacFrame,
     ContactEstimate,
@@ -35,7 +36,11 @@ def samples() -> dict[str, object]:
 
     window = ContactWindow()
     window.task, window.sensor = "tap_localization", "nuskin"
-    window.pre_onset_ns, window.post_onset_ns, window.sample_period_ns = 50_000_000, 250_000_000, 250_000
+    window.pre_onset_ns, window.post_onset_ns, window.sample_period_ns = (
+        50_000_000,
+        250_000_000,
+        250_000,
+    )
     window.shape = [2, 3]
     window.channels = [1, 80]
     window.data = [0.0, 1.0, -1.0, 2.5, -3.5, 1e6]

@@ -29,13 +29,16 @@ def _argument_combinations(graph_name):
     for sensor, source, behaviours, monitor in itertools.product(
         ("nuskin", "biotac"), ("sim", "serial", "can", "bag"), ("true", "false"), ("true", "false")
     ):
-        yield graph, {
-            "sensor": sensor,
-            "source": source,
-            "behaviours": behaviours,
-            "monitor": monitor,
-            "can_channel": "vcan0" if source == "can" else "",
-        }
+        yield (
+            graph,
+            {
+                "sensor": sensor,
+                "source": source,
+                "behaviours": behaviours,
+                "monitor": monitor,
+                "can_channel": "vcan0" if source == "can" else "",
+            },
+        )
 
 
 def test_every_graph_has_a_launch_file_and_back():
@@ -121,14 +124,30 @@ def test_node_spec_ros_args():
 
 def test_cli_lists_subcommands_and_graphs():
     out = subprocess.run(
-        [sys.executable, "-m", "ext_sense.cli", "--help"], capture_output=True, text=True, check=True
+        [sys.executable, "-m", "ext_sense.cli", "--help"],
+        capture_output=True,
+        text=True,
+        check=True,
     ).stdout
-    for command in ("run", "record", "replay", "demo", "nuskin", "biotac", "sim", "features",
-                    "train", "evaluate", "report"):
+    for command in (
+        "run",
+        "record",
+        "replay",
+        "demo",
+        "nuskin",
+        "biotac",
+        "sim",
+        "features",
+        "train",
+        "evaluate",
+        "report",
+    ):
         assert command in out, command
     out = subprocess.run(
         [sys.executable, "-m", "ext_sense.cli", "run", "--help"],
-        capture_output=True, text=True, check=True,
+        capture_output=True,
+        text=True,
+        check=True,
     ).stdout
     for graph in GRAPHS:
         assert graph in out
@@ -136,9 +155,20 @@ def test_cli_lists_subcommands_and_graphs():
 
 def test_run_dry_run_prints_the_graph():
     out = subprocess.run(
-        [sys.executable, "-m", "ext_sense.cli", "run", "tap_localization", "--dry-run",
-         "sensor:=biotac", "source:=serial", "port:=/dev/ttyACM0"],
-        capture_output=True, text=True, check=True,
+        [
+            sys.executable,
+            "-m",
+            "ext_sense.cli",
+            "run",
+            "tap_localization",
+            "--dry-run",
+            "sensor:=biotac",
+            "source:=serial",
+            "port:=/dev/ttyACM0",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
     ).stdout
     assert "biotac_driver: ext_sense_drivers/biotac_driver" in out
     assert "port:='/dev/ttyACM0'" in out
@@ -166,6 +196,6 @@ def test_launch_file_loads_with_launch_ros(graph_name):  # pragma: no cover - RO
     context = LaunchContext()
     for d in declared:
         d.visit(context)
-    opaque = [e for e in description.entities if isinstance(e, OpaqueFunction)][0]
+    opaque = next(e for e in description.entities if isinstance(e, OpaqueFunction))
     nodes = opaque.execute(context)
     assert [n.node_name for n in nodes] == [s.name for s in GRAPHS[graph_name].nodes()]

@@ -24,7 +24,7 @@ rclpy.init()
 node = rclpy.create_node("sample_publisher")
 qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 msgs = samples()
-pubs = {{name: node.create_publisher(type(m), "/extsense_test/" + name, qos) for name, m in msgs.items()}}
+pubs = {{n: node.create_publisher(type(m), "/extsense_test/" + n, qos) for n, m in msgs.items()}}
 deadline = time.monotonic() + 20.0
 try:
     while time.monotonic() < deadline:
@@ -54,8 +54,10 @@ def test_each_message_type_crosses_processes():
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         for name, msg in expected.items():
             node.create_subscription(
-                type(msg), "/extsense_test/" + name,
-                lambda m, n=name: received.setdefault(n, m), qos,
+                type(msg),
+                "/extsense_test/" + name,
+                lambda m, n=name: received.setdefault(n, m),
+                qos,
             )
         executor = rclpy.executors.SingleThreadedExecutor(context=context)
         executor.add_node(node)

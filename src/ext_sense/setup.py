@@ -29,7 +29,6 @@ setup(
     maintainer_email="dev@ext-sense.invalid",
     description="Bringup and command line of ext_sense.",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "ext-sense = ext_sense.cli:main",

@@ -17,5 +17,4 @@ setup(
     maintainer_email="dev@ext-sense.invalid",
     description="Pure-Python rosbag2 (mcap, sqlite3) reading and writing of ext_sense messages.",
     license="Apache-2.0",
-    tests_require=["pytest"],
 )

@@ -20,7 +20,6 @@ setup(
     maintainer_email="dev@ext-sense.invalid",
     description="Behaviour nodes for the Robotiq gripper and the Panda arm.",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "robotiq_gripper = ext_sense_behaviours.nodes.robotiq_gripper:main",

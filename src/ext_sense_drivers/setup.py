@@ -20,7 +20,6 @@ setup(
     maintainer_email="dev@ext-sense.invalid",
     description="Device drivers: NUSkin and BioTac.",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "nuskin_driver = ext_sense_drivers.nodes.nuskin_driver:main",

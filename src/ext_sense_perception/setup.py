@@ -20,7 +20,6 @@ setup(
     maintainer_email="dev@ext-sense.invalid",
     description="Contact windows, features, models and the inference nodes.",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "contact_window = ext_sense_perception.nodes.contact_window:main",

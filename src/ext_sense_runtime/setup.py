@@ -17,5 +17,4 @@ setup(
     maintainer_email="dev@ext-sense.invalid",
     description="Node plumbing shared by every ext_sense node.",
     license="Apache-2.0",
-    tests_require=["pytest"],
 )

@@ -20,7 +20,6 @@ setup(
     maintainer_email="dev@ext-sense.invalid",
     description="Scene simulator and emulated devices.",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "sim_device = ext_sense_sim.nodes.sim_device:main",

@@ -1,1 +1,4 @@
-"""Bringup and command line of ext_sense: the node-graph descriptions, the launch files, and the ext-sense command."""
+"""Bringup and command line of ext_sense.
+
+The node-graph descriptions, the launch files, and the ``ext-sense`` command.
+"""

@@ -75,9 +75,7 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
             "Print estimates beside ground truth and stop after the last trial.",
             ("true", "false"),
         ),
-        ArgumentSpec(
-            "behaviours", "false", "Start the task's behaviour nodes.", ("true", "false")
-        ),
+        ArgumentSpec("behaviours", "false", "Start the task's behaviour nodes.", ("true", "false")),
         ArgumentSpec(
             "use_sim_time", "false", "Use /clock (bag replay with clock).", ("true", "false")
         ),

@@ -1,4 +1,4 @@
-"""Pure-Python rosbag2 I/O for ext_sense: a typestore with the ext_sense messages, a writer, a reader.
+"""Pure-Python rosbag2 I/O for ext_sense: typestore with the ext_sense messages, writer, reader.
 
 No rclpy import anywhere in this package, so simulators and offline tools can write bags that
 ``ros2 bag play`` accepts on a machine without ROS. See :mod:`ext_sense_bags.writer` for the

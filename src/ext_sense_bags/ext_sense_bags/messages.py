@@ -55,7 +55,7 @@ def _default(desc: tuple[Any, Any], distro: str) -> Any:
 
 
 def make_message(msgtype: str, distro: str = "kilted", **fields: Any) -> Any:
-    """A message object of ``msgtype`` with the given fields and defaults for the rest.
+    """Build a message object of ``msgtype`` with the given fields and defaults for the rest.
 
     Args:
         msgtype: Full type name, e.g. ``"ext_sense_msgs/msg/TaxelEventBatch"``.
@@ -99,19 +99,19 @@ def make_message(msgtype: str, distro: str = "kilted", **fields: Any) -> Any:
 
 
 def stamp(ns: int, distro: str = "kilted") -> Any:
-    """A ``builtin_interfaces/msg/Time`` of integer nanoseconds."""
+    """Build a ``builtin_interfaces/msg/Time`` of integer nanoseconds."""
     sec, nanosec = divmod(int(ns), _NS_PER_S)
     return make_message("builtin_interfaces/msg/Time", distro, sec=sec, nanosec=nanosec)
 
 
 def duration(ns: int, distro: str = "kilted") -> Any:
-    """A ``builtin_interfaces/msg/Duration`` of integer nanoseconds."""
+    """Build a ``builtin_interfaces/msg/Duration`` of integer nanoseconds."""
     sec, nanosec = divmod(int(ns), _NS_PER_S)
     return make_message("builtin_interfaces/msg/Duration", distro, sec=sec, nanosec=nanosec)
 
 
 def header(stamp_ns: int, frame_id: str = "", distro: str = "kilted") -> Any:
-    """A ``std_msgs/msg/Header`` stamped at ``stamp_ns`` (integer nanoseconds)."""
+    """Build a ``std_msgs/msg/Header`` stamped at ``stamp_ns`` (integer nanoseconds)."""
     return make_message(
         "std_msgs/msg/Header", distro, stamp=stamp(stamp_ns, distro), frame_id=frame_id
     )
@@ -130,7 +130,7 @@ def taxel_event_batch(
     skipped_bytes: int = 0,
     bad_taxel_words: int = 0,
 ) -> Any:
-    """A ``TaxelEventBatch`` from parallel arrays (see the .msg for units).
+    """Build a ``TaxelEventBatch`` from parallel arrays (see the .msg for units).
 
     Raises:
         BagError: The arrays differ in length or an offset is negative.
@@ -169,7 +169,7 @@ def biotac_frame(
     frame_id: str = "biotac",
     **counters: int,
 ) -> Any:
-    """A ``BioTacFrame`` (22 PAC samples, 19 electrodes; counters by keyword)."""
+    """Build a ``BioTacFrame`` (22 PAC samples, 19 electrodes; counters by keyword)."""
     return make_message(
         "ext_sense_msgs/msg/BioTacFrame",
         header=header(stamp_ns, frame_id),
@@ -195,7 +195,7 @@ def ground_truth(
     class_label: str = "",
     frame_id: str = "",
 ) -> Any:
-    """A ``ContactGroundTruth`` stamped at the true onset."""
+    """Build a ``ContactGroundTruth`` stamped at the true onset."""
     return make_message(
         "ext_sense_msgs/msg/ContactGroundTruth",
         header=header(stamp_ns, frame_id),

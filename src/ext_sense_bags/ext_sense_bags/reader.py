@@ -107,7 +107,7 @@ class BagReader:
         return dict(getattr(meta, "custom_data", None) or {})
 
     def records(self, topics: Iterable[str] | None = None) -> Iterator[BagRecord]:
-        """Stored messages of ``topics`` (all when ``None``) in log-time order.
+        """Yield the stored messages of ``topics`` (all when ``None``) in log-time order.
 
         Raises:
             BagError: A requested topic is not in the bag, or the file is corrupt.

@@ -48,7 +48,7 @@ def msg_dir() -> Path:
         from ament_index_python.packages import get_package_share_directory
 
         candidates.append(Path(get_package_share_directory("ext_sense_msgs")) / "msg")
-    except Exception:  # noqa: BLE001 - ament index absent or package not installed
+    except Exception:  # ament index absent or package not installed
         pass
     candidates.append(Path(sys.prefix) / "share" / "ext_sense_msgs" / "msg")
     for path in candidates:
@@ -60,7 +60,7 @@ def msg_dir() -> Path:
 
 @lru_cache(maxsize=4)
 def make_typestore(distro: str = "kilted") -> Typestore:
-    """The typestore of ``distro`` with the ext_sense messages registered.
+    """Return the typestore of ``distro`` with the ext_sense messages registered.
 
     Args:
         distro: ``"kilted"`` (default) or ``"jazzy"``; the standard types (std_msgs,

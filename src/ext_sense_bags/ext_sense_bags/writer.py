@@ -35,7 +35,7 @@ from enum import IntEnum
 from io import BytesIO
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import Any, ClassVar
 
 from rosbags.interfaces import (
     Connection,
@@ -66,7 +66,7 @@ _ZERO = QosTime(0, 0)
 
 
 def offered_qos(reliable: bool, depth: int) -> Qos:
-    """The QoS profile a topic is recorded as offered with (keep last, volatile)."""
+    """Return the QoS profile a topic is recorded as offered with (keep last, volatile)."""
     return Qos(
         history=QosHistory.KEEP_LAST,
         depth=int(depth),
@@ -102,7 +102,7 @@ class _McapWithHashes(McapWriter):
 
 
 class _Writer(Writer):
-    STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _McapWithHashes}
+    STORAGE_PLUGINS: ClassVar = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _McapWithHashes}
 
 
 class BagWriter:

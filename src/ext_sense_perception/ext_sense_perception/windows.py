@@ -107,7 +107,7 @@ class WindowConfig:
     debounce_ns: int = 500 * MS
     onset_source: str = "signal"
     activity_window_ns: int = 2 * MS
-    activity_min_events: int = 6
+    activity_min_events: int = 8
     pac_energy_window_ns: int = 5 * MS
     pac_threshold_sigma: float = 6.0
     pac_min_rms: float = 8.0

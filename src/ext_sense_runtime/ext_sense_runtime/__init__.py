@@ -1,1 +1,4 @@
-"""Node plumbing shared by every ext_sense node: QoS profiles, executor choice, parameter descriptors, the diagnostics updater."""
+"""Node plumbing shared by every ext_sense node.
+
+QoS profiles, executor choice, parameter descriptors, the diagnostics updater.
+"""

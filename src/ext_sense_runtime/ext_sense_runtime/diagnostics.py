@@ -159,7 +159,7 @@ class Updater:
         for task in self.tasks:
             try:
                 reports.append(task.report(self.hardware_id))
-            except Exception as err:  # noqa: BLE001 - a broken check must not kill the node
+            except Exception as err:
                 reports.append(
                     StatusReport(task.name, Level.ERROR, f"check failed: {err!r}", self.hardware_id)
                 )

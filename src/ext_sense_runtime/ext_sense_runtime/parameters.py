@@ -33,7 +33,8 @@ def declare(
         default: Default value; its Python type fixes the parameter type (use ``1.0``, not
             ``1``, for doubles).
         description: What it does, with its unit (REP-103: metres, seconds).
-        low, high: Inclusive range; given together. Float range for float defaults, integer
+        low: Inclusive lower bound, given together with ``high``.
+        high: Inclusive upper bound; given together. Float range for float defaults, integer
             range for int defaults.
         step: Range step (0 = continuous).
         read_only: Refuse changes after start-up.

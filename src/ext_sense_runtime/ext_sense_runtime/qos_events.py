@@ -17,7 +17,7 @@ class QosEventCounter:
     def __init__(self) -> None:
         self.counts: Counter[str] = Counter()
 
-    def _count(self, key: str, attr: str | None = None):  # noqa: ANN202 - rclpy callback
+    def _count(self, key: str, attr: str | None = None):
         def callback(event: object) -> None:
             self.counts[key] += int(getattr(event, attr, 1) or 1) if attr else 1
 

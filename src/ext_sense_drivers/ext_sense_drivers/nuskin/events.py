@@ -37,7 +37,9 @@ class EventBlock(NamedTuple):
     def empty(cls) -> EventBlock:
         """A block with no events."""
         return cls(
-            np.empty(0, np.int64), np.empty(0, np.uint16), np.empty(0, np.int8),
+            np.empty(0, np.int64),
+            np.empty(0, np.uint16),
+            np.empty(0, np.int8),
             np.empty(0, np.uint16),
         )
 

@@ -7,6 +7,7 @@ so the simulator can stand in for a receiver on a real or ``virtual`` bus.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable
 
@@ -40,7 +41,7 @@ def _check_id(arbitration_id: int, extended: bool) -> int:
     return int(arbitration_id)
 
 
-def _open_bus(interface: str, channel: str, bitrate: int | None):  # noqa: ANN202 - can.BusABC
+def _open_bus(interface: str, channel: str, bitrate: int | None):  # -> can.BusABC
     import can
 
     kwargs = {"interface": interface, "channel": channel}
@@ -134,10 +135,8 @@ class CanTransport:
         """Shut the bus connection down."""
         bus, self._bus = self._bus, None
         if bus is not None:
-            try:
+            with contextlib.suppress(Exception):  # the bus is gone already
                 bus.shutdown()
-            except Exception:  # noqa: BLE001, S110 - the bus is gone already
-                pass
 
 
 class CanSink:
@@ -195,7 +194,7 @@ class CanSink:
         """Shut the bus connection down."""
         try:
             self._bus.shutdown()
-        except Exception:  # noqa: BLE001, S110 - the bus is gone already
+        except Exception:
             pass
 
     def __enter__(self) -> CanSink:

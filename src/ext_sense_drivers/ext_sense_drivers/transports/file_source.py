@@ -44,7 +44,9 @@ class FileTransport:
                 f"The 'bytes_per_s' parameter must be > 0 or None. Got {bytes_per_s} instead."
             )
         if int(chunk_size) <= 0:
-            raise TransportError(f"The 'chunk_size' parameter must be > 0. Got {chunk_size} instead.")
+            raise TransportError(
+                f"The 'chunk_size' parameter must be > 0. Got {chunk_size} instead."
+            )
         self.path = Path(path)
         self.bytes_per_s = None if bytes_per_s is None else float(bytes_per_s)
         self.chunk_size = int(chunk_size)

@@ -8,7 +8,6 @@ node's diagnostics task without locking (each is a single int or enum, written b
 from __future__ import annotations
 
 import threading
-import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable
 
@@ -94,7 +95,5 @@ class SerialTransport:
         """Close the port; errors while closing a vanished port are ignored."""
         ser, self._serial = self._serial, None
         if ser is not None:
-            try:
+            with contextlib.suppress(Exception):  # the device is gone already
                 ser.close()
-            except Exception:  # noqa: BLE001, S110 - the device is gone already
-                pass

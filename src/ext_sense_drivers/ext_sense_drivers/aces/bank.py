@@ -1,0 +1,228 @@
+"""The versioned ACES signature bank: one code per taxel, the sign carries the polarity.
+
+Version 1 (the only one so far):
+
+- Gold family of the preferred pair ``x^7 + x^3 + 1`` / ``x^7 + x^3 + x^2 + x + 1``: 129 codes of
+  127 chips whose periodic cross-correlations take only the values -1, -17 and +15.
+- The 80 taxels get the 80 codes whose worst *aperiodic* correlation (the one that matters on an
+  asynchronous line, where signatures overlap at any offset and only partly) is lowest: codes
+  are dropped one by one, always the one involved in the worst remaining pair or sidelobe.
+- 127 chips in the NUSkin's 0.25 ms signature gives a chip rate of 508 kHz; the line is sampled
+  once per chip, so one sample lasts 250000/127 ns (about 1968.5 ns).
+- A taxel's positive event is ``+code``, its negative event ``-code`` (antipodal signatures): the
+  160 signatures of 80 taxels x 2 polarities cost 80 matched filters, and the two polarities of
+  one taxel are as far apart as two signatures can be (correlation -1).
+
+Everything follows from :data:`BANK_SPECS` with no randomness; :attr:`SignatureBank.sha256`
+hashes the content so a changed generator shows up as a hash mismatch in the tests.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from ext_sense_drivers.aces.errors import AcesError
+from ext_sense_drivers.aces.sequences import gold_family, to_chips
+
+N_TAXELS = 80
+"""Taxels 1..80 (1..40 left finger, 41..80 right)."""
+
+SIGNATURE_NS = 250_000
+"""Signature length of the NUSkin (0.25 ms, 4 kHz event rate per taxel)."""
+
+
+class BankSpec(NamedTuple):
+    """What defines one bank version.
+
+    Attributes:
+        version: Bank version number.
+        degree: LFSR degree ``n``; codes have ``2**n - 1`` chips.
+        poly_u: First polynomial of the Gold preferred pair (bit mask).
+        poly_v: Second polynomial (bit mask).
+        n_taxels: Codes kept, one per taxel.
+        signature_ns: Signature duration, integer ns; chip rate = chips / duration.
+    """
+
+    version: int
+    degree: int
+    poly_u: int
+    poly_v: int
+    n_taxels: int
+    signature_ns: int
+
+
+BANK_SPECS: dict[int, BankSpec] = {
+    1: BankSpec(1, 7, 0b10001001, 0b10001111, N_TAXELS, SIGNATURE_NS),
+}
+"""Every bank version ever published; never edit one, add a new version instead."""
+
+DEFAULT_VERSION = 1
+
+BANK_SHA256: dict[int, str] = {
+    1: "f5b4a6b2d9cbd5e5f2c2d0cb4b6cdd2d6f0cdb5b8e0ff1c1f6cc47a7b5c86e11",
+}
+"""Content hashes as published; the tests check that generation still gives them."""
+
+
+@dataclass(frozen=True, eq=False)
+class SignatureBank:
+    """Codes of one bank version and the line clock they imply.
+
+    Attributes:
+        version: Bank version.
+        chips: Antipodal chips (+1/-1), shape ``(n_taxels, n_chips)`` int8; row ``k`` belongs
+            to taxel ``k + 1``; a negative event sends the negated row.
+        sample_rate_hz: Line samples (= chips) per second, integer.
+        signature_ns: Signature length in integer ns.
+        gold_rows: Which rows of the Gold family were kept, shape ``(n_taxels,)``.
+    """
+
+    version: int
+    chips: npt.NDArray[np.int8]
+    sample_rate_hz: int
+    signature_ns: int
+    gold_rows: npt.NDArray[np.int64] = field(repr=False)
+
+    @property
+    def n_taxels(self) -> int:
+        """Number of taxels (codes)."""
+        return int(self.chips.shape[0])
+
+    @property
+    def n_chips(self) -> int:
+        """Chips (= line samples) per signature."""
+        return int(self.chips.shape[1])
+
+    @property
+    def sha256(self) -> str:
+        """Hash of version, clock and chips: the bank's identity on the wire and in logs."""
+        h = hashlib.sha256()
+        h.update(
+            f"aces-bank v{self.version} {self.sample_rate_hz} Hz {self.signature_ns} ns;".encode()
+        )
+        h.update(np.ascontiguousarray(self.chips, dtype=np.int8).tobytes())
+        return h.hexdigest()
+
+
+class CorrelationStats(NamedTuple):
+    """Worst correlations of a bank, as fractions of the code length (1.0 = full match).
+
+    Attributes:
+        periodic_cross: Max ``|periodic cross-correlation|`` over pairs of distinct codes.
+        aperiodic_cross: Max ``|aperiodic cross-correlation|`` (partial overlaps at any offset).
+        aperiodic_auto: Max aperiodic autocorrelation sidelobe (nonzero offsets).
+        rms_cross: RMS of the aperiodic cross-correlation over all pairs and offsets.
+    """
+
+    periodic_cross: float
+    aperiodic_cross: float
+    aperiodic_auto: float
+    rms_cross: float
+
+
+def aperiodic_xcorr(chips: npt.NDArray[np.integer]) -> npt.NDArray[np.float32]:
+    """Aperiodic correlations of every pair of codes at every offset.
+
+    ``R[a, b, d + L - 1] = sum_i c_a[i] * c_b[i - d]``: the matched filter of code ``a``
+    evaluated ``d`` samples after the start of code ``b`` (zero outside ``|d| < L``).
+
+    Args:
+        chips: Codes, shape ``(K, L)``.
+
+    Returns:
+        Shape ``(K, K, 2 L - 1)`` float32 (exact integers).
+    """
+    k, length = chips.shape
+    nfft = 1 << int(np.ceil(np.log2(2 * length - 1)))
+    spec = np.fft.rfft(chips.astype(np.float64), nfft, axis=1)
+    full = np.fft.irfft(spec[:, None, :] * np.conj(spec[None, :, :]), nfft, axis=2)
+    # full[a, b, m] = sum_i c_a[i + m] c_b[i] (circular); offset d = -m.
+    lags = np.arange(-(length - 1), length)
+    out = np.rint(full[:, :, (-lags) % nfft]).astype(np.float32)
+    assert out.shape == (k, k, 2 * length - 1)
+    return out
+
+
+def correlation_stats(chips: npt.NDArray[np.integer]) -> CorrelationStats:
+    """Measure the worst periodic and aperiodic correlations of a set of codes.
+
+    Args:
+        chips: Antipodal codes, shape ``(K, L)``.
+
+    Returns:
+        The figures normalised by ``L``.
+    """
+    k, length = chips.shape
+    spec = np.fft.fft(chips.astype(np.float64), axis=1)
+    periodic = np.rint(np.fft.ifft(spec[:, None, :] * np.conj(spec[None, :, :]), axis=2).real)
+    r = aperiodic_xcorr(chips)
+    off_diag = ~np.eye(k, dtype=bool)
+    auto = np.abs(r[np.arange(k), np.arange(k)])
+    auto[:, length - 1] = 0.0
+    cross = r[off_diag]
+    return CorrelationStats(
+        periodic_cross=float(np.abs(periodic[off_diag]).max() / length),
+        aperiodic_cross=float(np.abs(cross).max() / length),
+        aperiodic_auto=float(auto.max() / length),
+        rms_cross=float(np.sqrt(np.mean(cross.astype(np.float64) ** 2)) / length),
+    )
+
+
+def _select_rows(chips: npt.NDArray[np.int8], keep: int) -> npt.NDArray[np.int64]:
+    """Drop codes one at a time, always the worst, until ``keep`` remain (deterministic)."""
+    r = np.abs(aperiodic_xcorr(chips))
+    k, length = chips.shape[0], chips.shape[1]
+    worst_pair = r.max(axis=2)
+    auto = r[np.arange(k), np.arange(k)].copy()
+    auto[:, length - 1] = 0.0
+    np.fill_diagonal(worst_pair, auto.max(axis=1))
+    energy = (r.astype(np.float64) ** 2).sum(axis=2)
+    np.fill_diagonal(energy, 0.0)
+    alive = np.ones(k, dtype=bool)
+    while alive.sum() > keep:
+        sub = worst_pair[np.ix_(alive, alive)]
+        score = sub.max(axis=1)
+        tie = energy[np.ix_(alive, alive)].sum(axis=1)
+        idx = np.flatnonzero(alive)
+        # Highest worst-case first, then the most total interference, then the lowest index.
+        order = np.lexsort((idx, -tie, -score))
+        alive[idx[order[0]]] = False
+    return np.flatnonzero(alive).astype(np.int64)
+
+
+@lru_cache(maxsize=4)
+def load_bank(version: int = DEFAULT_VERSION) -> SignatureBank:
+    """Build (once per process) the signature bank of a version.
+
+    Args:
+        version: A key of :data:`BANK_SPECS`.
+
+    Returns:
+        The bank; its arrays are read-only.
+
+    Raises:
+        AcesError: Unknown version.
+    """
+    spec = BANK_SPECS.get(version)
+    if spec is None:
+        raise AcesError(
+            f"The 'version' parameter must be one of {sorted(BANK_SPECS)}. Got {version!r} instead."
+        )
+    family = to_chips(gold_family(spec.poly_u, spec.poly_v, spec.degree))
+    rows = _select_rows(family, spec.n_taxels)
+    chips = family[rows].copy()
+    chips.setflags(write=False)
+    rows.setflags(write=False)
+    n_chips = chips.shape[1]
+    rate, rem = divmod(n_chips * 1_000_000_000, spec.signature_ns)
+    if rem:
+        raise AcesError(
+            f"Bank {version}: {n_chips} chips in {spec.signature_ns} ns is no integer rate."
+        )
+    return SignatureBank(version, chips, rate, spec.signature_ns, rows)

@@ -1,0 +1,90 @@
+"""Binary code families for the ACES signature bank: m-sequences and Gold families.
+
+Pure NumPy, no randomness: a family follows from its LFSR polynomials alone, so a bank version
+that names the polynomials is reproducible bit for bit anywhere.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from ext_sense_drivers.aces.errors import AcesError
+
+
+def m_sequence(poly: int, degree: int) -> npt.NDArray[np.uint8]:
+    """One period of the maximal-length sequence of a primitive polynomial.
+
+    The polynomial is a bit mask (bit ``i`` is the coefficient of ``x**i``, bits 0 and
+    ``degree`` set), and the recurrence is ``a[k + degree] = XOR of a[k + i]`` over the set
+    bits ``i < degree``, started from all ones.
+
+    Args:
+        poly: Feedback polynomial as a bit mask, e.g. ``0b10001001`` for ``x^7 + x^3 + 1``.
+        degree: Its degree ``n``; the period is ``2**n - 1``.
+
+    Returns:
+        Bits 0/1, shape ``(2**degree - 1,)`` uint8.
+
+    Raises:
+        AcesError: The mask does not have degree ``degree`` and a constant term, or the
+            polynomial is not primitive (the sequence repeats early).
+    """
+    if degree < 2 or poly >> degree != 1 or not poly & 1:
+        raise AcesError(
+            f"The 'poly' parameter must be a degree-{degree} mask with bits 0 and {degree} set. "
+            f"Got {poly:#b} instead."
+        )
+    period = (1 << degree) - 1
+    taps = [i for i in range(degree) if poly >> i & 1]
+    bits = np.ones(period + degree, np.uint8)
+    for k in range(period):
+        acc = 0
+        for i in taps:
+            acc ^= int(bits[k + i])
+        bits[k + degree] = acc
+    seq = bits[:period]
+    if (
+        not np.array_equal(bits[period : period + degree], seq[:degree])
+        or seq.sum() != (period + 1) // 2
+    ):
+        raise AcesError(f"The polynomial {poly:#b} is not primitive: its sequence is not maximal.")
+    return seq
+
+
+def gold_family(poly_u: int, poly_v: int, degree: int) -> npt.NDArray[np.uint8]:
+    """The Gold family of a preferred pair: ``u``, ``v`` and ``u XOR shift(v, k)`` for every ``k``.
+
+    Args:
+        poly_u: First primitive polynomial (bit mask).
+        poly_v: Second primitive polynomial of a preferred pair with ``poly_u``.
+        degree: Degree of both.
+
+    Returns:
+        Bits 0/1, shape ``(2**degree + 1, 2**degree - 1)`` uint8; row 0 is ``u``, row 1 ``v``,
+        row ``2 + k`` is ``u XOR roll(v, -k)``.
+
+    Raises:
+        AcesError: A polynomial is not primitive of that degree.
+    """
+    u = m_sequence(poly_u, degree)
+    v = m_sequence(poly_v, degree)
+    period = u.shape[0]
+    shifts = (np.arange(period)[:, None] + np.arange(period)[None, :]) % period
+    family = np.empty((period + 2, period), np.uint8)
+    family[0] = u
+    family[1] = v
+    family[2:] = u[None, :] ^ v[shifts]
+    return family
+
+
+def to_chips(bits: npt.NDArray[np.uint8]) -> npt.NDArray[np.int8]:
+    """Map bits to antipodal chips: 0 -> +1, 1 -> -1 (the usual BPSK mapping)."""
+    return (1 - 2 * bits.astype(np.int8)).astype(np.int8)
+
+
+def periodic_xcorr(a: npt.NDArray[np.integer], b: npt.NDArray[np.integer]) -> npt.NDArray[np.int64]:
+    """Periodic cross-correlation ``r[d] = sum_i a[i] * b[(i + d) mod N]`` for every shift ``d``."""
+    n = a.shape[0]
+    idx = (np.arange(n)[:, None] + np.arange(n)[None, :]) % n
+    return (b.astype(np.int64)[idx] @ a.astype(np.int64)).astype(np.int64)

@@ -1,0 +1,1 @@
+"""Emulated devices that answer on a pty like the real hardware (``ext-sense sim serve``)."""
