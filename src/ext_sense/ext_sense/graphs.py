@@ -25,6 +25,7 @@ TOPIC_WINDOW = f"{NS}/contact_window"
 TOPIC_ESTIMATE = f"{NS}/contact_estimate"
 TOPIC_GROUND_TRUTH = f"{NS}/ground_truth"
 TOPIC_TAP_MARKER = f"{NS}/tap_marker"
+TOPIC_MOTION_START = f"{NS}/motion_start"
 
 SENSORS = ("nuskin", "biotac")
 SOURCES = ("sim", "serial", "can", "bag")
@@ -34,9 +35,9 @@ DEFAULT_SCENES = {
     ("tap_localization", "nuskin"): "tap_rod30_nuskin",
     ("tap_localization", "biotac"): "tap_rod30_biotac",
     ("handover_stability", "nuskin"): "handover_rod_nuskin",
-    ("handover_stability", "biotac"): "handover_rod_biotac",
-    ("food_identification", "nuskin"): "food_nuskin",
-    ("food_identification", "biotac"): "food_biotac",
+    ("handover_stability", "biotac"): "handover_plate_biotac",
+    ("food_identification", "nuskin"): "food_fork_nuskin",
+    ("food_identification", "biotac"): "food_fork_biotac",
 }
 
 
@@ -141,7 +142,9 @@ def _source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                 "baud": int(args["baud"]),
                 "can_interface": "virtual" if source == "sim" else args["can_interface"],
                 "can_channel": args["can_channel"],
-                "frame_id": sensor,
+                **(
+                    {"frame_id": "nuskin"} if sensor == "nuskin" else {"frame_id_prefix": "biotac_"}
+                ),
             },
             remappings=((rel, topic),),
         )
@@ -152,6 +155,10 @@ def _source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
 def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     sensor = args["sensor"]
     rel, topic = _sensor_topic(sensor)
+    # Food windows start at the arm's motion start (contact_window's ``motion_start``): the
+    # simulator and bags carry it as the ground truth's stamp; on the robot the food behaviour
+    # publishes it on /extsense/motion_start.
+    motion = TOPIC_GROUND_TRUTH if args["source"] in ("sim", "bag") else TOPIC_MOTION_START
     return (
         NodeSpec(
             package="ext_sense_perception",
@@ -159,7 +166,7 @@ def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...
             name="contact_window",
             plugin="ext_sense_perception.nodes.contact_window:ContactWindowNode",
             parameters={"task": task, "sensor": sensor},
-            remappings=((rel, topic), ("window", TOPIC_WINDOW)),
+            remappings=((rel, topic), ("window", TOPIC_WINDOW), ("motion_start", motion)),
         ),
         NodeSpec(
             package="ext_sense_perception",

@@ -104,7 +104,7 @@ class BagReader:
     def custom_data(self) -> dict[str, str]:
         """The ``custom_data`` map of the bag's metadata (empty when there is none)."""
         meta = getattr(self._require().storage, "metadata", None)
-        return dict(getattr(meta, "custom_data", None) or {})
+        return dict(getattr(meta, "custom", None) or {})
 
     def records(self, topics: Iterable[str] | None = None) -> Iterator[BagRecord]:
         """Yield the stored messages of ``topics`` (all when ``None``) in log-time order.

@@ -196,6 +196,11 @@ class BagWriter:
         )
         self.counts[topic] = 0
 
+    def msgtype(self, topic: str) -> str | None:
+        """The type registered for ``topic`` (None before its first message or ``add_topic``)."""
+        conn = self._connections.get(topic)
+        return conn.msgtype if conn else None
+
     def write(self, topic: str, log_time_ns: int, msg: Any) -> None:
         """Serialize a rosbags message object and append it.
 

@@ -168,3 +168,65 @@ def test_corrupt_file_gives_bag_error(tmp_path):
     bad.write_bytes(mcap_file.read_bytes()[:200] + b"\xff" * 100)
     with pytest.raises(BagError, match=r"bad\.mcap"), BagReader(bad) as bag:
         list(bag.records())
+
+
+def test_custom_data_round_trip(tmp_path):
+    with BagWriter(tmp_path / "b") as bag:
+        bag.set_custom_data("task", "food_identification")
+        bag.write(EVENTS, T0, taxel_event_batch(T0, [1], [1], [1], [0]))
+    with BagReader(tmp_path / "b") as bag:
+        assert bag.custom_data == {"task": "food_identification"}
+
+
+def test_dataset_to_bag_nuskin_and_biotac(tmp_path):
+    from ext_sense_bags.dataset import dataset_to_bag
+
+    np.savez(
+        tmp_path / "n.npz",
+        task="tap_localization",
+        sensor="nuskin",
+        label_kind="regression",
+        y=np.array([0.1, 0.2]),
+        trial=np.arange(2, dtype=np.int32),
+        onset_ns=np.array([50_000_000, 60_000_000]),
+        rod_length_m=np.array([0.3, 0.3]),
+        trial_ns=np.int64(10_000_000),
+        ev_trial=np.array([0, 0, 1], dtype=np.int32),
+        ev_t_ns=np.array([1_500_000, 500_000, 9_999_999]),
+        ev_taxel=np.array([3, 4, 80], dtype=np.uint16),
+        ev_polarity=np.array([1, -1, 1], dtype=np.int8),
+        ev_value=np.array([1, 2, 3], dtype=np.uint16),
+    )
+    dataset_to_bag(tmp_path / "n.npz", tmp_path / "nb", t0_ns=T0, trial_period_ns=10**9)
+    with BagReader(tmp_path / "nb") as bag:
+        assert bag.topics[EVENTS].count == 20  # 10 batches of 1 ms per trial
+        truths = [m for _, m in bag.messages(["/extsense/ground_truth"])]
+        events = [m for _, m in bag.messages([EVENTS])]
+    assert [t.tap_position_m for t in truths] == [0.1, 0.2]
+    assert truths[1].header.stamp.sec * 10**9 + truths[1].header.stamp.nanosec == (
+        T0 + 10**9 + 60_000_000
+    )
+    times = [
+        m.header.stamp.sec * 10**9 + m.header.stamp.nanosec + int(o)
+        for m in events
+        for o in m.offset_ns
+    ]
+    assert times == [T0 + 500_000, T0 + 1_500_000, T0 + 10**9 + 9_999_999]
+
+    np.savez(
+        tmp_path / "b.npz",
+        task="handover_stability",
+        sensor="biotac",
+        label_kind="classification",
+        y=np.array(["stable"]),
+        onset_ns=np.array([5_000_000]),
+        pac=np.arange(2 * 44, dtype=np.uint16).reshape(1, 2, 44),
+        pac_t0_ns=np.array([0]),
+    )
+    dataset_to_bag(tmp_path / "b.npz", tmp_path / "bb", t0_ns=T0)
+    with BagReader(tmp_path / "bb") as bag:
+        frames = [m for _, m in bag.messages(["/extsense/biotac/frames"])]
+        (truth,) = [m for _, m in bag.messages(["/extsense/ground_truth"])]
+    assert [(f.sensor_id, f.sequence) for f in frames] == [(0, 0), (1, 0), (0, 1), (1, 1)]
+    assert frames[3].pac.tolist() == list(range(44 + 22, 88))
+    assert truth.class_label == "stable"

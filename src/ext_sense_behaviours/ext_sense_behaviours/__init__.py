@@ -1,1 +1,4 @@
-"""Behaviour nodes: Robotiq 2F gripper over Modbus RTU, Panda arm adapter, handover, food probing and tap marker."""
+"""Behaviours: Robotiq 2F gripper node, Panda arm adapters, handover, food probing, tap marker.
+
+State machines, adapters and records are plain Python; only ``nodes/`` imports rclpy.
+"""

@@ -98,7 +98,9 @@ def standard_replies(
     Args:
         pac: 22 PAC samples, 0..4095.
         electrodes: 19 electrode values E01..E19, 0..4095.
-        pdc, tac, tdc: Static pressure, AC and DC temperature, 0..4095.
+        pdc: Static pressure, 0..4095.
+        tac: AC temperature, 0..4095.
+        tdc: DC temperature, 0..4095.
 
     Returns:
         ``(44,)`` uint16 reply words in bridge order.
@@ -260,6 +262,7 @@ class BridgeFrames(NamedTuple):
 
 
 def _empty_frames() -> BridgeFrames:
+    """A batch of no frames (its arrays are read-only, so it can be shared)."""
     z = np.zeros(0, dtype=np.uint16)
     return BridgeFrames(
         np.zeros(0, np.uint8),
@@ -323,8 +326,15 @@ class BridgeCounters:
         )
 
 
+_EMPTY = _empty_frames()
+for _col in _EMPTY:
+    _col.flags.writeable = False
 _FRAME_COLS = np.arange(STANDARD_FRAME_SIZE)
 _BIT = np.uint64(1) << np.arange(WORDS_PER_FRAME, dtype=np.uint64)
+
+
+SMALL_BATCH = 8
+"""Batches up to this size take the per-frame path of :meth:`SequenceTracker.steps`."""
 
 
 class SequenceTracker:
@@ -355,9 +365,16 @@ class SequenceTracker:
     def steps(
         self, sensor: NDArray[np.uint8], seq: NDArray[np.uint16]
     ) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
-        """Vectorised :meth:`step` over a batch in stream order."""
-        gap = np.zeros(seq.shape[0], dtype=np.int64)
-        reset = np.zeros(seq.shape[0], dtype=bool)
+        """:meth:`step` over a batch in stream order (vectorised per sensor for big batches)."""
+        n = seq.shape[0]
+        if n <= SMALL_BATCH:
+            pairs = [self.step(int(a), int(b)) for a, b in zip(sensor, seq, strict=True)]
+            return (
+                np.fromiter((p[0] for p in pairs), np.int64, n),
+                np.fromiter((p[1] for p in pairs), bool, n),
+            )
+        gap = np.zeros(n, dtype=np.int64)
+        reset = np.zeros(n, dtype=bool)
         for s in np.unique(sensor):
             sel = np.flatnonzero(sensor == s)
             cur = seq[sel].astype(np.int64)
@@ -450,6 +467,12 @@ class BridgeDecoder:
         arr = np.frombuffer(data, dtype=np.uint8)
         cands = np.flatnonzero((arr[:-1] == 0xAA) & (arr[1:] == 0x55)) if n >= 2 else arr[:0]
         cands = cands.astype(np.int64)
+        if cands.size == 0:
+            keep = 1 if (n and data[-1] == 0xAA and not final) else 0
+            self._skipped += n - keep
+            self._offset += n - keep
+            self._pending = data[n - keep :]
+            return _EMPTY
         hdr = cands + HEADER_SIZE <= n
         nw = np.full(cands.size, -1, dtype=np.int64)
         nw[hdr] = arr[cands[hdr] + 5]
@@ -488,9 +511,10 @@ class BridgeDecoder:
         # not inside an accepted frame.
         failed = np.flatnonzero(~valid & (cands < limit))
         if failed.size:
-            j = np.searchsorted(a_start, cands[failed], side="right") - 1
-            inside = (j >= 0) & (cands[failed] < a_end[np.maximum(j, 0)])
-            failed = failed[~inside]
+            if a_start.size:
+                j = np.searchsorted(a_start, cands[failed], side="right") - 1
+                inside = (j >= 0) & (cands[failed] < a_end[np.maximum(j, 0)])
+                failed = failed[~inside]
             self._crc_failures += int(np.count_nonzero(complete[failed]))
             self._truncated += int(np.count_nonzero(~complete[failed]))
         if stop < 0:
@@ -528,7 +552,7 @@ class BridgeDecoder:
 
     def _decode(self, arr: NDArray[np.uint8], starts: NDArray[np.int64]) -> BridgeFrames:
         if not starts.size:
-            return _empty_frames()
+            return _EMPTY
         rows = arr[starts[:, None] + _FRAME_COLS]
         sensor = rows[:, 4].copy()
         good = sensor < MAX_SENSORS
@@ -536,7 +560,7 @@ class BridgeDecoder:
             self._bad_sensor += int(np.count_nonzero(~good))
             rows, sensor, starts = rows[good], sensor[good], starts[good]
             if not starts.size:
-                return _empty_frames()
+                return _EMPTY
         seq = rows[:, 2].astype(np.uint16) | (rows[:, 3].astype(np.uint16) << np.uint16(8))
         b0, b1 = rows[:, 6:94:2], rows[:, 7:94:2]
         values, parity_failed, error = decode_words(b0, b1)
@@ -545,10 +569,11 @@ class BridgeDecoder:
         n_par = parity_failed.sum(axis=1).astype(np.uint8)
         n_err = error.sum(axis=1).astype(np.uint8)
         gap, reset = self._seq.steps(sensor, seq)
-        for s in np.unique(sensor):
-            sel = sensor == s
-            self._seq.parity[s] += int(n_par[sel].sum())
-            self._seq.errors[s] += int(n_err[sel].sum())
+        par = np.bincount(sensor, weights=n_par, minlength=MAX_SENSORS)
+        err = np.bincount(sensor, weights=n_err, minlength=MAX_SENSORS)
+        for s in range(MAX_SENSORS):
+            self._seq.parity[s] += int(par[s])
+            self._seq.errors[s] += int(err[s])
         words = (b0.astype(np.uint16) << np.uint16(8)) | b1
         return BridgeFrames(
             sensor_id=sensor,

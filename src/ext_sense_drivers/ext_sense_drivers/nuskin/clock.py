@@ -18,7 +18,7 @@ stamped within the cap before the read. The constant latency from the taxel to t
 buffering, USB) is not modelled; it is an offset, not a spread.
 
 Stamps are integer nanoseconds, never decrease, and a read stamped earlier than the previous one
-(a clock that stepped back) is clamped to the previous stamp.
+(a clock that stepped back) is clamped to the previous read.
 """
 
 from __future__ import annotations
@@ -77,8 +77,9 @@ class ArrivalClock:
         """
         read_ns = int(read_ns)
         n = int(n_words)
-        if self._last_stamp_ns is not None and read_ns < self._last_stamp_ns:
-            read_ns = self._last_stamp_ns
+        for floor in (self._last_read_ns, self._last_stamp_ns):
+            if floor is not None and read_ns < floor:
+                read_ns = floor  # the host clock stepped back: never go back with it
         cap = max(
             self.min_spread_ns, (4 * n if n_bytes is None else int(n_bytes)) * self.byte_time_ns
         )

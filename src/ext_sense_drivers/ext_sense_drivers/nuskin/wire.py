@@ -144,14 +144,25 @@ class WordDecoder:
         base = self._bytes_in - self._carry.shape[0]  # stream offset of buf[0]
         self._bytes_in += int(data.shape[0])
         buf = np.concatenate((self._carry, data)) if self._carry.shape[0] else data
-        starts = _word_starts(buf)
         n = int(buf.shape[0])
-        tail = int(starts[-1]) + WORD_BYTES if starts.shape[0] else 0
-        carry_len = _prefix_suffix_len(buf, tail)
-        carry_start = n - carry_len
-        self._count_gaps(starts, carry_start)
+        aligned = _aligned_words(buf)
+        if aligned is not None:
+            first, words = aligned
+            starts = None
+            tail = first + WORD_BYTES * int(words.shape[0])
+        else:
+            starts = _word_starts(buf)
+            words = _gather_words(buf, starts)
+            tail = int(starts[-1]) + WORD_BYTES if starts.shape[0] else 0
+        carry_start = n - _prefix_suffix_len(buf, tail)
+        if starts is None:
+            self._count_aligned_gaps(first, tail, carry_start)
+            end = np.arange(base + first + WORD_BYTES, base + tail + 1, WORD_BYTES, dtype=np.int64)
+        else:
+            self._count_gaps(starts, carry_start)
+            end = starts.astype(np.int64) + (base + WORD_BYTES)
         self._carry = buf[carry_start:].copy()
-        return self._extract(buf, starts, base)
+        return self._extract(words, end)
 
     def flush(self) -> None:
         """End of stream: count held-back bytes as skipped (they can no longer form a word)."""
@@ -184,18 +195,22 @@ class WordDecoder:
         self._resyncs += runs
         self._in_gap = bool(gaps[-1] > 0)
 
-    def _extract(
-        self, buf: npt.NDArray[np.uint8], starts: npt.NDArray[np.intp], base: int
-    ) -> DecodedWords:
-        b0 = buf[starts]
-        b1 = buf[starts + 1]
-        b2 = buf[starts + 2]
-        b3 = buf[starts + 3]
-        taxel = ((b0 & 0x07).astype(np.uint16) << 4) | ((b1 >> 1) & 0x0F)
-        value = ((b2 & 0x1F).astype(np.uint16) << 5) | (b3 & 0x1F)
-        flag = b1 & np.uint8(1)
-        end = starts.astype(np.int64) + (base + WORD_BYTES)
-        ok = (taxel >= FIRST_TAXEL) & (taxel <= LAST_TAXEL)
+    def _count_aligned_gaps(self, first: int, tail: int, carry_start: int) -> None:
+        """Gap counting when the words run back to back from ``first`` to ``tail``."""
+        lead, trail = first, carry_start - tail
+        self._skipped += lead + trail
+        if lead and not self._in_gap:
+            self._resyncs += 1
+        if trail:
+            self._resyncs += 1
+        self._in_gap = bool(trail)
+
+    def _extract(self, words: npt.NDArray[np.uint32], end: npt.NDArray[np.int64]) -> DecodedWords:
+        """Fields of little-endian words (byte 0 in the low bits), dropping bad taxels."""
+        taxel = (((words & 0x07) << 4) | ((words >> 9) & 0x0F)).astype(np.uint16)
+        value = ((((words >> 16) & 0x1F) << 5) | ((words >> 24) & 0x1F)).astype(np.uint16)
+        flag = ((words >> 8) & 1).astype(np.uint8)
+        ok = (taxel - np.uint16(FIRST_TAXEL)) < np.uint16(LAST_TAXEL)  # 1..80, wraps 0 high
         n_bad = int(ok.shape[0] - np.count_nonzero(ok))
         if n_bad:
             self._bad_taxel += n_bad
@@ -209,9 +224,6 @@ def _word_starts(buf: npt.NDArray[np.uint8]) -> npt.NDArray[np.intp]:
     n = int(buf.shape[0])
     if n < WORD_BYTES:
         return np.empty(0, np.intp)
-    fast = _aligned_starts(buf)
-    if fast is not None:
-        return fast
     tag = buf >> TAG_SHIFT
     hit = tag[: n - 3] == TAGS[0]
     hit &= tag[1 : n - 2] == TAGS[1]
@@ -220,24 +232,37 @@ def _word_starts(buf: npt.NDArray[np.uint8]) -> npt.NDArray[np.intp]:
     return np.flatnonzero(hit)
 
 
-def _aligned_starts(buf: npt.NDArray[np.uint8]) -> npt.NDArray[np.intp] | None:
+def _gather_words(
+    buf: npt.NDArray[np.uint8], starts: npt.NDArray[np.intp]
+) -> npt.NDArray[np.uint32]:
+    """The words at ``starts`` as little-endian uint32 (byte 0 in the low bits)."""
+    words = buf[starts].astype(np.uint32)
+    for k in (1, 2, 3):
+        words |= buf[starts + k].astype(np.uint32) << (8 * k)
+    return words
+
+
+def _aligned_words(
+    buf: npt.NDArray[np.uint8],
+) -> tuple[int, npt.NDArray[np.uint32]] | None:
     """Fast path for the usual case, a clean stream: every 4 bytes from the first are a word.
 
-    The bytes before the first byte tagged 1 cannot start a word. Returns ``None`` when the
-    rest is not all words and the general search is needed.
+    The bytes before the first byte tagged 1 cannot start a word. Returns the offset of the
+    first word and the words as little-endian uint32, or ``None`` when the rest is not all
+    words (or there is none) and the general search is needed.
     """
     n = int(buf.shape[0])
     first = 0
-    while first < WORD_BYTES and (buf[first] >> TAG_SHIFT) != TAGS[0]:
+    while first < WORD_BYTES and first < n and (int(buf[first]) >> TAG_SHIFT) != TAGS[0]:
         first += 1
     m = (n - first) // WORD_BYTES
     if first == WORD_BYTES or m == 0:
         return None
     span = buf[first : first + m * WORD_BYTES]
-    words = np.ascontiguousarray(span).view("<u4")
-    if not np.array_equal(words & np.uint32(_TAG_MASK_LE), np.full(m, _WORD_TAGS_LE, np.uint32)):
+    words = np.ascontiguousarray(span).view("<u4")  # may be unaligned: NumPy copes
+    if ((words & np.uint32(_TAG_MASK_LE)) != np.uint32(_WORD_TAGS_LE)).any():
         return None
-    return np.arange(first, first + m * WORD_BYTES, WORD_BYTES, dtype=np.intp)
+    return first, words
 
 
 def _prefix_suffix_len(buf: npt.NDArray[np.uint8], tail: int) -> int:

@@ -8,6 +8,7 @@ BAD_CRC. A Modbus exception reply is not retried. Counters say how often each ha
 
 from __future__ import annotations
 
+import termios
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -28,6 +29,10 @@ from ext_sense_drivers.robotiq.registers import (
     GripperStatus,
     fault_name,
 )
+
+_PORT_ERRORS: tuple[type[BaseException], ...] = (OSError, termios.error)
+"""What a vanished port raises: serial.SerialException (an OSError), or termios.error from
+pyserial's flush on a closed pty."""
 
 
 class SerialPort(Protocol):
@@ -148,7 +153,7 @@ class RobotiqClient:
             self.port.timeout = remaining
             try:
                 chunk = self.port.read(size - len(data))
-            except OSError as err:  # serial.SerialException is an OSError
+            except _PORT_ERRORS as err:
                 raise RobotiqError(
                     f"Serial port failed while reading: {err}", FaultKind.SERIAL
                 ) from err
@@ -179,7 +184,7 @@ class RobotiqClient:
             try:
                 self.port.reset_input_buffer()
                 self.port.write(request)
-            except OSError as err:
+            except _PORT_ERRORS as err:
                 raise RobotiqError(
                     f"Serial port failed while writing: {err}", FaultKind.SERIAL
                 ) from err

@@ -143,7 +143,8 @@ def _check_reply(frame: bytes, slave: int, function: int) -> None:
         code = frame[2]
         name = ExceptionCode(code).name if code in ExceptionCode._value2member_map_ else "unknown"
         raise RobotiqError(
-            f"Gripper answered function {function:#04x} with Modbus exception {code:#04x} ({name}).",
+            f"Gripper answered function {function:#04x} with Modbus exception "
+            f"{code:#04x} ({name}).",
             FaultKind.EXCEPTION_REPLY,
         )
     if frame[1] != function:

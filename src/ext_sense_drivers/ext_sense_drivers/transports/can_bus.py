@@ -192,10 +192,8 @@ class CanSink:
 
     def close(self) -> None:
         """Shut the bus connection down."""
-        try:
+        with contextlib.suppress(Exception):  # the bus is gone already
             self._bus.shutdown()
-        except Exception:
-            pass
 
     def __enter__(self) -> CanSink:
         return self

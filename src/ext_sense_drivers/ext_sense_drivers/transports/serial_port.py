@@ -55,7 +55,10 @@ class SerialTransport:
 
         self.close()
         try:
-            self._serial = serial.serial_for_url(self.port, baudrate=self.baud, timeout=0.0)
+            extra = {} if "://" in self.port else {"exclusive": True}
+            self._serial = serial.serial_for_url(
+                self.port, baudrate=self.baud, timeout=0.0, **extra
+            )
             self._timeout_s = 0.0
         except (serial.SerialException, OSError, ValueError) as err:
             raise TransportError(f"cannot open serial port {self.port!r}: {err}") from err

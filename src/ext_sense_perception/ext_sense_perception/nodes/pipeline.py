@@ -13,7 +13,9 @@ messages and rosbags messages have the same field names.
 
 from __future__ import annotations
 
+import os
 from collections import OrderedDict
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -118,8 +120,8 @@ class WindowStage:
         for row, frame in enumerate(frames):
             mask = int(frame.invalid_word_mask)
             if mask:
-                bits = (mask >> (2 * np.arange(pac.shape[1], dtype=np.uint64))) & 1  # PAC: even
-                valid[row] = bits == 0
+                shifts = 2 * np.arange(pac.shape[1], dtype=np.uint64)  # PAC words are even
+                valid[row] = ((np.uint64(mask) >> shifts) & np.uint64(1)) == 0
         t0 = stamp_ns(frames[0].header.stamp)
         period = int(frames[0].pac_sample_period_ns)
         try:
@@ -191,3 +193,83 @@ def window_from_msg(msg: Any, final_post_ns: int) -> ContactWindow:
         provisional=(not bool(msg.truncated)) and post < int(final_post_ns),
         truncated=bool(msg.truncated),
     )
+
+
+def default_model_dir(task: str, sensor: str) -> Path:
+    """Where a task's default model bundle lives: ``$EXT_SENSE_MODELS/<task>_<sensor>``.
+
+    ``EXT_SENSE_MODELS`` defaults to ``build/models`` under the working directory; the demo
+    trains its model there when it is missing.
+    """
+    root = Path(os.environ.get("EXT_SENSE_MODELS", Path.cwd() / "build" / "models"))
+    return root / f"{task}_{sensor}"
+
+
+def _get(obj: Any, name: str, default: Any) -> Any:
+    value = obj.get(name, default) if isinstance(obj, dict) else getattr(obj, name, default)
+    return default if value is None else value
+
+
+def estimate_fields(
+    prediction: Any, window: ContactWindow, model_id: str, compute_latency_ns: int
+) -> dict[str, Any]:
+    """The ``ContactEstimate`` message fields for a model's prediction on a window.
+
+    Fields the prediction lacks get the message's "does not apply" values (NaN, -1, empty).
+
+    Raises:
+        PerceptionError: The prediction holds NaN or inf where a number is required.
+    """
+    nan = float("nan")
+    names = [str(n) for n in _get(prediction, "class_names", [])]
+    probs = np.asarray(_get(prediction, "class_probabilities", []), dtype=np.float64).reshape(-1)
+    label = str(_get(prediction, "class_label", ""))
+    index = int(_get(prediction, "class_index", names.index(label) if label in names else -1))
+    position = float(_get(prediction, "tap_position_m", nan))
+    if probs.size and not np.isfinite(probs).all():
+        raise PerceptionError("The model returned NaN or inf class probabilities.")
+    if window.task == "tap_localization" and not np.isfinite(position):
+        raise PerceptionError(f"The model returned tap position {position}; expected a number.")
+    return {
+        "stamp_ns": int(window.onset_ns),
+        "task": window.task,
+        "sensor": window.sensor,
+        "model_id": str(model_id),
+        "provisional": bool(window.provisional),
+        "post_contact_used_ns": int(window.post_onset_ns),
+        "compute_latency_ns": int(compute_latency_ns),
+        "tap_position_m": position,
+        "tap_position_std_m": float(_get(prediction, "tap_position_std_m", nan)),
+        "class_index": index,
+        "class_label": label,
+        "class_names": names,
+        "class_probabilities": probs,
+        "stability_probability": float(_get(prediction, "stability_probability", nan)),
+    }
+
+
+def load_bundle(path: Path, backend: str) -> Any:
+    """Load a model bundle through the perception package's ``load_model``.
+
+    Raises:
+        PerceptionError: Missing or corrupt bundle, or an unknown backend.
+    """
+    from ext_sense_perception.bundle import load_model
+
+    try:
+        return load_model(path, backend=backend)
+    except PerceptionError:
+        raise
+    except Exception as err:  # a corrupt file may surface as anything from the runtimes
+        raise PerceptionError(f"Cannot load model bundle {path}: {err}") from err
+
+
+def model_id_of(model: Any) -> str:
+    """The model card id of a loaded bundle (empty when it has none)."""
+    for attr in ("model_id", "id"):
+        if isinstance(value := getattr(model, attr, None), str):
+            return value
+    card = getattr(model, "card", None)
+    if isinstance(card, dict):
+        return str(card.get("id", card.get("model_id", "")))
+    return str(getattr(card, "id", getattr(card, "model_id", "")) or "")

@@ -15,8 +15,10 @@ Layers, each usable alone:
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import select
+import signal
 import sys
 import threading
 import time
@@ -37,6 +39,9 @@ from ext_sense_drivers.robotiq.registers import (
     GripperStatus,
     ObjectStatus,
 )
+
+DEMO_OBJECT_POSITION = 128
+"""Where ``ext-sense sim serve robotiq`` puts an object between the fingers by default."""
 
 REGISTER_BLOCK = 8
 """Registers answered from each base address (3 used, the rest read as 0, as reserved)."""
@@ -125,12 +130,15 @@ class GripperModel:
         """Move the model forward to time ``now`` (seconds, monotonic)."""
         dt = 0.0 if self._last_t is None else max(0.0, now - self._last_t)
         self._last_t = now
-        if self.activation == ActivationStatus.IN_PROGRESS and self._activation_end is not None:
-            if now >= self._activation_end:
-                self.activation = ActivationStatus.COMPLETED
-                self.position = 0.0
-                if self.command.go_to and self.fault == FaultCode.ACTION_DELAYED:
-                    self._start_motion()
+        if (
+            self.activation == ActivationStatus.IN_PROGRESS
+            and self._activation_end is not None
+            and now >= self._activation_end
+        ):
+            self.activation = ActivationStatus.COMPLETED
+            self.position = 0.0
+            if self.command.go_to and self.fault == FaultCode.ACTION_DELAYED:
+                self._start_motion()
         if not self._moving or dt == 0.0:
             return
         speed = self.min_speed_cps + (self.max_speed_cps - self.min_speed_cps) * (
@@ -269,7 +277,9 @@ class RobotiqEmulator:
                 values = block[address - STATUS_REGISTER : last - STATUS_REGISTER + 1]
                 return modbus.encode_read_reply(self.slave, fn, values)
             if address in command_span and last in command_span:
-                values = self._command_regs[address - COMMAND_REGISTER : last - COMMAND_REGISTER + 1]
+                values = self._command_regs[
+                    address - COMMAND_REGISTER : last - COMMAND_REGISTER + 1
+                ]
                 return modbus.encode_read_reply(self.slave, fn, values)
             return self._exception(fn, modbus.ExceptionCode.ILLEGAL_DATA_ADDRESS)
         if fn == modbus.Function.WRITE_MULTIPLE_REGISTERS:
@@ -357,10 +367,8 @@ class PtyGripper:
             self._thread.join(timeout=2.0)
             self._thread = None
         for fd in (self._master, self._slave):
-            try:
+            with contextlib.suppress(OSError):
                 os.close(fd)
-            except OSError:
-                pass
 
     def __enter__(self) -> PtyGripper:
         self._thread = threading.Thread(target=self.serve_forever, name="robotiq-pty", daemon=True)
@@ -377,8 +385,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--object-position",
         type=int,
-        default=None,
-        help="finger position 0..255 where an object stops the closing fingers (default: none)",
+        default=DEMO_OBJECT_POSITION,
+        help="finger position 0..255 where an object stops the closing fingers; -1: no object "
+        f"(default {DEMO_OBJECT_POSITION}: an object in the hand, as the handover demo needs)",
     )
     parser.add_argument(
         "--activation-s", type=float, default=0.3, help="activation duration, seconds"
@@ -391,32 +400,49 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt  # SIGTERM ends the server as cleanly as Ctrl-C
+
+
 def serve(args: argparse.Namespace) -> int:
-    """Open the emulated gripper on a pty, print its path, serve until Ctrl-C.
+    """Open the emulated gripper on a pty, print its path, serve until Ctrl-C (or SIGTERM).
 
     Args:
         args: Parsed options (see :func:`add_arguments`); missing ones take their defaults.
+            ``args.link``, when set, also gets a symlink to the pty (removed at exit).
 
     Returns:
         0 on Ctrl-C.
     """
+    object_position = int(getattr(args, "object_position", DEMO_OBJECT_POSITION))
     model = GripperModel(
         activation_s=float(getattr(args, "activation_s", 0.3)),
-        object_position=getattr(args, "object_position", None),
+        object_position=object_position if 0 <= object_position <= 255 else None,
     )
     emulator = RobotiqEmulator(model, slave=int(getattr(args, "slave", DEFAULT_SLAVE_ID)))
     emulator.set_fault(LinkFault[str(getattr(args, "fault", "none")).upper()])
     pty = PtyGripper(emulator)
+    link = getattr(args, "link", None)
+    if link:
+        with contextlib.suppress(FileNotFoundError):
+            if os.path.islink(link):
+                os.unlink(link)
+        os.symlink(pty.path, link)
     print(pty.path, flush=True)
     print(
-        f"Robotiq 2F emulator: slave {emulator.slave}, any baud; Ctrl-C to stop.",
+        f"Robotiq 2F emulator: slave {emulator.slave}, any baud, object at "
+        f"{model.object_position}; Ctrl-C to stop.",
         file=sys.stderr,
         flush=True,
     )
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _interrupt)
     try:
         pty.serve_forever()
     except KeyboardInterrupt:
         pass
     finally:
         pty.stop()
+        if link and os.path.islink(link):
+            os.unlink(link)
     return 0

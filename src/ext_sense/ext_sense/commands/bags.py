@@ -1,0 +1,314 @@
+"""``ext-sense record`` and ``ext-sense replay``: rosbag2 (mcap) without the ``ros2`` CLI.
+
+- ``record OUT [--topics ...] [--duration S]`` subscribes raw and writes a bag whose type
+  hashes equal the built interfaces' (``ros2 bag play`` accepts it).
+- ``replay BAG [--rate R | --flat-out]`` publishes the bag's graph inputs (sensor streams and
+  ground truth) as recorded bytes, at recorded pace or flat out, and prints the throughput.
+- ``replay BAG --offline`` drives the graph's core directly, without ROS: the same
+  :class:`~ext_sense_perception.nodes.pipeline.WindowStage` and model the nodes run, fed in
+  log-time order, so two runs on one bag give identical estimates (``--json`` writes them).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+DEFAULT_INPUTS = ("/extsense/nuskin/events", "/extsense/biotac/frames", "/extsense/ground_truth")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``record`` and ``replay`` subcommands."""
+    rec = subparsers.add_parser(
+        "record",
+        help="record ext_sense topics into a rosbag2 (mcap) bag",
+        description="Record topics into a new rosbag2 bag (raw CDR bytes, correct type hashes).",
+    )
+    rec.add_argument("out", type=Path, help="directory of the new bag (must not exist)")
+    rec.add_argument(
+        "--topics",
+        nargs="+",
+        help="topics to record (default: every ext_sense topic and /diagnostics)",
+    )
+    rec.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap")
+    rec.add_argument(
+        "--duration", type=float, default=0.0, help="stop after S seconds (default: until Ctrl-C)"
+    )
+    rec.set_defaults(func=_record)
+
+    rep = subparsers.add_parser(
+        "replay",
+        help="play a bag into the graph, or run the graph's core on it offline",
+        description="Publish a bag's sensor streams and ground truth (recorded pace or flat "
+        "out), or with --offline run windowing and the model on it deterministically.",
+    )
+    rep.add_argument("bag", type=Path, help="bag directory or .mcap/.db3 file")
+    pace = rep.add_mutually_exclusive_group()
+    pace.add_argument("--rate", type=float, default=1.0, help="playback speed (1.0 recorded)")
+    pace.add_argument("--flat-out", action="store_true", help="publish as fast as possible")
+    rep.add_argument(
+        "--topics",
+        nargs="+",
+        help="topics to publish (default: the graph inputs in the bag; 'all' for every topic)",
+    )
+    rep.add_argument("--start-delay", type=float, default=1.0, help="wait for subscribers, s")
+    rep.add_argument(
+        "--offline",
+        action="store_true",
+        help="no ROS: run windowing and the model on the bag directly (deterministic)",
+    )
+    rep.add_argument("--task", default="", help="offline: task (default: from the bag)")
+    rep.add_argument("--sensor", default="", help="offline: sensor (default: from the bag)")
+    rep.add_argument(
+        "--model",
+        type=Path,
+        help="offline: model bundle directory (default: $EXT_SENSE_MODELS/<task>_<sensor>)",
+    )
+    rep.add_argument("--backend", choices=("onnx", "sklearn"), default="onnx")
+    rep.add_argument("--json", type=Path, help="offline: write every estimate to this file")
+    rep.add_argument("--quiet", action="store_true", help="offline: only the summary")
+    rep.set_defaults(func=_replay)
+
+
+def _record(args: argparse.Namespace) -> int:
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.parameter import Parameter
+
+    from ext_sense.nodes.recorder import RecorderNode
+    from ext_sense_bags import BagError
+    from ext_sense_runtime.executor import make_executor
+
+    overrides = [Parameter("bag", value=str(args.out)), Parameter("storage", value=args.storage)]
+    if args.topics:
+        overrides.append(Parameter("topics", value=list(args.topics)))
+    rclpy.init(args=[])
+    node = None
+    try:
+        node = RecorderNode(parameter_overrides=overrides)
+        executor = make_executor()
+        executor.add_node(node)
+        print(f"recording {sorted(node.received)} into {args.out} (Ctrl-C stops)", flush=True)
+        end = time.monotonic() + args.duration if args.duration > 0 else None
+        while rclpy.ok() and (end is None or time.monotonic() < end):
+            executor.spin_once(timeout_sec=0.1)
+    except BagError as err:
+        print(f"ext-sense record: {err}", file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            counts = dict(node.received)
+            node.destroy_node()
+            print(f"recorded {sum(counts.values())} messages: {counts}", flush=True)
+        rclpy.try_shutdown()
+    return 0
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from ext_sense_bags import BagError
+
+    try:
+        if args.offline:
+            return _replay_offline_cli(args)
+        return _replay_live(args)
+    except BagError as err:
+        print(f"ext-sense replay: {err}", file=sys.stderr)
+        return 2
+
+
+def _replay_live(args: argparse.Namespace) -> int:
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.parameter import Parameter
+
+    from ext_sense.nodes.bag_player import BagPlayerNode
+    from ext_sense_runtime.executor import make_executor
+
+    rate = 0.0 if args.flat_out else float(args.rate)
+    overrides = [
+        Parameter("bag", value=str(args.bag)),
+        Parameter("rate", value=rate),
+        Parameter("start_delay_s", value=float(args.start_delay)),
+    ]
+    if args.topics:
+        overrides.append(Parameter("topics", value=list(args.topics)))
+    rclpy.init(args=[])
+    node = None
+    rc = 0
+    try:
+        node = BagPlayerNode(parameter_overrides=overrides)
+        executor = make_executor()
+        executor.add_node(node)
+        while rclpy.ok() and not node.finished.is_set():
+            executor.spin_once(timeout_sec=0.05)
+        if node.error:
+            print(f"ext-sense replay: {node.error}", file=sys.stderr)
+            rc = 2
+        else:
+            seconds = max(node.play_seconds, 1e-9)
+            print(
+                f"published {node.published} messages in {seconds:.3f} s "
+                f"({node.published / seconds:.0f} msg/s)",
+                flush=True,
+            )
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return rc
+
+
+def bag_task_sensor(path: Path) -> tuple[str, str]:
+    """Task and sensor of a bag: its ``custom_data`` (``task``, ``sensor``), else guessed.
+
+    The guess takes the sensor from the stream topic present and the task from the first
+    ground-truth message.
+
+    Raises:
+        BagError: Neither can be told.
+    """
+    from ext_sense_bags import BagError, BagReader
+
+    with BagReader(path) as bag:
+        custom = bag.custom_data
+        topics = bag.topics
+        task, sensor = custom.get("task", ""), custom.get("sensor", "")
+        if not sensor:
+            if "/extsense/nuskin/events" in topics:
+                sensor = "nuskin"
+            elif "/extsense/biotac/frames" in topics:
+                sensor = "biotac"
+        if not task and "/extsense/ground_truth" in topics:
+            for _, msg in bag.messages(["/extsense/ground_truth"]):
+                task = str(msg.task)
+                break
+    if not task or not sensor:
+        raise BagError(f"Cannot tell the task/sensor of {path}: give --task and --sensor.")
+    return task, sensor
+
+
+def offline_estimates(
+    bag_path: Path,
+    task: str,
+    sensor: str,
+    model: Any,
+    model_id: str = "",
+    final_post_ns: int | None = None,
+) -> Iterator[tuple[str, Any]]:
+    """Run the graph's core on a bag: yields ``("estimate", fields)`` and ``("truth", msg)``.
+
+    Sensor messages feed :class:`~ext_sense_perception.nodes.pipeline.WindowStage` in log-time
+    order; each window goes through ``model.predict`` and
+    :func:`~ext_sense_perception.nodes.pipeline.estimate_fields`, as in the nodes. Compute
+    latency is measured per window (feature + model time, no transport) and is the only
+    field that differs between runs. For food the ground-truth stamps mark the motion start,
+    as ``motion_start`` does in the graph.
+    """
+    from ext_sense_bags import BagReader
+    from ext_sense_perception.errors import PerceptionError
+    from ext_sense_perception.nodes.pipeline import WindowStage, estimate_fields
+    from ext_sense_perception.windows import WindowConfig
+
+    config = WindowConfig.for_task(task, sensor)
+    final_post_ns = config.post_ns if final_post_ns is None else final_post_ns
+    stage = WindowStage(config)
+    stream = "/extsense/nuskin/events" if sensor == "nuskin" else "/extsense/biotac/frames"
+
+    def run(windows: list) -> Iterator[tuple[str, Any]]:
+        for win in windows:
+            t0 = time.perf_counter_ns()
+            try:
+                pred = model.predict(win)
+                fields = estimate_fields(pred, win, model_id, time.perf_counter_ns() - t0)
+            except PerceptionError as err:
+                yield "rejected", str(err)
+                continue
+            yield "estimate", fields
+
+    with BagReader(bag_path) as bag:
+        wanted = [t for t in (stream, "/extsense/ground_truth") if t in bag.topics]
+        for rec, msg in bag.messages(wanted):
+            if rec.topic == "/extsense/ground_truth":
+                if config.onset_source == "external":
+                    stage.on_motion_start(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec)
+                yield "truth", msg
+                continue
+            windows = stage.on_events(msg) if sensor == "nuskin" else stage.on_frame(msg)
+            yield from run(windows)
+        if stage.last_data_ns is not None:
+            yield from run(stage.advance(stage.last_data_ns + config.post_ns))
+        yield from run(stage.flush())
+
+
+def _replay_offline_cli(args: argparse.Namespace) -> int:
+    from ext_sense.nodes.scoreboard import Scoreboard, truth_of
+    from ext_sense_perception.errors import PerceptionError
+    from ext_sense_perception.nodes.pipeline import default_model_dir, load_bundle, model_id_of
+
+    task, sensor = args.task, args.sensor
+    if not (task and sensor):
+        guessed = bag_task_sensor(args.bag)
+        task, sensor = task or guessed[0], sensor or guessed[1]
+    model_dir = args.model or default_model_dir(task, sensor)
+    try:
+        model = load_bundle(model_dir, args.backend)
+    except PerceptionError as err:
+        print(f"ext-sense replay: {err}", file=sys.stderr)
+        return 2
+    board = Scoreboard(task)
+    estimates: list[dict[str, Any]] = []
+    rejected = 0
+    for kind, item in offline_estimates(args.bag, task, sensor, model, model_id_of(model)):
+        if kind == "truth":
+            lines = board.add_truth(truth_of(item))
+        elif kind == "rejected":
+            rejected += 1
+            lines = [f"window rejected: {item}"]
+        else:
+            estimates.append(item)
+            lines = board.add_estimate(_estimate_of_fields(item))
+        if not args.quiet:
+            for line in lines:
+                print(line)
+    board.close()
+    if args.json:
+        args.json.write_text(json.dumps([_jsonable(e) for e in estimates], indent=1))
+    if rejected:
+        print(f"windows rejected: {rejected}")
+    print(board.summary(), flush=True)
+    return 0
+
+
+def _estimate_of_fields(f: dict[str, Any]) -> Any:
+    from ext_sense.nodes.scoreboard import Estimate
+
+    return Estimate(
+        onset_ns=f["stamp_ns"],
+        provisional=f["provisional"],
+        tap_position_m=f["tap_position_m"],
+        tap_position_std_m=f["tap_position_std_m"],
+        class_label=f["class_label"],
+        stability_probability=f["stability_probability"],
+        compute_latency_ns=f["compute_latency_ns"],
+        post_contact_used_ns=f["post_contact_used_ns"],
+    )
+
+
+def _jsonable(f: dict[str, Any]) -> dict[str, Any]:
+    out = {}
+    for key, value in f.items():
+        if hasattr(value, "tolist"):
+            value = value.tolist()
+        if isinstance(value, float) and value != value:  # NaN is not JSON
+            value = None
+        out[key] = value
+    return out

@@ -1,0 +1,141 @@
+"""``estimate_monitor`` node: prints each estimate beside the simulator's ground truth.
+
+Subscribes ``contact_estimate`` and ``ground_truth``; every final estimate matched to a trial
+prints one line on stdout. After ``expected`` scored estimates (or, once ``expected`` trials
+were seen, after ``idle_timeout_s`` without news) it prints the summary as its last line and
+ends its process by shutting down its context (the runner then stops the graph)::
+
+    summary: taps=N mae_cm=X compute_p50_ms=Y compute_p99_ms=Z
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import Any
+
+import rclpy
+from rclpy.node import Node
+
+from ext_sense.nodes.scoreboard import Scoreboard, estimate_of, truth_of
+from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth
+from ext_sense_runtime.diagnostics import Level, Updater
+from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
+from ext_sense_runtime.node_main import run_node
+from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.qos import ESTIMATE_QOS, GROUND_TRUTH_QOS
+
+
+class EstimateMonitorNode(Node):
+    """Scores estimates against ground truth, prints them, stops after ``expected`` trials."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(kwargs.pop("node_name", "estimate_monitor"), **kwargs)
+        task = declare(
+            self, "task", "tap_localization", "Task whose estimates are scored.", read_only=True
+        )
+        self.expected = declare(
+            self,
+            "expected",
+            30,
+            "Trials to score before printing the summary and exiting; 0: never exit.",
+            low=0,
+            high=1_000_000,
+        )
+        self.idle_timeout_ns = int(
+            declare(
+                self,
+                "idle_timeout_s",
+                5.0,
+                "Once 'expected' trials were seen, stop after this long without a message, s.",
+                low=0.1,
+                high=3600.0,
+            )
+            * 1e9
+        )
+        tol_ms = declare(
+            self,
+            "match_tolerance_ms",
+            300.0,
+            "Largest onset difference between an estimate and its trial, ms.",
+            low=1.0,
+            high=10000.0,
+        )
+        self.show_provisional = declare(
+            self, "show_provisional", False, "Also print the provisional (anytime) estimates."
+        )
+        self.board = Scoreboard(task, match_tolerance_ns=int(tol_ms * 1e6))
+        self.trials_seen = 0
+        self.done = False
+        self._last_news = time.monotonic_ns()
+        self.create_subscription(
+            ContactEstimate, "contact_estimate", self._on_estimate, ESTIMATE_QOS
+        )
+        self.create_subscription(
+            ContactGroundTruth, "ground_truth", self._on_truth, GROUND_TRUTH_QOS
+        )
+        self.create_timer(0.2, self._on_timer)
+        self.updater = Updater(hardware_id=task)
+        self.updater.add_check("score", self._check)
+        self.diagnostics = DiagnosticsPublisher(self, self.updater)
+
+    def _print(self, lines: list[str]) -> None:
+        for line in lines:
+            print(line, flush=True)
+
+    def _on_truth(self, msg: ContactGroundTruth) -> None:
+        self.trials_seen += 1
+        self._last_news = time.monotonic_ns()
+        self._print(self.board.add_truth(truth_of(msg)))
+        self._maybe_finish()
+
+    def _on_estimate(self, msg: ContactEstimate) -> None:
+        self._last_news = time.monotonic_ns()
+        est = estimate_of(msg)
+        if est.provisional and self.show_provisional:
+            self._print(
+                [
+                    f"  provisional @{est.post_contact_used_ns / 1e6:.0f} ms: "
+                    f"{est.tap_position_m * 100:.2f} cm {est.class_label}"
+                ]
+            )
+        self._print(self.board.add_estimate(est))
+        self._maybe_finish()
+
+    def _on_timer(self) -> None:
+        idle = time.monotonic_ns() - self._last_news
+        if self.expected and self.trials_seen >= self.expected and idle > self.idle_timeout_ns:
+            self._finish()
+
+    def _maybe_finish(self) -> None:
+        if self.expected and self.board.scored >= self.expected:
+            self._finish()
+
+    def _finish(self) -> None:
+        if self.done:
+            return
+        self.done = True
+        self.board.close()
+        missed = max(0, self.trials_seen - self.board.scored)
+        if missed or self.board.unmatched_estimates:
+            print(
+                f"trials without estimate: {missed}; estimates without trial: "
+                f"{self.board.unmatched_estimates}",
+                flush=True,
+            )
+        print(self.board.summary(), flush=True)
+        sys.stdout.flush()
+        rclpy.try_shutdown(context=self.context)
+
+    def _check(self) -> tuple[Level, str, dict[str, object]]:
+        values = {
+            "scored": self.board.scored,
+            "trials_seen": self.trials_seen,
+            "provisional_seen": self.board.provisional_seen,
+        }
+        return Level.OK, "ok", values
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node (``ros2 run ext_sense estimate_monitor``)."""
+    return run_node(EstimateMonitorNode, args)

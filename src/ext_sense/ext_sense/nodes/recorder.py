@@ -1,0 +1,134 @@
+"""``recorder`` node: writes topics to a rosbag2 (mcap) bag without the ``ros2`` CLI.
+
+Subscriptions are raw (``raw=True``): the CDR bytes go into the bag untouched, through
+:class:`ext_sense_bags.BagWriter`, with the receive time (host epoch ns) as log time. Sensor
+streams are subscribed best effort (their publishers are), the rest reliable, with a deep
+history so a burst is not lost. When a publisher appears, the type hash it reports is compared
+with the hash written into the bag; a mismatch (message definitions changed since the build) is
+logged and shown on ``/diagnostics``.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from ext_sense.nodes.bag_player import message_class
+from ext_sense_bags import STANDARD_TOPICS, BagError, BagWriter, type_hash
+from ext_sense_runtime.diagnostics import Level, Updater
+from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
+from ext_sense_runtime.node_main import run_node
+from ext_sense_runtime.parameters import declare
+
+
+def subscription_qos(topic: str) -> QoSProfile:
+    """Best effort for sensor streams (and unknown topics), reliable for the rest; depth 1000."""
+    spec = STANDARD_TOPICS.get(topic)
+    reliable = bool(spec and spec.reliable)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=1000,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.VOLATILE,
+    )
+
+
+class RecorderNode(Node):
+    """Records the given topics into a new bag until shut down."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(kwargs.pop("node_name", "recorder"), **kwargs)
+        self.path = declare(
+            self, "bag", "", "Directory of the new bag (must not exist).", read_only=True
+        )
+        storage = declare(
+            self, "storage", "mcap", "Storage plugin: mcap or sqlite3.", read_only=True
+        )
+        topics = declare(
+            self,
+            "topics",
+            sorted(STANDARD_TOPICS),
+            "Topics to record; types from the standard table or discovered from the graph.",
+            read_only=True,
+        )
+        self.discover_s = declare(
+            self,
+            "discover_period_s",
+            0.5,
+            "How often topics of unknown type are looked up, s.",
+            low=0.05,
+            high=60.0,
+            read_only=True,
+        )
+        self.writer = BagWriter(self.path, storage=storage).open()
+        self.writer.set_custom_data("recorded_by", "ext-sense record")
+        self.received: dict[str, int] = {}
+        self.hash_mismatch: dict[str, str] = {}
+        self._checked_hash: set[str] = set()
+        self._waiting = [t for t in topics if t not in STANDARD_TOPICS]
+        for topic in topics:
+            if topic in STANDARD_TOPICS:
+                self._subscribe(topic, STANDARD_TOPICS[topic].msgtype)
+        self.create_timer(self.discover_s, self._discover)
+        self.updater = Updater(hardware_id=str(self.path))
+        self.updater.add_check("recording", self._check)
+        self.diagnostics = DiagnosticsPublisher(self, self.updater)
+
+    def _subscribe(self, topic: str, msgtype: str) -> None:
+        try:
+            cls = message_class(msgtype)
+            self.writer.add_topic(topic, msgtype)
+        except BagError as err:
+            self.get_logger().error(f"not recording {topic}: {err}")
+            return
+        self.received[topic] = 0
+
+        def callback(data: bytes, topic: str = topic) -> None:
+            self.writer.write_raw(topic, time.time_ns(), data)
+            self.received[topic] += 1
+
+        self.create_subscription(cls, topic, callback, subscription_qos(topic), raw=True)
+
+    def _discover(self) -> None:
+        if self._waiting:
+            types = dict(self.get_topic_names_and_types())
+            for topic in list(self._waiting):
+                if types.get(topic):
+                    self._waiting.remove(topic)
+                    self._subscribe(topic, types[topic][0])
+        for topic in self.received:
+            if topic in self._checked_hash:
+                continue
+            infos = self.get_publishers_info_by_topic(topic)
+            if not infos:
+                continue
+            self._checked_hash.add(topic)
+            expected = type_hash(self.writer.msgtype(topic) or "")
+            for info in infos:
+                got = str(info.topic_type_hash)
+                if got.startswith("RIHS01_") and got != expected:
+                    self.hash_mismatch[topic] = got
+                    self.get_logger().error(
+                        f"type hash of {topic} from {info.node_name} is {got}; the bag "
+                        f"records {expected} (rebuild ext_sense_msgs?)"
+                    )
+
+    def _check(self) -> tuple[Level, str, dict[str, object]]:
+        values: dict[str, object] = {f"messages_{t}": n for t, n in self.received.items()}
+        values["waiting_for_type"] = ",".join(self._waiting)
+        if self.hash_mismatch:
+            return Level.ERROR, f"type hash mismatch on {sorted(self.hash_mismatch)}", values
+        return Level.OK, "recording", values
+
+    def destroy_node(self) -> None:
+        """Close the bag (index and metadata) before the node goes."""
+        self.writer.close()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node (``ros2 run ext_sense recorder --ros-args -p bag:=DIR``)."""
+    return run_node(RecorderNode, args)

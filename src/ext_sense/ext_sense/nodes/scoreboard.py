@@ -1,0 +1,171 @@
+"""Scoring estimates against ground truth as they arrive (no rclpy).
+
+The estimate monitor and the offline replay share it: each final estimate is matched to the
+unmatched ground-truth trial whose onset is nearest (within ``match_tolerance_ns``), a line is
+printed for it, and :meth:`Scoreboard.summary` gives the last line of the main job::
+
+    summary: taps=N mae_cm=X compute_p50_ms=Y compute_p99_ms=Z          (tap localization)
+    summary: trials=N accuracy=X compute_p50_ms=Y compute_p99_ms=Z      (classification)
+
+``compute_*`` are percentiles of the estimates' ``compute_latency`` (see docs/runtime.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ext_sense_runtime.stamps import stamp_to_ns
+
+MS = 1_000_000
+
+
+class Truth(NamedTuple):
+    """One ground-truth trial."""
+
+    onset_ns: int
+    trial: int
+    tap_position_m: float
+    class_label: str
+
+
+class Estimate(NamedTuple):
+    """The parts of a ``ContactEstimate`` the scoreboard needs."""
+
+    onset_ns: int
+    provisional: bool
+    tap_position_m: float
+    tap_position_std_m: float
+    class_label: str
+    stability_probability: float
+    compute_latency_ns: int
+    post_contact_used_ns: int
+
+
+def estimate_of(msg: Any) -> Estimate:
+    """The scoreboard's view of a ``ContactEstimate`` (rclpy or rosbags message)."""
+    return Estimate(
+        onset_ns=stamp_to_ns(msg.header.stamp),
+        provisional=bool(msg.provisional),
+        tap_position_m=float(msg.tap_position_m),
+        tap_position_std_m=float(msg.tap_position_std_m),
+        class_label=str(msg.class_label),
+        stability_probability=float(msg.stability_probability),
+        compute_latency_ns=stamp_to_ns(msg.compute_latency),
+        post_contact_used_ns=stamp_to_ns(msg.post_contact_used),
+    )
+
+
+def truth_of(msg: Any) -> Truth:
+    """The scoreboard's view of a ``ContactGroundTruth``."""
+    return Truth(
+        onset_ns=stamp_to_ns(msg.header.stamp),
+        trial=int(msg.trial),
+        tap_position_m=float(msg.tap_position_m),
+        class_label=str(msg.class_label),
+    )
+
+
+@dataclass
+class Scoreboard:
+    """Matches final estimates to ground truth and keeps the running score.
+
+    Args:
+        task: ``tap_localization``, ``handover_stability`` or ``food_identification``.
+        match_tolerance_ns: Largest |estimated onset - true onset| that still matches.
+    """
+
+    task: str
+    match_tolerance_ns: int = 300 * MS
+    truths: list[Truth] = field(default_factory=list)
+    pending: list[Estimate] = field(default_factory=list)
+    errors_m: list[float] = field(default_factory=list)
+    correct: list[bool] = field(default_factory=list)
+    latencies_ns: list[int] = field(default_factory=list)
+    unmatched_estimates: int = 0
+    provisional_seen: int = 0
+
+    @property
+    def is_regression(self) -> bool:
+        """Whether estimates are positions (tap localization)."""
+        return self.task == "tap_localization"
+
+    @property
+    def scored(self) -> int:
+        """Final estimates matched to a trial so far."""
+        return len(self.errors_m) if self.is_regression else len(self.correct)
+
+    def add_truth(self, truth: Truth) -> list[str]:
+        """Record a trial; returns lines for pending estimates it now matches."""
+        self.truths.append(truth)
+        waiting, self.pending = self.pending, []
+        lines: list[str] = []
+        for est in waiting:
+            lines += self.add_estimate(est)
+        return lines
+
+    def add_estimate(self, est: Estimate) -> list[str]:
+        """Score a final estimate (provisional ones are only counted); returns printed lines."""
+        if est.provisional:
+            self.provisional_seen += 1
+            return []
+        truth = self._match(est.onset_ns)
+        if truth is None:
+            self.pending.append(est)
+            return []
+        self.latencies_ns.append(int(est.compute_latency_ns))
+        latency = f"latency {est.compute_latency_ns / MS:.2f} ms"
+        lag = f"onset {(est.onset_ns - truth.onset_ns) / MS:+.1f} ms"
+        if self.is_regression:
+            err = abs(est.tap_position_m - truth.tap_position_m)
+            self.errors_m.append(err)
+            return [
+                f"tap {self.scored:3d} (trial {truth.trial}): estimate "
+                f"{est.tap_position_m * 100:6.2f} cm ± {est.tap_position_std_m * 100:4.2f} | "
+                f"true {truth.tap_position_m * 100:6.2f} cm | error {err * 100:5.2f} cm | "
+                f"{lag} | {latency}"
+            ]
+        label = est.class_label
+        if not label and not math.isnan(est.stability_probability):
+            label = "stable" if est.stability_probability >= 0.5 else "unstable"
+        ok = label == truth.class_label
+        self.correct.append(ok)
+        return [
+            f"trial {truth.trial:3d}: estimate {label or '?':<12} | true {truth.class_label:<12} | "
+            f"{'ok   ' if ok else 'WRONG'} | {lag} | {latency}"
+        ]
+
+    def _match(self, onset_ns: int) -> Truth | None:
+        best, best_dt = None, self.match_tolerance_ns + 1
+        for truth in self.truths:
+            dt = abs(onset_ns - truth.onset_ns)
+            if dt < best_dt:
+                best, best_dt = truth, dt
+        if best is not None:
+            self.truths.remove(best)
+        return best
+
+    def close(self) -> None:
+        """Count estimates that never matched a trial (call at the end)."""
+        self.unmatched_estimates += len(self.pending)
+        self.pending.clear()
+
+    def summary(self) -> str:
+        """The last line of the main job (see the module docstring)."""
+        lat = np.asarray(self.latencies_ns, dtype=np.float64) / MS
+        p50 = float(np.percentile(lat, 50)) if lat.size else float("nan")
+        p99 = float(np.percentile(lat, 99)) if lat.size else float("nan")
+        if self.is_regression:
+            mae = float(np.mean(self.errors_m)) * 100 if self.errors_m else float("nan")
+            return (
+                f"summary: taps={self.scored} mae_cm={mae:.2f} "
+                f"compute_p50_ms={p50:.2f} compute_p99_ms={p99:.2f}"
+            )
+        acc = float(np.mean(self.correct)) if self.correct else float("nan")
+        return (
+            f"summary: trials={self.scored} accuracy={acc:.3f} "
+            f"compute_p50_ms={p50:.2f} compute_p99_ms={p99:.2f}"
+        )

@@ -1,0 +1,43 @@
+"""The decision log every behaviour keeps: what it did, when, and why."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+
+@dataclass(frozen=True)
+class Decision:
+    """One decision of a state machine.
+
+    Attributes:
+        stamp_ns: When it was taken, integer ns.
+        state: Name of the state after the decision.
+        action: Name of what the caller must do now (``"NONE"`` for nothing).
+        reason: Why, in words a person reading the log understands.
+    """
+
+    stamp_ns: int
+    state: str
+    action: str
+    reason: str
+
+    def __str__(self) -> str:
+        return f"[{self.stamp_ns}] {self.state}: {self.action} - {self.reason}"
+
+
+@dataclass
+class DecisionLog:
+    """Keeps decisions in order and hands each to an optional sink (a node's logger)."""
+
+    sink: Callable[[Decision], None] | None = None
+    entries: list[Decision] = field(default_factory=list)
+
+    def record(self, stamp_ns: int, state: IntEnum, action: IntEnum, reason: str) -> Decision:
+        """Append a decision and pass it to the sink."""
+        decision = Decision(int(stamp_ns), state.name, action.name, reason)
+        self.entries.append(decision)
+        if self.sink is not None:
+            self.sink(decision)
+        return decision

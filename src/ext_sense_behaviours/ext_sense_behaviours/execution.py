@@ -1,0 +1,133 @@
+"""Carrying out the state machines' decisions on devices, outside ROS.
+
+:class:`FoodProbe` joins a :class:`~ext_sense_behaviours.food.FoodMachine` to an
+:class:`~ext_sense_behaviours.arm.ArmAdapter`; :class:`HandoverRun` joins a
+:class:`~ext_sense_behaviours.handover.HandoverMachine` to a
+:class:`~ext_sense_behaviours.gripper.GripperPort`. The nodes use them from their timers and
+callbacks; scenario tests drive them in plain loops.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from ext_sense_behaviours.arm import ArmAdapter
+from ext_sense_behaviours.decisions import Decision
+from ext_sense_behaviours.food import FoodAction, FoodMachine, FoodResult
+from ext_sense_behaviours.gripper import GripperPort
+from ext_sense_behaviours.handover import HandoverAction, HandoverMachine, HandoverState
+from ext_sense_behaviours.records import Estimate
+from ext_sense_drivers.robotiq import RobotiqError
+
+
+class FoodProbe:
+    """Runs one food probe on an arm.
+
+    Args:
+        machine: The state machine.
+        arm: The arm adapter.
+        on_motion_start: Called with the motion start (ns) when lowering begins (the node
+            publishes it for the ``contact_window`` node).
+        on_request: Called with ``(window_start_ns, window_end_ns)`` when the window is complete.
+        on_publish: Called with the result once retracted.
+    """
+
+    def __init__(
+        self,
+        machine: FoodMachine,
+        arm: ArmAdapter,
+        on_motion_start: Callable[[int], None] | None = None,
+        on_request: Callable[[int, int], None] | None = None,
+        on_publish: Callable[[FoodResult], None] | None = None,
+    ) -> None:
+        self.machine, self.arm = machine, arm
+        self.on_motion_start, self.on_request, self.on_publish = (
+            on_motion_start,
+            on_request,
+            on_publish,
+        )
+        self.samples = 0
+
+    def start(self) -> Decision | None:
+        """Start from the arm's current state; ``None`` when the arm has no state yet."""
+        state = self.arm.read_state()
+        if state is None:
+            return None
+        return self._act(self.machine.start(state))
+
+    def step(self, now_ns: int) -> list[Decision]:
+        """Read one arm state, feed it and the clock to the machine, carry out what it decides."""
+        out = []
+        state = self.arm.read_state()
+        if state is not None:
+            self.samples += 1
+            decision = self.machine.on_arm_state(state)
+            if decision is not None:
+                out.append(self._act(decision))
+        decision = self.machine.on_tick(now_ns)
+        if decision is not None:
+            out.append(self._act(decision))
+        return out
+
+    def deliver(self, estimate: Estimate, now_ns: int) -> Decision | None:
+        """Hand a food estimate to the machine."""
+        decision = self.machine.on_estimate(estimate, now_ns)
+        return None if decision is None else self._act(decision)
+
+    def _act(self, decision: Decision) -> Decision:
+        cfg, m = self.machine.config, self.machine
+        action = FoodAction[decision.action]
+        if action == FoodAction.MOVE_DOWN:
+            self.arm.move_down(cfg.speed_mps)
+            if self.on_motion_start is not None:
+                self.on_motion_start(m.motion_start_ns)
+        elif action == FoodAction.STOP:
+            self.arm.stop()
+        elif action == FoodAction.REQUEST_CLASSIFICATION:
+            if self.on_request is not None:
+                self.on_request(m.motion_start_ns, m.motion_start_ns + cfg.window_end_ns)
+        elif action == FoodAction.RETRACT:
+            self.arm.retract(m.retract_height_m, cfg.retract_speed_mps)
+        elif action == FoodAction.PUBLISH and self.on_publish is not None and m.result is not None:
+            self.on_publish(m.result)
+        return decision
+
+
+class HandoverRun:
+    """Runs one handover on a gripper; gripper errors put the machine in its safe state.
+
+    Args:
+        machine: The state machine.
+        gripper: The gripper port (raises ``RobotiqError`` on faults and lost links).
+    """
+
+    def __init__(self, machine: HandoverMachine, gripper: GripperPort) -> None:
+        self.machine, self.gripper = machine, gripper
+        self.open_commands = 0
+
+    def start(self, now_ns: int) -> Decision:
+        """The object is held: start waiting."""
+        return self.machine.start(now_ns)
+
+    def estimate(self, estimate: Estimate, now_ns: int) -> Decision:
+        """Feed one estimate; opens the gripper when the machine says so."""
+        decision = self.machine.on_estimate(estimate, now_ns)
+        if HandoverAction[decision.action] == HandoverAction.OPEN_GRIPPER:
+            try:
+                self.open_commands += 1
+                self.gripper.open()
+            except RobotiqError as err:
+                return self.machine.on_fault(str(err), now_ns)
+        return decision
+
+    def tick(self, now_ns: int) -> Decision | None:
+        """Poll the gripper while releasing and check the timeouts."""
+        if self.machine.state == HandoverState.RELEASING:
+            try:
+                opened = self.gripper.is_open()
+            except RobotiqError as err:
+                return self.machine.on_fault(str(err), now_ns)
+            decision = self.machine.on_gripper(opened, now_ns)
+            if decision is not None:
+                return decision
+        return self.machine.on_tick(now_ns)

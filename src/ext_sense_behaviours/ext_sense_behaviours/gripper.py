@@ -1,0 +1,129 @@
+"""The gripper as the handover sees it, and the Robotiq status as ROS key-values.
+
+:class:`RobotiqGripperPort` runs a Robotiq 2F through
+:class:`ext_sense_drivers.robotiq.RobotiqClient`. The ``robotiq_gripper`` node publishes the
+status as a ``diagnostic_msgs/DiagnosticStatus`` whose key-values are the register fields
+(:func:`status_to_values`); :func:`status_from_values` reads them back in other nodes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Protocol
+
+from ext_sense_behaviours.errors import BehaviourError
+from ext_sense_drivers.robotiq import (
+    ActivationStatus,
+    GripperStatus,
+    ObjectStatus,
+    RobotiqClient,
+)
+from ext_sense_drivers.robotiq.registers import fault_name
+
+OPEN_TOLERANCE = 10
+"""gPO at or below which the fingers count as open (position counts, 0..255)."""
+
+STATUS_KEYS = ("gACT", "gGTO", "gSTA", "gOBJ", "gFLT", "gPR", "gPO", "gCU")
+
+
+class GripperPort(Protocol):
+    """What the handover needs from a gripper; both methods raise on a fault."""
+
+    def open(self) -> None:
+        """Start opening the fingers."""
+
+    def is_open(self) -> bool:
+        """Whether the fingers have finished opening."""
+
+
+class RobotiqGripperPort:
+    """A :class:`GripperPort` over a Robotiq client.
+
+    Args:
+        client: An activated client.
+        speed, force: rSP and rFR used to open, 0..255.
+
+    Raises on use:
+        RobotiqError: The exchange failed or the gripper reports a fault; the caller must
+            keep holding (the handover machine's FAULT state).
+    """
+
+    def __init__(self, client: RobotiqClient, speed: int = 128, force: int = 50) -> None:
+        self.client = client
+        self.speed, self.force = speed, force
+
+    def open(self) -> None:
+        """Send the open command."""
+        self.client.open_fingers(self.speed, self.force)
+
+    def is_open(self) -> bool:
+        """Poll the status; True once the opening has ended near position 0."""
+        return is_open(self.client.read_status(raise_on_fault=True))
+
+
+def is_open(status: GripperStatus) -> bool:
+    """The last go-to ended (gOBJ != 0) at an open position."""
+    return (
+        status.motion_done
+        and status.position <= OPEN_TOLERANCE
+        and status.position_request <= OPEN_TOLERANCE
+    )
+
+
+def describe(status: GripperStatus) -> str:
+    """One line a person understands, for the status message."""
+    if status.fault:
+        return f"fault gFLT={fault_name(status.fault)}"
+    if not status.activated:
+        return "reset (not activated)"
+    if status.activation != ActivationStatus.COMPLETED:
+        return "activating"
+    if not status.go_to:
+        return "activated, idle"
+    return {
+        ObjectStatus.MOVING: "moving",
+        ObjectStatus.DETECTED_OPENING: "stopped on an object while opening",
+        ObjectStatus.DETECTED_CLOSING: "holding an object",
+        ObjectStatus.AT_POSITION: "at requested position, no object",
+    }[status.object]
+
+
+def status_to_values(status: GripperStatus) -> list[tuple[str, str]]:
+    """Register fields as key-value strings, in :data:`STATUS_KEYS` order."""
+    fields = (
+        int(status.activated),
+        int(status.go_to),
+        int(status.activation),
+        int(status.object),
+        status.fault,
+        status.position_request,
+        status.position,
+        status.current,
+    )
+    return [(k, str(v)) for k, v in zip(STATUS_KEYS, fields, strict=True)]
+
+
+def status_from_values(values: Mapping[str, str] | Sequence[tuple[str, str]]) -> GripperStatus:
+    """Rebuild a status from :func:`status_to_values` pairs.
+
+    Raises:
+        BehaviourError: A key is missing or not an integer.
+    """
+    pairs = dict(values)
+    try:
+        v = {k: int(pairs[k]) for k in STATUS_KEYS}
+    except (KeyError, ValueError) as err:
+        raise BehaviourError(
+            f"The gripper status must carry integer values for {list(STATUS_KEYS)}. "
+            f"Got {sorted(pairs)} instead."
+        ) from err
+    return GripperStatus(
+        activated=bool(v["gACT"]),
+        go_to=bool(v["gGTO"]),
+        activation=ActivationStatus(v["gSTA"] & 3),
+        object=ObjectStatus(v["gOBJ"] & 3),
+        fault=v["gFLT"],
+        position_request=v["gPR"],
+        position=v["gPO"],
+        current=v["gCU"],
+    )

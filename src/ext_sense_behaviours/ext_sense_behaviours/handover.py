@@ -1,0 +1,229 @@
+"""Robot-to-human handover: release the object only once the person's grasp is stable.
+
+States::
+
+    IDLE --start--> HOLDING --N in a row P(stable) >= threshold--> RELEASING --open--> RELEASED
+                      |                                              |
+                      +--safety timeout--> TIMED_OUT (keep holding)  +--release timeout--> FAULT
+                      +--gripper fault / link lost--> FAULT (keep holding, stop commanding)
+
+The safe state is always "keep holding": dropping an object costs more than a slow handover.
+A provisional (anytime) estimate never counts unless ``accept_provisional`` is set; an estimate
+below the threshold, NaN, or for another task breaks the streak or is ignored, and every one of
+those choices is logged with its reason.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import IntEnum
+
+from ext_sense_behaviours.decisions import Decision, DecisionLog
+from ext_sense_behaviours.errors import BehaviourError
+from ext_sense_behaviours.records import Estimate
+
+HANDOVER_TASK = "handover_stability"
+
+
+class HandoverState(IntEnum):
+    """Where the handover is."""
+
+    IDLE = 0
+    HOLDING = 1
+    RELEASING = 2
+    RELEASED = 3
+    TIMED_OUT = 4
+    FAULT = 5
+
+
+class HandoverAction(IntEnum):
+    """What the caller must do after a decision."""
+
+    NONE = 0
+    OPEN_GRIPPER = 1
+    HOLD = 2
+    """Keep the gripper closed and send it nothing more (safe state)."""
+
+
+@dataclass(frozen=True)
+class HandoverConfig:
+    """Parameters of the handover decision.
+
+    Attributes:
+        threshold: P(stable) at or above which an estimate counts, in (0, 1].
+        consecutive: Estimates in a row needed before opening, >= 1.
+        accept_provisional: Let provisional (anytime) estimates count.
+        timeout_ns: Longest wait in HOLDING before giving up (keep holding), ns.
+        release_timeout_ns: Longest wait for the gripper to report open, ns.
+    """
+
+    threshold: float = 0.8
+    consecutive: int = 3
+    accept_provisional: bool = False
+    timeout_ns: int = 30_000_000_000
+    release_timeout_ns: int = 3_000_000_000
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.threshold <= 1.0:
+            raise BehaviourError(
+                f"The 'threshold' parameter must be in (0, 1]. Got {self.threshold!r} instead."
+            )
+        if self.consecutive < 1:
+            raise BehaviourError(
+                f"The 'consecutive' parameter must be >= 1. Got {self.consecutive!r} instead."
+            )
+        for name in ("timeout_ns", "release_timeout_ns"):
+            if getattr(self, name) <= 0:
+                raise BehaviourError(
+                    f"The '{name}' parameter must be > 0. Got {getattr(self, name)!r} instead."
+                )
+
+
+class HandoverMachine:
+    """The handover state machine; feed it events, act on the decisions it returns.
+
+    Args:
+        config: Decision parameters.
+        sink: Called with every decision as it is taken (e.g. a node logger).
+    """
+
+    def __init__(
+        self, config: HandoverConfig | None = None, sink: Callable[[Decision], None] | None = None
+    ) -> None:
+        self.config = config or HandoverConfig()
+        self.log = DecisionLog(sink)
+        self.state = HandoverState.IDLE
+        self.streak = 0
+        self._hold_since_ns = 0
+        self._release_since_ns = 0
+
+    def _decide(
+        self, now_ns: int, state: HandoverState, action: HandoverAction, reason: str
+    ) -> Decision:
+        self.state = state
+        return self.log.record(now_ns, state, action, reason)
+
+    def start(self, now_ns: int) -> Decision:
+        """The object is grasped and offered: start waiting for a stable human grasp."""
+        if self.state not in (HandoverState.IDLE, HandoverState.RELEASED, HandoverState.TIMED_OUT):
+            return self._decide(
+                now_ns, self.state, HandoverAction.NONE, f"start ignored in state {self.state.name}"
+            )
+        self.streak = 0
+        self._hold_since_ns = now_ns
+        return self._decide(
+            now_ns,
+            HandoverState.HOLDING,
+            HandoverAction.HOLD,
+            f"holding; open after {self.config.consecutive} consecutive estimates with "
+            f"P(stable) >= {self.config.threshold:.2f}",
+        )
+
+    def on_estimate(self, estimate: Estimate, now_ns: int) -> Decision:
+        """Count one stability estimate; returns OPEN_GRIPPER when the streak completes."""
+        cfg = self.config
+        if self.state != HandoverState.HOLDING:
+            return self._decide(
+                now_ns,
+                self.state,
+                HandoverAction.NONE,
+                f"estimate ignored: not holding (state {self.state.name})",
+            )
+        if estimate.task != HANDOVER_TASK:
+            return self._decide(
+                now_ns,
+                self.state,
+                HandoverAction.NONE,
+                f"estimate ignored: task '{estimate.task}', expected '{HANDOVER_TASK}'",
+            )
+        p = float(estimate.stability_probability)
+        if estimate.provisional and not cfg.accept_provisional:
+            return self._decide(
+                now_ns,
+                self.state,
+                HandoverAction.NONE,
+                f"provisional estimate P(stable)={p:.3f} ignored (accept_provisional is false); "
+                f"streak stays {self.streak}/{cfg.consecutive}",
+            )
+        if math.isnan(p) or not 0.0 <= p <= 1.0:
+            self.streak = 0
+            return self._decide(
+                now_ns,
+                self.state,
+                HandoverAction.NONE,
+                f"invalid P(stable)={p!r}: streak reset to 0/{cfg.consecutive}",
+            )
+        if p < cfg.threshold:
+            self.streak = 0
+            return self._decide(
+                now_ns,
+                self.state,
+                HandoverAction.NONE,
+                f"P(stable)={p:.3f} < {cfg.threshold:.2f}: unstable grasp, streak reset to "
+                f"0/{cfg.consecutive}",
+            )
+        self.streak += 1
+        if self.streak < cfg.consecutive:
+            return self._decide(
+                now_ns,
+                self.state,
+                HandoverAction.NONE,
+                f"P(stable)={p:.3f} >= {cfg.threshold:.2f}: streak {self.streak}/{cfg.consecutive}",
+            )
+        self._release_since_ns = now_ns
+        return self._decide(
+            now_ns,
+            HandoverState.RELEASING,
+            HandoverAction.OPEN_GRIPPER,
+            f"P(stable)={p:.3f} >= {cfg.threshold:.2f} for {self.streak} consecutive estimates"
+            f"{' (provisional accepted)' if estimate.provisional else ''}: opening the gripper",
+        )
+
+    def on_gripper(self, opened: bool, now_ns: int) -> Decision | None:
+        """Report whether the gripper has finished opening; completes a release."""
+        if self.state == HandoverState.RELEASING and opened:
+            return self._decide(
+                now_ns,
+                HandoverState.RELEASED,
+                HandoverAction.NONE,
+                "gripper reports open: released",
+            )
+        return None
+
+    def on_fault(self, reason: str, now_ns: int) -> Decision:
+        """The gripper or its link failed: keep holding and stop commanding it."""
+        if self.state in (HandoverState.RELEASED, HandoverState.FAULT):
+            return self._decide(
+                now_ns, self.state, HandoverAction.NONE, f"fault after the end: {reason}"
+            )
+        return self._decide(
+            now_ns,
+            HandoverState.FAULT,
+            HandoverAction.HOLD,
+            f"gripper fault, holding safe: {reason}",
+        )
+
+    def on_tick(self, now_ns: int) -> Decision | None:
+        """Check the timeouts; call periodically."""
+        cfg = self.config
+        if self.state == HandoverState.HOLDING and now_ns - self._hold_since_ns >= cfg.timeout_ns:
+            return self._decide(
+                now_ns,
+                HandoverState.TIMED_OUT,
+                HandoverAction.HOLD,
+                f"no stable grasp within {cfg.timeout_ns / 1e9:.1f} s (streak "
+                f"{self.streak}/{cfg.consecutive}): keep holding",
+            )
+        if (
+            self.state == HandoverState.RELEASING
+            and now_ns - self._release_since_ns >= cfg.release_timeout_ns
+        ):
+            return self._decide(
+                now_ns,
+                HandoverState.FAULT,
+                HandoverAction.HOLD,
+                f"gripper did not report open within {cfg.release_timeout_ns / 1e9:.1f} s",
+            )
+        return None

@@ -1,0 +1,250 @@
+"""``handover_behaviour`` node: open the gripper once the person's grasp is stable.
+
+Subscribes ``contact_estimate`` (``ContactEstimate``, task ``handover_stability``) and
+``gripper/status`` (from ``robotiq_gripper``); publishes ``gripper/command`` (open) and every
+decision with its reason on ``handover/decision`` (``std_msgs/String``) and in the log. The
+node first closes the ready gripper on the object (``grasp_on_start``); the handover starts
+when the gripper reports it holds an object (``auto_start``) or on ``handover/start``
+(``std_msgs/Bool`` true); with ``regrasp_s`` > 0 it grasps again after each release or timeout
+for the next handover (demos with many trials). The decisions are those of
+:class:`~ext_sense_behaviours.handover.HandoverMachine`; any gripper error keeps the object held.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, String
+
+from ext_sense_behaviours.decisions import Decision
+from ext_sense_behaviours.errors import BehaviourError
+from ext_sense_behaviours.gripper import is_open, status_from_values
+from ext_sense_behaviours.handover import (
+    HandoverAction,
+    HandoverConfig,
+    HandoverMachine,
+    HandoverState,
+)
+from ext_sense_behaviours.nodes.conversions import estimate_from_msg
+from ext_sense_msgs.msg import ContactEstimate
+from ext_sense_runtime.diagnostics import Level, Updater
+from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
+from ext_sense_runtime.node_main import run_node
+from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
+
+S = 1_000_000_000
+_CONFIG_PARAMS = {
+    "threshold": "threshold",
+    "consecutive": "consecutive",
+    "accept_provisional": "accept_provisional",
+    "timeout_s": "timeout_ns",
+    "release_timeout_s": "release_timeout_ns",
+}
+
+
+class HandoverBehaviourNode(Node):
+    """Runs the handover state machine on estimates and gripper status."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("handover_behaviour", **kwargs)
+        threshold = declare(
+            self, "threshold", 0.8, "P(stable) an estimate must reach, 0..1.", low=0.01, high=1.0
+        )
+        consecutive = declare(
+            self, "consecutive", 3, "Stable estimates in a row before opening.", low=1, high=50
+        )
+        provisional = declare(
+            self, "accept_provisional", False, "Let provisional (anytime) estimates count."
+        )
+        timeout_s = declare(
+            self, "timeout_s", 30.0, "Safety timeout while holding, seconds.", low=0.1, high=3600.0
+        )
+        release_s = declare(
+            self,
+            "release_timeout_s",
+            3.0,
+            "Longest wait for the gripper to report open, seconds.",
+            low=0.1,
+            high=60.0,
+        )
+        self.open_speed = declare(
+            self, "open_speed", 0.5, "Opening speed, 0..1.", low=0.0, high=1.0
+        )
+        self.open_force = declare(
+            self, "open_force", 0.3, "Opening force, 0..1.", low=0.0, high=1.0
+        )
+        self.grasp_on_start = declare(
+            self,
+            "grasp_on_start",
+            True,
+            "Close the ready gripper on the object first (then the handover starts on contact).",
+        )
+        self.grasp_force = declare(
+            self, "grasp_force", 0.3, "Grasping force, 0..1.", low=0.0, high=1.0
+        )
+        regrasp_s = declare(
+            self,
+            "regrasp_s",
+            0.0,
+            "After a release or a timeout, wait this long, grasp again and start the next "
+            "handover, seconds (0: one handover only).",
+            low=0.0,
+            high=3600.0,
+        )
+        self.regrasp_ns = round(regrasp_s * S)
+        self._grasp_pending = False
+        self._ended_ns: int | None = None
+        self.auto_start = declare(
+            self, "auto_start", True, "Start when the gripper reports it holds an object."
+        )
+        tick_hz = declare(
+            self,
+            "tick_rate_hz",
+            20.0,
+            "Timeout check rate, Hz.",
+            low=1.0,
+            high=200.0,
+            read_only=True,
+        )
+        self.machine = HandoverMachine(
+            HandoverConfig(
+                threshold, consecutive, provisional, round(timeout_s * S), round(release_s * S)
+            ),
+            sink=self._on_decision,
+        )
+        self.add_on_set_parameters_callback(self._on_set)
+        self.gripper_level = Level.STALE
+        self.gripper_message = "no gripper status yet"
+        self.estimates = 0
+        self.command_pub = self.create_publisher(JointState, "gripper/command", COMMAND_QOS)
+        self.decision_pub = self.create_publisher(String, "handover/decision", COMMAND_QOS)
+        self.create_subscription(
+            ContactEstimate, "contact_estimate", self._on_estimate, ESTIMATE_QOS
+        )
+        self.create_subscription(DiagnosticStatus, "gripper/status", self._on_gripper, COMMAND_QOS)
+        self.create_subscription(Bool, "handover/start", self._on_start, COMMAND_QOS)
+        self.create_timer(1.0 / tick_hz, self._on_tick)
+        self.updater = Updater(hardware_id="handover")
+        self.updater.add_check("handover", self._check)
+        self.diagnostics = DiagnosticsPublisher(self, self.updater)
+
+    def _now(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    def _on_set(self, params: list) -> SetParametersResult:
+        changes = {}
+        for p in params:
+            if p.name in _CONFIG_PARAMS:
+                value = p.value
+                if p.name.endswith("_s"):
+                    value = round(value * S)
+                changes[_CONFIG_PARAMS[p.name]] = value
+            elif p.name in ("open_speed", "open_force", "auto_start"):
+                setattr(self, p.name, p.value)
+        if changes:
+            if self.machine.state == HandoverState.RELEASING:
+                return SetParametersResult(successful=False, reason="cannot change while releasing")
+            try:
+                self.machine.config = replace(self.machine.config, **changes)
+            except BehaviourError as err:
+                return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+
+    def _on_decision(self, decision: Decision) -> None:
+        if decision.state in ("RELEASED", "TIMED_OUT"):
+            self._ended_ns = decision.stamp_ns
+        elif decision.state == "HOLDING":
+            self._grasp_pending, self._ended_ns = False, None
+        self.get_logger().info(f"{decision.state}: {decision.action} - {decision.reason}")
+        self.decision_pub.publish(String(data=str(decision)))
+
+    def _act(self, decision: Decision | None) -> None:
+        if decision is not None and HandoverAction[decision.action] == HandoverAction.OPEN_GRIPPER:
+            cmd = JointState(
+                name=["finger_joint"],
+                position=[0.0],
+                velocity=[self.open_speed],
+                effort=[self.open_force],
+            )
+            cmd.header.stamp = self.get_clock().now().to_msg()
+            self.command_pub.publish(cmd)
+
+    def _on_start(self, msg: Bool) -> None:
+        if msg.data:
+            self._act(self.machine.start(self._now()))
+
+    def _on_estimate(self, msg: ContactEstimate) -> None:
+        self.estimates += 1
+        self._act(self.machine.on_estimate(estimate_from_msg(msg), self._now()))
+
+    def _on_gripper(self, msg: DiagnosticStatus) -> None:
+        level = Level(msg.level[0] if isinstance(msg.level, bytes) else int(msg.level))
+        self.gripper_level, self.gripper_message = level, msg.message
+        now = self._now()
+        state = self.machine.state
+        if level == Level.ERROR:
+            if state in (HandoverState.HOLDING, HandoverState.RELEASING):
+                self._act(self.machine.on_fault(msg.message, now))
+            return
+        try:
+            status = status_from_values([(kv.key, kv.value) for kv in msg.values])
+        except BehaviourError:
+            return  # no register values yet (e.g. "no status yet")
+        if state == HandoverState.RELEASING:
+            self.machine.on_gripper(is_open(status), now)
+            return
+        ready_for_next = state == HandoverState.IDLE or (
+            state in (HandoverState.RELEASED, HandoverState.TIMED_OUT)
+            and self.regrasp_ns > 0
+            and self._ended_ns is not None
+            and now - self._ended_ns >= self.regrasp_ns
+        )
+        if not ready_for_next:
+            return
+        if status.object_held:
+            if self.auto_start:
+                self._act(self.machine.start(now))
+        elif self.grasp_on_start and status.ready and not self._grasp_pending:
+            self._grasp_pending = True
+            self.get_logger().info("grasping the object before the handover")
+            cmd = JointState(
+                name=["finger_joint"],
+                position=[1.0],
+                velocity=[self.open_speed],
+                effort=[self.grasp_force],
+            )
+            cmd.header.stamp = self.get_clock().now().to_msg()
+            self.command_pub.publish(cmd)
+        elif self._grasp_pending and status.motion_done and not status.object_held:
+            self.get_logger().warning(
+                "gripper closed on nothing (gOBJ=3): no object to hand over",
+                throttle_duration_sec=10.0,
+            )
+
+    def _on_tick(self) -> None:
+        self._act(self.machine.on_tick(self._now()))
+
+    def _check(self) -> tuple[Level, str, dict[str, object]]:
+        state = self.machine.state
+        level = Level.ERROR if state == HandoverState.FAULT else Level.OK
+        last = self.machine.log.entries[-1].reason if self.machine.log.entries else "idle"
+        return (
+            level,
+            f"{state.name}: {last}",
+            {
+                "estimates": self.estimates,
+                "streak": self.machine.streak,
+                "gripper": self.gripper_message,
+            },
+        )
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node."""
+    return run_node(HandoverBehaviourNode, args)

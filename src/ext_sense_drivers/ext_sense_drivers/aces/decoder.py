@@ -1,0 +1,331 @@
+"""Streaming ACES line decoder: onset-driven successive cancellation, matched-filter cleanup.
+
+The line is cut into passes at fixed sample positions (so chunking never changes the output).
+Each pass looks at a window of ``window`` residual samples and decides the signatures that
+start in its first ``window - 2 L + 2`` samples, where every signature that could overlap
+them lies inside the window:
+
+1. :class:`~ext_sense_drivers.aces.onset.OnsetDecoder` walks the window in time order,
+   correlating with the 80 codes only where a new signature can start, and cancels what it
+   accepts (cost grows with events, not samples).
+2. If the decided stretch still holds a signature's worth of residual energy, the window goes
+   through :class:`~ext_sense_drivers.aces.matched_filter.MatchedFilterSic` (all codes at all
+   starts, strongest first); what it finds is added, and a signature it finds that exactly
+   negates an onset decision (same taxel and start, other sign) undoes that decision.
+3. Decided signatures stay subtracted from the residual; the window slides on.
+
+Cancellation uses the nominal amplitude, not the measured one, so interference does not leak
+into the residual.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from ext_sense_drivers.aces.bank import SignatureBank, load_bank
+from ext_sense_drivers.aces.detections import Detections
+from ext_sense_drivers.aces.enums import DecodeMode
+from ext_sense_drivers.aces.errors import AcesError
+from ext_sense_drivers.aces.matched_filter import MatchedFilterSic
+from ext_sense_drivers.aces.onset import OnsetDecoder
+from ext_sense_drivers.aces.sample_clock import sample_to_ns
+from ext_sense_drivers.aces.wire import BYTES_PER_SAMPLE, COUNTS_PER_UNIT, WIRE_DTYPE
+from ext_sense_drivers.nuskin.events import EventBlock
+
+DEFAULT_WINDOW = 2048
+"""Samples per pass; with 127 chips, 1796 samples (3.5 ms) are decided per pass and no event
+waits more than 2048 samples (4.0 ms) after its signature started."""
+
+_REFRESH_RATIO = 0.25
+"""A decided stretch one signature long whose residual energy exceeds the median by this
+fraction of one signature's energy triggers a second correlation of the residual."""
+
+
+@dataclass(frozen=True)
+class LineCounters:
+    """What a :class:`LineDecoder` has seen so far.
+
+    Attributes:
+        samples: Line samples taken in (including replaced non-finite ones).
+        nonfinite_samples: NaN/inf samples replaced by 0 (counted drop; the clock stays right).
+        bytes_dropped: Trailing odd byte discarded at :meth:`LineDecoder.flush`.
+        detections: Events emitted.
+        cancellations: Signatures cancelled, including the matched filter's look-ahead ones
+            that are found again in the next pass.
+        tested: Code correlations evaluated at single starts (onset tests, matched-filter
+            candidates).
+        passes: Decoding passes run.
+        refreshes: Passes whose residual still held a signature's energy after the onset
+            decoder, so that the matched filter ran on them.
+        undone: Onset decisions the matched filter found wrong and reversed.
+        input_energy: Sum of squared samples taken in, line units squared.
+        residual_energy: Sum of squared residual of the decided samples after cancellation;
+            near zero on a clean line, so a high ratio to ``input_energy`` means missed events,
+            a wrong bank, a gain error or noise.
+    """
+
+    samples: int = 0
+    nonfinite_samples: int = 0
+    bytes_dropped: int = 0
+    detections: int = 0
+    cancellations: int = 0
+    tested: int = 0
+    passes: int = 0
+    refreshes: int = 0
+    undone: int = 0
+    input_energy: float = 0.0
+    residual_energy: float = 0.0
+
+
+class LineDecoder:
+    """Decode a stream of ACES line samples into taxel events.
+
+    Args:
+        bank: Signature bank the line was encoded with (default: the default version).
+        threshold: Detection threshold as a fraction of a full match (amplitude x chips), in
+            (0, 1); default 0.5.
+        amplitude: Nominal chip amplitude of one signature on the line, line units (> 0).
+        window: Samples per pass, at least ``4 * chips``: an event is emitted at most this many
+            samples after its signature started; larger windows cost less per sample.
+        t0_ns: Time of sample 0, added to every event time.
+        mode: :attr:`DecodeMode.ONSET` (default) or :attr:`DecodeMode.MATCHED_FILTER`.
+
+    Raises:
+        AcesError: A parameter out of range.
+    """
+
+    def __init__(
+        self,
+        bank: SignatureBank | None = None,
+        *,
+        threshold: float = 0.5,
+        amplitude: float = 1.0,
+        window: int = DEFAULT_WINDOW,
+        t0_ns: int = 0,
+        mode: DecodeMode = DecodeMode.ONSET,
+    ) -> None:
+        self.bank = bank if bank is not None else load_bank()
+        length = self.bank.n_chips
+        if not 0.0 < threshold < 1.0:
+            raise AcesError(
+                f"The 'threshold' parameter must be in (0, 1). Got {threshold!r} instead."
+            )
+        if not (np.isfinite(amplitude) and amplitude > 0.0):
+            raise AcesError(f"The 'amplitude' parameter must be > 0. Got {amplitude!r} instead.")
+        if not isinstance(window, int | np.integer) or window < 4 * length:
+            raise AcesError(
+                f"The 'window' parameter must be an integer >= {4 * length}. "
+                f"Got {window!r} instead."
+            )
+        self.threshold = float(threshold)
+        self.amplitude = float(amplitude)
+        self.window = int(window)
+        self.t0_ns = int(t0_ns)
+        try:
+            self.mode = DecodeMode(mode)
+        except ValueError as err:
+            raise AcesError(
+                f"The 'mode' parameter must be one of {[m.name for m in DecodeMode]}. "
+                f"Got {mode!r} instead."
+            ) from err
+        self._length = length
+        self._commit = self.window - 2 * length + 2
+        self._chips = self.bank.chips.astype(np.float64) * self.amplitude
+        self._onset = OnsetDecoder(self.bank, self.amplitude, self.threshold)
+        self._matched = MatchedFilterSic(self.bank, self.amplitude, self.threshold, self.window)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the stream: sample 0 is the next sample fed; counters restart."""
+        self._buf = np.zeros(0, np.float64)
+        self._base = 0
+        self._odd: bytes = b""
+        self._ended = False
+        self._c = dict.fromkeys(LineCounters.__dataclass_fields__, 0)
+        self._c["input_energy"] = 0.0
+        self._c["residual_energy"] = 0.0
+
+    @property
+    def counters(self) -> LineCounters:
+        """A snapshot of the counters."""
+        return LineCounters(**self._c)
+
+    @property
+    def latency_samples(self) -> int:
+        """Most samples a signature waits between arriving and being emitted."""
+        return self.window
+
+    def feed(self, chunk: bytes | bytearray | memoryview | npt.NDArray[np.floating]) -> EventBlock:
+        """Take the next piece of the line and return the events decided so far.
+
+        Args:
+            chunk: Wire bytes (int16 little-endian, split anywhere, even mid-sample) or a 1-D
+                float array of samples in line units. Do not mix the two in one stream while
+                a half sample is pending.
+
+        Returns:
+            Newly decided events in time order; times are ``t0_ns`` plus the line's sample
+            clock since stream start.
+
+        Raises:
+            AcesError: Wrong type or shape, integer arrays (send wire counts as bytes), an
+                array while half a wire sample is pending, or a stream already flushed.
+        """
+        if self._ended:
+            raise AcesError("This stream was flushed; call reset() before feeding a new one.")
+        samples = self._to_samples(chunk)
+        bad = ~np.isfinite(samples)
+        if bad.any():
+            samples = np.where(bad, 0.0, samples)
+            self._c["nonfinite_samples"] += int(bad.sum())
+        self._c["samples"] += int(samples.size)
+        self._c["input_energy"] += float(np.dot(samples, samples))
+        if samples.size:
+            self._buf = np.concatenate((self._buf, samples))
+        return self._run()
+
+    def flush(self) -> EventBlock:
+        """End the stream: decide everything left (zero-padded) and return it.
+
+        A signature cut off by the end of the stream is found if more than ``threshold`` of it
+        arrived. A trailing odd byte is counted in ``bytes_dropped``.
+        """
+        if self._ended:
+            return EventBlock.empty()
+        if self._odd:
+            self._c["bytes_dropped"] += len(self._odd)
+            self._odd = b""
+        end = self._base + self._buf.size
+        blocks = [self._run()]
+        while self._base < end:
+            pad = self.window - self._buf.size
+            if pad > 0:
+                self._buf = np.concatenate((self._buf, np.zeros(pad)))
+            blocks.append(self._pass(limit=end))
+        self._ended = True
+        return EventBlock.concat(blocks)
+
+    def _to_samples(
+        self, chunk: bytes | bytearray | memoryview | npt.NDArray[np.floating]
+    ) -> npt.NDArray[np.float64]:
+        """Turn a chunk into float64 line samples, carrying an odd trailing byte."""
+        if isinstance(chunk, bytes | bytearray | memoryview):
+            data = self._odd + bytes(chunk)
+            cut = len(data) - len(data) % BYTES_PER_SAMPLE
+            self._odd = data[cut:]
+            return np.frombuffer(data, WIRE_DTYPE, cut // BYTES_PER_SAMPLE).astype(np.float64) / (
+                COUNTS_PER_UNIT
+            )
+        if not isinstance(chunk, np.ndarray):
+            raise AcesError(
+                "The 'chunk' parameter must be bytes or a float ndarray. "
+                f"Got {type(chunk).__name__} instead."
+            )
+        if chunk.ndim != 1 or not np.issubdtype(chunk.dtype, np.floating):
+            raise AcesError(
+                "The 'chunk' parameter must be a 1-D float array in line units (wire counts go "
+                f"in as bytes). Got {chunk.dtype} of shape {chunk.shape} instead."
+            )
+        if self._odd:
+            raise AcesError("The 'chunk' parameter is an array but half a wire sample is pending.")
+        return chunk.astype(np.float64)
+
+    def _run(self) -> EventBlock:
+        """Run every pass whose window is complete."""
+        blocks = []
+        while self._buf.size >= self.window:
+            blocks.append(self._pass(limit=None))
+        return EventBlock.concat(blocks) if blocks else EventBlock.empty()
+
+    def _pass(self, limit: int | None) -> EventBlock:
+        """Decode one window, commit its first part, slide on (``limit``: end of real samples)."""
+        buf = self._buf
+        commit = self._commit if limit is None else min(self._commit, limit - self._base)
+        self._c["passes"] += 1
+        if self.mode is DecodeMode.MATCHED_FILTER:
+            found = self._matched.detect(buf[: self.window], commit)
+            self._subtract(buf, found)
+        else:
+            found = self._onset.decode(buf, commit)
+        self._c["tested"] += found.tested
+        self._c["cancellations"] += found.cancellations
+        if self.mode is DecodeMode.ONSET and self._missed_energy(buf[: max(commit, 0)]):
+            self._c["refreshes"] += 1
+            extra = self._matched.detect(buf[: self.window], commit)
+            self._c["tested"] += extra.tested
+            self._c["cancellations"] += extra.cancellations
+            self._subtract(buf, extra)
+            found = self._merge(found, extra)
+        decided = buf[: max(commit, 0)]
+        self._c["residual_energy"] += float(np.dot(decided, decided))
+        self._c["detections"] += int(found.code.size)
+        order = np.lexsort((found.code, found.start))
+        block = EventBlock(
+            self.t0_ns + sample_to_ns(self._base + found.start[order], self.bank.sample_rate_hz),
+            (found.code[order] + 1).astype(np.uint16),
+            found.sign[order].astype(np.int8),
+            np.zeros(found.code.size, np.uint16),
+        )
+        self._buf = buf[self._commit :]
+        self._base += self._commit
+        return block
+
+    def _merge(self, first: Detections, extra: Detections) -> Detections:
+        """Add the matched filter's detections; one that negates an onset decision undoes it."""
+        keys = {
+            (k, t): i
+            for i, (k, t) in enumerate(zip(first.code.tolist(), first.start.tolist(), strict=True))
+        }
+        drop = np.zeros(first.code.size, dtype=bool)
+        add = np.ones(extra.code.size, dtype=bool)
+        for j, (k, t, s) in enumerate(
+            zip(extra.code.tolist(), extra.start.tolist(), extra.sign.tolist(), strict=True)
+        ):
+            i = keys.get((k, t))
+            if i is not None and not drop[i] and first.sign[i] == -s:
+                drop[i] = True
+                add[j] = False
+        self._c["undone"] += int(drop.sum())
+        keep = ~drop
+        return Detections(
+            np.concatenate((first.code[keep], extra.code[add])),
+            np.concatenate((first.start[keep], extra.start[add])),
+            np.concatenate((first.sign[keep], extra.sign[add])),
+        )
+
+    def _subtract(self, buf: npt.NDArray[np.float64], found: Detections) -> None:
+        """Remove detected signatures from the residual line."""
+        for k, t, s in zip(
+            found.code.tolist(), found.start.tolist(), found.sign.tolist(), strict=True
+        ):
+            buf[t : t + self._length] -= s * self._chips[k]
+
+    def _missed_energy(self, decided: npt.NDArray[np.float64]) -> bool:
+        """Whether the decided residual still holds a signature's worth of energy somewhere."""
+        length = self._length
+        if decided.size < length:
+            return False
+        cum = np.cumsum(decided * decided)
+        energy = cum[length - 1 :] - np.concatenate(([0.0], cum[:-length]))
+        floor = float(np.median(energy))
+        return float(energy.max()) - floor > _REFRESH_RATIO * self.amplitude**2 * length
+
+
+def decode_line(
+    line: bytes | npt.NDArray[np.floating], bank: SignatureBank | None = None, **kwargs: object
+) -> EventBlock:
+    """Decode a whole line at once (feed plus flush of a fresh :class:`LineDecoder`).
+
+    Args:
+        line: Wire bytes or float samples in line units.
+        bank: Signature bank (default version if omitted).
+        **kwargs: Passed to :class:`LineDecoder`.
+
+    Returns:
+        All events in time order.
+    """
+    dec = LineDecoder(bank, **kwargs)  # type: ignore[arg-type]
+    return EventBlock.concat([dec.feed(line), dec.flush()])

@@ -1,0 +1,134 @@
+"""Encoder: taxel events -> ACES line samples, signatures summing where they overlap.
+
+What the simulator calls to produce a line, and what the tests and the benchmark decode.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from ext_sense_drivers.aces.bank import SignatureBank, load_bank
+from ext_sense_drivers.aces.errors import AcesError
+from ext_sense_drivers.aces.sample_clock import ns_to_sample
+
+_BATCH = 65_536
+"""Events per vectorised batch (bounds the ``(batch, chips)`` index array to a few MB)."""
+
+
+class EncodedLine(NamedTuple):
+    """A line and where each event landed on it.
+
+    Attributes:
+        samples: Line samples in line units, shape ``(n_samples,)`` float64.
+        start: Sample index at which each event's signature starts, ``(n_events,)`` int64
+            (the event time rounded to the sample clock, so within half a sample of it).
+        n_truncated: Events whose signature runs past ``n_samples`` (cut short) or starts
+            at or after it (not sent).
+        n_self_overlaps: Events that start less than one signature after the previous event
+            of the same taxel; the line cannot tell those apart, and a real NUSkin (one
+            event per taxel per 0.25 ms) never sends them.
+    """
+
+    samples: npt.NDArray[np.float64]
+    start: npt.NDArray[np.int64]
+    n_truncated: int
+    n_self_overlaps: int
+
+
+def _check_events(
+    t_ns: npt.ArrayLike, taxel: npt.ArrayLike, polarity: npt.ArrayLike, n_taxels: int
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """Validate the three event arrays and return them as int64."""
+    arrays = []
+    for name, arr in (("t_ns", t_ns), ("taxel", taxel), ("polarity", polarity)):
+        a = np.asarray(arr)
+        if a.ndim != 1 or (a.size and not np.issubdtype(a.dtype, np.integer)):
+            raise AcesError(
+                f"The '{name}' parameter must be a 1-D integer array. "
+                f"Got {a.dtype} of shape {a.shape} instead."
+            )
+        arrays.append(a.astype(np.int64))
+    t, k, p = arrays
+    if not t.shape == k.shape == p.shape:
+        raise AcesError(
+            f"The event arrays must have one length. Got t_ns {t.shape}, taxel {k.shape}, "
+            f"polarity {p.shape} instead."
+        )
+    if t.size and t.min() < 0:
+        raise AcesError(f"The 't_ns' parameter must be >= 0. Got {int(t.min())} instead.")
+    if k.size and (k.min() < 1 or k.max() > n_taxels):
+        raise AcesError(
+            f"The 'taxel' parameter must be in 1..{n_taxels}. "
+            f"Got values in {int(k.min())}..{int(k.max())} instead."
+        )
+    if p.size and not np.isin(p, (-1, 1)).all():
+        raise AcesError(
+            f"The 'polarity' parameter must be +1 or -1. Got {sorted(set(p.tolist()) - {-1, 1})}."
+        )
+    return t, k, p
+
+
+def encode_line(
+    t_ns: npt.ArrayLike,
+    taxel: npt.ArrayLike,
+    polarity: npt.ArrayLike,
+    *,
+    bank: SignatureBank | None = None,
+    n_samples: int | None = None,
+    amplitude: float = 1.0,
+    noise_std: float = 0.0,
+    rng: np.random.Generator | None = None,
+) -> EncodedLine:
+    """Sum the signatures of events into line samples.
+
+    Args:
+        t_ns: Event times, integer ns since the line's sample 0, shape ``(n,)``.
+        taxel: Taxel ids 1..80, shape ``(n,)``.
+        polarity: +1 or -1, shape ``(n,)``.
+        bank: Signature bank (default: :func:`load_bank` of the default version).
+        n_samples: Line length in samples; default just long enough for the last signature.
+        amplitude: Chip amplitude of one signature, line units.
+        noise_std: Standard deviation of white Gaussian noise added to every sample, line units.
+        rng: Random generator for the noise (default: a fresh unseeded one).
+
+    Returns:
+        The line, the start sample of every event, and the counts of truncated and
+        self-overlapping events.
+
+    Raises:
+        AcesError: Arrays of unequal length or wrong type, taxel outside 1..80, polarity not
+            +/-1, negative time, negative ``n_samples`` or ``noise_std``, non-finite amplitude.
+    """
+    bank = bank if bank is not None else load_bank()
+    t, k, p = _check_events(t_ns, taxel, polarity, bank.n_taxels)
+    if not np.isfinite(amplitude):
+        raise AcesError(f"The 'amplitude' parameter must be finite. Got {amplitude!r} instead.")
+    if not (np.isfinite(noise_std) and noise_std >= 0.0):
+        raise AcesError(f"The 'noise_std' parameter must be >= 0. Got {noise_std!r} instead.")
+    length = bank.n_chips
+    start = ns_to_sample(t, bank.sample_rate_hz)
+    if n_samples is None:
+        n_samples = int(start.max()) + length if start.size else 0
+    if n_samples < 0:
+        raise AcesError(f"The 'n_samples' parameter must be >= 0. Got {n_samples} instead.")
+    line = np.zeros(n_samples, np.float64)
+    chips = bank.chips.astype(np.float64) * amplitude
+    offsets = np.arange(length, dtype=np.int64)
+    for lo in range(0, start.size, _BATCH):
+        s, kk, pp = start[lo : lo + _BATCH], k[lo : lo + _BATCH], p[lo : lo + _BATCH]
+        idx = s[:, None] + offsets[None, :]
+        val = chips[kk - 1] * pp[:, None]
+        inside = idx < n_samples
+        line += np.bincount(idx[inside], weights=val[inside], minlength=n_samples)[:n_samples]
+    n_truncated = int(np.count_nonzero(start + length > n_samples))
+    order = np.lexsort((start, k))
+    same = k[order][1:] == k[order][:-1]
+    close = np.diff(start[order]) < length
+    n_self = int(np.count_nonzero(same & close))
+    if noise_std > 0.0 and n_samples:
+        gen = rng if rng is not None else np.random.default_rng()
+        line += gen.normal(0.0, noise_std, n_samples)
+    return EncodedLine(line, start, n_truncated, n_self)

@@ -1,0 +1,87 @@
+"""Byte format of a receiver that streams raw ACES line samples.
+
+One sample per chip (508 kHz for bank version 1), each a signed 16-bit little-endian integer,
+no header and no framing: the sample clock is the byte count. :data:`COUNTS_PER_UNIT` counts
+make one chip of one signature (line unit 1.0), so the +/-32767 range holds up to 7
+fully coinciding signatures plus noise before it clips; clipping is counted, never silent.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from ext_sense_drivers.aces.errors import AcesError
+
+WIRE_DTYPE = np.dtype("<i2")
+"""Little-endian int16."""
+
+BYTES_PER_SAMPLE = 2
+
+COUNTS_PER_UNIT = 4096
+"""Wire counts per line unit (one chip of one signature at nominal amplitude)."""
+
+
+class Quantised(NamedTuple):
+    """Line samples as wire bytes.
+
+    Attributes:
+        data: ``2 * n`` bytes, int16 little-endian.
+        n_clipped: Samples that fell outside the int16 range and were clipped.
+    """
+
+    data: bytes
+    n_clipped: int
+
+
+def samples_to_bytes(line: npt.ArrayLike) -> Quantised:
+    """Quantise line samples (line units) to the wire format.
+
+    Args:
+        line: Finite real samples, shape ``(n,)``.
+
+    Returns:
+        The bytes and the number of clipped samples.
+
+    Raises:
+        AcesError: Not one-dimensional, not real, or holds NaN/inf.
+    """
+    x = np.asarray(line)
+    if x.ndim != 1 or not (
+        np.issubdtype(x.dtype, np.floating) or np.issubdtype(x.dtype, np.integer)
+    ):
+        raise AcesError(
+            "The 'line' parameter must be a 1-D real array. "
+            f"Got {x.dtype} of shape {x.shape} instead."
+        )
+    scaled = np.rint(x.astype(np.float64) * COUNTS_PER_UNIT)
+    if not np.isfinite(scaled).all():
+        raise AcesError(
+            "The 'line' parameter must be finite. "
+            f"Got {int((~np.isfinite(scaled)).sum())} NaN/inf samples instead."
+        )
+    lo, hi = np.iinfo(np.int16).min, np.iinfo(np.int16).max
+    n_clipped = int(np.count_nonzero((scaled < lo) | (scaled > hi)))
+    return Quantised(np.clip(scaled, lo, hi).astype(WIRE_DTYPE).tobytes(), n_clipped)
+
+
+def bytes_to_samples(data: bytes | bytearray | memoryview) -> npt.NDArray[np.float64]:
+    """Line samples (line units) of whole wire samples.
+
+    Args:
+        data: An even number of bytes.
+
+    Returns:
+        float64 samples, shape ``(len(data) // 2,)``.
+
+    Raises:
+        AcesError: Odd byte count (a streaming reader carries the odd byte instead; see
+            :class:`~ext_sense_drivers.aces.decoder.LineDecoder`).
+    """
+    if len(data) % BYTES_PER_SAMPLE:
+        raise AcesError(
+            f"The 'data' parameter must hold whole int16 samples. Got {len(data)} bytes."
+        )
+    return np.frombuffer(data, dtype=WIRE_DTYPE).astype(np.float64) / COUNTS_PER_UNIT

@@ -1,0 +1,100 @@
+"""``ext-sense nuskin ...`` and ``ext-sense biotac ...``: the drivers' command-line tools.
+
+``nuskin decode RAW_FILE --out EVENTS.csv`` decodes a receiver capture (e.g. a lab
+``*_raw.tact``) into one CSV row per valid word, header ``word,polarity,taxel,value`` (``word``
+counts the valid words from 0), and prints one line of decoder counters to stderr. The
+``biotac`` commands live in :mod:`ext_sense_drivers.biotac.cli` and are added when present.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+
+CSV_HEADER = "word,polarity,taxel,value"
+_READ_BYTES = 1 << 20
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``nuskin`` and ``biotac`` subcommands."""
+    nuskin = subparsers.add_parser("nuskin", help="NUSkin receiver tools (decode captures)")
+    sub = nuskin.add_subparsers(dest="nuskin_command", metavar="COMMAND")
+    sub.required = True
+    decode = sub.add_parser(
+        "decode",
+        help="decode a raw receiver capture into one CSV row per word",
+        description="Decode receiver event words (4 bytes each, tagged in the top 3 bits) "
+        f"into CSV rows '{CSV_HEADER}'; counters go to stderr.",
+    )
+    decode.add_argument("raw_file", type=Path, metavar="RAW_FILE")
+    decode.add_argument(
+        "--out", type=Path, default=None, metavar="EVENTS.csv", help="output CSV (default stdout)"
+    )
+    decode.add_argument(
+        "--flag-polarity",
+        choices=("ignore", "is_positive"),
+        default="ignore",
+        help="how the word's flag bit maps to polarity (default ignore: 0 for every event, "
+        "as the real receivers leave the bit at 0)",
+    )
+    decode.set_defaults(func=_decode)
+    _register_biotac(subparsers)
+
+
+def _register_biotac(subparsers: argparse._SubParsersAction) -> None:
+    try:
+        module = importlib.import_module("ext_sense_drivers.biotac.cli")
+    except ModuleNotFoundError as err:
+        if err.name in ("ext_sense_drivers.biotac", "ext_sense_drivers.biotac.cli"):
+            return  # the BioTac tools are not there (yet): the nuskin part works without them
+        raise
+    module.register_biotac(subparsers)
+
+
+def _decode(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from ext_sense_drivers.nuskin.wire import FlagPolarity, WordDecoder
+
+    decoder = WordDecoder(FlagPolarity[args.flag_polarity.upper()])
+    try:
+        source = args.raw_file.open("rb")
+    except OSError as err:
+        print(
+            f"ext-sense nuskin decode: cannot read {str(args.raw_file)!r}: {err}", file=sys.stderr
+        )
+        return 2
+    try:
+        out = sys.stdout if args.out is None else args.out.open("w", encoding="ascii", newline="")
+    except OSError as err:
+        source.close()
+        print(f"ext-sense nuskin decode: cannot write {str(args.out)!r}: {err}", file=sys.stderr)
+        return 2
+    try:
+        out.write(CSV_HEADER + "\n")
+        n = 0
+        while True:
+            data = source.read(_READ_BYTES)
+            if not data:
+                break
+            words = decoder.feed(data)
+            if words.size:
+                rows = np.column_stack(
+                    (np.arange(n, n + words.size), words.polarity, words.taxel, words.value)
+                )
+                np.savetxt(out, rows, fmt="%d", delimiter=",")
+                n += words.size
+        decoder.flush()
+    finally:
+        source.close()
+        if out is not sys.stdout:
+            out.close()
+    c = decoder.counters
+    print(
+        f"{args.raw_file.name}: bytes={c.bytes_in} words={c.words} resyncs={c.resyncs} "
+        f"skipped_bytes={c.skipped_bytes} bad_taxel_words={c.bad_taxel_words}",
+        file=sys.stderr,
+    )
+    return 0

@@ -1,0 +1,1 @@
+"""Driver nodes (the only modules of this package that import rclpy)."""

@@ -1,0 +1,306 @@
+"""``biotac_driver`` node: BioTac bridge bytes in, one ``BioTacFrame`` message per frame out.
+
+A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the link (serial, CAN
+or a capture file) and reconnects with exponential backoff; a timer drains what arrived, decodes
+it with :class:`~ext_sense_drivers.biotac.bridge.BridgeDecoder` and publishes every frame as it
+came: 22 raw PAC samples per message, never averaged. Words failing parity or BioTac error
+replies are flagged in ``invalid_word_mask`` and counted; corrupt bytes are counted, never fatal.
+``header.stamp`` is the first PAC sample's time from the per-sensor
+:class:`~ext_sense_drivers.biotac.clock.FrameClock`. ``/diagnostics`` carries the link state,
+frames/s per expected sensor and the decode counters.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+
+from ext_sense_drivers.biotac.bridge import MAX_SENSORS, BridgeDecoder, BridgeFrames
+from ext_sense_drivers.biotac.clock import FRAME_RATE_HZ, PAC_PERIOD_NS, FrameClock
+from ext_sense_drivers.biotac.driver_config import BioTacDriverConfig
+from ext_sense_drivers.transports.base import LinkState
+from ext_sense_drivers.transports.reader import Backoff, StreamReader
+from ext_sense_msgs.msg import BioTacFrame
+from ext_sense_runtime.diagnostics import Level, RateTask, Updater
+from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
+from ext_sense_runtime.node_main import run_node
+from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.qos import SENSOR_STREAM_QOS
+from ext_sense_runtime.qos_events import QosEventCounter
+from ext_sense_runtime.stamps import fill_stamp
+
+
+def _declare_config(node: Node) -> BioTacDriverConfig:
+    d = BioTacDriverConfig()
+    return BioTacDriverConfig(
+        transport=declare(
+            node, "transport", d.transport, "Byte source: serial, can or file.", read_only=True
+        ),
+        port=declare(
+            node, "port", d.port, "Serial device of the bridge or pyserial URL.", read_only=True
+        ),
+        baud=declare(
+            node,
+            "baud",
+            d.baud,
+            "Serial line rate, bit/s (8N1; five sensors need >= 480000). Also sets the "
+            "transmission time in the clock model.",
+            low=1200,
+            high=100_000_000,
+            read_only=True,
+        ),
+        can_interface=declare(
+            node, "can_interface", d.can_interface, "python-can interface.", read_only=True
+        ),
+        can_channel=declare(
+            node, "can_channel", d.can_channel, "CAN channel on that interface.", read_only=True
+        ),
+        can_arbitration_id=declare(
+            node,
+            "can_arbitration_id",
+            d.can_arbitration_id,
+            "Arbitration id of the CAN frames carrying the bridge stream.",
+            low=0,
+            high=0x1FFFFFFF,
+            read_only=True,
+        ),
+        can_extended_id=declare(
+            node, "can_extended_id", d.can_extended_id, "29-bit extended CAN id.", read_only=True
+        ),
+        file_path=declare(
+            node,
+            "file_path",
+            d.file_path,
+            "Recorded bridge stream (transport file).",
+            read_only=True,
+        ),
+        file_bytes_per_s=declare(
+            node,
+            "file_bytes_per_s",
+            d.file_bytes_per_s,
+            "File replay rate, bytes/s (9600 per sensor is real time); 0 replays flat out.",
+            low=0.0,
+            high=1e9,
+            read_only=True,
+        ),
+        file_loop=declare(
+            node, "file_loop", d.file_loop, "Replay the file for ever.", read_only=True
+        ),
+        frame_id_prefix=declare(
+            node,
+            "frame_id_prefix",
+            d.frame_id_prefix,
+            "header.frame_id is this prefix plus the sensor slot (biotac_0 ... biotac_4).",
+            read_only=True,
+        ),
+        expected_sensors=tuple(
+            declare(
+                node,
+                "expected_sensors",
+                list(d.expected_sensors),
+                "Sensor slots (0..4) that must deliver 100 frames/s; diagnostics check their rate.",
+                read_only=True,
+            )
+        ),
+        latency_ns=declare(
+            node,
+            "latency_ns",
+            d.latency_ns,
+            "Known fixed latency from the bridge to the host, ns, added to the clock model's "
+            "lead (frame span 10 ms + serial transmission).",
+            low=0,
+            high=1_000_000_000,
+            read_only=True,
+        ),
+        clock_window_frames=declare(
+            node,
+            "clock_window_frames",
+            d.clock_window_frames,
+            "Frames over which the clock model keeps the least-delayed arrival (200 = 2 s).",
+            low=1,
+            high=100_000,
+            read_only=True,
+        ),
+    )
+
+
+class BioTacDriverNode(Node):
+    """Publishes BioTac frames on ``frames`` from a serial, CAN or file bridge stream."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("biotac_driver", **kwargs)
+        self.config = _declare_config(self)
+        period_s = declare(
+            self,
+            "publish_period_s",
+            0.002,
+            "Time between drains of the link (frames are published one message each), s.",
+            low=0.0001,
+            high=1.0,
+            read_only=True,
+        )
+        initial_s = declare(
+            self,
+            "reconnect_initial_s",
+            0.1,
+            "First reconnect delay after the link vanished, s (doubles per failure).",
+            low=0.001,
+            high=60.0,
+            read_only=True,
+        )
+        max_s = declare(
+            self, "reconnect_max_s", 2.0, "Longest reconnect delay, s.", low=0.001, high=600.0
+        )
+        self.add_on_set_parameters_callback(self._on_set)
+
+        self.decoder = BridgeDecoder()
+        self.clocks: list[FrameClock] = [self.config.make_clock() for _ in range(MAX_SENSORS)]
+        self.reader = StreamReader(
+            self.config.make_transport(), backoff=Backoff(initial_s, max(initial_s, max_s))
+        )
+        # Monotonic host ns -> ROS time ns, fixed at start so stamps never step back.
+        self._mono_to_ros_ns = self.get_clock().now().nanoseconds - time.monotonic_ns()
+        self._connects_seen = 0
+        self._last_arrival_ns = time.monotonic_ns()
+        self._dropped = [0] * MAX_SENSORS
+        self._parity = [0] * MAX_SENSORS
+        self._errors = [0] * MAX_SENSORS
+        self.frames_published = 0
+        self._qos_events = QosEventCounter()
+        self._pub = self.create_publisher(
+            BioTacFrame, "frames", SENSOR_STREAM_QOS, event_callbacks=self._qos_events.publisher()
+        )
+        self._updater = Updater(self.config.hardware_id)
+        self._updater.add_check("link", self._check_link)
+        self._rates: dict[int, RateTask] = {}
+        for s in sorted(set(self.config.expected_sensors)):
+            task = RateTask(f"sensor {s} frames", FRAME_RATE_HZ, FRAME_RATE_HZ, unit="frames_per_s")
+            self._rates[s] = task
+            self._updater.add(task)
+        self._updater.add_check("decode", self._check_decode)
+        self._last_reported = self.decoder.counters
+        self._diagnostics = DiagnosticsPublisher(self, self._updater)
+        self._timer = self.create_timer(period_s, self._tick)
+        self.reader.start()
+        self.get_logger().info(
+            f"reading the BioTac bridge from {self.config.transport} {self.config.hardware_id}"
+        )
+
+    def _on_set(self, params: list[Any]) -> SetParametersResult:
+        for p in params:
+            if p.name == "reconnect_max_s" and float(p.value) < self.reader.backoff.initial_s:
+                return SetParametersResult(
+                    successful=False,
+                    reason=f"The 'reconnect_max_s' parameter must be >= reconnect_initial_s "
+                    f"({self.reader.backoff.initial_s}). Got {p.value} instead.",
+                )
+        for p in params:
+            if p.name == "reconnect_max_s":
+                self.reader.backoff = Backoff(self.reader.backoff.initial_s, float(p.value))
+        return SetParametersResult(successful=True)
+
+    def _tick(self) -> None:
+        """Drain the reader, decode, publish every frame."""
+        if self.reader.connects != self._connects_seen:
+            if self._connects_seen:  # a new connection: bytes of the old one cannot complete
+                self._publish(self.decoder.flush(), self._last_arrival_ns)
+            self._connects_seen = self.reader.connects
+        for chunk in self.reader.drain():
+            self._last_arrival_ns = chunk.t_ns
+            self._publish(self.decoder.feed(chunk.data), chunk.t_ns)
+        if self.reader.state == LinkState.EXHAUSTED and self.decoder.pending_bytes:
+            self._publish(self.decoder.flush(), self._last_arrival_ns)
+
+    def _publish(self, frames: BridgeFrames, arrival_ns: int) -> None:
+        """One message per frame, stamped with the first PAC sample's ROS time."""
+        arrival_ros_ns = int(arrival_ns) + self._mono_to_ros_ns
+        for k in range(frames.n):
+            s = int(frames.sensor_id[k])
+            gap = int(frames.gap[k])
+            first_ns = self.clocks[s].update(arrival_ros_ns, gap, bool(frames.seq_reset[k]))
+            self._dropped[s] += gap
+            self._parity[s] += int(frames.parity_errors[k])
+            self._errors[s] += int(frames.error_replies[k])
+            msg = BioTacFrame()
+            fill_stamp(msg.header.stamp, first_ns)
+            msg.header.frame_id = self.config.frame_id(s)
+            msg.sensor_id = s
+            msg.sequence = int(frames.seq[k])
+            msg.pac_sample_period_ns = PAC_PERIOD_NS
+            msg.pac = frames.pac[k]
+            msg.electrodes = frames.electrodes[k]
+            msg.pdc = int(frames.pdc[k])
+            msg.tac = int(frames.tac[k])
+            msg.tdc = int(frames.tdc[k])
+            msg.invalid_word_mask = int(frames.invalid_mask[k])
+            msg.dropped_frames = min(self._dropped[s], 0xFFFFFFFF)
+            msg.parity_errors = min(self._parity[s], 0xFFFFFFFF)
+            msg.error_replies = min(self._errors[s], 0xFFFFFFFF)
+            self._pub.publish(msg)
+            if s in self._rates:
+                self._rates[s].tick()
+        self.frames_published += frames.n
+
+    def _check_link(self) -> tuple[Level, str, dict[str, object]]:
+        r = self.reader
+        state = r.state
+        values: dict[str, object] = {
+            "port_state": state.name.lower(),
+            "connects": r.connects,
+            "disconnects": r.disconnects,
+            "open_failures": r.open_failures,
+            "bytes_total": r.bytes_total,
+            "dropped_bytes": r.dropped_bytes,
+            "last_error": r.last_error,
+            "frames_published": self.frames_published,
+            **self._qos_events.as_values(),
+        }
+        if state == LinkState.CONNECTED:
+            return Level.OK, "connected", values
+        if state == LinkState.EXHAUSTED:
+            return Level.OK, "capture file replayed to its end", values
+        if state == LinkState.BACKOFF:
+            return Level.ERROR, f"link unavailable, retrying: {r.last_error}", values
+        return Level.WARN, state.name.lower(), values
+
+    def _check_decode(self) -> tuple[Level, str, dict[str, object]]:
+        c = self.decoder.counters
+        last, self._last_reported = self._last_reported, c
+        values: dict[str, object] = {
+            "frames_total": c.frames,
+            "crc_failures": c.crc_failures,
+            "skipped_bytes": c.skipped_bytes,
+            "truncated_frames": c.truncated,
+            "other_frames": c.other_frames,
+            "bad_sensor_frames": c.bad_sensor_frames,
+        }
+        for s in range(MAX_SENSORS):
+            if c.sensor_frames[s] or s in self._rates:
+                values[f"sensor_{s}_frames"] = c.sensor_frames[s]
+                values[f"sensor_{s}_dropped_frames"] = c.dropped_frames[s]
+                values[f"sensor_{s}_parity_errors"] = c.parity_errors[s]
+                values[f"sensor_{s}_error_replies"] = c.error_replies[s]
+                values[f"sensor_{s}_seq_resets"] = c.seq_resets[s]
+        new = {
+            "crc failures": c.crc_failures - last.crc_failures,
+            "dropped frames": sum(c.dropped_frames) - sum(last.dropped_frames),
+            "parity errors": sum(c.parity_errors) - sum(last.parity_errors),
+            "error replies": sum(c.error_replies) - sum(last.error_replies),
+        }
+        problems = [f"{n} {what}" for what, n in new.items() if n]
+        if problems:
+            return Level.WARN, ", ".join(problems) + " since the last report", values
+        return Level.OK, "clean stream", values
+
+    def destroy_node(self) -> None:
+        """Stop the reader thread (closing the link) before the node goes."""
+        self.reader.stop()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node (console script ``biotac_driver``)."""
+    return run_node(BioTacDriverNode, args)

@@ -1,0 +1,297 @@
+"""``nuskin_driver`` node: NUSkin receiver bytes in, ``TaxelEventBatch`` messages out.
+
+A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the port (serial, CAN
+or a capture file) and reconnects with exponential backoff; a timer every ``batch_period_s``
+drains what arrived, decodes it (receiver words, or the ACES line in ``aces_line`` mode) and
+publishes one batch with every event decoded since the previous tick. Bad bytes are counted,
+never fatal. ``/diagnostics`` carries the link state, the event rate and the decode counters.
+"""
+
+from __future__ import annotations
+
+import array
+import time
+from typing import Any
+
+import numpy as np
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+
+from ext_sense_drivers.nuskin.driver_config import DriverConfig
+from ext_sense_drivers.nuskin.events import EventBlock
+from ext_sense_drivers.transports.base import LinkState
+from ext_sense_drivers.transports.reader import Backoff, StreamReader
+from ext_sense_msgs.msg import TaxelEventBatch
+from ext_sense_runtime.diagnostics import Level, RateTask, Updater
+from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
+from ext_sense_runtime.node_main import run_node
+from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.qos import SENSOR_STREAM_QOS
+from ext_sense_runtime.qos_events import QosEventCounter
+from ext_sense_runtime.stamps import fill_stamp
+
+MAX_WORD_RATE_HZ = 320_000.0
+"""80 taxels at 4 kHz: the most events per second the receiver can produce."""
+
+
+def _declare_config(node: Node) -> DriverConfig:
+    d = DriverConfig()
+    return DriverConfig(
+        transport=declare(
+            node, "transport", d.transport, "Byte source: serial, can or file.", read_only=True
+        ),
+        port=declare(node, "port", d.port, "Serial device or pyserial URL.", read_only=True),
+        baud=declare(
+            node,
+            "baud",
+            d.baud,
+            "Serial line rate, bit/s (also caps the arrival-clock spread).",
+            low=1200,
+            high=100_000_000,
+            read_only=True,
+        ),
+        can_interface=declare(
+            node, "can_interface", d.can_interface, "python-can interface.", read_only=True
+        ),
+        can_channel=declare(
+            node, "can_channel", d.can_channel, "CAN channel on that interface.", read_only=True
+        ),
+        can_arbitration_id=declare(
+            node,
+            "can_arbitration_id",
+            d.can_arbitration_id,
+            "Arbitration id of the frames carrying the byte stream.",
+            low=0,
+            high=0x1FFFFFFF,
+            read_only=True,
+        ),
+        can_extended_id=declare(
+            node, "can_extended_id", d.can_extended_id, "29-bit extended id.", read_only=True
+        ),
+        file_path=declare(
+            node, "file_path", d.file_path, "Capture file (transport file).", read_only=True
+        ),
+        file_pace=declare(
+            node,
+            "file_pace",
+            d.file_pace,
+            "File replay pace: recorded (from the lab .tact markers), serial (baud/10 bytes/s) "
+            "or flat (as fast as possible).",
+            read_only=True,
+        ),
+        file_bytes_per_s=declare(
+            node,
+            "file_bytes_per_s",
+            d.file_bytes_per_s,
+            "File replay rate, bytes/s; 0 uses file_pace.",
+            low=0.0,
+            high=1e9,
+            read_only=True,
+        ),
+        file_loop=declare(
+            node, "file_loop", d.file_loop, "Replay the file for ever.", read_only=True
+        ),
+        mode=declare(
+            node,
+            "mode",
+            d.mode,
+            "Byte format: words (receiver event words) or aces_line (raw line samples).",
+            read_only=True,
+        ),
+        flag_polarity=declare(
+            node,
+            "flag_polarity",
+            d.flag_polarity,
+            "Word flag bit: ignore (polarity 0, real receivers) or is_positive (1: +1, 0: -1).",
+            read_only=True,
+        ),
+        aces_threshold=declare(
+            node,
+            "aces_threshold",
+            d.aces_threshold,
+            "ACES detection threshold, fraction of a full signature match.",
+            low=0.05,
+            high=0.95,
+            read_only=True,
+        ),
+    )
+
+
+def _fill_batch(msg: TaxelEventBatch, block: EventBlock, stamp_ns: int) -> None:
+    """Set the arrays of ``msg`` from a block, times relative to ``stamp_ns`` (same clock).
+
+    The arrays are built as ``array.array`` from bytes: assigning NumPy arrays makes rclpy
+    check every element in Python.
+    """
+    columns = (
+        ("H", block.taxel, np.uint16),
+        ("b", block.polarity, np.int8),
+        ("H", block.value, np.uint16),
+        ("q", block.t_ns - np.int64(stamp_ns), np.int64),
+    )
+    out = []
+    for code, column, dtype in columns:
+        arr = array.array(code)
+        arr.frombytes(np.ascontiguousarray(column, dtype).tobytes())
+        out.append(arr)
+    msg.taxel, msg.polarity, msg.value, msg.offset_ns = out
+
+
+class NuskinDriverNode(Node):
+    """Publishes NUSkin taxel events on ``events`` from a serial, CAN or file byte source."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("nuskin_driver", **kwargs)
+        self.config = _declare_config(self)
+        self.frame_id = declare(
+            self, "frame_id", "nuskin", "Frame of the sensor (header.frame_id)."
+        )
+        period_s = declare(
+            self,
+            "batch_period_s",
+            0.001,
+            "Time between published batches, s.",
+            low=0.0001,
+            high=1.0,
+            read_only=True,
+        )
+        initial_s = declare(
+            self,
+            "reconnect_initial_s",
+            0.1,
+            "First reconnect delay after the port vanished, s (doubles per failure).",
+            low=0.001,
+            high=60.0,
+            read_only=True,
+        )
+        max_s = declare(
+            self,
+            "reconnect_max_s",
+            2.0,
+            "Longest reconnect delay, s.",
+            low=0.001,
+            high=600.0,
+            read_only=True,
+        )
+        self.add_on_set_parameters_callback(self._on_set)
+
+        self.stream = self.config.make_stream()
+        self.reader = StreamReader(
+            self.config.make_transport(), backoff=Backoff(initial_s, max(initial_s, max_s))
+        )
+        # Monotonic host ns -> ROS time ns, fixed at start so stamps never step back.
+        self._mono_to_ros_ns = self.get_clock().now().nanoseconds - time.monotonic_ns()
+        self._connects_seen = 0
+        self.batches_published = 0
+        self.decode_failures = 0
+        self._qos_events = QosEventCounter()
+        self._pub = self.create_publisher(
+            TaxelEventBatch,
+            "events",
+            SENSOR_STREAM_QOS,
+            event_callbacks=self._qos_events.publisher(),
+        )
+        self._updater = Updater(self.config.hardware_id)
+        self._rate = RateTask("events", 0.0, MAX_WORD_RATE_HZ, unit="words_per_s")
+        self._updater.add(self._rate)
+        self._updater.add_check("link", self._check_link)
+        self._updater.add_check("decode", self._check_decode)
+        self._last_resyncs = 0
+        self._last_failures = 0
+        self._diagnostics = DiagnosticsPublisher(self, self._updater)
+        self._timer = self.create_timer(period_s, self._tick)
+        self.reader.start()
+        self.get_logger().info(
+            f"reading {self.config.mode} from {self.config.transport} {self.config.hardware_id}"
+        )
+
+    def _on_set(self, params: list[Any]) -> SetParametersResult:
+        for p in params:
+            if p.name == "frame_id" and not str(p.value):
+                return SetParametersResult(
+                    successful=False, reason="The 'frame_id' parameter must not be empty."
+                )
+        for p in params:
+            if p.name == "frame_id":
+                self.frame_id = str(p.value)
+        return SetParametersResult(successful=True)
+
+    def _tick(self) -> None:
+        """Drain the reader, decode, publish one batch."""
+        blocks = []
+        if self.reader.connects != self._connects_seen:
+            if self._connects_seen:  # a new connection: the old stream ended
+                blocks.append(self.stream.restart())
+            self._connects_seen = self.reader.connects
+        for chunk in self.reader.drain():
+            try:
+                blocks.append(self.stream.feed(chunk))
+            except Exception as err:  # a decoder bug must cost a chunk, not the node
+                self.decode_failures += 1
+                self.get_logger().error(
+                    f"decoding failed, chunk of {len(chunk.data)} bytes dropped: {err!r}",
+                    throttle_duration_sec=1.0,
+                )
+                blocks.append(self.stream.restart())
+        block = EventBlock.concat(blocks)
+        if block.size == 0:
+            return
+        self._rate.add(block.size)
+        first_ns = int(block.t_ns.min())
+        msg = TaxelEventBatch()
+        fill_stamp(msg.header.stamp, first_ns + self._mono_to_ros_ns)
+        msg.header.frame_id = self.frame_id
+        _fill_batch(msg, block, first_ns)
+        c = self.stream.batch_counters
+        msg.words_total, msg.resyncs = c.words_total, c.resyncs
+        msg.skipped_bytes, msg.bad_taxel_words = c.skipped_bytes, c.bad_taxel_words
+        self._pub.publish(msg)
+        self.batches_published += 1
+
+    def _check_link(self) -> tuple[Level, str, dict[str, object]]:
+        r = self.reader
+        state = r.state
+        values: dict[str, object] = {
+            "port_state": state.name.lower(),
+            "connects": r.connects,
+            "disconnects": r.disconnects,
+            "open_failures": r.open_failures,
+            "bytes_total": r.bytes_total,
+            "dropped_bytes": r.dropped_bytes,
+            "last_error": r.last_error,
+            "batches_published": self.batches_published,
+            **self._qos_events.as_values(),
+        }
+        if state == LinkState.CONNECTED:
+            return Level.OK, "connected", values
+        if state == LinkState.EXHAUSTED:
+            return Level.OK, "capture file replayed to its end", values
+        if state == LinkState.BACKOFF:
+            return Level.ERROR, f"port unavailable, retrying: {r.last_error}", values
+        return Level.WARN, state.name.lower(), values
+
+    def _check_decode(self) -> tuple[Level, str, dict[str, object]]:
+        values = {**self.stream.diagnostics(), "decode_failures": self.decode_failures}
+        failed, self._last_failures = (
+            self.decode_failures - self._last_failures,
+            self.decode_failures,
+        )
+        if failed:
+            return Level.ERROR, f"{failed} chunks failed to decode since the last report", values
+        resyncs = self.stream.batch_counters.resyncs
+        new, self._last_resyncs = resyncs - self._last_resyncs, resyncs
+        if new:
+            return Level.WARN, f"{new} resynchronisations since the last report", values
+        return Level.OK, "clean stream", values
+
+    def destroy_node(self) -> None:
+        """Stop the reader thread (closing the port) before the node goes."""
+        reader = getattr(self, "reader", None)  # absent when the constructor failed
+        if reader is not None:
+            reader.stop()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node (console script ``nuskin_driver``)."""
+    return run_node(NuskinDriverNode, args)

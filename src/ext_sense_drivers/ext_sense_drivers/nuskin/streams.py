@@ -1,0 +1,155 @@
+"""From transport chunks to stamped :class:`EventBlock`: the two NUSkin decoding paths.
+
+:class:`WordStream` decodes receiver words and stamps them with the arrival clock;
+:class:`AcesLineStream` decodes raw ACES line samples, whose own sample clock times the events.
+The driver node holds one of them and never looks inside; both are plain Python (no rclpy).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Protocol
+
+import numpy as np
+
+from ext_sense_drivers.nuskin.clock import ArrivalClock
+from ext_sense_drivers.nuskin.events import EventBlock
+from ext_sense_drivers.nuskin.wire import FlagPolarity, WordDecoder
+from ext_sense_drivers.transports.base import Chunk
+
+
+class BatchCounters(NamedTuple):
+    """The four counters every ``TaxelEventBatch`` carries (monotonic since start)."""
+
+    words_total: int
+    resyncs: int
+    skipped_bytes: int
+    bad_taxel_words: int
+
+
+class EventStream(Protocol):
+    """What the driver node needs from a decoding path."""
+
+    def feed(self, chunk: Chunk) -> EventBlock:
+        """Decode one chunk into stamped events (monotonic host ns)."""
+        ...
+
+    def restart(self) -> EventBlock:
+        """The link dropped: finish what can be finished; the next chunk starts a new stream."""
+        ...
+
+    @property
+    def batch_counters(self) -> BatchCounters:
+        """Counters for the message."""
+        ...
+
+    def diagnostics(self) -> dict[str, object]:
+        """Counters and figures for ``/diagnostics`` (keys carry units)."""
+        ...
+
+
+class WordStream:
+    """Receiver words -> events stamped by :class:`ArrivalClock`.
+
+    Args:
+        flag_polarity: How the word's flag bit maps to polarity.
+        clock: The arrival clock (default: 8N1 at 1 Mbit/s caps the spread).
+    """
+
+    def __init__(
+        self,
+        flag_polarity: FlagPolarity = FlagPolarity.IGNORE,
+        clock: ArrivalClock | None = None,
+    ) -> None:
+        self.decoder = WordDecoder(flag_polarity)
+        self.clock = clock if clock is not None else ArrivalClock.for_baud(1_000_000)
+
+    def feed(self, chunk: Chunk) -> EventBlock:
+        """Decode the chunk's words and spread them over the time since the previous read."""
+        words = self.decoder.feed(chunk.data)
+        t_ns = self.clock.stamp(words.size, chunk.t_ns, len(chunk.data))
+        return EventBlock(t_ns, words.taxel, words.polarity, words.value)
+
+    def restart(self) -> EventBlock:
+        """Count a held-back partial word as skipped: the new connection cannot complete it."""
+        self.decoder.flush()
+        return EventBlock.empty()
+
+    @property
+    def batch_counters(self) -> BatchCounters:
+        """Words, resyncs, skipped bytes, out-of-range taxel words."""
+        c = self.decoder.counters
+        return BatchCounters(c.words, c.resyncs, c.skipped_bytes, c.bad_taxel_words)
+
+    def diagnostics(self) -> dict[str, object]:
+        """Decoder counters."""
+        c = self.decoder.counters
+        return {
+            "bytes_decoded": c.bytes_in,
+            "words_total": c.words,
+            "resyncs": c.resyncs,
+            "skipped_bytes": c.skipped_bytes,
+            "bad_taxel_words": c.bad_taxel_words,
+        }
+
+
+class AcesLineStream:
+    """Raw ACES line samples -> events timed by the line's sample clock.
+
+    The first chunk of each connection fixes the origin: sample 0 is placed at the chunk's
+    arrival time minus the duration of the samples it carried. From there the line's own clock
+    times every event (no drift correction against the host clock yet).
+
+    Args:
+        **decoder_kwargs: Passed to ``ext_sense_drivers.aces.LineDecoder`` (``threshold``,
+            ``amplitude``, ``fft_size``, ``bank``).
+    """
+
+    def __init__(self, **decoder_kwargs: object) -> None:
+        from ext_sense_drivers.aces.decoder import LineDecoder
+
+        self._factory = LineDecoder
+        self._kwargs = decoder_kwargs
+        self._decoder = None
+        self._probe = LineDecoder(**decoder_kwargs)  # validates the arguments now
+        self._done = {"detections": 0, "samples": 0, "nonfinite_samples": 0, "bytes_dropped": 0}
+
+    def feed(self, chunk: Chunk) -> EventBlock:
+        """Decode the samples; events come out up to the decoder's latency later."""
+        from ext_sense_drivers.aces.sample_clock import sample_to_ns
+        from ext_sense_drivers.aces.wire import BYTES_PER_SAMPLE
+
+        if self._decoder is None:
+            n = len(chunk.data) // BYTES_PER_SAMPLE
+            rate = self._probe.bank.sample_rate_hz
+            t0 = int(chunk.t_ns) - int(sample_to_ns(np.int64(n), rate))
+            self._decoder = self._factory(t0_ns=t0, **self._kwargs)
+        return self._decoder.feed(chunk.data)
+
+    def restart(self) -> EventBlock:
+        """Flush the decoder (signatures cut by the drop are found if most of them arrived)."""
+        if self._decoder is None:
+            return EventBlock.empty()
+        block = self._decoder.flush()
+        c = self._decoder.counters
+        for key in self._done:
+            self._done[key] += int(getattr(c, key))
+        self._decoder = None
+        return block
+
+    def _total(self, key: str) -> int:
+        now = int(getattr(self._decoder.counters, key)) if self._decoder is not None else 0
+        return self._done[key] + now
+
+    @property
+    def batch_counters(self) -> BatchCounters:
+        """Detections as words; dropped odd bytes as skipped; no resyncs or bad taxels."""
+        return BatchCounters(self._total("detections"), 0, self._total("bytes_dropped"), 0)
+
+    def diagnostics(self) -> dict[str, object]:
+        """Decoder counters and the residual energy ratio of the current connection."""
+        values: dict[str, object] = {key: self._total(key) for key in self._done}
+        if self._decoder is not None:
+            c = self._decoder.counters
+            ratio = c.residual_energy / c.input_energy if c.input_energy > 0 else 0.0
+            values["residual_energy_ratio"] = f"{ratio:.4f}"
+        return values

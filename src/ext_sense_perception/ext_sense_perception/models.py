@@ -1,0 +1,107 @@
+"""The paper's models and their hyper-parameter grids (no ROS).
+
+A model is a scikit-learn ``Pipeline``: ``features`` (:class:`WindowFeatures`, from the raw
+window) -> ``scale`` (``StandardScaler``) -> ``model``. Grids follow the public code's C grid
+(1, 3, 10, 30, 100 on labels in cm; regression labels here are metres, so C and epsilon are
+divided by 100, which is the same problem).
+
+The GRU (16 cells) + MLP model needs torch, which is an optional extra: it is imported lazily
+and its absence gives a clear :class:`PerceptionError`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.ensemble import RandomForestClassifier
+from sklearn.neural_network import MLPClassifier, MLPRegressor
+from sklearn.pipeline import Pipeline
+from sklearn.preprocessing import StandardScaler
+from sklearn.svm import SVC, SVR
+
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.features import WindowFeatures
+
+MODEL_NAMES = ("svm_linear", "svm_rbf", "svm", "mlp", "gru", "random_forest")
+C_GRID = (1.0, 3.0, 10.0, 30.0, 100.0)
+REGRESSION_EPSILON_M = 0.001  # 0.1 cm, scikit-learn's default epsilon on the paper's cm labels
+
+
+def make_estimator(name: str, regression: bool, seed: int = 0) -> tuple[BaseEstimator, dict[str, list[Any]]]:
+    """The final estimator of a pipeline and its grid (keys without the ``model__`` prefix).
+
+    Args:
+        name: One of :data:`MODEL_NAMES`.
+        regression: Tap localisation (True) or classification.
+        seed: Random seed.
+
+    Returns:
+        ``(estimator, grid)``.
+
+    Raises:
+        PerceptionError: on an unknown name, or ``gru`` without torch.
+    """
+    c_scale = 0.01 if regression else 1.0
+    c_grid = [c * c_scale for c in C_GRID]
+    if name in ("svm_linear", "svm_rbf", "svm"):
+        kernels = {"svm_linear": ["linear"], "svm_rbf": ["rbf"], "svm": ["linear", "rbf"]}[name]
+        if regression:
+            return SVR(kernel=kernels[0], epsilon=REGRESSION_EPSILON_M), {"C": c_grid, "kernel": kernels}
+        est = SVC(kernel=kernels[0], random_state=seed)
+        return est, {"C": c_grid, "kernel": kernels}
+    if name == "mlp":
+        kw = {"hidden_layer_sizes": (16, 8), "activation": "relu", "max_iter": 2000, "random_state": seed}
+        est = MLPRegressor(**kw) if regression else MLPClassifier(**kw)
+        return est, {"alpha": [1e-4, 1e-2, 1.0]}
+    if name == "random_forest":
+        if regression:
+            raise PerceptionError("The 'model' parameter 'random_forest' is for classification only.")
+        return RandomForestClassifier(n_estimators=200, random_state=seed), {"max_features": ["sqrt"]}
+    if name == "gru":
+        from ext_sense_perception.gru import GRUEstimator
+
+        return GRUEstimator(regression=regression, random_state=seed), {"hidden": [16]}
+    raise PerceptionError(f"The 'model' parameter must be one of {', '.join(MODEL_NAMES)}. Got {name!r} instead.")
+
+
+def make_pipeline(features: WindowFeatures, name: str, regression: bool, seed: int = 0) -> tuple[Pipeline, dict[str, list[Any]]]:
+    """Features -> scaler -> model, and the grid with pipeline-prefixed keys.
+
+    Args:
+        features: The feature transformer (unfitted).
+        name: Model name.
+        regression: Regression or classification.
+        seed: Random seed.
+
+    Returns:
+        ``(pipeline, grid)``.
+    """
+    est, grid = make_estimator(name, regression, seed)
+    pipe = Pipeline([("features", features), ("scale", StandardScaler()), ("model", est)])
+    return pipe, {f"model__{k}": v for k, v in grid.items()}
+
+
+def head_of(pipeline: Pipeline) -> Pipeline:
+    """The scaler and model of a pipeline (what runs on feature vectors)."""
+    return Pipeline(pipeline.steps[1:])
+
+
+def default_choice(task: str, sensor: str) -> tuple[str, str]:
+    """The project's default ``(features, model)`` for a task and sensor.
+
+    Food identification from NUSkin: activity features + SVM (kernel chosen in the grid), which
+    measured best on the real captures; tap localisation: FFT + SVR (RBF), as the paper
+    recommends; handover: FFT + SVM.
+    """
+    if task == "food_identification" and sensor == "nuskin":
+        return "activity", "svm"
+    if task == "tap_localization":
+        return "fft", "svm_rbf"
+    return "fft", "svm"
+
+
+def as_float(x: np.ndarray) -> np.ndarray:
+    """Float64 contiguous copy for estimators."""
+    return np.ascontiguousarray(x, dtype=np.float64)

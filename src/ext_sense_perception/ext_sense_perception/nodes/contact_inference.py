@@ -1,0 +1,223 @@
+"""``contact_inference`` node: contact windows in, contact estimates out.
+
+Subscribes ``window`` (``ContactWindow``), runs the task's model bundle (``backend`` onnx or
+sklearn, from ``model_path``) and publishes ``contact_estimate`` (``ContactEstimate``) for the
+provisional windows (anytime estimates, ``provisional`` true) and the final one.
+
+Faults never stop the node: a missing or corrupt model is reported as ERROR on
+``/diagnostics`` (windows meanwhile are counted as dropped) and loading is retried every
+``reload_period_s``; a window the model rejects (NaN or inf, wrong shape) is counted and
+reported, and the next window is processed normally.
+
+``compute_latency`` is the wall time from the end of the window (onset + post-onset time, on
+the host clock the driver stamps with) to the estimate being ready. When the window's clock is
+not the host clock (a bag replayed long after recording), it falls back to the time from the
+window's arrival in this node to the estimate being ready.
+"""
+
+from __future__ import annotations
+
+import array
+import time
+from collections import deque
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rclpy.node import Node
+
+from ext_sense_msgs.msg import ContactEstimate, ContactWindow
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.nodes.pipeline import (
+    default_model_dir,
+    estimate_fields,
+    load_bundle,
+    model_id_of,
+    window_from_msg,
+)
+from ext_sense_perception.windows import WindowConfig
+from ext_sense_runtime.diagnostics import Level, Updater
+from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
+from ext_sense_runtime.node_main import run_node
+from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.qos import ESTIMATE_QOS, WINDOW_QOS
+from ext_sense_runtime.qos_events import QosEventCounter
+from ext_sense_runtime.stamps import fill_stamp
+
+MS = 1_000_000
+LIVE_CLOCK_TOLERANCE_NS = 10_000 * MS
+"""A window ending further than this from the host clock is not live (replayed bag)."""
+
+
+class ContactInferenceNode(Node):
+    """Runs a trained model on every contact window."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(kwargs.pop("node_name", "contact_inference"), **kwargs)
+        self.task = declare(self, "task", "tap_localization", "Task of the model.", read_only=True)
+        self.sensor = declare(self, "sensor", "nuskin", "Sensor of the model.", read_only=True)
+        self.backend = declare(
+            self, "backend", "onnx", "Inference backend: onnx or sklearn.", read_only=True
+        )
+        path = declare(
+            self,
+            "model_path",
+            "",
+            "Model bundle directory; empty: "
+            "$EXT_SENSE_MODELS/<task>_<sensor> (default build/models).",
+            read_only=True,
+        )
+        self.model_path = Path(path) if path else default_model_dir(self.task, self.sensor)
+        final_ms = declare(
+            self,
+            "final_post_ms",
+            WindowConfig.for_task(self.task, self.sensor).post_ns / MS,
+            "Post-onset time of the final window, ms; shorter windows are provisional.",
+            low=1.0,
+            high=60000.0,
+            read_only=True,
+        )
+        self.final_post_ns = round(final_ms * MS)
+        self.publish_provisional = declare(
+            self, "publish_provisional", True, "Publish estimates of provisional (anytime) windows."
+        )
+        reload_s = declare(
+            self,
+            "reload_period_s",
+            2.0,
+            "Retry loading a missing or corrupt model this often, s.",
+            low=0.1,
+            high=3600.0,
+            read_only=True,
+        )
+        if self.backend not in ("onnx", "sklearn"):
+            raise ValueError(
+                f"The 'backend' parameter must be 'onnx' or 'sklearn'. Got {self.backend!r}."
+            )
+        self.model: Any = None
+        self.model_id = ""
+        self.model_error = ""
+        self.windows_in = 0
+        self.estimates_out = 0
+        self.dropped_no_model = 0
+        self.dropped_bad_window = 0
+        self.last_window_error = ""
+        self.last_reject_ns: int | None = None
+        self.latencies_ns: deque[int] = deque(maxlen=500)
+
+        self.qos_events = QosEventCounter()
+        self.pub = self.create_publisher(
+            ContactEstimate,
+            "contact_estimate",
+            ESTIMATE_QOS,
+            event_callbacks=self.qos_events.publisher(),
+        )
+        self.create_subscription(
+            ContactWindow,
+            "window",
+            self._on_window,
+            WINDOW_QOS,
+            event_callbacks=self.qos_events.subscription(),
+        )
+        self.updater = Updater(hardware_id=str(self.model_path))
+        self.updater.add_check("model", self._check_model)
+        self.updater.add_check("inference", self._check_inference)
+        self.diagnostics = DiagnosticsPublisher(self, self.updater)
+        self._load()
+        self.create_timer(reload_s, self._retry_load)
+
+    def _load(self) -> None:
+        try:
+            self.model = load_bundle(self.model_path, self.backend)
+        except PerceptionError as err:
+            self.model = None
+            if str(err) != self.model_error:
+                self.get_logger().error(f"model not loaded: {err}")
+            self.model_error = str(err)
+            return
+        self.model_id = model_id_of(self.model)
+        self.model_error = ""
+        self.get_logger().info(f"model {self.model_id or self.model_path} loaded ({self.backend})")
+
+    def _retry_load(self) -> None:
+        if self.model is None:
+            self._load()
+
+    def _on_window(self, msg: ContactWindow) -> None:
+        arrived = time.time_ns()
+        self.windows_in += 1
+        if self.model is None:
+            self.dropped_no_model += 1
+            return
+        try:
+            window = window_from_msg(msg, self.final_post_ns)
+            if window.provisional and not self.publish_provisional:
+                return
+            prediction = self.model.predict(window)
+            now = time.time_ns()
+            end = window.onset_ns + window.post_onset_ns
+            live = abs(now - end) < LIVE_CLOCK_TOLERANCE_NS and now >= end
+            latency = now - end if live else now - arrived
+            fields = estimate_fields(prediction, window, self.model_id, latency)
+        except PerceptionError as err:
+            self.dropped_bad_window += 1
+            self.last_reject_ns = time.monotonic_ns()
+            if str(err) != self.last_window_error:
+                self.get_logger().warning(f"window dropped: {err}")
+            self.last_window_error = str(err)
+            return
+        self.pub.publish(self._to_msg(fields))
+        self.estimates_out += 1
+        if not fields["provisional"]:
+            self.latencies_ns.append(latency)
+
+    def _to_msg(self, f: dict[str, Any]) -> ContactEstimate:
+        msg = ContactEstimate()
+        fill_stamp(msg.header.stamp, f["stamp_ns"])
+        msg.header.frame_id = f["sensor"]
+        msg.task, msg.sensor, msg.model_id = f["task"], f["sensor"], f["model_id"]
+        msg.provisional = f["provisional"]
+        fill_stamp(msg.post_contact_used, f["post_contact_used_ns"])
+        fill_stamp(msg.compute_latency, f["compute_latency_ns"])
+        msg.tap_position_m = f["tap_position_m"]
+        msg.tap_position_std_m = f["tap_position_std_m"]
+        msg.class_index = f["class_index"]
+        msg.class_label = f["class_label"]
+        msg.class_names = f["class_names"]
+        msg.class_probabilities = array.array("d", f["class_probabilities"].tobytes())
+        msg.stability_probability = f["stability_probability"]
+        return msg
+
+    def _check_model(self) -> tuple[Level, str, dict[str, object]]:
+        values = {
+            "model_path": str(self.model_path),
+            "backend": self.backend,
+            "model_id": self.model_id,
+        }
+        if self.model is None:
+            return Level.ERROR, f"model not loaded: {self.model_error}", values
+        return Level.OK, "loaded", values
+
+    def _check_inference(self) -> tuple[Level, str, dict[str, object]]:
+        lat = np.asarray(self.latencies_ns, dtype=np.float64) / MS
+        values: dict[str, object] = {
+            "windows_in": self.windows_in,
+            "estimates_out": self.estimates_out,
+            "dropped_no_model": self.dropped_no_model,
+            "dropped_bad_window": self.dropped_bad_window,
+            "latency_p50_ms": f"{np.percentile(lat, 50):.3f}" if lat.size else "nan",
+            "latency_p99_ms": f"{np.percentile(lat, 99):.3f}" if lat.size else "nan",
+            "last_error": self.last_window_error,
+            **self.qos_events.as_values(),
+        }
+        recent = self.last_reject_ns is not None and (
+            time.monotonic_ns() - self.last_reject_ns < 10_000 * MS
+        )
+        if recent:
+            return Level.WARN, f"windows rejected: {self.last_window_error}", values
+        return Level.OK, "ok", values
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node (``ros2 run ext_sense_perception contact_inference``)."""
+    return run_node(ContactInferenceNode, args)

@@ -1,0 +1,83 @@
+"""``ext-sense sim list|run|serve``: the simulator's subcommands."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``sim`` with ``list``, ``run`` and ``serve`` to the ``ext-sense`` parser."""
+    sim = subparsers.add_parser("sim", help="scene simulator and emulated devices")
+    sub = sim.add_subparsers(dest="sim_command", metavar="SIM_COMMAND")
+    sub.required = True
+
+    p = sub.add_parser("list", help="name the shipped scenes")
+    p.set_defaults(func=_list)
+
+    p = sub.add_parser("run", help="simulate a scene and write its datasets")
+    p.add_argument("scene", help="shipped scene name or path of a scene YAML file")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--trials", type=int, default=None, help="number of trials (scene default)")
+    p.add_argument("--seed", type=int, default=None, help="seed (scene default)")
+    p.add_argument(
+        "--formats",
+        default="npz,paper,raw,bag",
+        help="comma-separated outputs among npz, paper, raw, bag (default: all)",
+    )
+    p.set_defaults(func=_run)
+
+    p = sub.add_parser("serve", help="emulate a device on a pty or CAN channel in real time")
+    p.add_argument("device", choices=("nuskin", "biotac", "robotiq"))
+    p.add_argument("--scene", default=None, help="scene name or file (nuskin, biotac)")
+    p.add_argument("--can", default=None, metavar="CHANNEL", help="python-can virtual channel")
+    p.add_argument("--trials", type=int, default=0, help="trials to stream (0 = forever)")
+    p.add_argument("--seed", type=int, default=None, help="seed (scene default)")
+    p.add_argument("--period", type=float, default=1.0, help="seconds between trial starts")
+    p.add_argument("--link", default=None, help="also create this symlink to the pty")
+    p.set_defaults(func=_serve)
+
+
+def _list(args: argparse.Namespace) -> int:
+    from ext_sense_sim.scene import load_scene, shipped_scenes  # noqa: PLC0415
+
+    for name in shipped_scenes():
+        scene = load_scene(name)
+        print(
+            f"{name:28s} {scene.task.label:20s} {scene.sensor.label:7s} "
+            f"{scene.geometry.kind}:{scene.geometry.length_m:g} m  {scene.description}"
+        )
+    return 0
+
+
+def _run(args: argparse.Namespace) -> int:
+    from ext_sense_sim.errors import SceneError  # noqa: PLC0415
+    from ext_sense_sim.run import run_scene  # noqa: PLC0415
+    from ext_sense_sim.scene import load_scene  # noqa: PLC0415
+
+    try:
+        scene = load_scene(args.scene)
+        formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
+        summary = run_scene(scene, args.out, args.trials, args.seed, formats)
+    except SceneError as err:
+        print(f"ext-sense sim run: {err}", file=sys.stderr)
+        return 2
+    print(f"{summary['trials']} trials of {summary['scene']} in {summary['simulate_s']} s:")
+    for name in summary["files"]:
+        print(f"  {args.out}/{name}")
+    return 0
+
+
+def _serve(args: argparse.Namespace) -> int:
+    if args.device == "robotiq":
+        from ext_sense_sim.devices.robotiq_emulator import serve  # noqa: PLC0415
+
+        return int(serve(args) or 0)
+    from ext_sense_sim.errors import SceneError  # noqa: PLC0415
+    from ext_sense_sim.streaming import serve_device  # noqa: PLC0415
+
+    try:
+        return serve_device(args)
+    except SceneError as err:
+        print(f"ext-sense sim serve: {err}", file=sys.stderr)
+        return 2

@@ -1,0 +1,106 @@
+"""The compact simulator dataset (``dataset.npz``) in the format of docs/conventions.md.
+
+Keys (one row per trial unless stated):
+
+- ``task`` (str), ``sensor`` (``"nuskin"``/``"biotac"``), ``label_kind``
+  (``"regression"``/``"classification"``), ``scene`` (str), ``seed`` (int64);
+- ``y``: tap position from the held end, float64 metres, or ``<U`` class labels;
+- ``trial`` int32, ``onset_ns`` int64 (contact onset, food: motion start, from the trial's
+  origin), ``rod_length_m`` float64 (NaN when the object is not a rod), ``trial_ns`` int64
+  (length of every trial);
+- ``finger_taxels`` uint16 ``(2, 40)``: taxel ids of the left and right finger, each row
+  row-major on the 8 x 5 lattice (row along the object's axis, row 7 nearest the free span);
+- NUSkin: ``ev_trial`` int32, ``ev_t_ns`` int64 (from the trial's origin), ``ev_taxel`` uint16
+  (1..80), ``ev_polarity`` int8 (+1/-1), ``ev_value`` uint16, one row per event, sorted by
+  trial then time;
+- BioTac: ``pac`` ``(n_trials, 2, n_pac)`` uint16 at 2200 Hz from ``pac_t0_ns`` (n_trials,)
+  int64; ``pdc``, ``tac``, ``tdc`` ``(n_trials, 2, n_slow)`` uint16 and ``electrodes``
+  ``(n_trials, 2, n_slow, 19)`` uint16 at 100 Hz from the same origin (sensor 0 left finger).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ext_sense_sim.effects.base import Signals, TimeBase
+from ext_sense_sim.enums import Sensor, Task
+from ext_sense_sim.events import EventBatch
+from ext_sense_sim.scene import Scene
+
+FINGER_TAXELS = np.arange(1, 81, dtype=np.uint16).reshape(2, 40)
+BIOTAC_KEYS = ("pac", "pac_t0_ns", "pdc", "tac", "tdc", "electrodes")
+
+
+class DatasetCollector:
+    """Gathers the labels and sensor data of every batch of a run.
+
+    Args:
+        scene: The scene being run.
+        seed: The run's seed (stored in the file).
+    """
+
+    def __init__(self, scene: Scene, seed: int) -> None:
+        self.scene = scene
+        self.seed = int(seed)
+        self._labels: list = []
+        self._events: list[EventBatch] = []
+        self._biotac: list[dict[str, np.ndarray]] = []
+
+    def add(self, tb: TimeBase, signals: Signals) -> None:
+        """Take the labels and sensor signal of one batch."""
+        self._labels.append(signals["labels"])
+        if self.scene.sensor is Sensor.NUSKIN:
+            self._events.append(signals["events"].offset_trials(tb.first_trial))
+        else:
+            self._biotac.append(signals["biotac"])
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Everything collected so far as the dataset's arrays."""
+        scene = self.scene
+        onset = np.concatenate([lab.onset_ns for lab in self._labels]).astype(np.int64)
+        n = onset.size
+        regression = scene.task is Task.TAP_LOCALIZATION
+        if regression:
+            y = np.concatenate([lab.y_m for lab in self._labels]).astype(np.float64)
+        else:
+            y = np.concatenate([lab.class_label for lab in self._labels]).astype(str)
+        rod = scene.geometry.length_m if scene.geometry.kind == "rod" else np.nan
+        out: dict[str, np.ndarray] = {
+            "task": np.array(scene.task.label),
+            "sensor": np.array(scene.sensor.label),
+            "label_kind": np.array("regression" if regression else "classification"),
+            "scene": np.array(scene.name),
+            "seed": np.array(self.seed, dtype=np.int64),
+            "y": y,
+            "trial": np.arange(n, dtype=np.int32),
+            "onset_ns": onset,
+            "rod_length_m": np.full(n, rod, dtype=np.float64),
+            "trial_ns": np.array(int(round(scene.trial_s * 1e9)), dtype=np.int64),
+            "finger_taxels": FINGER_TAXELS,
+        }
+        if scene.sensor is Sensor.NUSKIN:
+            ev = (
+                EventBatch(*(np.concatenate(c) for c in zip(*self._events, strict=True)))
+                if self._events
+                else EventBatch.empty()
+            )
+            out.update(
+                ev_trial=ev.trial.astype(np.int32),
+                ev_t_ns=ev.t_ns.astype(np.int64),
+                ev_taxel=ev.taxel.astype(np.uint16),
+                ev_polarity=ev.polarity.astype(np.int8),
+                ev_value=ev.value.astype(np.uint16),
+            )
+        else:
+            for key in BIOTAC_KEYS:
+                out[key] = np.concatenate([b[key] for b in self._biotac])
+        return out
+
+    def write_npz(self, path: Path) -> Path:
+        """Write ``dataset.npz`` (compressed) and return its path."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(path, **self.arrays())
+        return path

@@ -1,0 +1,100 @@
+"""Transfer from the loads at the grasp to the pressure on each taxel of the two finger pads.
+
+Lattice. Each finger carries 40 taxels on an 8 x 5 lattice of pitch ``pitch_m``; ids 1-40 are
+the left finger, 41-80 the right, and within a finger ``id - 1 (mod 40)`` is row-major: row
+``r = i // 5`` runs along the object's axis (row 7 nearest the free span), column ``c = i % 5``
+across it. The pads press on opposite sides of the object (left pad normal +n, right pad -n).
+
+Model (a rigid object on a thin elastic pad, the Winkler foundation): the object touches each
+pad along a strip whose lateral profile is ``w(c) = exp(-(c - c0)^2 / (2 s^2))`` with ``c0``
+the object's lateral offset on that pad (randomised per trial: grasps are never identical).
+With ``A = sum w a`` and ``I = sum w u^2 a`` (``a`` the taxel area, ``u`` the axial position
+from the pad centre), a finger of side ``s = +1`` (left) / ``-1`` (right) feels
+
+``p = w * (F_grip / A + s (V_n / A + M_n u / I)
+       + k_t (c - c0) / s_w (V_t / A + M_t u / I) + k_a (u / u_max) F_ax / A)``
+
+times a fixed per-taxel gain (manufacturing spread). Loads toward the pads (``V_n``,
+``M_n``) load one pad and unload the other; loads along the pads shear the pad and reach the
+piezoresistive layer only through the coupling ``k_t``; the axial force likewise with ``k_a``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ext_sense_sim.effects.base import Effect, Signals, TimeBase
+
+N_ROWS, N_COLS, PER_FINGER, N_TAXELS = 8, 5, 40, 80
+
+
+def lattice(pitch_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Axial ``u`` and lateral ``c`` positions of the 40 taxels of one pad, metres.
+
+    Returns:
+        ``(u, c)``, each ``(40,)``, indexed by ``id - 1 (mod 40)``, centred on the pad.
+    """
+    i = np.arange(PER_FINGER)
+    u = (i // N_COLS - (N_ROWS - 1) / 2) * pitch_m
+    c = (i % N_COLS - (N_COLS - 1) / 2) * pitch_m
+    return u, c
+
+
+class GraspTransfer(Effect):
+    """Loads at the grasp to per-taxel pressure (see module docstring).
+
+    Gives ``taxel_pressure``: ``(n_trials, 80, n_samples)`` float32 pascals (absolute: grip
+    plus dynamic), taxel ``id`` at index ``id - 1``.
+    """
+
+    name = "grasp_transfer"
+    needs = ("clamp_load",)
+    gives = ("taxel_pressure",)
+    defaults = {
+        "pitch_m": 0.003,
+        "grip_force_n": [15.0, 25.0],
+        "strip_sigma_m": 0.0025,
+        "lateral_offset_m": [-0.0015, 0.0015],
+        "tangential_coupling": 0.3,
+        "axial_coupling": 0.2,
+        "gain_spread": 0.1,
+    }
+
+    def setup(self) -> None:
+        self.u, self.c = lattice(self.scalar("pitch_m", 1e-4, 0.05))
+        self.area = self.scalar("pitch_m") ** 2
+        spread = self.scalar("gain_spread", 0.0, 0.9)
+        sensor_rng = np.random.default_rng([int(self.context.seed), 7])  # fixed per sensor
+        self.gain = np.clip(1.0 + spread * sensor_rng.standard_normal(N_TAXELS), 0.1, None)
+
+    def weights(self, offsets: np.ndarray, rng: np.random.Generator, n: int) -> np.ndarray:
+        """Per-trial taxel weights ``(n, 80, 6)`` for ``[grip, V_n, M_n, V_t, M_t, F_ax]``."""
+        sigma = self.scalar("strip_sigma_m", 1e-5, 0.1)
+        k_t = self.scalar("tangential_coupling", 0.0, 10.0)
+        k_a = self.scalar("axial_coupling", 0.0, 10.0)
+        grip = self.draw("grip_force_n", rng, n, 0.0)
+        u = self.u[None, :]
+        w_out = np.empty((n, N_TAXELS, 6))
+        for finger, side in ((0, 1.0), (1, -1.0)):
+            lateral = self.c[None, :] - offsets[:, finger : finger + 1]  # (n, 40)
+            w = np.exp(-0.5 * (lateral / sigma) ** 2)
+            area = w.sum(axis=1, keepdims=True) * self.area
+            inertia = (w * u**2).sum(axis=1, keepdims=True) * self.area
+            sl = slice(finger * PER_FINGER, (finger + 1) * PER_FINGER)
+            w_out[:, sl, 0] = w * grip[:, None] / area
+            w_out[:, sl, 1] = side * w / area
+            w_out[:, sl, 2] = side * w * u / inertia
+            w_out[:, sl, 3] = k_t * w * (lateral / sigma) / area
+            w_out[:, sl, 4] = k_t * w * (lateral / sigma) * u / inertia
+            w_out[:, sl, 5] = k_a * w * (u / np.abs(self.u).max()) / area
+        return w_out * self.gain[None, :, None]
+
+    def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
+        """Give ``taxel_pressure`` from ``clamp_load``."""
+        load = signals.need("clamp_load", self.name)
+        n = time.n_trials
+        offsets = np.stack([self.draw("lateral_offset_m", rng, n) for _ in range(2)], axis=1)
+        w = self.weights(offsets, rng, n).astype(np.float32)
+        pressure = w[:, :, 0:1] * np.ones((1, 1, time.n_samples), dtype=np.float32)
+        pressure += np.einsum("btk,bks->bts", w[:, :, 1:], load.astype(np.float32))
+        signals["taxel_pressure"] = pressure

@@ -1,0 +1,145 @@
+"""The human grasp of a robot-to-human handover: settling when stable, stick-slip when not.
+
+Model. At the onset the hand touches the object at ``position`` (a fraction of the free span)
+with a short half-sine across-force (the touch). The hand's pull along the object reaches the
+robot's pads as an axial force:
+
+- stable grasp: a second-order settling ``F(t) = F_end (1 - e^{-z w t} (cos w_d t +
+  z / sqrt(1 - z^2) sin w_d t))`` with natural frequency ``settle_hz`` and damping
+  ``settle_zeta`` (the hand closing on the object);
+- unstable grasp: the classic spring-block stick-slip. The skin (stiffness ``skin_k``) is
+  dragged at ``pull_speed``; the friction force rises at ``k v`` from ``mu_k N`` until it
+  reaches ``mu_s N`` and then slips back to ``mu_k N`` within ``slip_tau_s``. The stick period
+  is ``(mu_s - mu_k) N / (k v)`` (jittered 15% per cycle). Each slip's sudden release also
+  knocks the object across its axis with ``slip_kick`` of the force drop, which rings the
+  object's modes again at every slip.
+
+Each trial is stable with probability ``p_stable``; the class label is ``"stable"`` or
+``"unstable"``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import lfilter
+
+from ext_sense_sim.effects.base import Effect, Signals, TimeBase
+from ext_sense_sim.effects.contact import Contact, Labels, half_sine_bins
+
+
+def settling(t: np.ndarray, final: np.ndarray, freq_hz: np.ndarray, zeta: float) -> np.ndarray:
+    """Underdamped second-order step response, zero for ``t < 0``; shapes broadcast."""
+    w = 2 * np.pi * freq_hz
+    wd = w * np.sqrt(1 - zeta**2)
+    ts = np.maximum(t, 0.0)
+    resp = 1 - np.exp(-zeta * w * ts) * (np.cos(wd * ts) + zeta / np.sqrt(1 - zeta**2) * np.sin(wd * ts))
+    return np.where(t >= 0, final * resp, 0.0)
+
+
+def stick_slip(
+    t: np.ndarray,
+    normal_n: float,
+    mu_s: float,
+    mu_k: float,
+    stiffness: float,
+    speed: float,
+    jitter: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Friction force of a dragged spring-block, before smoothing the slips.
+
+    Args:
+        t: Times from the start of dragging, seconds, ``(n,)`` (negative: not yet).
+        normal_n: Grip normal force, N.
+        mu_s, mu_k: Static and kinetic friction coefficients (``mu_s > mu_k``).
+        stiffness: Skin stiffness, N/m.
+        speed: Drag speed, m/s.
+        jitter: Relative per-cycle variation of the stick period, ``(n_cycles,)``.
+
+    Returns:
+        ``(force, slip_times)``: force ``(n,)`` newtons and the times of the slips, seconds.
+    """
+    rate = stiffness * speed
+    first = mu_s * normal_n / rate  # loading from zero up to the first slip
+    period = (mu_s - mu_k) * normal_n / rate
+    slips = first + np.concatenate([[0.0], np.cumsum(period * (1 + jitter))])
+    idx = np.searchsorted(slips, t, side="right")  # slips already done at t
+    last = np.where(idx > 0, slips[np.maximum(idx - 1, 0)], 0.0)
+    base = np.where(idx > 0, mu_k * normal_n, 0.0)
+    force = np.where(t >= 0, base + rate * (t - last), 0.0)
+    return force, slips
+
+
+class HumanGrasp(Effect):
+    """Handover grasp (see module docstring). Gives ``contact`` and ``labels``."""
+
+    name = "human_grasp"
+    gives = ("contact", "labels")
+    defaults = {
+        "p_stable": 0.5,
+        "onset_s": [0.045, 0.055],
+        "position": [0.4, 0.95],
+        "touch_force_n": [0.3, 1.5],
+        "touch_duration_s": [0.002, 0.006],
+        "angle_deg": [-45.0, 45.0],
+        "pull_force_n": [1.0, 4.0],
+        "settle_hz": [4.0, 10.0],
+        "settle_zeta": 0.6,
+        "normal_n": [1.5, 4.0],
+        "mu_s": [0.6, 0.9],
+        "mu_k": [0.3, 0.5],
+        "skin_k": [800.0, 2500.0],
+        "pull_speed": [0.02, 0.08],
+        "slip_tau_s": 0.001,
+        "slip_kick": 0.3,
+    }
+
+    def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
+        """Give ``contact`` and ``labels`` for a batch of handovers."""
+        n, t = time.n_trials, time.t()
+        span = self.context.geometry.free_length_m
+        stable = rng.uniform(size=n) < self.scalar("p_stable", 0.0, 1.0)
+        onset = self.draw("onset_s", rng, n, 0.0)
+        position = self.draw("position", rng, n, 0.0, 1.0) * span
+        touch = half_sine_bins(
+            self.draw("touch_force_n", rng, n, 0.0),
+            self.draw("touch_duration_s", rng, n, 1e-5, 1.0),
+            onset,
+            time.rate_hz,
+            time.n_samples,
+        )
+        axial = np.zeros((n, time.n_samples))
+        pull = self.draw("pull_force_n", rng, n, 0.0)
+        settle_hz = self.draw("settle_hz", rng, n, 0.01)
+        zeta = self.scalar("settle_zeta", 0.01, 0.99)
+        normal = self.draw("normal_n", rng, n, 0.0)
+        mu_s, mu_k = self.draw("mu_s", rng, n, 0.0), self.draw("mu_k", rng, n, 0.0)
+        skin_k, speed = self.draw("skin_k", rng, n, 1.0), self.draw("pull_speed", rng, n, 1e-6)
+        alpha = np.exp(-time.dt / self.scalar("slip_tau_s", 1e-6))
+        kicks = np.zeros_like(axial)
+        for i in range(n):
+            rel = t - onset[i]
+            if stable[i]:
+                axial[i] = settling(rel, pull[i], settle_hz[i], zeta)
+                continue
+            hi, lo = max(mu_s[i], mu_k[i] + 0.05), min(mu_k[i], mu_s[i] - 0.05)
+            jitter = np.clip(0.15 * rng.standard_normal(4096), -0.9, None)
+            raw, slips = stick_slip(rel, normal[i], hi, lo, skin_k[i], speed[i], jitter)
+            # slips relax with time constant slip_tau (one-pole), the stick ramps stay linear
+            axial[i] = lfilter([1 - alpha], [1, -alpha], raw)
+            slips = slips[slips + onset[i] < time.n_samples * time.dt]
+            if slips.size:
+                drop = (hi - lo) * normal[i] * self.scalar("slip_kick", 0.0)
+                kicks[i] = half_sine_bins(
+                    np.full(slips.size, drop),
+                    np.full(slips.size, 0.001),
+                    slips + onset[i],
+                    time.rate_hz,
+                    time.n_samples,
+                ).sum(axis=0)
+        angle = np.deg2rad(self.draw("angle_deg", rng, n, -90.0, 90.0))
+        signals["contact"] = Contact(touch + kicks, axial, position, angle)
+        signals["labels"] = Labels(
+            onset_ns=np.round(onset * 1e9).astype(np.int64),
+            y_m=np.full(n, np.nan),
+            class_label=np.where(stable, "stable", "unstable"),
+        )

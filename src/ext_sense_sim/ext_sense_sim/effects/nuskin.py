@@ -1,0 +1,114 @@
+"""NUSkin transduction: taxel pressure to positive and negative events.
+
+Model. The graphene piezoresistive layer and its amplifier pass pressure up to about
+``bandwidth_hz`` (1500 Hz, a second-order Butterworth low-pass). Each taxel is a level-crossing
+(send-on-delta) encoder: it emits a positive event when its pressure has risen by
+``threshold_pa`` since its reference, a negative one when it has fallen by as much, and moves
+its reference one threshold toward the pressure. After an event the taxel is refractory for
+``refractory_s`` (0.25 ms: the ACES pulse signature length, hence at most 4 kHz per taxel);
+a change larger than one threshold is therefore spread over several events, one per
+refractory period, as a rate-limited real taxel would. The 10-bit value field is the taxel's
+absolute pressure reading at the event, ``value = offset_counts + p / pa_per_count``, clipped
+to 0..1023. Event times fall uniformly inside their simulation sample.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.signal import butter, lfilter, lfilter_zi
+
+from ext_sense_sim.effects.base import Effect, Signals, TimeBase
+from ext_sense_sim.events import EventBatch
+
+
+def front_end(pressure: np.ndarray, bandwidth_hz: float, rate_hz: float) -> np.ndarray:
+    """Second-order Butterworth low-pass along the last axis, started at steady state.
+
+    Args:
+        pressure: ``(..., n_samples)`` pascals.
+        bandwidth_hz: Cut-off, Hz (clipped below Nyquist).
+        rate_hz: Sample rate, Hz.
+
+    Returns:
+        Filtered pressure, same shape and dtype.
+    """
+    wn = min(bandwidth_hz / (rate_hz / 2), 0.99)
+    b, a = butter(2, wn)
+    zi = lfilter_zi(b, a)
+    x0 = pressure[..., :1]
+    out, _ = lfilter(b, a, pressure, axis=-1, zi=zi * x0)
+    return out.astype(pressure.dtype, copy=False)
+
+
+def level_crossing(
+    signal: np.ndarray, threshold: float, refractory: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Send-on-delta encoding with a refractory period, vectorised across channels.
+
+    Args:
+        signal: ``(n_samples, n_channels)`` (time-major, C-contiguous for speed).
+        threshold: Change that triggers an event, same unit as ``signal``.
+        refractory: Samples after an event during which the channel cannot fire (>= 1).
+
+    Returns:
+        ``(sample, channel, polarity)`` of every event in time order; polarity is +1/-1.
+    """
+    n_samples, n_channels = signal.shape
+    ref = signal[0].astype(np.float64)
+    ready = np.zeros(n_channels, dtype=np.int64)
+    thr = float(threshold)
+    samples, channels, polarities = [], [], []
+    for k in range(1, n_samples):
+        diff = signal[k] - ref
+        fire = np.flatnonzero((np.abs(diff) >= thr) & (ready <= k))
+        if fire.size:
+            sign = np.where(diff[fire] > 0, 1, -1)
+            ref[fire] += thr * sign
+            ready[fire] = k + refractory
+            samples.append(np.full(fire.size, k, dtype=np.int64))
+            channels.append(fire)
+            polarities.append(sign.astype(np.int8))
+    if not samples:
+        return np.zeros(0, np.int64), np.zeros(0, np.intp), np.zeros(0, np.int8)
+    return np.concatenate(samples), np.concatenate(channels), np.concatenate(polarities)
+
+
+class NuskinTransduction(Effect):
+    """Pressure to NUSkin events (see module docstring). Gives ``events``."""
+
+    name = "nuskin_transduction"
+    needs = ("taxel_pressure",)
+    gives = ("events",)
+    defaults = {
+        "threshold_pa": 4000.0,
+        "refractory_s": 0.00025,
+        "bandwidth_hz": 1500.0,
+        "offset_counts": 70.0,
+        "pa_per_count": 300.0,
+    }
+
+    def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
+        """Give ``events`` (an :class:`EventBatch`, batch-local trial indices)."""
+        pressure = signals.need("taxel_pressure", self.name)
+        n_trials, n_taxels, n_samples = pressure.shape
+        filtered = front_end(pressure, self.scalar("bandwidth_hz", 1.0), time.rate_hz)
+        time_major = np.ascontiguousarray(filtered.reshape(-1, n_samples).T)
+        refractory = max(1, math.ceil(self.scalar("refractory_s", 0.0) * time.rate_hz - 1e-9))
+        k, channel, polarity = level_crossing(
+            time_major, self.scalar("threshold_pa", 1e-9), refractory
+        )
+        value = self.scalar("offset_counts", 0, 1023) + time_major[k, channel] / self.scalar(
+            "pa_per_count", 1e-9
+        )
+        jitter = rng.uniform(0.0, 1.0, size=k.size)
+        t_ns = np.round((k + jitter) * (1e9 / time.rate_hz)).astype(np.int64)
+        events = EventBatch(
+            (channel // n_taxels).astype(np.int32),
+            t_ns,
+            (channel % n_taxels + 1).astype(np.uint16),
+            polarity,
+            np.clip(np.round(value), 0, 1023).astype(np.uint16),
+        )
+        signals["events"] = events.sorted()

@@ -1,0 +1,247 @@
+"""Streaming a scene's device bytes in real time: the core shared by ``sim serve`` and the node.
+
+Trials are simulated one at a time, each just before it is due; trial ``k`` starts
+``k * period_s`` after the stream starts, and each of its wire chunks is written when the
+host clock reaches the trial start plus the chunk's time. When the first chunk at or after the
+true contact onset is written, ``on_onset`` gets the ground truth stamped with the host time
+(``time.time_ns``, the clock drivers stamp arrival with) of that write. A trial that could not
+be simulated before its start is sent late and counted in ``late_trials``.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from ext_sense_sim.engine import Simulator
+from ext_sense_sim.enums import Sensor
+from ext_sense_sim.errors import SceneError
+from ext_sense_sim.scene import Scene
+
+WIRE_EFFECT = {Sensor.NUSKIN: "nuskin_wire", Sensor.BIOTAC: "biotac_wire"}
+
+
+class GroundTruth(NamedTuple):
+    """What really happened in one streamed trial."""
+
+    trial: int
+    stamp_ns: int
+    task: str
+    tap_position_m: float
+    rod_length_m: float
+    class_label: str
+
+
+class PlannedTrial(NamedTuple):
+    """One simulated trial ready to stream: its chunks and its truth (times from its start)."""
+
+    trial: int
+    chunks: list[tuple[int, bytes]]
+    onset_ns: int
+    tap_position_m: float
+    class_label: str
+
+
+def plan_trials(scene: Scene, seed: int) -> Iterator[PlannedTrial]:
+    """Simulate trials one by one, forever; the scene must list its sensor's wire effect.
+
+    Raises:
+        SceneError: The scene lacks the wire effect (named) for its sensor.
+    """
+    wire = WIRE_EFFECT[scene.sensor]
+    if wire not in scene.effect_names:
+        raise SceneError(
+            f"Scene '{scene.name}' cannot be streamed: it needs effect '{wire}', which its "
+            f"effects list lacks."
+        )
+    single = Scene(**{**scene.__dict__, "batch_size": 1})
+    sim = Simulator(single)
+    seeds = np.random.SeedSequence(int(seed))
+    k = 0
+    while True:
+        rng = np.random.default_rng(seeds.spawn(1)[0])
+        _, signals = sim.run_batch(k, 1, rng)
+        labels = signals["labels"]
+        yield PlannedTrial(
+            k,
+            signals["wire"][0].chunks(),
+            int(labels.onset_ns[0]),
+            float(labels.y_m[0]),
+            str(labels.class_label[0]),
+        )
+        k += 1
+
+
+@dataclass
+class StreamStats:
+    """Counters of a stream."""
+
+    trials: int = 0
+    bytes: int = 0
+    writes: int = 0
+    late_trials: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def stream(
+    scene: Scene,
+    write: Callable[[bytes], object],
+    *,
+    seed: int,
+    trials: int = 0,
+    period_s: float = 1.0,
+    on_onset: Callable[[GroundTruth], None] | None = None,
+    stop: threading.Event | None = None,
+    clock: Callable[[], int] = time.time_ns,
+    sleep: Callable[[float], None] = time.sleep,
+) -> StreamStats:
+    """Write the scene's device bytes in real time until ``trials`` are done or ``stop`` is set.
+
+    Args:
+        scene: A scene listing its sensor's wire effect.
+        write: Sends bytes to the link (pty, CAN sink, file).
+        seed: Seed of the stream.
+        trials: Trials to send; 0 = until stopped.
+        period_s: Time between trial starts (at least the trial length).
+        on_onset: Called with the ground truth when a trial's onset bytes are written.
+        stop: Set it to end the stream.
+        clock: Epoch integer nanoseconds (injectable for tests).
+        sleep: Sleeps seconds (injectable for tests).
+    """
+    period_ns = int(round(max(period_s, scene.trial_s) * 1e9))
+    stop = stop or threading.Event()
+    stats = StreamStats()
+    start: int | None = None
+    rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
+    for plan in plan_trials(scene, seed):
+        if stop.is_set() or (trials and plan.trial >= trials):
+            break
+        if start is None:  # the first trial is simulated before the clock starts
+            start = clock()
+        t0 = start + plan.trial * period_ns
+        if clock() > t0:
+            stats.late_trials += 1
+        pending_onset = True
+        i = 0
+        while i < len(plan.chunks) and not stop.is_set():
+            now = clock()
+            due = [c for c in plan.chunks[i:] if t0 + c[0] <= now]
+            if not due:
+                sleep(min(0.001, max(0.0, (t0 + plan.chunks[i][0] - now) / 1e9)))
+                continue
+            data = b"".join(c[1] for c in due)
+            write(data)
+            stats.bytes += len(data)
+            stats.writes += 1
+            i += len(due)
+            if pending_onset and due[-1][0] >= plan.onset_ns:
+                pending_onset = False
+                if on_onset is not None:
+                    on_onset(
+                        GroundTruth(
+                            plan.trial, clock(), scene.task.label, plan.tap_position_m, rod,
+                            plan.class_label,
+                        )
+                    )
+        stats.trials += 1
+        while not stop.is_set() and clock() < t0 + period_ns and not (
+            trials and plan.trial + 1 >= trials
+        ):
+            sleep(min(0.01, (t0 + period_ns - clock()) / 1e9))
+    return stats
+
+
+class PtyLink:
+    """A pseudo-terminal in raw mode: the emulator writes the master, a driver opens the slave.
+
+    Args:
+        link: Optional path of a symlink to create to the slave (replaced if present).
+    """
+
+    def __init__(self, link: str | Path | None = None) -> None:
+        import tty  # noqa: PLC0415
+
+        self.master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        os.set_blocking(self.master, False)
+        self.dropped_bytes = 0
+        self.path = os.ttyname(self._slave)
+        self.link = Path(link) if link else None
+        if self.link is not None:
+            if self.link.is_symlink() or self.link.exists():
+                self.link.unlink()
+            self.link.symlink_to(self.path)
+
+    def write(self, data: bytes) -> int:
+        """Write ``data`` without blocking; what a full pty (nobody reading) refuses is dropped.
+
+        Returns:
+            Bytes written; the rest is counted in ``dropped_bytes`` (a device does not wait).
+        """
+        try:
+            n = os.write(self.master, data)
+        except BlockingIOError:
+            n = 0
+        self.dropped_bytes += len(data) - n
+        return n
+
+    def close(self) -> None:
+        """Close both ends and remove the symlink."""
+        for fd in (self.master, self._slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        if self.link is not None and self.link.is_symlink():
+            self.link.unlink()
+
+
+def open_link(kind: str, *, link_path: str = "", can_channel: str = "", can_id: int = 0x100):
+    """A pty (default) or a python-can virtual channel sink, each with ``write`` and ``close``.
+
+    Raises:
+        SceneError: Unknown link kind.
+    """
+    if kind == "pty":
+        return PtyLink(link_path or None)
+    if kind == "can":
+        from ext_sense_drivers.transports.can_bus import CanSink  # noqa: PLC0415
+
+        return CanSink("virtual", can_channel or "ext_sense", can_id)
+    raise SceneError(f"The 'link' parameter must be 'pty' or 'can'. Got {kind!r} instead.")
+
+
+def serve_device(args) -> int:  # noqa: ANN001 - argparse namespace
+    """``ext-sense sim serve nuskin|biotac``: stream a scene over a pty or a CAN channel."""
+    from ext_sense_sim.scene import load_scene  # noqa: PLC0415
+
+    default = {"nuskin": "tap_rod30_nuskin", "biotac": "tap_rod30_biotac"}[args.device]
+    scene = load_scene(args.scene or default)
+    if scene.sensor.label != args.device:
+        raise SceneError(
+            f"Scene '{scene.name}' is for sensor '{scene.sensor.label}', not '{args.device}'."
+        )
+    sink = open_link("can" if args.can else "pty", link_path=args.link or "",
+                     can_channel=args.can or "")
+    where = f"CAN virtual channel {args.can}" if args.can else sink.path
+    print(f"sim serve {args.device}: streaming scene {scene.name} on {where}", flush=True)
+    try:
+        stats = stream(
+            scene, sink.write, seed=scene.seed if args.seed is None else args.seed,
+            trials=args.trials, period_s=args.period,
+            on_onset=lambda gt: print(f"trial {gt.trial} onset at {gt.stamp_ns} ns "
+                                      f"{gt.class_label or gt.tap_position_m}", flush=True),
+        )
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        sink.close()
+    print(f"sent {stats.trials} trials, {stats.bytes} bytes, late trials {stats.late_trials}")
+    return 0

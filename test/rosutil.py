@@ -1,0 +1,61 @@
+"""Helpers for tests that run nodes in this process: a context, an executor thread, waiting."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+
+@contextmanager
+def spinning(*node_factories: Callable[..., Any]) -> Iterator[list[Any]]:
+    """Create nodes on a fresh context, spin them on one executor thread, clean up after."""
+    import rclpy
+    from rclpy.context import Context
+
+    from ext_sense_runtime.executor import make_executor
+
+    context = Context()
+    rclpy.init(context=context, args=[])
+    executor = make_executor(context=context)
+    nodes = []
+    stop = threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set() and context.ok():
+            try:
+                executor.spin_once(timeout_sec=0.02)
+            except Exception:  # shutdown races end the loop
+                if stop.is_set() or not context.ok():
+                    return
+                raise
+
+    try:
+        for factory in node_factories:
+            node = factory(context=context)
+            nodes.append(node)
+            executor.add_node(node)
+        thread = threading.Thread(target=spin, daemon=True)
+        thread.start()
+        try:
+            yield nodes
+        finally:
+            stop.set()
+            thread.join(timeout=5)
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        executor.shutdown()
+        rclpy.try_shutdown(context=context)
+
+
+def wait_for(predicate: Callable[[], bool], timeout: float = 10.0, step: float = 0.02) -> bool:
+    """Poll ``predicate`` until it holds or ``timeout`` seconds pass; returns its last value."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(step)
+    return bool(predicate())

@@ -1,0 +1,75 @@
+"""Synthetic tap streams and a stand-in model for runtime tests (no simulator, no training)."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+MS = 1_000_000
+T0 = 1_700_000_000_000_000_000
+
+
+class Batch(NamedTuple):
+    """One 1 ms batch of events: stamp and parallel arrays."""
+
+    stamp_ns: int
+    taxel: np.ndarray
+    polarity: np.ndarray
+    value: np.ndarray
+    offset_ns: np.ndarray
+
+
+def tap_stream(
+    onsets_ms: list[float],
+    duration_ms: float,
+    *,
+    t0_ns: int = T0,
+    rate_hz: float = 4000.0,
+    taxels: int = 80,
+    burst_ms: float = 40.0,
+    noise_per_s: float = 50.0,
+    seed: int = 0,
+) -> list[Batch]:
+    """1 ms batches of NUSkin events: background noise plus a burst of ``taxels`` at each onset.
+
+    During a burst every taxel fires at ``rate_hz`` (the 80-taxel, 4 kHz worst case).
+    """
+    rng = np.random.default_rng(seed)
+    times, tax = [], []
+    n_noise = rng.poisson(noise_per_s * duration_ms / 1000)
+    times.append(rng.integers(0, int(duration_ms * MS), n_noise))
+    tax.append(rng.integers(1, 81, n_noise))
+    period = int(1e9 / rate_hz)
+    for onset in onsets_ms:
+        start = int(onset * MS)
+        ticks = np.arange(start, start + int(burst_ms * MS), period)
+        times.append(np.repeat(ticks, taxels))
+        tax.append(np.tile(np.arange(1, taxels + 1), len(ticks)))
+    t = np.concatenate(times).astype(np.int64)
+    k = np.concatenate(tax).astype(np.uint16)
+    order = np.argsort(t, kind="stable")
+    t, k = t[order], k[order]
+    pol = np.where(rng.random(len(t)) < 0.5, 1, -1).astype(np.int8)
+    val = rng.integers(0, 1024, len(t)).astype(np.uint16)
+    out = []
+    edges = np.searchsorted(t, np.arange(0, int(duration_ms * MS) + MS, MS))
+    for i in range(len(edges) - 1):
+        lo, hi = edges[i], edges[i + 1]
+        stamp = t0_ns + i * MS
+        out.append(Batch(stamp, k[lo:hi], pol[lo:hi], val[lo:hi], t[lo:hi] - i * MS))
+    return out
+
+
+class CountingModel:
+    """Stand-in for a model bundle: position = events in the window / 1e6 m; NaN data rejected."""
+
+    model_id = "counting-test-model"
+
+    def predict(self, window):
+        from ext_sense_perception.errors import PerceptionError
+
+        data = np.asarray(window.data)
+        if not np.isfinite(data).all():
+            raise PerceptionError("The window holds NaN or inf.")
+        return {"tap_position_m": float(np.abs(data).sum()) / 1e6, "tap_position_std_m": 0.01}

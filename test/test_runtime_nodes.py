@@ -1,0 +1,205 @@
+"""Window, inference and recorder nodes in one process, with a stand-in model."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from rosutil import spinning, wait_for
+from synthetic import MS, CountingModel, tap_stream
+
+pytestmark = pytest.mark.ros
+
+
+def _params(**kw):
+    from rclpy.parameter import Parameter
+
+    return [Parameter(k, value=v) for k, v in kw.items()]
+
+
+def _json_loader(path, backend):
+    """Stand-in for the bundle loader: ``path/model.json`` must hold {"ok": true}."""
+    from ext_sense_perception.errors import PerceptionError
+
+    file = Path(path) / "model.json"
+    if not file.is_file():
+        raise PerceptionError(f"Model file {file} is missing.")
+    try:
+        ok = json.loads(file.read_text())["ok"]
+    except (ValueError, KeyError) as err:
+        raise PerceptionError(f"Model file {file} is corrupt: {err}") from err
+    if not ok:
+        raise PerceptionError(f"Model file {file} is corrupt.")
+    return CountingModel()
+
+
+class Probe:
+    """A plain node publishing events/windows and collecting estimates and diagnostics."""
+
+    def __init__(self, context):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.node import Node
+
+        from ext_sense_msgs.msg import ContactEstimate, ContactWindow, TaxelEventBatch
+        from ext_sense_runtime.qos import (
+            DIAGNOSTICS_QOS,
+            ESTIMATE_QOS,
+            SENSOR_STREAM_QOS,
+            WINDOW_QOS,
+        )
+
+        self.node = Node("probe", context=context)
+        self.events = self.node.create_publisher(TaxelEventBatch, "events", SENSOR_STREAM_QOS)
+        self.windows = self.node.create_publisher(ContactWindow, "window", WINDOW_QOS)
+        self.estimates = []
+        self.diagnostics = []
+        self.node.create_subscription(
+            ContactEstimate, "contact_estimate", self.estimates.append, ESTIMATE_QOS
+        )
+        self.node.create_subscription(
+            DiagnosticArray, "/diagnostics", self.diagnostics.append, DIAGNOSTICS_QOS
+        )
+
+    def status(self, name_part):
+        for arr in reversed(self.diagnostics):
+            for st in arr.status:
+                if name_part in st.name:
+                    return st
+        return None
+
+    def publish_batches(self, batches, base_ns, pace=True):
+        from ext_sense_msgs.msg import TaxelEventBatch
+        from ext_sense_runtime.stamps import fill_stamp
+
+        t_start = time.monotonic()
+        for i, b in enumerate(batches):
+            msg = TaxelEventBatch()
+            fill_stamp(msg.header.stamp, base_ns + (b.stamp_ns - batches[0].stamp_ns))
+            msg.taxel = b.taxel
+            msg.polarity = b.polarity
+            msg.value = b.value
+            msg.offset_ns = b.offset_ns
+            self.events.publish(msg)
+            if pace:
+                delay = t_start + (i + 1) * 1e-3 - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
+
+
+def _probe_factory(holder):
+    def make(context):
+        holder.append(Probe(context))
+        return holder[-1].node
+
+    return make
+
+
+def test_window_and_inference_nodes_give_provisional_then_final(monkeypatch, tmp_path):
+    from ext_sense_perception.nodes import contact_inference
+    from ext_sense_perception.nodes.contact_inference import ContactInferenceNode
+    from ext_sense_perception.nodes.contact_window import ContactWindowNode
+
+    monkeypatch.setattr(contact_inference, "load_bundle", lambda p, b: CountingModel())
+    probes = []
+    with spinning(
+        lambda context: ContactWindowNode(context=context),
+        lambda context: ContactInferenceNode(
+            context=context, parameter_overrides=_params(model_path=str(tmp_path))
+        ),
+        _probe_factory(probes),
+    ):
+        probe = probes[0]
+        time.sleep(0.5)  # discovery
+        batches = tap_stream([50.0, 700.0], 1000.0, seed=1)
+        probe.publish_batches(batches, time.time_ns())
+        assert wait_for(lambda: sum(not e.provisional for e in probe.estimates) >= 2, 5.0)
+        assert wait_for(lambda: probe.status("contact_inference: inference") is not None, 3.0)
+    finals = [e for e in probe.estimates if not e.provisional]
+    provisional = [e for e in probe.estimates if e.provisional]
+    assert len(finals) == 2
+    assert len(provisional) == 8  # 25, 50, 100, 150 ms for each tap
+    assert [e.post_contact_used.nanosec // MS for e in provisional[:4]] == [25, 50, 100, 150]
+    assert all(e.model_id == "counting-test-model" for e in finals)
+    assert all(e.tap_position_m > 0 for e in finals)
+    latency_ms = [e.compute_latency.sec * 1e3 + e.compute_latency.nanosec / 1e6 for e in finals]
+    assert all(0 <= x < 1000 for x in latency_ms)
+
+
+def test_inference_faults_keep_the_node_alive_and_recording_complete(monkeypatch, tmp_path):
+    from ext_sense.nodes.recorder import RecorderNode
+    from ext_sense_bags import BagReader
+    from ext_sense_msgs.msg import ContactWindow
+    from ext_sense_perception.nodes import contact_inference
+    from ext_sense_perception.nodes.contact_inference import ContactInferenceNode
+    from ext_sense_runtime.stamps import fill_stamp
+
+    monkeypatch.setattr(contact_inference, "load_bundle", _json_loader)
+    model_dir = tmp_path / "model"
+    model_dir.mkdir()
+    bag = tmp_path / "bag"
+    probes = []
+
+    def window(values, post_ms=250):
+        msg = ContactWindow()
+        fill_stamp(msg.header.stamp, time.time_ns() - (post_ms + 1) * MS)
+        msg.task, msg.sensor = "tap_localization", "nuskin"
+        msg.pre_onset_ns, msg.post_onset_ns, msg.sample_period_ns = 50 * MS, post_ms * MS, MS
+        msg.shape = [2, 3]
+        msg.channels = [1, 2]
+        msg.data = np.asarray(values, dtype=np.float32)
+        return msg
+
+    with spinning(
+        lambda context: ContactInferenceNode(
+            context=context,
+            parameter_overrides=_params(model_path=str(model_dir), reload_period_s=0.2),
+        ),
+        lambda context: RecorderNode(
+            context=context, parameter_overrides=_params(bag=str(bag), topics=["/window"])
+        ),
+        _probe_factory(probes),
+    ) as (inference, recorder, _):
+        probe = probes[0]
+        assert wait_for(lambda: "/window" in recorder.received, 5.0)  # type discovered
+        time.sleep(0.3)
+        # missing model: windows are dropped and counted, diagnostics say why
+        probe.windows.publish(window([1, 2, 3, 4, 5, 6]))
+        assert wait_for(lambda: inference.dropped_no_model == 1, 3.0)
+        assert wait_for(lambda: probe.status("contact_inference: model") is not None)
+        st = probe.status("contact_inference: model")
+        assert st.level == b"\x02"
+        assert "missing" in st.message
+        # corrupt model: still an error, still alive
+        (model_dir / "model.json").write_text("{not json")
+        probe.windows.publish(window([1, 2, 3, 4, 5, 6]))
+        assert wait_for(lambda: inference.dropped_no_model == 2, 3.0)
+        assert wait_for(lambda: "corrupt" in inference.model_error, 3.0)
+        # fixed model file: loading is retried and estimates flow
+        (model_dir / "model.json").write_text('{"ok": true}')
+        assert wait_for(lambda: inference.model is not None, 3.0)
+        probe.windows.publish(window([1, 2, 3, 4, 5, 6]))
+        assert wait_for(lambda: len(probe.estimates) == 1, 3.0)
+        # NaN in a window: rejected, counted, reported; the next window is fine
+        probe.windows.publish(window([1, np.nan, 3, 4, 5, 6]))
+        assert wait_for(lambda: inference.dropped_bad_window == 1, 3.0)
+        assert wait_for(
+            lambda: (
+                (s := probe.status("contact_inference: inference")) is not None
+                and s.level == b"\x01"
+                and "NaN" in s.message
+            ),
+            3.0,
+        )
+        probe.windows.publish(window([1, 1, 1, 1, 1, 1], post_ms=100))
+        assert wait_for(lambda: len(probe.estimates) == 2, 3.0)
+        assert probe.estimates[-1].provisional
+        assert wait_for(lambda: recorder.received.get("/window") == 5, 3.0)
+    with BagReader(bag) as reader:
+        assert reader.topics["/window"].count == 5
+        assert reader.topics["/window"].msgtype == "ext_sense_msgs/msg/ContactWindow"
