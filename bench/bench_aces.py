@@ -18,6 +18,7 @@ window (``DecodeMode.MATCHED_FILTER``) on the same lines.
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -178,6 +179,11 @@ def main() -> int:
             for occ in OCCUPANCIES
         )
     )
+    load = os.getloadavg()
+    print(
+        f"load average while running: {load[0]:.2f} (1 min) on {os.cpu_count()} cores; wall-clock"
+    )
+    print("  speed falls below cpu speed when other processes share the cores")
     period = 1e9 / bank.sample_rate_hz
     print("timing error: decoded time (sample clock) minus true event time; rounding to the")
     print(

@@ -69,12 +69,14 @@ def test_launch_actions_and_runner_start_the_same_nodes(graph_name):
         for spec in graph.nodes(overrides):
             launch_kwargs = launch_node_kwargs(spec, use_sim_time=False)
             runner_kwargs = _node_kwargs(spec, use_sim_time=False)
-            assert launch_kwargs["name"] == runner_kwargs["node_name"] == spec.name
             runner_params = {p.name: p.value for p in runner_kwargs["parameter_overrides"]}
             assert launch_kwargs["parameters"] == [runner_params]
-            remaps = runner_kwargs["cli_args"][1:]
-            pairs = [tuple(r.split(":=")) for r in remaps[1::2]]
-            assert launch_kwargs["remappings"] == pairs == list(spec.remappings)
+            cli = runner_kwargs["cli_args"]
+            assert cli[0] == "--ros-args"
+            assert cli[1::2] == ["-r"] * (len(cli) // 2)
+            pairs = [tuple(r.split(":=")) for r in cli[2::2]]
+            assert pairs[0] == ("__node", launch_kwargs["name"]) == ("__node", spec.name)
+            assert launch_kwargs["remappings"] == pairs[1:] == list(spec.remappings)
 
 
 @pytest.mark.parametrize("graph_name", sorted(GRAPHS))
@@ -118,8 +120,8 @@ def test_bad_arguments_are_named():
 
 def test_node_spec_ros_args():
     spec = NodeSpec("p", "e", "n", "m:C", remappings=(("a", "/x/a"), ("b", "/x/b")))
-    assert spec.ros_args() == ["--ros-args", "-r", "a:=/x/a", "-r", "b:=/x/b"]
-    assert NodeSpec("p", "e", "n", "m:C").ros_args() == []
+    assert spec.ros_args() == ["--ros-args", "-r", "__node:=n", "-r", "a:=/x/a", "-r", "b:=/x/b"]
+    assert NodeSpec("p", "e", "n", "m:C").ros_args() == ["--ros-args", "-r", "__node:=n"]
 
 
 def test_cli_lists_subcommands_and_graphs():

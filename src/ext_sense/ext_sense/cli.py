@@ -45,6 +45,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``ext-sense``; returns the process exit code."""
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # `name:=value` launch arguments may stand anywhere, as with `ros2 launch`; argparse only
+    # takes a variable-length positional in one run, so gather them at the end.
+    assignments = [a for a in argv if ":=" in a and not a.startswith("-")]
+    argv = [a for a in argv if a not in assignments] + assignments
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)

@@ -62,11 +62,16 @@ class NodeSpec:
             raise GraphError(f"Node '{self.name}': cannot import plugin '{self.plugin}'") from err
 
     def ros_args(self) -> list[str]:
-        """Remappings as ``--ros-args -r from:=to ...`` (what launch_ros passes too)."""
-        args: list[str] = []
+        """Node name and remappings as ``--ros-args -r __node:=NAME -r from:=to ...``.
+
+        This is what ``launch_ros`` passes to a node's process too; naming the node through
+        ``__node`` means a Node subclass keeps its own default name in code and still gets the
+        graph's name, whichever front end started it.
+        """
+        args = ["-r", f"__node:={self.name}"]
         for src, dst in self.remappings:
             args += ["-r", f"{src}:={dst}"]
-        return ["--ros-args", *args] if args else []
+        return ["--ros-args", *args]
 
 
 @dataclass(frozen=True)

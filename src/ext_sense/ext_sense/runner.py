@@ -31,12 +31,12 @@ STOP_GRACE_S = 5.0
 
 
 def _node_kwargs(spec: NodeSpec, use_sim_time: bool, context: Any = None) -> dict[str, Any]:
+    """Keyword arguments for ``NodeClass(**kwargs)``: overrides, and name/remaps as ROS args."""
     from rclpy.parameter import Parameter
 
     overrides = [Parameter(k, value=v) for k, v in spec.parameters.items()]
     overrides.append(Parameter("use_sim_time", value=use_sim_time))
     kwargs: dict[str, Any] = {
-        "node_name": spec.name,
         "parameter_overrides": overrides,
         "cli_args": spec.ros_args(),
     }

@@ -29,15 +29,22 @@ class Decision:
 
 @dataclass
 class DecisionLog:
-    """Keeps decisions in order and hands each to an optional sink (a node's logger)."""
+    """Keeps decisions in order and hands each to an optional sink (a node's logger).
+
+    Only the last ``max_entries`` are kept, so a node that runs for days does not grow; the sink
+    sees every one.
+    """
 
     sink: Callable[[Decision], None] | None = None
     entries: list[Decision] = field(default_factory=list)
+    max_entries: int = 10_000
 
     def record(self, stamp_ns: int, state: IntEnum, action: IntEnum, reason: str) -> Decision:
         """Append a decision and pass it to the sink."""
         decision = Decision(int(stamp_ns), state.name, action.name, reason)
         self.entries.append(decision)
+        if len(self.entries) > self.max_entries:
+            del self.entries[: len(self.entries) - self.max_entries]
         if self.sink is not None:
             self.sink(decision)
         return decision

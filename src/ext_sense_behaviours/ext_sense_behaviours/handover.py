@@ -205,6 +205,11 @@ class HandoverMachine:
             f"gripper fault, holding safe: {reason}",
         )
 
+    def reset(self, now_ns: int, reason: str = "operator reset") -> Decision:
+        """Leave FAULT (or any state) for IDLE; only on an explicit request, never by itself."""
+        self.streak = 0
+        return self._decide(now_ns, HandoverState.IDLE, HandoverAction.NONE, reason)
+
     def on_tick(self, now_ns: int) -> Decision | None:
         """Check the timeouts; call periodically."""
         cfg = self.config

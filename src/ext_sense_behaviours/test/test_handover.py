@@ -107,6 +107,17 @@ def test_fault_while_holding_is_safe():
     assert machine.on_estimate(est(1.0), 6).action == "NONE"
 
 
+def test_only_an_explicit_reset_leaves_fault():
+    machine = HandoverMachine(HandoverConfig(consecutive=1))
+    machine.start(0)
+    machine.on_fault("gFLT=0x0e", 1)
+    assert machine.start(2).state == "FAULT"
+    assert machine.on_tick(10**12) is None
+    assert machine.reset(3).state == "IDLE"
+    assert machine.start(4).state == "HOLDING"
+    assert machine.on_estimate(est(0.9), 5).action == "OPEN_GRIPPER"
+
+
 def test_sink_sees_every_decision():
     seen = []
     machine = HandoverMachine(HandoverConfig(consecutive=2), sink=seen.append)

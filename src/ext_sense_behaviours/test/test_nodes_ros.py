@@ -78,7 +78,11 @@ def test_tap_marker_draws_the_estimate(ros):
     from ext_sense_behaviours.nodes.tap_marker import TapMarkerNode
 
     add, spin_until = ros
-    add(TapMarkerNode, parameter_overrides=[Parameter("rod_length_m", value=0.5)])
+    add(
+        TapMarkerNode,
+        node_name="tap_marker_renamed",
+        parameter_overrides=[Parameter("rod_length_m", value=0.5)],
+    )
     probe = add(Probe)
     probe.listen(Marker, "marker")
     pub = probe.publisher(ContactEstimate, "contact_estimate", ESTIMATE_QOS)
@@ -104,7 +108,7 @@ def test_robotiq_gripper_node_on_the_emulator(ros):
             RobotiqGripperNode,
             parameter_overrides=[
                 Parameter("port", value=pty.path),
-                Parameter("timeout_s", value=0.1),
+                Parameter("timeout_s", value=0.5),
                 Parameter("retries", value=1),
                 Parameter("poll_rate_hz", value=20.0),
             ],
@@ -225,7 +229,7 @@ def test_handover_and_gripper_nodes_on_the_emulated_gripper(ros):
             RobotiqGripperNode,
             parameter_overrides=[
                 Parameter("port", value=pty.path),
-                Parameter("timeout_s", value=0.1),
+                Parameter("timeout_s", value=0.5),
                 Parameter("poll_rate_hz", value=20.0),
             ],
         )

@@ -222,3 +222,39 @@ def test_emulator_silent_on_other_slave_and_bad_crc():
     assert emulator.handle(bytes(bad)) is None
     assert emulator.counters.other_slave == 1
     assert emulator.counters.bad_crc_requests == 1
+
+
+def test_partial_reply_is_no_answer_not_crc():
+    client, emulator, _, _ = make(retries=0)
+    client.activate()
+    original = emulator.handle
+    emulator.handle = lambda frame: original(frame)[:7]  # type: ignore[method-assign]
+    with pytest.raises(RobotiqError, match=r"Incomplete answer .* 7 of 11 bytes") as info:
+        client.read_status()
+    assert info.value.kind == FaultKind.NO_ANSWER
+    assert client.counters.crc_errors == 0
+
+
+def test_decision_log_is_bounded():
+    from ext_sense_behaviours.decisions import DecisionLog
+    from ext_sense_behaviours.handover import HandoverAction, HandoverState
+
+    seen = []
+    log = DecisionLog(seen.append, max_entries=5)
+    for i in range(12):
+        log.record(i, HandoverState.HOLDING, HandoverAction.NONE, f"n{i}")
+    assert [d.reason for d in log.entries] == [f"n{i}" for i in range(7, 12)]
+    assert len(seen) == 12
+
+
+def test_object_taken_from_the_hand_lets_the_fingers_close():
+    client, emulator, _, _ = make(object_position=120)
+    client.activate()
+    client.close_fingers()
+    assert client.wait_for_motion().object_held
+    client.close_fingers()  # the same command again changes nothing
+    assert client.read_status().object_held
+    emulator.set_object(None)  # the person takes the object
+    status = client.wait_for_motion()
+    assert status.object == ObjectStatus.AT_POSITION
+    assert status.position == 255

@@ -94,7 +94,7 @@ def test_plain_client_follows_the_manual(object_position):
 
 def test_faults_over_the_pty_give_clear_errors():
     with PtyGripper(RobotiqEmulator(GripperModel(activation_s=0.05))) as pty:
-        client = RobotiqClient.open(pty.path, timeout_s=0.1, retries=1)
+        client = RobotiqClient.open(pty.path, timeout_s=0.5, retries=1)
         try:
             assert client.activate().ready
             pty.emulator.set_fault(LinkFault.NO_ANSWER)

@@ -50,7 +50,7 @@ def estimate_stream(stable: bool, n: int, seed: int) -> list[Estimate]:
 
 
 def grasp(pty: PtyGripper) -> RobotiqClient:
-    client = RobotiqClient.open(pty.path, timeout_s=0.1, retries=1)
+    client = RobotiqClient.open(pty.path, timeout_s=0.5, retries=1)
     client.activate()
     client.close_fingers(speed=255, force=100)
     assert client.wait_for_motion().object == ObjectStatus.DETECTED_CLOSING

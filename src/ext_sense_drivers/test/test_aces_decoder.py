@@ -14,6 +14,7 @@ from ext_sense_drivers.aces import (
     samples_to_bytes,
 )
 from ext_sense_drivers.aces.matched_filter import MatchedFilterSic
+from ext_sense_drivers.aces.onset import OnsetDecoder
 from ext_sense_drivers.nuskin.events import EventBlock
 
 BANK = load_bank()
@@ -117,8 +118,8 @@ def test_matched_filter_resolves_a_collision_on_its_own():
 
 
 def test_matched_filter_cleanup_keeps_heavy_load_accurate():
-    rng = np.random.default_rng(2)
-    starts, taxels, pols = _random_events(rng, 0.85, 0.2)
+    rng = np.random.default_rng(1)
+    starts, taxels, pols = _random_events(rng, 0.95, 0.2)
     enc = encode_line(sample_to_ns(starts, RATE), taxels, pols, noise_std=0.1, rng=rng)
     dec = LineDecoder()
     block = EventBlock.concat([dec.feed(enc.samples), dec.flush()])
@@ -127,6 +128,26 @@ def test_matched_filter_cleanup_keeps_heavy_load_accurate():
     assert len(truth & got) / len(truth) > 0.99
     assert len(truth & got) / len(got) > 0.98
     assert dec.counters.refreshes >= 1
+
+
+def test_onset_decoder_finds_each_signature_with_one_test_at_any_amplitude():
+    enc = encode_line(sample_to_ns([10, 12, 600], RATE), [1, 2, 3], [1, 1, -1], amplitude=0.25)
+    residual = np.concatenate((enc.samples, np.zeros(200)))
+    det = OnsetDecoder(BANK, 0.25, 0.5).decode(residual, commit=700)
+    assert det.start.tolist() == [10, 12, 600]
+    assert (det.code + 1).tolist() == [1, 2, 3]
+    assert det.sign.tolist() == [1, 1, -1]
+    assert det.tested == 3 * 80  # no fallback to the earlier starts
+    assert np.abs(residual).max() < 1e-12
+
+
+def test_weak_signature_is_left_to_the_matched_filter():
+    # 0.6 of a full match: below the onset decoder's 0.65, above the matched filter's 0.5
+    enc = encode_line(sample_to_ns([300], RATE), [17], [-1], amplitude=0.6, n_samples=3000)
+    dec = LineDecoder()
+    block = EventBlock.concat([dec.feed(enc.samples), dec.flush()])
+    assert _events(block) == _truth([300], [17], [-1])
+    assert dec.counters.refreshes == 1
 
 
 def _feed_in_pieces(data, cuts):
@@ -194,6 +215,18 @@ def test_counters_and_residual():
     assert c.input_energy == pytest.approx(float(np.dot(enc.samples, enc.samples)))
     assert c.residual_energy == pytest.approx(0.0, abs=1e-9)
     assert c.passes >= 1
+
+
+def test_mean_amplitude_reveals_a_gain_error():
+    rng = np.random.default_rng(4)
+    starts, taxels, pols = _random_events(rng, 0.3, 0.05)
+    t = sample_to_ns(starts, RATE)
+    enc = encode_line(t, taxels, pols, amplitude=0.85, noise_std=0.05, rng=rng)
+    dec = LineDecoder()
+    block = EventBlock.concat([dec.feed(enc.samples), dec.flush()])
+    assert _events(block) == _truth(starts, taxels, pols)
+    assert dec.counters.mean_amplitude == pytest.approx(0.85, abs=0.02)
+    assert LineDecoder().counters.mean_amplitude == 0.0
 
 
 def test_nan_samples_are_counted_and_the_clock_stays_right():

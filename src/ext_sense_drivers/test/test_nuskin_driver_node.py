@@ -39,6 +39,8 @@ class FakeDevice:
         self.master = master
 
     def unplug(self):
+        # udev removes the name too; a dangling name could meet a reused /dev/pts number.
+        self.link.unlink(missing_ok=True)
         os.close(self.master)
         self.master = None
 
@@ -109,6 +111,8 @@ def test_bytes_in_batches_out_and_port_lost_and_back(graph):
     value = rng.integers(0, 1024, 300)
     # A stream that starts mid-word and carries a burst of garbage between two halves.
     raw = encode_words(taxel, value)
+    # pyserial flushes the input buffer when it opens a port: send once the driver has it open.
+    assert _spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
     device.send(raw[2:600] + bytes([0x00, 0x13, 0xFF]) + raw[600:])
     assert _spin_until(executor, lambda: len(_events(got["batches"])[0]) >= 299)
     taxels, values = _events(got["batches"])
@@ -230,6 +234,7 @@ def test_file_transport_replays_a_lab_capture_flat_out(food_poking_dir):
             Parameter("transport", Parameter.Type.STRING, "file"),
             Parameter("file_path", Parameter.Type.STRING, str(raw)),
             Parameter("file_pace", Parameter.Type.STRING, "flat"),
+            Parameter("max_batch_events", Parameter.Type.INTEGER, 500),
         ],
         lambda b, d: len(_events(b)[0]) >= n and d.reader.state == LinkState.EXHAUSTED,
     )
@@ -238,6 +243,7 @@ def test_file_transport_replays_a_lab_capture_flat_out(food_poking_dir):
     assert taxels[:n] == tact.taxel.tolist()
     assert values[:n] == tact.value.tolist()
     assert state == LinkState.EXHAUSTED
+    assert max(len(b.taxel) for b in batches) <= 500
 
 
 def test_aces_line_mode_over_a_pty(tmp_path):
@@ -307,10 +313,40 @@ def test_a_decoder_failure_costs_a_chunk_not_the_node():
         driver.reader.transport.write(encode_words([9, 10], [5, 6]))
         assert _spin_until(executor, lambda: len(_events(batches)[0]) >= 2, 5.0)
         assert _events(batches) == ([9, 10], [5, 6])
+        # frame_id is the one parameter that changes at run time, and never to empty.
+        empty = Parameter("frame_id", Parameter.Type.STRING, "")
+        assert not driver.set_parameters([empty])[0].successful
+        assert driver.set_parameters([Parameter("frame_id", Parameter.Type.STRING, "left")])[
+            0
+        ].successful
+        read_only = Parameter("baud", Parameter.Type.INTEGER, 9600)
+        assert not driver.set_parameters([read_only])[0].successful
+        driver.reader.transport.write(encode_words([11], [7]))
+        assert _spin_until(executor, lambda: batches[-1].taxel.tolist() == [11], 5.0)
+        assert batches[-1].header.frame_id == "left"
     finally:
         if executor is not None:
             executor.shutdown()
         for node in (driver, probe):
             if node is not None:
                 node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_shipped_parameter_file_is_accepted():
+    config = Path(__file__).resolve().parents[1] / "config" / "nuskin_driver.yaml"
+    context = rclpy.Context()
+    rclpy.init(
+        context=context, args=["--ros-args", "--params-file", str(config), "-p", "port:=loop://"]
+    )
+    driver = None
+    try:
+        driver = NuskinDriverNode(context=context)
+        assert driver.config.baud == 4_000_000
+        assert driver.config.can_arbitration_id == 0x100
+        assert driver.max_batch_events == 20000
+        assert driver.get_parameter("batch_period_s").value == 0.001
+    finally:
+        if driver is not None:
+            driver.destroy_node()
         rclpy.try_shutdown(context=context)

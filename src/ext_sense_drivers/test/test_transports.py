@@ -54,6 +54,7 @@ def test_serial_pty_bytes_and_vanishing_device():
         os.write(master, b"\x20\x42\x80\xe0")
         assert _read_until(t, 4) == b"\x20\x42\x80\xe0"
         os.close(master)
+
         def read_until_gone():
             for _ in range(20):
                 t.read(0.05)
@@ -211,13 +212,13 @@ def test_reader_reconnects_with_backoff_and_counts():
         flaky, backoff=Backoff(0.001, 0.01), read_timeout_s=0.005, on_data=lambda: woken.append(1)
     )
     reader.start()
-    data = b""
+    tagged = []
     end = time.monotonic() + 5
-    while data != b"abcdef" and time.monotonic() < end:
-        data += b"".join(c.data for c in reader.drain())
+    while b"".join(c.data for _, c in tagged) != b"abcdef" and time.monotonic() < end:
+        tagged += reader.drain_tagged()
         time.sleep(0.005)
     reader.stop()
-    assert data == b"abcdef"
+    assert [(k, c.data) for k, c in tagged] == [(1, b"ab"), (1, b"cd"), (2, b"ef")]
     assert reader.open_failures == 2
     assert reader.connects == 2
     assert reader.disconnects == 1

@@ -274,6 +274,8 @@ class WindowFeatures(BaseEstimator, TransformerMixin):
         est_samples: EST: equally spaced output samples per channel.
         est_tau_s: EST: kernel decay time constant the kernel MLP is fitted to, s.
         activity_bin_ns: Activity: bin of the all-taxel activity series, ns.
+        activity_late_ns: Activity: also sum each taxel's activity from this time after the
+            window's start to its end, ns (None: only over the whole window).
         ae_code: Autoencoder: code size.
         ae_max_iter: Autoencoder: training epochs.
         random_state: Seed (autoencoder, EST kernel).
@@ -294,6 +296,7 @@ class WindowFeatures(BaseEstimator, TransformerMixin):
         est_samples: int = 50,
         est_tau_s: float = 0.005,
         activity_bin_ns: int = 250 * MS,
+        activity_late_ns: int | None = None,
         ae_code: int = 32,
         ae_max_iter: int = 200,
         random_state: int = 0,
@@ -311,6 +314,7 @@ class WindowFeatures(BaseEstimator, TransformerMixin):
         self.est_samples = est_samples
         self.est_tau_s = est_tau_s
         self.activity_bin_ns = activity_bin_ns
+        self.activity_late_ns = activity_late_ns
         self.ae_code = ae_code
         self.ae_max_iter = ae_max_iter
         self.random_state = random_state
@@ -384,7 +388,13 @@ class WindowFeatures(BaseEstimator, TransformerMixin):
         else:  # ACTIVITY
             factor = max(int(self.activity_bin_ns // self.period_ns), 1)
             rb = _rebin_matrix(used, factor)
-            self.time_maps_ = [self._pad(np.concatenate([rb, np.ones((used, 1))], axis=1))]
+            cols = [rb, np.ones((used, 1))]
+            if self.activity_late_ns is not None:
+                late = np.zeros((used, 1))
+                late[min(int(self.activity_late_ns // self.period_ns), used - 1) :] = 1.0
+                cols.append(late)
+            self.activity_bins_ = rb.shape[1]
+            self.time_maps_ = [self._pad(np.concatenate(cols, axis=1))]
         self.time_maps32_ = [m.astype(np.float32) for m in self.time_maps_]
         if kind is FeatureKind.AUTOENCODER:
             self._fit_autoencoder(self._base(self._validate(X)))
@@ -459,9 +469,10 @@ class WindowFeatures(BaseEstimator, TransformerMixin):
             im = x3 @ self.time_maps_[1]
             mag = np.sqrt(re * re + im * im) * (FFT_SCALE_IN * FFT_SCALE_OUT)
             return mag.reshape(x.shape[0], -1)
-        a = np.abs(x3) @ self.time_maps_[0]  # (n, C, nb + 1)
-        over_time = np.log1p(a[:, :, :-1].sum(axis=1))
-        per_taxel = np.log1p(a[:, :, -1])
+        a = np.abs(x3) @ self.time_maps_[0]  # (n, C, n_bins + segments)
+        nb = self.activity_bins_
+        over_time = np.log1p(a[:, :, :nb].sum(axis=1))
+        per_taxel = np.log1p(a[:, :, nb:]).reshape(x.shape[0], -1)
         return np.concatenate([over_time, per_taxel], axis=1)
 
     def transform(self, X: np.ndarray) -> np.ndarray:
@@ -515,7 +526,8 @@ def as_model_input(window: object, geometry: Geometry) -> np.ndarray:
     """One window as a flat float32 row for a model of ``geometry``.
 
     A window whose pre-onset part or total length is longer than the model's is cropped to it
-    (same onset); a shorter or differently sampled one is an error.
+    (same onset). A NUSkin window at a finer bin whose period divides the model's is rebinned by
+    summing (counts add exactly), so 0.25 ms online windows feed models trained on 1 ms bins.
 
     Args:
         window: A ``ContactWindow`` or an array ``(n_channels, n_samples)``.
@@ -525,7 +537,8 @@ def as_model_input(window: object, geometry: Geometry) -> np.ndarray:
         Flat ``(n_channels * n_samples,)`` float32.
 
     Raises:
-        PerceptionError: on mismatched geometry or NaN/inf.
+        PerceptionError: on a window too short, with other channels or an incompatible
+            sample period, or holding NaN/inf.
     """
     data = getattr(window, "data", window)
     x = np.asarray(data)
@@ -535,24 +548,32 @@ def as_model_input(window: object, geometry: Geometry) -> np.ndarray:
         raise PerceptionError(
             f"The 'window.data' parameter must have {geometry.n_channels} channels. Got shape {x.shape} instead."
         )
+    factor = 1
     if hasattr(window, "sample_period_ns"):
         period = int(window.sample_period_ns)  # type: ignore[attr-defined]
         if period != geometry.period_ns:
-            raise PerceptionError(
-                f"The 'window.sample_period_ns' parameter must be {geometry.period_ns}. Got {period} instead."
-            )
+            if geometry.sensor != "nuskin" or period <= 0 or geometry.period_ns % period:
+                raise PerceptionError(
+                    f"The 'window.sample_period_ns' parameter must be {geometry.period_ns} "
+                    f"(or divide it, NUSkin). Got {period} instead."
+                )
+            factor = geometry.period_ns // period
         extra_pre = int(window.pre_onset_ns) - geometry.pre_ns  # type: ignore[attr-defined]
-        if extra_pre < 0 or extra_pre % geometry.period_ns:
+        if extra_pre < 0 or extra_pre % period:
             raise PerceptionError(
                 f"The 'window.pre_onset_ns' parameter must be >= {geometry.pre_ns}. "
                 f"Got {int(window.pre_onset_ns)} instead."  # type: ignore[attr-defined]
             )
-        x = x[:, extra_pre // geometry.period_ns :]
-    if x.shape[1] < geometry.n_samples:
+        x = x[:, extra_pre // period :]
+    need = geometry.n_samples * factor
+    if x.shape[1] < need:
         raise PerceptionError(
-            f"The 'window.data' parameter must hold at least {geometry.n_samples} samples. Got {x.shape[1]} instead."
+            f"The 'window.data' parameter must hold at least {need} samples after the model's "
+            f"pre-onset start. Got {x.shape[1]} instead."
         )
-    x = x[:, : geometry.n_samples]
+    x = x[:, :need]
     if not np.isfinite(x).all():
         raise PerceptionError("The 'window.data' parameter must be finite. Got NaN or inf instead.")
+    if factor > 1:
+        x = x.reshape(x.shape[0], geometry.n_samples, factor).sum(axis=2)
     return np.ascontiguousarray(x, dtype=np.float32).ravel()

@@ -102,6 +102,17 @@ def default_choice(task: str, sensor: str) -> tuple[str, str]:
     return "fft", "svm"
 
 
+def default_feature_grid(task: str, sensor: str, features: str) -> dict[str, list[Any]]:
+    """Feature parameters searched inside the training folds by default.
+
+    Food activity features: whether (and from when) each taxel's late activity is added; the
+    choice is made by the inner cross-validation, never on the test split.
+    """
+    if features == "activity" and sensor == "nuskin":
+        return {"features__activity_late_ns": [1_000_000_000, 1_500_000_000, 2_000_000_000]}
+    return {}
+
+
 def as_float(x: np.ndarray) -> np.ndarray:
     """Float64 contiguous copy for estimators."""
     return np.ascontiguousarray(x, dtype=np.float64)

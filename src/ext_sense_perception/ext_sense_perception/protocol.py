@@ -116,6 +116,7 @@ def evaluate(
     seed: int = 0,
     progress: bool = True,
     n_jobs: int = 1,
+    feature_grid: dict[str, list[Any]] | None = None,
 ) -> EvalResult:
     """Run the protocol.
 
@@ -128,6 +129,8 @@ def evaluate(
         seed: Seed of splits, folds and models.
         progress: Show a tqdm progress bar.
         n_jobs: Parallel grid-search jobs.
+        feature_grid: Feature parameters to search too (keys ``features__<param>``); the
+            features are then recomputed inside every fold.
 
     Returns:
         Scores per split and the pooled test predictions.
@@ -143,7 +146,8 @@ def evaluate(
     k = default_k(ws, model) if k is None else int(k)
     X = ws.X.reshape(n, -1)
     pipe, grid = make_pipeline(features, model, ws.is_regression, seed)
-    precompute = FeatureKind.parse(features.kind) is not FeatureKind.AUTOENCODER
+    grid.update(feature_grid or {})
+    precompute = FeatureKind.parse(features.kind) is not FeatureKind.AUTOENCODER and not feature_grid
     if precompute:
         F = clone(features).fit(X[:1]).transform(X)
         search_pipe, search_X = head_of(pipe), F

@@ -128,28 +128,27 @@ def stream(
         t0 = start + plan.trial * period_ns
         if clock() > t0:
             stats.late_trials += 1
-        pending_onset = True
+        times = np.array([c[0] for c in plan.chunks], dtype=np.int64)
+        onset_index = int(np.searchsorted(times, plan.onset_ns))
         i = 0
-        while i < len(plan.chunks) and not stop.is_set():
+        while i < times.size and not stop.is_set():
             now = clock()
-            due = [c for c in plan.chunks[i:] if t0 + c[0] <= now]
-            if not due:
-                sleep(min(0.001, max(0.0, (t0 + plan.chunks[i][0] - now) / 1e9)))
+            j = int(np.searchsorted(times, now - t0, side="right"))
+            if j <= i:
+                sleep(min(0.001, max(0.0, (t0 + int(times[i]) - now) / 1e9)))
                 continue
-            data = b"".join(c[1] for c in due)
+            data = b"".join(c[1] for c in plan.chunks[i:j])
             write(data)
             stats.bytes += len(data)
             stats.writes += 1
-            i += len(due)
-            if pending_onset and due[-1][0] >= plan.onset_ns:
-                pending_onset = False
-                if on_onset is not None:
-                    on_onset(
-                        GroundTruth(
-                            plan.trial, clock(), scene.task.label, plan.tap_position_m, rod,
-                            plan.class_label,
-                        )
+            if i <= onset_index < j and on_onset is not None:
+                on_onset(
+                    GroundTruth(
+                        plan.trial, clock(), scene.task.label, plan.tap_position_m, rod,
+                        plan.class_label,
                     )
+                )
+            i = j
         stats.trials += 1
         while not stop.is_set() and clock() < t0 + period_ns and not (
             trials and plan.trial + 1 >= trials

@@ -39,7 +39,7 @@ class FoodBehaviourNode(Node):
     """Probes food with a fork held by the arm."""
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__("food_behaviour", **kwargs)
+        super().__init__(kwargs.pop("node_name", "food_behaviour"), **kwargs)
         arm_kind = declare(self, "arm", "sim", "Arm adapter: sim or franka.", read_only=True)
 
         def d(name: str, default: Any, text: str, low: Any = None, high: Any = None) -> Any:

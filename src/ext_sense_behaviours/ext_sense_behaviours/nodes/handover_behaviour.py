@@ -5,9 +5,10 @@ Subscribes ``contact_estimate`` (``ContactEstimate``, task ``handover_stability`
 decision with its reason on ``handover/decision`` (``std_msgs/String``) and in the log. The
 node first closes the ready gripper on the object (``grasp_on_start``); the handover starts
 when the gripper reports it holds an object (``auto_start``) or on ``handover/start``
-(``std_msgs/Bool`` true); with ``regrasp_s`` > 0 it grasps again after each release or timeout
-for the next handover (demos with many trials). The decisions are those of
-:class:`~ext_sense_behaviours.handover.HandoverMachine`; any gripper error keeps the object held.
+(``std_msgs/Bool`` true; after a fault this is the only way out); with ``regrasp_s`` > 0 it
+grasps again after each release or timeout for the next handover (demos with many trials).
+The decisions are those of :class:`~ext_sense_behaviours.handover.HandoverMachine`; any gripper
+error keeps the object held.
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ class HandoverBehaviourNode(Node):
     """Runs the handover state machine on estimates and gripper status."""
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__("handover_behaviour", **kwargs)
+        super().__init__(kwargs.pop("node_name", "handover_behaviour"), **kwargs)
         threshold = declare(
             self, "threshold", 0.8, "P(stable) an estimate must reach, 0..1.", low=0.01, high=1.0
         )
@@ -176,8 +177,11 @@ class HandoverBehaviourNode(Node):
             self.command_pub.publish(cmd)
 
     def _on_start(self, msg: Bool) -> None:
-        if msg.data:
-            self._act(self.machine.start(self._now()))
+        if not msg.data:
+            return
+        if self.machine.state == HandoverState.FAULT:
+            self.machine.reset(self._now(), "handover/start after a fault: operator reset")
+        self._act(self.machine.start(self._now()))
 
     def _on_estimate(self, msg: ContactEstimate) -> None:
         self.estimates += 1

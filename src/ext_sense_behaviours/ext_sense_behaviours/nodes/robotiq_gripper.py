@@ -48,7 +48,7 @@ class RobotiqGripperNode(Node):
     """Drives one Robotiq 2F gripper."""
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__("robotiq_gripper", **kwargs)
+        super().__init__(kwargs.pop("node_name", "robotiq_gripper"), **kwargs)
         self.port = declare(self, "port", "", "Serial device of the gripper.", read_only=True)
         baud = declare(
             self, "baud", 115200, "Baud rate, bit/s.", low=9600, high=921600, read_only=True

@@ -31,7 +31,7 @@ class TapMarkerNode(Node):
     """Publishes each tap estimate as a marker on the rod."""
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__("tap_marker", **kwargs)
+        super().__init__(kwargs.pop("node_name", "tap_marker"), **kwargs)
         self.rod_length_m = declare(
             self,
             "rod_length_m",

@@ -40,8 +40,8 @@ DEFAULT_WINDOW = 2048
 waits more than 2048 samples (4.0 ms) after its signature started."""
 
 _REFRESH_RATIO = 0.25
-"""A decided stretch one signature long whose residual energy exceeds the median by this
-fraction of one signature's energy triggers a second correlation of the residual."""
+"""A decided stretch one signature long whose residual energy exceeds the average stretch by
+this fraction of one signature's energy sends the window through the matched filter."""
 
 
 @dataclass(frozen=True)
@@ -60,11 +60,15 @@ class LineCounters:
         passes: Decoding passes run.
         refreshes: Passes whose residual still held a signature's energy after the onset
             decoder, so that the matched filter ran on them.
-        undone: Onset decisions the matched filter found wrong and reversed.
+        undone: Detections reversed: onset decisions the matched filter found wrong, and
+            decisions cancelled by a later one of the other sign at the same taxel and start.
         input_energy: Sum of squared samples taken in, line units squared.
         residual_energy: Sum of squared residual of the decided samples after cancellation;
             near zero on a clean line, so a high ratio to ``input_energy`` means missed events,
-            a wrong bank, a gain error or noise.
+            a wrong bank, a gain error, noise or a lost byte (wire samples out of step).
+        mean_amplitude: Mean correlation per chip of the onset decoder's detections, line
+            units (0 before the first): the chip amplitude actually on the line, to compare
+            with the decoder's nominal ``amplitude``.
     """
 
     samples: int = 0
@@ -78,6 +82,7 @@ class LineCounters:
     undone: int = 0
     input_energy: float = 0.0
     residual_energy: float = 0.0
+    mean_amplitude: float = 0.0
 
 
 class LineDecoder:
@@ -147,11 +152,14 @@ class LineDecoder:
         self._c = dict.fromkeys(LineCounters.__dataclass_fields__, 0)
         self._c["input_energy"] = 0.0
         self._c["residual_energy"] = 0.0
+        self._strength = 0.0
+        self._strength_n = 0
 
     @property
     def counters(self) -> LineCounters:
         """A snapshot of the counters."""
-        return LineCounters(**self._c)
+        mean = self._strength / self._strength_n if self._strength_n else 0.0
+        return LineCounters(**{**self._c, "mean_amplitude": mean})
 
     @property
     def latency_samples(self) -> int:
@@ -248,17 +256,10 @@ class LineDecoder:
         if self.mode is DecodeMode.MATCHED_FILTER:
             found = self._matched.detect(buf[: self.window], commit)
             self._subtract(buf, found)
+            self._count(found)
         else:
-            found = self._onset.decode(buf, commit)
-        self._c["tested"] += found.tested
-        self._c["cancellations"] += found.cancellations
-        if self.mode is DecodeMode.ONSET and self._missed_energy(buf[: max(commit, 0)]):
-            self._c["refreshes"] += 1
-            extra = self._matched.detect(buf[: self.window], commit)
-            self._c["tested"] += extra.tested
-            self._c["cancellations"] += extra.cancellations
-            self._subtract(buf, extra)
-            found = self._merge(found, extra)
+            found = self._onset_pass(buf, commit)
+        found = self._annihilate(found)
         decided = buf[: max(commit, 0)]
         self._c["residual_energy"] += float(np.dot(decided, decided))
         self._c["detections"] += int(found.code.size)
@@ -272,6 +273,38 @@ class LineDecoder:
         self._buf = buf[self._commit :]
         self._base += self._commit
         return block
+
+    def _onset_pass(self, buf: npt.NDArray[np.float64], commit: int) -> Detections:
+        """Onset decoder, then the matched filter if the residual says something was missed.
+
+        The onset decoder also runs (tentatively) up to one signature past ``commit``, so that
+        every sample a committed signature touches can be checked for left-over energy; the
+        tentative detections are put back afterwards and decided in the next pass.
+        """
+        length = self._length
+        scan = min(commit + length - 2, self.window - length + 1)
+        found = self._onset.decode(buf, scan)
+        self._count(found)
+        self._strength += found.strength
+        self._strength_n += int(found.code.size)
+        later = found.start >= commit
+        if later.any():
+            self._subtract(
+                buf, Detections(found.code[later], found.start[later], -found.sign[later])
+            )
+            found = Detections(found.code[~later], found.start[~later], found.sign[~later])
+        if self._missed_energy(buf[: max(scan - 1, 0)]):
+            self._c["refreshes"] += 1
+            extra = self._matched.detect(buf[: self.window], commit)
+            self._count(extra)
+            self._subtract(buf, extra)
+            found = self._merge(found, extra)
+        return found
+
+    def _count(self, found: Detections) -> None:
+        """Add a detector's work to the counters."""
+        self._c["tested"] += found.tested
+        self._c["cancellations"] += found.cancellations
 
     def _merge(self, first: Detections, extra: Detections) -> Detections:
         """Add the matched filter's detections; one that negates an onset decision undoes it."""
@@ -296,6 +329,27 @@ class LineDecoder:
             np.concatenate((first.sign[keep], extra.sign[add])),
         )
 
+    def _annihilate(self, found: Detections) -> Detections:
+        """Collapse detections of one taxel at one start into one (or none, if signs cancel).
+
+        One taxel cannot overlap itself, so a ``+`` and a ``-`` of the same code at the same
+        start are a wrong decision and its correction: both go (counted in ``undone``).
+        """
+        if found.code.size < 2:
+            return found
+        key = found.code * (1 << 40) + found.start
+        ordered = np.sort(key)
+        if not (ordered[1:] == ordered[:-1]).any():
+            return found
+        uniq, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+        total = np.zeros(uniq.size, np.int64)
+        np.add.at(total, inverse, found.sign)
+        self._c["undone"] += int(key.size - np.count_nonzero(total))
+        keep = total != 0
+        return Detections(
+            found.code[first][keep], found.start[first][keep], np.sign(total[keep]).astype(np.int64)
+        )
+
     def _subtract(self, buf: npt.NDArray[np.float64], found: Detections) -> None:
         """Remove detected signatures from the residual line."""
         for k, t, s in zip(
@@ -304,13 +358,17 @@ class LineDecoder:
             buf[t : t + self._length] -= s * self._chips[k]
 
     def _missed_energy(self, decided: npt.NDArray[np.float64]) -> bool:
-        """Whether the decided residual still holds a signature's worth of energy somewhere."""
+        """Whether the decided residual still holds a signature's worth of energy somewhere.
+
+        Compares the most energetic stretch of one signature length with the average stretch
+        (the noise floor; a missed signature raises the average far less than the maximum).
+        """
         length = self._length
         if decided.size < length:
             return False
         cum = np.cumsum(decided * decided)
         energy = cum[length - 1 :] - np.concatenate(([0.0], cum[:-length]))
-        floor = float(np.median(energy))
+        floor = cum[-1] * length / decided.size
         return float(energy.max()) - floor > _REFRESH_RATIO * self.amplitude**2 * length
 
 

@@ -2,10 +2,11 @@
 
 Once every signature that started before sample ``s`` has been cancelled, the residual at
 ``s`` is the first chip of whatever starts there (+/- one chip amplitude, plus noise) and zero
-otherwise. So the detector walks the residual, stops at the first sample above half a chip,
-correlates the next ``L`` samples with the 80 codes at that start and the ``back`` starts before
-it (in case noise hid the first chip), accepts the best if it passes the threshold, subtracts it,
-and looks at the same sample again (two signatures may start together). Work grows with the
+otherwise. So the detector walks the residual to the next sample above 0.6 chip that is followed
+by enough energy, correlates the next ``L`` samples with the 80 codes at that start (and, if
+that fails, at the ``back`` starts before it, in case noise hid the first chip), accepts the best
+if it passes the threshold, subtracts it, and looks at the same sample again (two signatures may
+start together). Work grows with the
 number of events, not with the sample rate, which is what makes the decoder fast; the matched
 filter in :mod:`ext_sense_drivers.aces.matched_filter` cleans up after it when the residual
 says it missed something.
@@ -26,6 +27,20 @@ ONSET_RATIO = 0.6
 enough that noise of 0.2 chip amplitude (RMS) rarely makes one, low enough that it rarely hides
 a first chip; ``back`` covers the first chips it does hide."""
 
+GATE_SPAN = 16
+"""Samples from a candidate onset whose energy is checked before the codes are tested."""
+
+GATE_RATIO = 0.5
+"""A real onset brings at least about one chip amplitude squared per sample (more where
+signatures overlap); noise of RMS ``sigma`` brings ``sigma**2``. Onsets whose next
+:data:`GATE_SPAN` samples hold less than this fraction of a chip's energy per sample are noise."""
+
+ACCEPT_MARGIN = 0.15
+"""The onset decoder accepts at ``threshold + ACCEPT_MARGIN`` of a full match. At 0.5 a
+cancellation leaves the residual energy unchanged, so a false acceptance at a noise onset in a
+dense cluster costs nothing to make and then cascades; the stricter level stops that, and what
+it leaves the matched filter (threshold 0.5, strongest first) picks up."""
+
 MAX_REPEATS = 4
 """Most signatures accepted at one start before moving on (guards against a loop)."""
 
@@ -45,9 +60,11 @@ class OnsetDecoder:
     ) -> None:
         length, k_codes = bank.n_chips, bank.n_taxels
         self._length = length
-        self._chips = bank.chips.astype(np.float64) * amplitude
-        self._det = threshold * amplitude * length
+        self._unit = bank.chips.astype(np.float64)
+        self._chips = self._unit * amplitude
+        self._det = min(threshold + ACCEPT_MARGIN, 0.95) * amplitude * length
         self._onset = ONSET_RATIO * amplitude
+        self._gate = GATE_RATIO * GATE_SPAN * amplitude**2
         self._back = back
         # Row (i, k) holds code k shifted by i: one mat-vec tests the back + 1 earlier starts.
         shifted = np.zeros((back + 1, k_codes, length + back))
@@ -67,27 +84,23 @@ class OnsetDecoder:
             The detections in the order found (by start, up to ``back`` samples).
         """
         length, k_codes, back = self._length, self._chips.shape[0], self._back
-        chips, det, level = self._chips, self._det, self._onset
+        chips, det = self._chips, self._det
         codes: list[int] = []
         starts: list[int] = []
         signs: list[int] = []
         tested = 0
+        strength = 0.0
         # Onsets of the untouched line; a cancellation makes [s, s + L) stale, rescanned below.
-        static = np.flatnonzero(np.abs(r[:commit]) > level).tolist()
+        static = self._onsets(r, 0, commit).tolist()
         cursor, dirty, repeats, last = 0, 0, 0, -1
         while cursor < commit:
-            p = -1
-            if cursor < dirty:
-                seg = np.abs(r[cursor : min(dirty, commit)]) > level
-                i = int(seg.argmax())
-                if seg[i]:
-                    p = cursor + i
+            p = self._first_onset(r, cursor, min(dirty, commit)) if cursor < dirty else -1
             if p < 0:
                 j = bisect_left(static, max(cursor, dirty))
                 if j == len(static):
                     break
                 p = static[j]
-            corr = chips @ r[p : p + length]
+            corr = self._unit @ r[p : p + length]
             tested += k_codes
             k = int(np.abs(corr).argmax())
             v = float(corr[k])
@@ -111,6 +124,7 @@ class OnsetDecoder:
                 r[s : s + length] -= chips[k]
             else:
                 r[s : s + length] += chips[k]
+            strength += abs(v)
             codes.append(k)
             starts.append(s)
             signs.append(1 if v > 0 else -1)
@@ -124,4 +138,28 @@ class OnsetDecoder:
             np.asarray(signs, np.int64),
             tested,
             len(codes),
+            strength / length,
         )
+
+    def _onsets(self, r: npt.NDArray[np.float64], lo: int, hi: int) -> npt.NDArray[np.int64]:
+        """Samples in ``[lo, hi)`` above the onset level and followed by enough energy."""
+        n = hi - lo
+        seg = r[lo : hi + GATE_SPAN - 1]
+        cum = np.concatenate(([0.0], np.cumsum(seg * seg)))
+        ends = np.minimum(np.arange(GATE_SPAN, GATE_SPAN + n), seg.size)
+        energy = cum[ends] - cum[:n]
+        return lo + np.flatnonzero((np.abs(seg[:n]) > self._onset) & (energy >= self._gate))
+
+    def _first_onset(self, r: npt.NDArray[np.float64], lo: int, hi: int) -> int:
+        """First onset in ``[lo, hi)`` (as :meth:`_onsets`), or -1; cheap when it comes early."""
+        while lo < hi:
+            above = np.abs(r[lo:hi]) > self._onset
+            i = int(above.argmax())
+            if not above[i]:
+                return -1
+            q = lo + i
+            head = r[q : q + GATE_SPAN]
+            if float(np.dot(head, head)) >= self._gate:
+                return q
+            lo = q + 1
+        return -1

@@ -163,7 +163,6 @@ class BioTacDriverNode(Node):
         )
         # Monotonic host ns -> ROS time ns, fixed at start so stamps never step back.
         self._mono_to_ros_ns = self.get_clock().now().nanoseconds - time.monotonic_ns()
-        self._connects_seen = 0
         self._last_arrival_ns = time.monotonic_ns()
         self._dropped = [0] * MAX_SENSORS
         self._parity = [0] * MAX_SENSORS
@@ -203,15 +202,18 @@ class BioTacDriverNode(Node):
         return SetParametersResult(successful=True)
 
     def _tick(self) -> None:
-        """Drain the reader, decode, publish every frame."""
-        if self.reader.connects != self._connects_seen:
-            if self._connects_seen:  # a new connection: bytes of the old one cannot complete
-                self._publish(self.decoder.flush(), self._last_arrival_ns)
-            self._connects_seen = self.reader.connects
+        """Drain the reader, decode, publish every frame.
+
+        A reconnection needs no flush: the old link's cut-off frame fails its CRC against the
+        new bytes and the decoder resynchronises, while a complete frame still queued from the
+        old link is kept. The state is read before draining, so an exhausted file's last chunks
+        are decoded before the held-back bytes are flushed.
+        """
+        exhausted = self.reader.state == LinkState.EXHAUSTED
         for chunk in self.reader.drain():
             self._last_arrival_ns = chunk.t_ns
             self._publish(self.decoder.feed(chunk.data), chunk.t_ns)
-        if self.reader.state == LinkState.EXHAUSTED and self.decoder.pending_bytes:
+        if exhausted and self.decoder.pending_bytes:
             self._publish(self.decoder.flush(), self._last_arrival_ns)
 
     def _publish(self, frames: BridgeFrames, arrival_ns: int) -> None:

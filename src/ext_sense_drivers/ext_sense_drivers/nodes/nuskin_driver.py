@@ -19,6 +19,7 @@ from rclpy.node import Node
 
 from ext_sense_drivers.nuskin.driver_config import DriverConfig
 from ext_sense_drivers.nuskin.events import EventBlock
+from ext_sense_drivers.nuskin.streams import BatchCounters
 from ext_sense_drivers.transports.base import LinkState
 from ext_sense_drivers.transports.reader import Backoff, StreamReader
 from ext_sense_msgs.msg import TaxelEventBatch
@@ -155,6 +156,15 @@ class NuskinDriverNode(Node):
             high=1.0,
             read_only=True,
         )
+        self.max_batch_events = declare(
+            self,
+            "max_batch_events",
+            20000,
+            "Most events in one batch message (more are split into several), events.",
+            low=1,
+            high=10_000_000,
+            read_only=True,
+        )
         initial_s = declare(
             self,
             "reconnect_initial_s",
@@ -181,7 +191,8 @@ class NuskinDriverNode(Node):
         )
         # Monotonic host ns -> ROS time ns, fixed at start so stamps never step back.
         self._mono_to_ros_ns = self.get_clock().now().nanoseconds - time.monotonic_ns()
-        self._connects_seen = 0
+        self._connection = 0
+        self._finished = False
         self.batches_published = 0
         self.decode_failures = 0
         self._qos_events = QosEventCounter()
@@ -217,13 +228,21 @@ class NuskinDriverNode(Node):
         return SetParametersResult(successful=True)
 
     def _tick(self) -> None:
-        """Drain the reader, decode, publish one batch."""
+        """Drain the reader, decode, publish.
+
+        Each chunk carries the connection it came on, so a reconnect finishes the old stream
+        (:meth:`restart`) exactly between the last old chunk and the first new one. When the link
+        is down the old stream is finished at once (the ACES decoder then releases its last
+        events); the state is read before draining, so every chunk of the lost connection is in
+        this drain.
+        """
+        link_down = self.reader.state != LinkState.CONNECTED
         blocks = []
-        if self.reader.connects != self._connects_seen:
-            if self._connects_seen:  # a new connection: the old stream ended
-                blocks.append(self.stream.restart())
-            self._connects_seen = self.reader.connects
-        for chunk in self.reader.drain():
+        for connection, chunk in self.reader.drain_tagged():
+            if connection != self._connection:
+                if self._connection and not self._finished:  # the old stream ended
+                    blocks.append(self.stream.restart())
+                self._connection, self._finished = connection, False
             try:
                 blocks.append(self.stream.feed(chunk))
             except Exception as err:  # a decoder bug must cost a chunk, not the node
@@ -233,18 +252,26 @@ class NuskinDriverNode(Node):
                     throttle_duration_sec=1.0,
                 )
                 blocks.append(self.stream.restart())
+        if link_down and self._connection and not self._finished:
+            blocks.append(self.stream.restart())
+            self._finished = True
         block = EventBlock.concat(blocks)
         if block.size == 0:
             return
         self._rate.add(block.size)
+        c = self.stream.batch_counters
+        for lo in range(0, block.size, self.max_batch_events):
+            part = EventBlock(*(column[lo : lo + self.max_batch_events] for column in block))
+            self._publish(part, c)
+
+    def _publish(self, block: EventBlock, counters: BatchCounters) -> None:
         first_ns = int(block.t_ns.min())
         msg = TaxelEventBatch()
         fill_stamp(msg.header.stamp, first_ns + self._mono_to_ros_ns)
         msg.header.frame_id = self.frame_id
         _fill_batch(msg, block, first_ns)
-        c = self.stream.batch_counters
-        msg.words_total, msg.resyncs = c.words_total, c.resyncs
-        msg.skipped_bytes, msg.bad_taxel_words = c.skipped_bytes, c.bad_taxel_words
+        msg.words_total, msg.resyncs = counters.words_total, counters.resyncs
+        msg.skipped_bytes, msg.bad_taxel_words = counters.skipped_bytes, counters.bad_taxel_words
         self._pub.publish(msg)
         self.batches_published += 1
 

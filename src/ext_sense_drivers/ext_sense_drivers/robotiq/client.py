@@ -197,6 +197,17 @@ class RobotiqClient:
                     FaultKind.NO_ANSWER,
                 )
                 continue
+            is_exception = len(reply) >= 2 and bool(reply[1] & 0x80)
+            expected = modbus.EXCEPTION_REPLY_LENGTH if is_exception else length
+            if len(reply) < expected:
+                self.counters.timeouts += 1
+                last = RobotiqError(
+                    f"Incomplete answer from Robotiq slave {self.slave} within "
+                    f"{self.timeout_s:.3f} s: {len(reply)} of {expected} bytes "
+                    f"({reply.hex(' ')}).",
+                    FaultKind.NO_ANSWER,
+                )
+                continue
             try:
                 return decode(reply)
             except RobotiqError as err:
@@ -207,13 +218,6 @@ class RobotiqClient:
                     self.counters.crc_errors += 1
                 else:
                     self.counters.bad_frames += 1
-                if len(reply) < length and err.kind == FaultKind.BAD_FRAME:
-                    self.counters.timeouts += 1
-                    err = RobotiqError(
-                        f"Incomplete answer from Robotiq slave {self.slave} within "
-                        f"{self.timeout_s:.3f} s: {len(reply)} of {length} bytes.",
-                        FaultKind.NO_ANSWER,
-                    )
                 last = err
         assert last is not None
         raise RobotiqError(

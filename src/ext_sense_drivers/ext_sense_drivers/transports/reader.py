@@ -79,7 +79,7 @@ class StreamReader:
         self.read_timeout_s = float(read_timeout_s)
         self.max_pending_bytes = int(max_pending_bytes)
         self._on_data = on_data
-        self._queue: deque[Chunk] = deque()
+        self._queue: deque[tuple[int, Chunk]] = deque()
         self._pending = 0
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -122,11 +122,19 @@ class StreamReader:
 
     def drain(self) -> list[Chunk]:
         """Every chunk queued since the last call, oldest first."""
+        return [chunk for _, chunk in self.drain_tagged()]
+
+    def drain_tagged(self) -> list[tuple[int, Chunk]]:
+        """Like :meth:`drain`, each chunk with the connection it came on (1 = the first open).
+
+        A consumer that keeps per-stream state (a decoder's partial word) sees exactly where a
+        reconnect starts a new stream, even when chunks of both connections wait in the queue.
+        """
         with self._lock:
-            chunks = list(self._queue)
+            tagged = list(self._queue)
             self._queue.clear()
             self._pending = 0
-        return chunks
+        return tagged
 
     @property
     def alive(self) -> bool:
@@ -166,10 +174,10 @@ class StreamReader:
 
     def _push(self, chunk: Chunk) -> None:
         with self._lock:
-            self._queue.append(chunk)
+            self._queue.append((self.connects, chunk))
             self._pending += len(chunk.data)
             while self._pending > self.max_pending_bytes and len(self._queue) > 1:
-                old = self._queue.popleft()
+                _, old = self._queue.popleft()
                 self._pending -= len(old.data)
                 self.dropped_bytes += len(old.data)
         self.bytes_total += len(chunk.data)

@@ -107,7 +107,7 @@ class GripperModel:
         if command.go_to and self.fault < FaultCode.UNDER_VOLTAGE:
             if self.activation != ActivationStatus.COMPLETED:
                 self.fault = FaultCode.ACTION_DELAYED
-            elif (not previous.go_to) or command.position != previous.position or not self._moving:
+            elif not previous.go_to or command.position != previous.position:
                 self._start_motion()
         if not command.go_to:
             self._moving = False
@@ -139,6 +139,14 @@ class GripperModel:
             self.position = 0.0
             if self.command.go_to and self.fault == FaultCode.ACTION_DELAYED:
                 self._start_motion()
+        if (
+            self.object == ObjectStatus.DETECTED_CLOSING
+            and self.command.go_to
+            and self.fault == FaultCode.NONE
+            and (self.object_position is None or self.object_position > self.position)
+        ):
+            # the object was pulled out of the hand: the fingers carry on closing
+            self._moving, self.object = True, ObjectStatus.MOVING
         if not self._moving or dt == 0.0:
             return
         speed = self.min_speed_cps + (self.max_speed_cps - self.min_speed_cps) * (

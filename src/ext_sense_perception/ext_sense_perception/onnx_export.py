@@ -1,0 +1,133 @@
+"""ONNX export of whole models: feature pipeline plus estimator, from the raw window.
+
+:class:`~ext_sense_perception.features.WindowFeatures` gets its own skl2onnx converter: its
+maps are constant matrices along the time axis, so the ONNX graph is ``Reshape`` ->
+``Gather`` (channel selection) -> ``MatMul`` (rebin / decimate / DFT / EST kernel) ->
+element-wise ops (magnitude, ``log1p``, encoder layers). The scaler and the estimator use
+skl2onnx's own converters. The exported graph takes ``window``: ``(n, n_channels * n_samples)``
+float32, exactly what :func:`~ext_sense_perception.features.as_model_input` produces.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from sklearn.pipeline import Pipeline
+
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.features import FFT_SCALE_IN, FFT_SCALE_OUT, FeatureKind, WindowFeatures
+
+TARGET_OPSET = {"": 17, "ai.onnx.ml": 3}
+INPUT_NAME = "window"
+_registered = False
+
+
+def _shape_calculator(operator) -> None:  # noqa: ANN001 - skl2onnx's Operator
+    from skl2onnx.common.data_types import FloatTensorType
+
+    op = operator.raw_operator
+    operator.outputs[0].type = FloatTensorType([None, int(op.n_features_out_)])
+
+
+def _converter(scope, operator, container) -> None:  # noqa: ANN001 - skl2onnx's types
+    from skl2onnx.algebra.onnx_ops import (
+        OnnxAbs,
+        OnnxAdd,
+        OnnxConcat,
+        OnnxGather,
+        OnnxIdentity,
+        OnnxLog,
+        OnnxMatMul,
+        OnnxMul,
+        OnnxReduceSum,
+        OnnxRelu,
+        OnnxReshape,
+        OnnxSlice,
+        OnnxSqrt,
+        OnnxSub,
+    )
+
+    op: WindowFeatures = operator.raw_operator
+    v = container.target_opset
+    f32 = np.float32
+    x = OnnxReshape(operator.inputs[0], np.array([-1, op.n_channels, op.n_samples], np.int64), op_version=v)
+    if len(op.channel_index_) != op.n_channels or np.any(op.channel_index_ != np.arange(op.n_channels)):
+        x = OnnxGather(x, op.channel_index_.astype(np.int64), axis=1, op_version=v)
+    n_sel = len(op.channel_index_)
+    kind = op.kind_
+    maps = [m.astype(f32) for m in op.time_maps_]
+    if kind in (FeatureKind.BASELINE, FeatureKind.EST):
+        y = OnnxMatMul(x, maps[0], op_version=v)
+        y = OnnxReshape(y, np.array([-1, n_sel * maps[0].shape[1]], np.int64), op_version=v)
+    elif kind in (FeatureKind.FFT, FeatureKind.AUTOENCODER):
+        re = OnnxMatMul(x, maps[0], op_version=v)
+        im = OnnxMatMul(x, maps[1], op_version=v)
+        power = OnnxAdd(OnnxMul(re, re, op_version=v), OnnxMul(im, im, op_version=v), op_version=v)
+        y = OnnxMul(OnnxSqrt(power, op_version=v), np.array([FFT_SCALE_IN * FFT_SCALE_OUT], f32), op_version=v)
+        y = OnnxReshape(y, np.array([-1, n_sel * maps[0].shape[1]], np.int64), op_version=v)
+        if kind is FeatureKind.AUTOENCODER:
+            y = OnnxMul(
+                OnnxSub(y, op.ae_mean_.astype(f32), op_version=v), (1.0 / op.ae_scale_).astype(f32), op_version=v
+            )
+            for w, b in op.ae_layers_:
+                y = OnnxRelu(OnnxAdd(OnnxMatMul(y, w.astype(f32), op_version=v), b.astype(f32), op_version=v), op_version=v)
+    else:  # ACTIVITY
+        nb = op.activity_bins_
+        n_seg = maps[0].shape[1] - nb
+        a = OnnxMatMul(OnnxAbs(x, op_version=v), maps[0], op_version=v)
+        one = np.array([1.0], f32)
+        over = OnnxSlice(a, np.array([0], np.int64), np.array([nb], np.int64), np.array([2], np.int64), op_version=v)
+        over = OnnxReduceSum(over, np.array([1], np.int64), keepdims=0, op_version=v)
+        over = OnnxLog(OnnxAdd(over, one, op_version=v), op_version=v)
+        seg = OnnxSlice(a, np.array([nb], np.int64), np.array([nb + n_seg], np.int64), np.array([2], np.int64), op_version=v)
+        seg = OnnxLog(OnnxAdd(seg, one, op_version=v), op_version=v)
+        seg = OnnxReshape(seg, np.array([-1, n_sel * n_seg], np.int64), op_version=v)
+        y = OnnxConcat(over, seg, axis=1, op_version=v)
+    final = OnnxIdentity(y, op_version=v, output_names=operator.outputs[:1])
+    final.add_to(scope, container)
+
+
+def register_converters() -> None:
+    """Teach skl2onnx the :class:`WindowFeatures` transformer (idempotent)."""
+    global _registered
+    if _registered:
+        return
+    from skl2onnx import update_registered_converter
+
+    update_registered_converter(WindowFeatures, "ExtSenseWindowFeatures", _shape_calculator, _converter)
+    _registered = True
+
+
+def to_onnx_bytes(pipeline: Pipeline, n_inputs: int) -> bytes:
+    """Serialized ONNX model of a fitted pipeline that starts with :class:`WindowFeatures`.
+
+    Args:
+        pipeline: Fitted ``features -> scale -> model`` pipeline.
+        n_inputs: ``n_channels * n_samples`` of the windows.
+
+    Returns:
+        The ONNX model bytes. Classifiers output ``label`` and ``probabilities`` (no ZipMap);
+        regressors output ``variable``.
+
+    Raises:
+        PerceptionError: when skl2onnx cannot convert the model (e.g. the torch GRU).
+    """
+    register_converters()
+    from skl2onnx import convert_sklearn
+    from skl2onnx.common.data_types import FloatTensorType
+
+    final = pipeline.steps[-1][1]
+    options = {id(final): {"zipmap": False}} if hasattr(final, "classes_") else None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)  # skl2onnx reads SVC attributes sklearn 1.9 deprecates
+            onx = convert_sklearn(
+                pipeline,
+                initial_types=[(INPUT_NAME, FloatTensorType([None, int(n_inputs)]))],
+                target_opset=TARGET_OPSET,
+                options=options,
+            )
+    except Exception as err:  # skl2onnx raises many types for unsupported models
+        raise PerceptionError(f"Cannot export {type(final).__name__} to ONNX: {err}") from err
+    return onx.SerializeToString()
