@@ -46,11 +46,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run ``ext-sense``; returns the process exit code."""
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
-    # `name:=value` launch arguments may stand anywhere, as with `ros2 launch`; argparse only
-    # takes a variable-length positional in one run, so gather them at the end.
+    # `name:=value` launch arguments may stand anywhere, as with `ros2 launch`, which argparse
+    # cannot express next to options; they are taken out here and handed to the subcommands
+    # that declare `accepts_assignments`.
     assignments = [a for a in argv if ":=" in a and not a.startswith("-")]
-    argv = [a for a in argv if a not in assignments] + assignments
-    args = parser.parse_args(argv)
+    args = parser.parse_args([a for a in argv if a not in assignments])
+    if assignments and not getattr(args, "accepts_assignments", False):
+        parser.error(f"unrecognized arguments: {' '.join(assignments)}")
+    args.assignments = assignments
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:

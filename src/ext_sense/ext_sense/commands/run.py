@@ -15,6 +15,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "run",
         help="run a node graph (the same one the launch files start)",
+        usage="ext-sense run [-h] [--in-process] [--show-args] [--dry-run] GRAPH [name:=value ...]",
         description="Run a node graph without ros2 launch, one process per node.\n\n"
         f"graphs:\n{graphs}\n\n"
         "Arguments are given as name:=value, as with ros2 launch; "
@@ -22,7 +23,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("graph", choices=sorted(GRAPHS), metavar="GRAPH")
-    parser.add_argument("assignments", nargs="*", metavar="name:=value")
     parser.add_argument(
         "--in-process", action="store_true", help="all nodes on one executor in this process"
     )
@@ -32,7 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--dry-run", action="store_true", help="print the nodes that would start and exit"
     )
-    parser.set_defaults(func=_run)
+    parser.set_defaults(func=_run, accepts_assignments=True)
 
 
 def _run(args: argparse.Namespace) -> int:
