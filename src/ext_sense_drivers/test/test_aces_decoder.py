@@ -5,6 +5,7 @@ from hypothesis import strategies as st
 
 from ext_sense_drivers.aces import (
     AcesError,
+    DecodeMode,
     LineDecoder,
     decode_line,
     encode_line,
@@ -141,6 +142,18 @@ def test_onset_decoder_finds_each_signature_with_one_test_at_any_amplitude():
     assert np.abs(residual).max() < 1e-12
 
 
+@pytest.mark.parametrize("start", [100, 1789, 1790, 1795, 1796, 1800])
+def test_coinciding_pair_with_hidden_onset_near_a_pass_boundary(start):
+    # taxels 1 and 3 have opposite first 7 chips: together they are silent for 7 samples,
+    # so the onset decoder cannot see where they start; the first pass decides starts < 1796.
+    enc = encode_line(sample_to_ns([start, start], RATE), [1, 3], [1, 1], n_samples=6000)
+    assert not enc.samples[start : start + 7].any()
+    dec = LineDecoder()
+    block = EventBlock.concat([dec.feed(enc.samples), dec.flush()])
+    assert _events(block) == _truth([start, start], [1, 3], [1, 1])
+    assert dec.counters.refreshes >= 1
+
+
 def test_weak_signature_is_left_to_the_matched_filter():
     # 0.6 of a full match: below the onset decoder's 0.65, above the matched filter's 0.5
     enc = encode_line(sample_to_ns([300], RATE), [17], [-1], amplitude=0.6, n_samples=3000)
@@ -227,6 +240,23 @@ def test_mean_amplitude_reveals_a_gain_error():
     assert _events(block) == _truth(starts, taxels, pols)
     assert dec.counters.mean_amplitude == pytest.approx(0.85, abs=0.02)
     assert LineDecoder().counters.mean_amplitude == 0.0
+
+
+@pytest.mark.parametrize("gain", [0.6, 1.5])
+def test_amplitude_tracking_follows_a_gain_error(gain):
+    rng = np.random.default_rng(5)
+    starts, taxels, pols = _random_events(rng, 0.4, 0.1)
+    t = sample_to_ns(starts, RATE)
+    enc = encode_line(t, taxels, pols, amplitude=gain, noise_std=0.05, rng=rng)
+    dec = LineDecoder()
+    block = EventBlock.concat([dec.feed(enc.samples), dec.flush()])
+    assert _events(block) == _truth(starts, taxels, pols)
+    assert dec.counters.amplitude_in_use == pytest.approx(gain, rel=0.03)
+    fixed = LineDecoder(track_amplitude=False)
+    fixed.feed(enc.samples)
+    fixed.flush()
+    assert fixed.counters.amplitude_in_use == 1.0
+    assert fixed.counters.residual_energy > 3 * dec.counters.residual_energy
 
 
 def test_nan_samples_are_counted_and_the_clock_stays_right():
@@ -372,3 +402,45 @@ def test_ns_to_sample_matches_decoded_times():
     enc = encode_line(sample_to_ns([123, 4567], RATE), [1, 80], [1, -1])
     block = decode_line(enc.samples)
     assert ns_to_sample(block.t_ns, RATE).tolist() == [123, 4567]
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    st.integers(0, 2**32 - 1),
+    st.lists(st.integers(1, 12_000), max_size=12),
+    st.sampled_from([0.2, 0.5]),
+)
+def test_chunking_never_changes_the_output(seed, cuts, occupancy):
+    rng = np.random.default_rng(seed)
+    starts, taxels, pols = _random_events(rng, occupancy, 0.012)
+    enc = encode_line(
+        sample_to_ns(starts, RATE), taxels, pols, noise_std=0.1, rng=rng, n_samples=6200
+    )
+    data = samples_to_bytes(enc.samples).data
+    whole, _ = _feed_in_pieces(data, [])
+    pieces, _ = _feed_in_pieces(data, [c for c in cuts if c < len(data)])
+    assert _events(pieces) == _events(whole)
+    assert np.array_equal(pieces.t_ns, whole.t_ns)
+
+
+def test_matched_filter_mode_decodes_a_line_on_its_own():
+    rng = np.random.default_rng(9)
+    starts, taxels, pols = _random_events(rng, 0.3, 0.03)
+    enc = encode_line(sample_to_ns(starts, RATE), taxels, pols, noise_std=0.1, rng=rng)
+    dec = LineDecoder(mode=DecodeMode.MATCHED_FILTER)
+    block = EventBlock.concat([dec.feed(enc.samples), dec.flush()])
+    assert _events(block) == _truth(starts, taxels, pols)
+    assert dec.counters.refreshes == 0
+    with pytest.raises(AcesError, match="'mode' parameter must be one of"):
+        LineDecoder(mode=7)
+
+
+def test_reset_restores_the_nominal_amplitude():
+    enc = encode_line(sample_to_ns([100, 900, 2500], RATE), [1, 2, 3], [1, 1, 1], amplitude=0.7)
+    dec = LineDecoder()
+    dec.feed(enc.samples)
+    dec.flush()
+    assert dec.counters.amplitude_in_use == pytest.approx(0.7, rel=0.01)
+    dec.reset()
+    assert dec.counters.amplitude_in_use == 1.0
+    assert dec.counters.detections == 0

@@ -212,7 +212,12 @@ def test_file_replay_publishes_every_frame_once(tmp_path):
         end = time.monotonic() + 10.0
         while time.monotonic() < end and node.decoder.counters.truncated == 0:
             ex.spin_once(timeout_sec=0.005)
-        for _ in range(50):
+        # spin_once runs one callback: keep spinning until the queued messages are delivered.
+        last = {s: n_seq - 1 for s in SENSORS}
+        end = time.monotonic() + 10.0
+        while time.monotonic() < end and not all(
+            any(m.sensor_id == s and m.sequence == q for m in got[-4:]) for s, q in last.items()
+        ):
             ex.spin_once(timeout_sec=0.005)
     finally:
         t_end_ns = time.time_ns()

@@ -128,7 +128,13 @@ def train(
             head = clone(head_of(best))
             head_input = F
         else:
-            search = GridSearchCV(pipe, grid, cv=cv, scoring=scoring, n_jobs=n_jobs).fit(X, ws.y)
+            import tempfile
+
+            from joblib import Memory
+
+            with tempfile.TemporaryDirectory(prefix="ext_sense_cv_") as cache:
+                cached = clone(pipe).set_params(memory=Memory(cache, verbose=0))
+                search = GridSearchCV(cached, grid, cv=cv, scoring=scoring, n_jobs=n_jobs).fit(X, ws.y)
             best = clone(pipe).set_params(**search.best_params_)
             best.steps[0] = ("features", clone(best.steps[0][1]).fit(X))
             head = clone(head_of(best))

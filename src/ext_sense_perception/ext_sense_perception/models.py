@@ -52,7 +52,7 @@ def make_estimator(name: str, regression: bool, seed: int = 0) -> tuple[BaseEsti
         est = SVC(kernel=kernels[0], random_state=seed)
         return est, {"C": c_grid, "kernel": kernels}
     if name == "mlp":
-        kw = {"hidden_layer_sizes": (16, 8), "activation": "relu", "max_iter": 2000, "random_state": seed}
+        kw = {"hidden_layer_sizes": (16, 8), "activation": "relu", "solver": "lbfgs", "max_iter": 500, "random_state": seed}
         est = MLPRegressor(**kw) if regression else MLPClassifier(**kw)
         return est, {"alpha": [1e-4, 1e-2, 1.0]}
     if name == "random_forest":
@@ -60,7 +60,9 @@ def make_estimator(name: str, regression: bool, seed: int = 0) -> tuple[BaseEsti
             raise PerceptionError("The 'model' parameter 'random_forest' is for classification only.")
         return RandomForestClassifier(n_estimators=200, random_state=seed), {"max_features": ["sqrt"]}
     if name == "gru":
-        from ext_sense_perception.gru import GRUEstimator
+        from ext_sense_perception.gru import GRUEstimator, _torch
+
+        _torch()  # fail now with a clear message, not inside every grid-search fit
 
         return GRUEstimator(regression=regression, random_state=seed), {"hidden": [16]}
     raise PerceptionError(f"The 'model' parameter must be one of {', '.join(MODEL_NAMES)}. Got {name!r} instead.")

@@ -161,6 +161,15 @@ def evaluate(
     conf = np.zeros((len(labels), len(labels)), dtype=np.int64) if labels else None
     split_iter = _splits(ws, k, test_size, seed)
     desc = f"{ws.task} {ws.sensor} {features.kind}+{model}"
+    cache = None
+    if not precompute:
+        # the feature step (e.g. the autoencoder) is fitted once per fold, not once per candidate
+        import tempfile
+
+        from joblib import Memory
+
+        cache = tempfile.TemporaryDirectory(prefix="ext_sense_cv_")
+        search_pipe = clone(search_pipe).set_params(memory=Memory(cache.name, verbose=0))
     for train, test in tqdm(split_iter, total=k, desc=desc, disable=not progress, leave=False):
         search = GridSearchCV(
             clone(search_pipe),
@@ -188,6 +197,8 @@ def evaluate(
             conf += confusion_matrix(ws.y[test], pred, labels=labels)
             proba = search.predict_proba(search_X[test]) if hasattr(search, "predict_proba") else None
             y_std.append(proba.max(axis=1) if proba is not None else np.full(len(test), np.nan))
+    if cache is not None:
+        cache.cleanup()
     g = ws.geometry
     return EvalResult(
         task=ws.task,

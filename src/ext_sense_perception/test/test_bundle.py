@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from hypothesis.extra.numpy import arrays
 
 from ext_sense_perception import bundle
 from ext_sense_perception.dataset import from_sim_dataset
@@ -93,9 +92,11 @@ def test_backends_agree_on_extreme_inputs(tap_bundle, food_bundle):
 
 
 @settings(max_examples=15, deadline=None)
-@given(arrays(np.float32, (80 * 300,), elements=st.integers(-20, 20).map(float)))
-def test_backends_agree_on_random_windows(tap_bundle, x):
+@given(st.integers(0, 2**32 - 1), st.sampled_from([1, 5, 50, 1000]), st.floats(0.0, 1.0))
+def test_backends_agree_on_random_windows(tap_bundle, seed, scale, density):
     out, _ = tap_bundle
+    rng = np.random.default_rng(seed)
+    x = (rng.integers(-scale, scale + 1, 80 * 300) * (rng.random(80 * 300) < density)).astype(np.float32)
     a, _ = bundle.load_model(out, "onnx").raw_predict(x[None])
     b, _ = bundle.load_model(out, "sklearn").raw_predict(x[None])
     _agree(a, b)
@@ -169,10 +170,10 @@ def test_biotac_model_roundtrip(biotac_npz, tmp_path):
     _agree(a, b)
 
 
-@pytest.mark.parametrize(("features", "model"), [("baseline", "svm_linear"), ("est", "mlp"), ("autoencoder", "svm_rbf")])
+@pytest.mark.parametrize(("features", "model"), [("baseline", "mlp"), ("est", "svm_linear"), ("autoencoder", "svm_rbf")])
 def test_other_feature_sets_export_and_agree(handover_npz, tmp_path, features, model):
     ws = from_sim_dataset(handover_npz)
-    out = bundle.save(bundle.train(ws, features, model, feature_params={"ae_max_iter": 30}), tmp_path / "m")
+    out = bundle.save(bundle.train(ws, features, model, feature_params={"ae_max_iter": 10}), tmp_path / "m")
     onnx = bundle.load_model(out, "onnx")
     skl = bundle.load_model(out, "sklearn")
     X = ws.X.reshape(len(ws.X), -1)

@@ -39,7 +39,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _list(args: argparse.Namespace) -> int:
-    from ext_sense_sim.scene import load_scene, shipped_scenes  # noqa: PLC0415
+    from ext_sense_sim.scene import load_scene, shipped_scenes
 
     for name in shipped_scenes():
         scene = load_scene(name)
@@ -51,9 +51,9 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ext_sense_sim.errors import SceneError  # noqa: PLC0415
-    from ext_sense_sim.run import run_scene  # noqa: PLC0415
-    from ext_sense_sim.scene import load_scene  # noqa: PLC0415
+    from ext_sense_sim.errors import SceneError
+    from ext_sense_sim.run import run_scene
+    from ext_sense_sim.scene import load_scene
 
     try:
         scene = load_scene(args.scene)
@@ -70,11 +70,11 @@ def _run(args: argparse.Namespace) -> int:
 
 def _serve(args: argparse.Namespace) -> int:
     if args.device == "robotiq":
-        from ext_sense_sim.devices.robotiq_emulator import serve  # noqa: PLC0415
+        from ext_sense_sim.devices.robotiq_emulator import serve
 
         return int(serve(args) or 0)
-    from ext_sense_sim.errors import SceneError  # noqa: PLC0415
-    from ext_sense_sim.streaming import serve_device  # noqa: PLC0415
+    from ext_sense_sim.errors import SceneError
+    from ext_sense_sim.streaming import serve_device
 
     try:
         return serve_device(args)

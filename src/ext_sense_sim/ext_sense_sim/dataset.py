@@ -77,7 +77,7 @@ class DatasetCollector:
             "trial": np.arange(n, dtype=np.int32),
             "onset_ns": onset,
             "rod_length_m": np.full(n, rod, dtype=np.float64),
-            "trial_ns": np.array(int(round(scene.trial_s * 1e9)), dtype=np.int64),
+            "trial_ns": np.array(round(scene.trial_s * 1e9), dtype=np.int64),
             "finger_taxels": FINGER_TAXELS,
         }
         if scene.sensor is Sensor.NUSKIN:

@@ -34,8 +34,9 @@ class EffectStats:
 
 def provider_of(signal: str) -> list[str]:
     """Names of the effects able to give ``signal`` (for error messages)."""
-    return [name for name, cls in REGISTRY.items() if signal in cls.gives and
-            signal not in cls.needs]
+    return [
+        name for name, cls in REGISTRY.items() if signal in cls.gives and signal not in cls.needs
+    ]
 
 
 class Simulator:

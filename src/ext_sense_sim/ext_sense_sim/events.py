@@ -42,7 +42,9 @@ class EventBatch(NamedTuple):
 
     def merged(self, other: EventBatch) -> EventBatch:
         """Both sets of events, sorted."""
-        return EventBatch(*(np.concatenate([a, b]) for a, b in zip(self, other, strict=True))).sorted()
+        return EventBatch(
+            *(np.concatenate([a, b]) for a, b in zip(self, other, strict=True))
+        ).sorted()
 
     def select(self, mask: np.ndarray) -> EventBatch:
         """The events where ``mask`` is true."""

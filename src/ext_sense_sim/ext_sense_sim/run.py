@@ -35,7 +35,7 @@ def run_scene(
         seed: Seed (default: the scene's).
         formats: Which outputs to write.
     """
-    from ext_sense_sim.output import write_outputs  # noqa: PLC0415 - optional heavy writers
+    from ext_sense_sim.output import write_outputs
 
     trials = scene.trials if trials is None else int(trials)
     seed = scene.seed if seed is None else int(seed)

@@ -62,7 +62,7 @@ class Scene:
     @property
     def n_samples(self) -> int:
         """Simulation samples per trial."""
-        return int(round(self.trial_s * self.rate_hz))
+        return round(self.trial_s * self.rate_hz)
 
 
 def _enum(enum: type, value: Any, key: str) -> Any:
@@ -80,7 +80,7 @@ def _effects(raw: Any) -> tuple[tuple[str, Mapping[str, Any]], ...]:
         if isinstance(item, str):
             out.append((item, {}))
         elif isinstance(item, dict) and len(item) == 1:
-            (name, params), = item.items()
+            ((name, params),) = item.items()
             if params is not None and not isinstance(params, dict):
                 raise SceneError(
                     f"Scene effect '{name}': parameters must be a mapping. Got {params!r}."
@@ -137,8 +137,11 @@ def scene_from_dict(data: Mapping[str, Any], name: str, path: Path | None = None
 def shipped_scenes() -> dict[str, Path]:
     """Names and paths of the scenes shipped in the package, sorted by name."""
     folder = resources.files("ext_sense_sim") / "scenes"
-    return {p.stem: Path(str(p)) for p in sorted(folder.iterdir(), key=lambda p: p.name)
-            if p.name.endswith(".yaml")}
+    return {
+        p.stem: Path(str(p))
+        for p in sorted(folder.iterdir(), key=lambda p: p.name)
+        if p.name.endswith(".yaml")
+    }
 
 
 def load_scene(name_or_path: str | Path) -> Scene:
@@ -158,5 +161,6 @@ def load_scene(name_or_path: str | Path) -> Scene:
         data = yaml.safe_load(path.read_text())
     except (OSError, yaml.YAMLError) as err:
         raise SceneError(f"Scene file {path} cannot be read: {err}") from err
-    return scene_from_dict(data, data.get("name", path.stem) if isinstance(data, dict) else
-                           path.stem, path)
+    return scene_from_dict(
+        data, data.get("name", path.stem) if isinstance(data, dict) else path.stem, path
+    )

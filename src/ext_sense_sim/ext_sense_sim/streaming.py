@@ -10,6 +10,7 @@ be simulated before its start is sent late and counted in ``late_trials``.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import threading
 import time
@@ -115,7 +116,7 @@ def stream(
         clock: Epoch integer nanoseconds (injectable for tests).
         sleep: Sleeps seconds (injectable for tests).
     """
-    period_ns = int(round(max(period_s, scene.trial_s) * 1e9))
+    period_ns = round(max(period_s, scene.trial_s) * 1e9)
     stop = stop or threading.Event()
     stats = StreamStats()
     start: int | None = None
@@ -144,14 +145,20 @@ def stream(
             if i <= onset_index < j and on_onset is not None:
                 on_onset(
                     GroundTruth(
-                        plan.trial, clock(), scene.task.label, plan.tap_position_m, rod,
+                        plan.trial,
+                        clock(),
+                        scene.task.label,
+                        plan.tap_position_m,
+                        rod,
                         plan.class_label,
                     )
                 )
             i = j
         stats.trials += 1
-        while not stop.is_set() and clock() < t0 + period_ns and not (
-            trials and plan.trial + 1 >= trials
+        while (
+            not stop.is_set()
+            and clock() < t0 + period_ns
+            and not (trials and plan.trial + 1 >= trials)
         ):
             sleep(min(0.01, (t0 + period_ns - clock()) / 1e9))
     return stats
@@ -165,7 +172,7 @@ class PtyLink:
     """
 
     def __init__(self, link: str | Path | None = None) -> None:
-        import tty  # noqa: PLC0415
+        import tty
 
         self.master, self._slave = os.openpty()
         tty.setraw(self._slave)
@@ -194,10 +201,8 @@ class PtyLink:
     def close(self) -> None:
         """Close both ends and remove the symlink."""
         for fd in (self.master, self._slave):
-            try:
+            with contextlib.suppress(OSError):
                 os.close(fd)
-            except OSError:
-                pass
         if self.link is not None and self.link.is_symlink():
             self.link.unlink()
 
@@ -211,15 +216,15 @@ def open_link(kind: str, *, link_path: str = "", can_channel: str = "", can_id: 
     if kind == "pty":
         return PtyLink(link_path or None)
     if kind == "can":
-        from ext_sense_drivers.transports.can_bus import CanSink  # noqa: PLC0415
+        from ext_sense_drivers.transports.can_bus import CanSink
 
         return CanSink("virtual", can_channel or "ext_sense", can_id)
     raise SceneError(f"The 'link' parameter must be 'pty' or 'can'. Got {kind!r} instead.")
 
 
-def serve_device(args) -> int:  # noqa: ANN001 - argparse namespace
+def serve_device(args) -> int:
     """``ext-sense sim serve nuskin|biotac``: stream a scene over a pty or a CAN channel."""
-    from ext_sense_sim.scene import load_scene  # noqa: PLC0415
+    from ext_sense_sim.scene import load_scene
 
     default = {"nuskin": "tap_rod30_nuskin", "biotac": "tap_rod30_biotac"}[args.device]
     scene = load_scene(args.scene or default)
@@ -227,16 +232,22 @@ def serve_device(args) -> int:  # noqa: ANN001 - argparse namespace
         raise SceneError(
             f"Scene '{scene.name}' is for sensor '{scene.sensor.label}', not '{args.device}'."
         )
-    sink = open_link("can" if args.can else "pty", link_path=args.link or "",
-                     can_channel=args.can or "")
+    sink = open_link(
+        "can" if args.can else "pty", link_path=args.link or "", can_channel=args.can or ""
+    )
     where = f"CAN virtual channel {args.can}" if args.can else sink.path
     print(f"sim serve {args.device}: streaming scene {scene.name} on {where}", flush=True)
     try:
         stats = stream(
-            scene, sink.write, seed=scene.seed if args.seed is None else args.seed,
-            trials=args.trials, period_s=args.period,
-            on_onset=lambda gt: print(f"trial {gt.trial} onset at {gt.stamp_ns} ns "
-                                      f"{gt.class_label or gt.tap_position_m}", flush=True),
+            scene,
+            sink.write,
+            seed=scene.seed if args.seed is None else args.seed,
+            trials=args.trials,
+            period_s=args.period,
+            on_onset=lambda gt: print(
+                f"trial {gt.trial} onset at {gt.stamp_ns} ns {gt.class_label or gt.tap_position_m}",
+                flush=True,
+            ),
         )
     except KeyboardInterrupt:
         return 0

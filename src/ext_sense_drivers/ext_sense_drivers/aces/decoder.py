@@ -14,8 +14,9 @@ them lies inside the window:
    negates an onset decision (same taxel and start, other sign) undoes that decision.
 3. Decided signatures stay subtracted from the residual; the window slides on.
 
-Cancellation uses the nominal amplitude, not the measured one, so interference does not leak
-into the residual.
+Cancellation uses one chip amplitude for all signatures (the nominal one, or, by default, an
+estimate tracked from the detections and updated between passes), never each detection's own
+measured correlation, so the interference in a correlation does not leak into the residual.
 """
 
 from __future__ import annotations
@@ -39,9 +40,20 @@ DEFAULT_WINDOW = 2048
 """Samples per pass; with 127 chips, 1796 samples (3.5 ms) are decided per pass and no event
 waits more than 2048 samples (4.0 ms) after its signature started."""
 
+AMPLITUDE_MEMORY = 16
+"""Detections of weight the amplitude estimate carries from the past: each pass moves it by
+``n / (n + m)`` of the way to the mean of its ``n`` detections, where ``m`` is the number of
+detections so far, at most this (a running mean at first, then an exponential one)."""
+
+AMPLITUDE_RANGE = (0.25, 4.0)
+"""The tracked amplitude stays within these multiples of the nominal one."""
+
+_AMPLITUDE_STEP = 0.002
+"""Smaller relative changes of the amplitude estimate are not applied (saves work per pass)."""
+
 _REFRESH_RATIO = 0.25
-"""A decided stretch one signature long whose residual energy exceeds the average stretch by
-this fraction of one signature's energy sends the window through the matched filter."""
+"""A decided stretch one signature long whose residual energy exceeds the noise floor by this
+fraction of one signature's energy sends the window through the matched filter."""
 
 
 @dataclass(frozen=True)
@@ -66,9 +78,11 @@ class LineCounters:
         residual_energy: Sum of squared residual of the decided samples after cancellation;
             near zero on a clean line, so a high ratio to ``input_energy`` means missed events,
             a wrong bank, a gain error, noise or a lost byte (wire samples out of step).
-        mean_amplitude: Mean correlation per chip of the onset decoder's detections, line
+        mean_amplitude: Mean correlation per chip of all detections at acceptance, line
             units (0 before the first): the chip amplitude actually on the line, to compare
             with the decoder's nominal ``amplitude``.
+        amplitude_in_use: The chip amplitude the decoder cancels with now (the nominal one, or
+            the tracked estimate when ``track_amplitude`` is on).
     """
 
     samples: int = 0
@@ -83,6 +97,7 @@ class LineCounters:
     input_energy: float = 0.0
     residual_energy: float = 0.0
     mean_amplitude: float = 0.0
+    amplitude_in_use: float = 0.0
 
 
 class LineDecoder:
@@ -97,6 +112,8 @@ class LineDecoder:
             samples after its signature started; larger windows cost less per sample.
         t0_ns: Time of sample 0, added to every event time.
         mode: :attr:`DecodeMode.ONSET` (default) or :attr:`DecodeMode.MATCHED_FILTER`.
+        track_amplitude: Follow the chip amplitude measured on the line (starting from
+            ``amplitude``, updated after every pass) instead of trusting the nominal one.
 
     Raises:
         AcesError: A parameter out of range.
@@ -111,6 +128,7 @@ class LineDecoder:
         window: int = DEFAULT_WINDOW,
         t0_ns: int = 0,
         mode: DecodeMode = DecodeMode.ONSET,
+        track_amplitude: bool = True,
     ) -> None:
         self.bank = bank if bank is not None else load_bank()
         length = self.bank.n_chips
@@ -136,9 +154,10 @@ class LineDecoder:
                 f"The 'mode' parameter must be one of {[m.name for m in DecodeMode]}. "
                 f"Got {mode!r} instead."
             ) from err
+        self.track_amplitude = bool(track_amplitude)
         self._length = length
         self._commit = self.window - 2 * length + 2
-        self._chips = self.bank.chips.astype(np.float64) * self.amplitude
+        self._unit = self.bank.chips.astype(np.float64)
         self._onset = OnsetDecoder(self.bank, self.amplitude, self.threshold)
         self._matched = MatchedFilterSic(self.bank, self.amplitude, self.threshold, self.window)
         self.reset()
@@ -154,12 +173,33 @@ class LineDecoder:
         self._c["residual_energy"] = 0.0
         self._strength = 0.0
         self._strength_n = 0
+        self._set_amplitude(self.amplitude)
+
+    def _set_amplitude(self, amplitude: float) -> None:
+        """Cancel with ``amplitude`` from now on (both detectors and the residual)."""
+        self._amp = amplitude
+        self._chips = self._unit * amplitude
+        self._onset.set_amplitude(amplitude)
+        self._matched.set_amplitude(amplitude)
+
+    def _track(self, strength: float, n: int) -> None:
+        """Account a pass's detections; move the amplitude in use toward their mean."""
+        memory = min(self._strength_n, AMPLITUDE_MEMORY)
+        self._strength += strength
+        self._strength_n += n
+        if self.track_amplitude and n:
+            step = n / (n + memory)
+            new = self._amp + step * (strength / n - self._amp)
+            lo, hi = AMPLITUDE_RANGE
+            new = min(max(new, lo * self.amplitude), hi * self.amplitude)
+            if abs(new - self._amp) > _AMPLITUDE_STEP * self._amp:
+                self._set_amplitude(new)
 
     @property
     def counters(self) -> LineCounters:
         """A snapshot of the counters."""
         mean = self._strength / self._strength_n if self._strength_n else 0.0
-        return LineCounters(**{**self._c, "mean_amplitude": mean})
+        return LineCounters(**{**self._c, "mean_amplitude": mean, "amplitude_in_use": self._amp})
 
     @property
     def latency_samples(self) -> int:
@@ -257,8 +297,9 @@ class LineDecoder:
             found = self._matched.detect(buf[: self.window], commit)
             self._subtract(buf, found)
             self._count(found)
+            strength, n = found.strength, int(found.code.size)
         else:
-            found = self._onset_pass(buf, commit)
+            found, strength, n = self._onset_pass(buf, commit)
         found = self._annihilate(found)
         decided = buf[: max(commit, 0)]
         self._c["residual_energy"] += float(np.dot(decided, decided))
@@ -272,34 +313,43 @@ class LineDecoder:
         )
         self._buf = buf[self._commit :]
         self._base += self._commit
+        self._track(strength, n)
         return block
 
-    def _onset_pass(self, buf: npt.NDArray[np.float64], commit: int) -> Detections:
+    def _onset_pass(
+        self, buf: npt.NDArray[np.float64], commit: int
+    ) -> tuple[Detections, float, int]:
         """Onset decoder, then the matched filter if the residual says something was missed.
 
         The onset decoder also runs (tentatively) up to one signature past ``commit``, so that
         every sample a committed signature touches can be checked for left-over energy; the
         tentative detections are put back afterwards and decided in the next pass.
+
+        Returns:
+            The committed detections, and the summed strength and number of all detections
+            (tentative ones included) for the amplitude estimate.
         """
         length = self._length
         scan = min(commit + length - 2, self.window - length + 1)
         found = self._onset.decode(buf, scan)
         self._count(found)
-        self._strength += found.strength
-        self._strength_n += int(found.code.size)
+        strength, n = found.strength, int(found.code.size)
+        missed = self._missed_energy(buf[: max(scan - 1, 0)])
         later = found.start >= commit
         if later.any():
             self._subtract(
                 buf, Detections(found.code[later], found.start[later], -found.sign[later])
             )
             found = Detections(found.code[~later], found.start[~later], found.sign[~later])
-        if self._missed_energy(buf[: max(scan - 1, 0)]):
+        if missed:
             self._c["refreshes"] += 1
             extra = self._matched.detect(buf[: self.window], commit)
             self._count(extra)
             self._subtract(buf, extra)
+            strength += extra.strength
+            n += int(extra.code.size)
             found = self._merge(found, extra)
-        return found
+        return found, strength, n
 
     def _count(self, found: Detections) -> None:
         """Add a detector's work to the counters."""
@@ -360,15 +410,16 @@ class LineDecoder:
     def _missed_energy(self, decided: npt.NDArray[np.float64]) -> bool:
         """Whether the decided residual still holds a signature's worth of energy somewhere.
 
-        Compares the most energetic stretch of one signature length with the average stretch
-        (the noise floor; a missed signature raises the average far less than the maximum).
+        Compares the most energetic stretch of one signature length with the quietest tenth
+        of the stretches (the noise floor: missed signatures raise it far less than the mean,
+        so even a window full of weak missed signatures stands out).
         """
         length = self._length
         if decided.size < length:
             return False
         cum = np.cumsum(decided * decided)
         energy = cum[length - 1 :] - np.concatenate(([0.0], cum[:-length]))
-        floor = cum[-1] * length / decided.size
+        floor = float(np.partition(energy, energy.size // 10)[energy.size // 10])
         return float(energy.max()) - floor > _REFRESH_RATIO * self.amplitude**2 * length
 
 

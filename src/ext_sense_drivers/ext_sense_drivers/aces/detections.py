@@ -17,9 +17,8 @@ class Detections(NamedTuple):
         sign: Polarity, +1 or -1, ``(n,)`` int64.
         tested: Correlations examined (candidates or onset tests) to find them.
         cancellations: Cancellation steps taken, including look-ahead ones not returned.
-        strength: Sum over the returned detections of ``|correlation| / chips``, line units
-            (the onset decoder's; 0 from the matched filter): divided by their number, an
-            estimate of the chip amplitude on the line.
+        strength: Sum over the returned detections of ``|correlation| / chips`` at acceptance,
+            line units: divided by their number, an estimate of the chip amplitude on the line.
     """
 
     code: npt.NDArray[np.int64]

@@ -42,13 +42,19 @@ class MatchedFilterSic:
     def __init__(self, bank: SignatureBank, amplitude: float, threshold: float, size: int) -> None:
         self.size = size
         self._length = bank.n_chips
-        full = amplitude * bank.n_chips
-        self._det = threshold * full
-        self._cand = CANDIDATE_RATIO * self._det
-        self._sure = SURE_RATIO * full
+        self._threshold = threshold
         chips = bank.chips.astype(np.float32)
         self._spec = np.conj(scipy.fft.rfft(chips, size, axis=1)).astype(np.complex64)
-        self._xcorr = xcorr_table(bank) * np.float32(amplitude)
+        self._xcorr = xcorr_table(bank)
+        self.set_amplitude(amplitude)
+
+    def set_amplitude(self, amplitude: float) -> None:
+        """Use a new chip amplitude (line units) for thresholds and cancellation."""
+        full = amplitude * self._length
+        self._amplitude = amplitude
+        self._det = self._threshold * full
+        self._cand = CANDIDATE_RATIO * self._det
+        self._sure = SURE_RATIO * full
 
     def detect(self, window: npt.NDArray[np.float64], commit: int) -> Detections:
         """Find signatures in ``window`` (length ``size``); return those starting before ``commit``.
@@ -71,19 +77,38 @@ class MatchedFilterSic:
         ct = cols[cj]
         order = np.argsort(ct, kind="stable")
         ck, ct, cv = ck[order].astype(np.int64), ct[order].astype(np.int64), cv[order]
-        k, t, s, steps = self._cancel(ck, ct, cv)
+        k, t, s, mag, steps = self._cancel(ck, ct, cv)
         keep = t < commit
         order = np.argsort(t[keep], kind="stable")
-        return Detections(k[keep][order], t[keep][order], s[keep][order], int(ck.size), steps)
+        return Detections(
+            k[keep][order],
+            t[keep][order],
+            s[keep][order],
+            int(ck.size),
+            steps,
+            float(mag[keep].sum()) / self._length,
+        )
 
     def _cancel(
         self, ck: npt.NDArray[np.int64], ct: npt.NDArray[np.int64], cv: npt.NDArray[np.float64]
-    ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64], int]:
-        """Rounds of cancellation over candidates sorted by start; returns the accepted ones."""
+    ) -> tuple[
+        npt.NDArray[np.int64],
+        npt.NDArray[np.int64],
+        npt.NDArray[np.int64],
+        npt.NDArray[np.float64],
+        int,
+    ]:
+        """Rounds of cancellation over candidates sorted by start.
+
+        Returns:
+            Code, start, sign and ``|correlation|`` at acceptance of every accepted candidate,
+            and the number of cancellation steps.
+        """
         length = self._length
         active = np.ones(ck.size, dtype=bool)
         acc: list[npt.NDArray[np.int64]] = []
         signs: list[npt.NDArray[np.int64]] = []
+        mags: list[npt.NDArray[np.float64]] = []
         steps = 0
         while True:
             mag = np.where(active, np.abs(cv), 0.0)
@@ -99,6 +124,7 @@ class MatchedFilterSic:
             win = elig[~beaten.any(axis=1) | (me >= self._sure)]
             acc.append(win)
             signs.append(np.where(cv[win] > 0, 1, -1))
+            mags.append(np.abs(cv[win]))
             active[win] = False
             steps += int(win.size)
             # Every candidate within one signature length of a winner, as flat pairs.
@@ -109,11 +135,12 @@ class MatchedFilterSic:
             idx = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
             idx += np.repeat(lo, counts)
             w = win[owner]
-            sign = np.where(cv[w] > 0, 1.0, -1.0)
+            sign = np.where(cv[w] > 0, self._amplitude, -self._amplitude)
             delta = sign * self._xcorr[ck[idx], ck[w], ct[idx] - ct[w] + length - 1]
             cv = cv - np.bincount(idx, weights=delta, minlength=cv.size)
         if not acc:
             empty = np.empty(0, np.int64)
-            return empty, empty, empty, 0
+            return empty, empty, empty, np.empty(0), 0
         sel = np.concatenate(acc)
-        return ck[sel], ct[sel], np.concatenate(signs).astype(np.int64), steps
+        sign = np.concatenate(signs).astype(np.int64)
+        return ck[sel], ct[sel], sign, np.concatenate(mags), steps

@@ -61,16 +61,21 @@ class OnsetDecoder:
         length, k_codes = bank.n_chips, bank.n_taxels
         self._length = length
         self._unit = bank.chips.astype(np.float64)
-        self._chips = self._unit * amplitude
-        self._det = min(threshold + ACCEPT_MARGIN, 0.95) * amplitude * length
-        self._onset = ONSET_RATIO * amplitude
-        self._gate = GATE_RATIO * GATE_SPAN * amplitude**2
+        self._accept = min(threshold + ACCEPT_MARGIN, 0.95)
         self._back = back
+        self.set_amplitude(amplitude)
         # Row (i, k) holds code k shifted by i: one mat-vec tests the back + 1 earlier starts.
         shifted = np.zeros((back + 1, k_codes, length + back))
         for i in range(back + 1):
             shifted[i, :, i : i + length] = bank.chips
         self._shifted = shifted.reshape((back + 1) * k_codes, length + back)
+
+    def set_amplitude(self, amplitude: float) -> None:
+        """Use a new chip amplitude (line units) for levels and cancellation."""
+        self._chips = self._unit * amplitude
+        self._det = self._accept * amplitude * self._length
+        self._onset = ONSET_RATIO * amplitude
+        self._gate = GATE_RATIO * GATE_SPAN * amplitude**2
 
     def decode(self, r: npt.NDArray[np.float64], commit: int) -> Detections:
         """Detect and cancel, in place, every signature with an onset before ``commit``.
@@ -102,8 +107,10 @@ class OnsetDecoder:
                 p = static[j]
             corr = self._unit @ r[p : p + length]
             tested += k_codes
-            k = int(np.abs(corr).argmax())
-            v = float(corr[k])
+            k, k_neg = int(corr.argmax()), int(corr.argmin())
+            v, v_neg = float(corr[k]), float(corr[k_neg])
+            if -v_neg > v:
+                k, v = k_neg, v_neg
             s = p
             if abs(v) < det:
                 lo = p - back

@@ -24,7 +24,11 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ext_sense_drivers.biotac.crc import crc16_ccitt_false, crc16_ccitt_false_rows
+from ext_sense_drivers.biotac.crc import (
+    crc16_ccitt_false,
+    crc16_ccitt_false_columns,
+    crc16_ccitt_false_rows,
+)
 from ext_sense_drivers.biotac.errors import BioTacError
 from ext_sense_drivers.biotac.words import (
     ELECTRODE_POSITIONS,
@@ -34,8 +38,10 @@ from ext_sense_drivers.biotac.words import (
     PDC_POSITION,
     TAC_POSITION,
     TDC_POSITION,
+    WORD_STATUS,
+    WORD_VALUE,
     WORDS_PER_FRAME,
-    decode_words,
+    WordStatus,
     encode_values,
 )
 
@@ -330,6 +336,8 @@ _EMPTY = _empty_frames()
 for _col in _EMPTY:
     _col.flags.writeable = False
 _FRAME_COLS = np.arange(STANDARD_FRAME_SIZE)
+# Plain ints: comparing an array with an IntEnum member costs several microseconds.
+_OK, _PARITY_FAILED, _ERROR_REPLY = (int(v) for v in WordStatus)
 _BIT = np.uint64(1) << np.arange(WORDS_PER_FRAME, dtype=np.uint64)
 
 
@@ -485,11 +493,15 @@ class BridgeDecoder:
             rows = arr[starts[:, None] + _FRAME_COLS]
             got = rows[:, 94].astype(np.uint16) | (rows[:, 95].astype(np.uint16) << np.uint16(8))
             crc_ok[std] = crc16_ccitt_false_rows(rows[:, 2:94]) == got
-        for i in np.flatnonzero(complete & (nw != WORDS_PER_FRAME)):
-            c, t = int(cands[i]), int(total[i])
-            crc_ok[i] = (
-                crc16_ccitt_false(data[c + 2 : c + t - 2]) == CRC.unpack_from(data, c + t - 2)[0]
-            )
+        other = np.flatnonzero(complete & (nw != WORDS_PER_FRAME))
+        for length in (
+            np.unique(nw[other]) if other.size else ()
+        ):  # rare: reserved frames or chance syncs in garbage
+            idx = other[nw[other] == length]
+            size = FRAME_OVERHEAD + 2 * int(length)
+            rows = arr[cands[idx][:, None] + np.arange(size)]
+            got = rows[:, -2].astype(np.uint16) | (rows[:, -1].astype(np.uint16) << np.uint16(8))
+            crc_ok[idx] = crc16_ccitt_false_columns(rows[:, 2:-2]) == got
         valid = complete & crc_ok
         v_idx = np.flatnonzero(valid)
         v_start, v_end = cands[v_idx], cands[v_idx] + total[v_idx]
@@ -497,7 +509,7 @@ class BridgeDecoder:
             acc_idx, stop = self._walk(cands, complete, valid, total, final)
         else:
             acc_idx, stop = v_idx, -1
-            if not final:
+            if not final and not complete[-1]:  # incomplete candidates sit at the end only
                 for i in np.flatnonzero(~complete):
                     j = np.searchsorted(v_start, cands[i], side="right") - 1
                     if j < 0 or cands[i] >= v_end[j]:
@@ -561,20 +573,25 @@ class BridgeDecoder:
             rows, sensor, starts = rows[good], sensor[good], starts[good]
             if not starts.size:
                 return _EMPTY
-        seq = rows[:, 2].astype(np.uint16) | (rows[:, 3].astype(np.uint16) << np.uint16(8))
-        b0, b1 = rows[:, 6:94:2], rows[:, 7:94:2]
-        values, parity_failed, error = decode_words(b0, b1)
-        invalid = parity_failed | error
+        seq = rows[:, 2:4].view("<u2")[:, 0].astype(np.uint16)
+        words = rows[:, 6:94].view(">u2").astype(np.uint16)
+        values = WORD_VALUE[words]
+        status = WORD_STATUS[words]
+        invalid = status != _OK
         mask = (invalid * _BIT).sum(axis=1, dtype=np.uint64)
-        n_par = parity_failed.sum(axis=1).astype(np.uint8)
-        n_err = error.sum(axis=1).astype(np.uint8)
+        n_par = (status == _PARITY_FAILED).sum(axis=1, dtype=np.uint8)
+        n_err = (status == _ERROR_REPLY).sum(axis=1, dtype=np.uint8)
         gap, reset = self._seq.steps(sensor, seq)
-        par = np.bincount(sensor, weights=n_par, minlength=MAX_SENSORS)
-        err = np.bincount(sensor, weights=n_err, minlength=MAX_SENSORS)
-        for s in range(MAX_SENSORS):
-            self._seq.parity[s] += int(par[s])
-            self._seq.errors[s] += int(err[s])
-        words = (b0.astype(np.uint16) << np.uint16(8)) | b1
+        if sensor.size <= SMALL_BATCH:
+            for s, p, e in zip(sensor.tolist(), n_par.tolist(), n_err.tolist(), strict=True):
+                self._seq.parity[s] += p
+                self._seq.errors[s] += e
+        else:
+            par = np.bincount(sensor, weights=n_par, minlength=MAX_SENSORS)
+            err = np.bincount(sensor, weights=n_err, minlength=MAX_SENSORS)
+            for s in range(MAX_SENSORS):
+                self._seq.parity[s] += int(par[s])
+                self._seq.errors[s] += int(err[s])
         return BridgeFrames(
             sensor_id=sensor,
             seq=seq,

@@ -76,6 +76,32 @@ def encode_values(values: ArrayLike) -> NDArray[np.uint16]:
     return ((b0 << 8) | b1).astype(np.uint16)
 
 
+class WordStatus(IntEnum):
+    """What a reply word turned out to be."""
+
+    OK = 0
+    PARITY_FAILED = 1
+    ERROR_REPLY = 2
+
+
+def _word_tables() -> tuple[NDArray[np.uint16], NDArray[np.uint8]]:
+    """Value and status of every possible reply word (two 64 Ki lookup tables)."""
+    word = np.arange(1 << 16, dtype=np.uint32)
+    b0, b1 = word >> 8, word & 0xFF
+    error = (b0 == 0xA5) & ((b1 == 0x45) | (b1 == 0x3F))
+    parity_failed = ~(ODD_PARITY[b0] & ODD_PARITY[b1]) & ~error
+    values = ((b0 >> 1) * 32 + (b1 >> 3)).astype(np.uint16)
+    values[error | parity_failed] = 0
+    status = np.where(error, WordStatus.ERROR_REPLY, WordStatus.OK).astype(np.uint8)
+    status[parity_failed] = WordStatus.PARITY_FAILED
+    return values, status
+
+
+WORD_VALUE, WORD_STATUS = _word_tables()
+"""``WORD_VALUE[w]``: value of reply word ``w`` (0 when invalid); ``WORD_STATUS[w]``: its
+:class:`WordStatus`."""
+
+
 def decode_words(
     b0: NDArray[np.uint8], b1: NDArray[np.uint8]
 ) -> tuple[NDArray[np.uint16], NDArray[np.bool_], NDArray[np.bool_]]:
@@ -90,13 +116,13 @@ def decode_words(
         or was an error reply; ``parity_failed`` is False for error replies (they are counted
         apart).
     """
-    b0 = np.asarray(b0, dtype=np.uint8)
-    b1 = np.asarray(b1, dtype=np.uint8)
-    error = (b0 == 0xA5) & ((b1 == 0x45) | (b1 == 0x3F))
-    parity_failed = ~(ODD_PARITY[b0] & ODD_PARITY[b1]) & ~error
-    values = (b0.astype(np.uint16) >> 1) * np.uint16(32) + (b1.astype(np.uint16) >> 3)
-    values[error | parity_failed] = 0
-    return values, parity_failed, error
+    word = (np.asarray(b0, dtype=np.uint16) << np.uint16(8)) | np.asarray(b1, dtype=np.uint16)
+    status = WORD_STATUS[word]
+    return (
+        WORD_VALUE[word],
+        status == WordStatus.PARITY_FAILED,
+        status == WordStatus.ERROR_REPLY,
+    )
 
 
 def decode_word(word: int) -> tuple[int, bool, bool]:

@@ -44,9 +44,7 @@ class TimeBase:
 
     def t_ns(self, index: np.ndarray) -> np.ndarray:
         """Integer nanoseconds of sample indices (rounded to the nearest ns)."""
-        return np.round(np.asarray(index, dtype=np.float64) * (1e9 / self.rate_hz)).astype(
-            np.int64
-        )
+        return np.round(np.asarray(index, dtype=np.float64) * (1e9 / self.rate_hz)).astype(np.int64)
 
 
 class Signals(dict):

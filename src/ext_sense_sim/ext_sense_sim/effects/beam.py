@@ -25,6 +25,7 @@ pads of the grasp) unless the scene sets ``damping_ratio`` (scalar or one per mo
 from __future__ import annotations
 
 import math
+from typing import Any, ClassVar
 
 import numpy as np
 import scipy.linalg
@@ -229,7 +230,7 @@ class BeamModes(Effect):
     name = "beam_modes"
     needs = ("contact",)
     gives = ("clamp_load",)
-    defaults = {
+    defaults: ClassVar[dict[str, Any]] = {
         "max_freq_hz": 6000.0,
         "max_modes": 40,
         "damping_ratio": None,
@@ -237,6 +238,7 @@ class BeamModes(Effect):
     }
 
     def setup(self) -> None:
+        """Check the parameters and precompute what every batch shares."""
         g = self.context.geometry
         max_modes = int(self.scalar("max_modes", 1, 10_000))
         max_freq = self.scalar("max_freq_hz", 1.0, 1e7)

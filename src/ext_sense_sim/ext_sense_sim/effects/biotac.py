@@ -16,6 +16,8 @@ of the trial (``pac_t0_ns``).
 
 from __future__ import annotations
 
+from typing import Any, ClassVar
+
 import numpy as np
 from scipy.signal import butter, lfilter, lfilter_zi
 
@@ -50,7 +52,7 @@ class BiotacTransduction(Effect):
     name = "biotac_transduction"
     needs = ("taxel_pressure",)
     gives = ("biotac",)
-    defaults = {
+    defaults: ClassVar[dict[str, Any]] = {
         "pac_band_hz": [10.0, 1040.0],
         "pac_counts_per_pa": 0.02,
         "pac_mid": 2048.0,
@@ -65,20 +67,23 @@ class BiotacTransduction(Effect):
     }
 
     def setup(self) -> None:
+        """Check the parameters and precompute what every batch shares."""
         ratio = self.context.rate_hz / PAC_RATE_HZ
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise SceneError(
                 f"Effect '{self.name}' needs a simulation rate that is a multiple of 2200 Hz. "
                 f"Got {self.context.rate_hz} Hz instead."
             )
-        self.decimate = int(round(ratio))
+        self.decimate = round(ratio)
         band = self.params["pac_band_hz"]
         lo, hi = float(band[0]), min(float(band[1]), 0.45 * self.context.rate_hz)
         self.pac_b, self.pac_a = butter(2, [lo, hi], btype="bandpass", fs=self.context.rate_hz)
         self.dc_b, self.dc_a = butter(2, 10.0, fs=self.context.rate_hz)
         u, c = lattice(0.003)
         eu, ec = electrode_layout()
-        w = np.exp(-0.5 * (((u[None] - eu[:, None]) ** 2 + (c[None] - ec[:, None]) ** 2) / 0.003**2))
+        w = np.exp(
+            -0.5 * (((u[None] - eu[:, None]) ** 2 + (c[None] - ec[:, None]) ** 2) / 0.003**2)
+        )
         self.electrode_weights = w / w.sum(axis=1, keepdims=True)  # (19, 40)
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
@@ -94,9 +99,11 @@ class BiotacTransduction(Effect):
         pac_idx = phase[:, None] + self.decimate * np.arange(n_frames * PAC_PER_FRAME)[None, :]
         rows = np.arange(n)[:, None, None]
         ac = lfilter(self.pac_b, self.pac_a, fluid - fluid[..., :1], axis=-1)
-        pac = self.scalar("pac_mid") + self.scalar("pac_counts_per_pa") * ac[
-            rows, np.arange(2)[None, :, None], pac_idx[:, None, :]
-        ]
+        pac = (
+            self.scalar("pac_mid")
+            + self.scalar("pac_counts_per_pa")
+            * ac[rows, np.arange(2)[None, :, None], pac_idx[:, None, :]]
+        )
         pac += self.scalar("pac_noise_counts", 0.0) * rng.standard_normal(pac.shape)
         frame_idx = pac_idx[:, ::PAC_PER_FRAME]  # (n, n_frames)
         zi = lfilter_zi(self.dc_b, self.dc_a)

@@ -22,7 +22,7 @@ the pads). The signal ``motion`` gives the per-trial motion start and stop (seco
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -95,7 +95,7 @@ class ForkPenetration(Effect):
 
     name = "fork_penetration"
     gives = ("contact", "labels", "motion")
-    defaults = {
+    defaults: ClassVar[dict[str, Any]] = {
         "foods": list(FOODS),
         "onset_s": 0.5,
         "speed": 0.01,
@@ -108,6 +108,7 @@ class ForkPenetration(Effect):
     }
 
     def setup(self) -> None:
+        """Check the parameters and precompute what every batch shares."""
         foods = self.params["foods"]
         unknown = [f for f in foods if f not in FOODS] if isinstance(foods, list) else [foods]
         if unknown or not foods:
@@ -170,11 +171,16 @@ class ArmVibration(Effect):
     name = "arm_vibration"
     needs = ("contact", "motion")
     gives = ("contact",)
-    defaults = {"axial_n": 0.05, "corner_hz": 300.0, "harmonic_hz": 95.0, "harmonic_n": 0.02}
+    defaults: ClassVar[dict[str, Any]] = {
+        "axial_n": 0.05,
+        "corner_hz": 300.0,
+        "harmonic_hz": 95.0,
+        "harmonic_n": 0.02,
+    }
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Add the vibration to ``contact`` while the arm moves."""
-        from scipy.signal import lfilter  # noqa: PLC0415
+        from scipy.signal import lfilter
 
         contact: Contact = signals.need("contact", self.name)
         motion: Motion = signals.need("motion", self.name)

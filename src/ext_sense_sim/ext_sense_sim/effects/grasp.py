@@ -21,6 +21,8 @@ piezoresistive layer only through the coupling ``k_t``; the axial force likewise
 
 from __future__ import annotations
 
+from typing import Any, ClassVar
+
 import numpy as np
 
 from ext_sense_sim.effects.base import Effect, Signals, TimeBase
@@ -50,7 +52,7 @@ class GraspTransfer(Effect):
     name = "grasp_transfer"
     needs = ("clamp_load",)
     gives = ("taxel_pressure",)
-    defaults = {
+    defaults: ClassVar[dict[str, Any]] = {
         "pitch_m": 0.003,
         "grip_force_n": [15.0, 25.0],
         "strip_sigma_m": 0.0025,
@@ -61,6 +63,7 @@ class GraspTransfer(Effect):
     }
 
     def setup(self) -> None:
+        """Check the parameters and precompute what every batch shares."""
         self.u, self.c = lattice(self.scalar("pitch_m", 1e-4, 0.05))
         self.area = self.scalar("pitch_m") ** 2
         spread = self.scalar("gain_spread", 0.0, 0.9)
@@ -95,6 +98,6 @@ class GraspTransfer(Effect):
         n = time.n_trials
         offsets = np.stack([self.draw("lateral_offset_m", rng, n) for _ in range(2)], axis=1)
         w = self.weights(offsets, rng, n).astype(np.float32)
-        pressure = w[:, :, 0:1] * np.ones((1, 1, time.n_samples), dtype=np.float32)
-        pressure += np.einsum("btk,bks->bts", w[:, :, 1:], load.astype(np.float32))
+        pressure = np.matmul(w[:, :, 1:], load.astype(np.float32))
+        pressure += w[:, :, 0:1]
         signals["taxel_pressure"] = pressure

@@ -20,6 +20,8 @@ Each trial is stable with probability ``p_stable``; the class label is ``"stable
 
 from __future__ import annotations
 
+from typing import Any, ClassVar
+
 import numpy as np
 from scipy.signal import lfilter
 
@@ -28,11 +30,20 @@ from ext_sense_sim.effects.contact import Contact, Labels, half_sine_bins
 
 
 def settling(t: np.ndarray, final: np.ndarray, freq_hz: np.ndarray, zeta: float) -> np.ndarray:
-    """Underdamped second-order step response, zero for ``t < 0``; shapes broadcast."""
+    """Underdamped second-order step response, zero for ``t < 0``; shapes broadcast.
+
+    Args:
+        t: Times from the start, seconds.
+        final: Final value.
+        freq_hz: Natural frequency, Hz.
+        zeta: Damping ratio in (0, 1).
+    """
     w = 2 * np.pi * freq_hz
     wd = w * np.sqrt(1 - zeta**2)
     ts = np.maximum(t, 0.0)
-    resp = 1 - np.exp(-zeta * w * ts) * (np.cos(wd * ts) + zeta / np.sqrt(1 - zeta**2) * np.sin(wd * ts))
+    resp = 1 - np.exp(-zeta * w * ts) * (
+        np.cos(wd * ts) + zeta / np.sqrt(1 - zeta**2) * np.sin(wd * ts)
+    )
     return np.where(t >= 0, final * resp, 0.0)
 
 
@@ -50,7 +61,8 @@ def stick_slip(
     Args:
         t: Times from the start of dragging, seconds, ``(n,)`` (negative: not yet).
         normal_n: Grip normal force, N.
-        mu_s, mu_k: Static and kinetic friction coefficients (``mu_s > mu_k``).
+        mu_s: Static friction coefficient (``mu_s > mu_k``).
+        mu_k: Kinetic friction coefficient.
         stiffness: Skin stiffness, N/m.
         speed: Drag speed, m/s.
         jitter: Relative per-cycle variation of the stick period, ``(n_cycles,)``.
@@ -74,7 +86,7 @@ class HumanGrasp(Effect):
 
     name = "human_grasp"
     gives = ("contact", "labels")
-    defaults = {
+    defaults: ClassVar[dict[str, Any]] = {
         "p_stable": 0.5,
         "onset_s": [0.045, 0.055],
         "position": [0.4, 0.95],

@@ -10,6 +10,8 @@ value of the taxel's last real event, or ``value_counts`` when it had none.
 
 from __future__ import annotations
 
+from typing import Any, ClassVar
+
 import numpy as np
 
 from ext_sense_sim.effects.base import Effect, Signals, TimeBase
@@ -22,7 +24,7 @@ class SensorNoise(Effect):
     name = "sensor_noise"
     needs = ("taxel_pressure",)
     gives = ("taxel_pressure",)
-    defaults = {"white_pa": 150.0}
+    defaults: ClassVar[dict[str, Any]] = {"white_pa": 150.0}
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Add noise to ``taxel_pressure`` in place."""
@@ -38,13 +40,13 @@ class SpuriousEvents(Effect):
     name = "spurious_events"
     needs = ("events",)
     gives = ("events",)
-    defaults = {"rate_hz": 2.0, "value_counts": 100}
+    defaults: ClassVar[dict[str, Any]] = {"rate_hz": 2.0, "value_counts": 100}
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Merge spurious events into ``events``."""
         events: EventBatch = signals.need("events", self.name)
         rate = self.scalar("rate_hz", 0.0, 1e5)
-        duration_ns = int(round(time.n_samples * time.dt * 1e9))
+        duration_ns = round(time.n_samples * time.dt * 1e9)
         n_taxels = 80
         counts = rng.poisson(rate * time.n_samples * time.dt, size=(time.n_trials, n_taxels))
         total = int(counts.sum())
@@ -58,7 +60,5 @@ class SpuriousEvents(Effect):
         last = events.last_values(time.n_trials)
         known = last[trial, taxel - 1]
         value = np.where(known > 0, known, value).astype(np.uint16)
-        extra = EventBatch(
-            trial.astype(np.int32), t_ns, taxel.astype(np.uint16), polarity, value
-        )
+        extra = EventBatch(trial.astype(np.int32), t_ns, taxel.astype(np.uint16), polarity, value)
         signals["events"] = events.merged(extra)

@@ -15,6 +15,7 @@ to 0..1023. Event times fall uniformly inside their simulation sample.
 from __future__ import annotations
 
 import math
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy.signal import butter, lfilter, lfilter_zi
@@ -42,6 +43,9 @@ def front_end(pressure: np.ndarray, bandwidth_hz: float, rate_hz: float) -> np.n
     return out.astype(pressure.dtype, copy=False)
 
 
+_BLOCK = 32
+
+
 def level_crossing(
     signal: np.ndarray, threshold: float, refractory: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -60,19 +64,56 @@ def level_crossing(
     ready = np.zeros(n_channels, dtype=np.int64)
     thr = float(threshold)
     samples, channels, polarities = [], [], []
-    for k in range(1, n_samples):
-        diff = signal[k] - ref
-        fire = np.flatnonzero((np.abs(diff) >= thr) & (ready <= k))
-        if fire.size:
-            sign = np.where(diff[fire] > 0, 1, -1)
-            ref[fire] += thr * sign
-            ready[fire] = k + refractory
-            samples.append(np.full(fire.size, k, dtype=np.int64))
-            channels.append(fire)
-            polarities.append(sign.astype(np.int8))
+    # A channel whose block range stays within one threshold of its reference cannot fire in
+    # that block (its reference only moves when it fires), so only candidates are stepped.
+    for b in range(1, n_samples, _BLOCK):
+        seg = signal[b : b + _BLOCK]
+        cand = np.flatnonzero((seg.max(axis=0) - ref >= thr) | (ref - seg.min(axis=0) >= thr))
+        if cand.size == 0:
+            continue
+        sub, r, rd = seg[:, cand], ref[cand], ready[cand]
+        for k in range(seg.shape[0]):
+            diff = sub[k] - r
+            fire = np.flatnonzero((np.abs(diff) >= thr) & (rd <= b + k))
+            if fire.size:
+                sign = np.where(diff[fire] > 0, 1, -1)
+                r[fire] += thr * sign
+                rd[fire] = b + k + refractory
+                samples.append(np.full(fire.size, b + k, dtype=np.int64))
+                channels.append(cand[fire])
+                polarities.append(sign.astype(np.int8))
+        ref[cand], ready[cand] = r, rd
     if not samples:
         return np.zeros(0, np.int64), np.zeros(0, np.intp), np.zeros(0, np.int8)
-    return np.concatenate(samples), np.concatenate(channels), np.concatenate(polarities)
+    k, ch, pol = np.concatenate(samples), np.concatenate(channels), np.concatenate(polarities)
+    order = np.argsort(k, kind="stable")
+    return k[order], ch[order], pol[order]
+
+
+def refractory_safe_jitter(
+    k: np.ndarray, channel: np.ndarray, refractory: int, rng: np.random.Generator
+) -> np.ndarray:
+    """Uniform positions of events inside their sample that keep the refractory period.
+
+    Two events of one channel exactly ``refractory`` samples apart would come closer than the
+    refractory period if the second one's offset were smaller; within such chains the offsets
+    are made non-decreasing (a running maximum per chain).
+
+    Returns:
+        ``(n,)`` offsets in [0, 1), in the order of ``k``.
+    """
+    u = rng.uniform(0.0, 1.0, size=k.size)
+    if k.size < 2:
+        return u
+    order = np.lexsort((k, channel))
+    ks, cs = k[order], channel[order]
+    chained = np.r_[False, (cs[1:] == cs[:-1]) & (ks[1:] - ks[:-1] == refractory)]
+    group = np.cumsum(~chained)  # a new group wherever the chain breaks
+    v = u[order] + 2.0 * group
+    fixed = np.maximum.accumulate(v) - 2.0 * group
+    out = np.empty_like(u)
+    out[order] = fixed
+    return out
 
 
 class NuskinTransduction(Effect):
@@ -81,7 +122,7 @@ class NuskinTransduction(Effect):
     name = "nuskin_transduction"
     needs = ("taxel_pressure",)
     gives = ("events",)
-    defaults = {
+    defaults: ClassVar[dict[str, Any]] = {
         "threshold_pa": 4000.0,
         "refractory_s": 0.00025,
         "bandwidth_hz": 1500.0,
@@ -92,7 +133,7 @@ class NuskinTransduction(Effect):
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Give ``events`` (an :class:`EventBatch`, batch-local trial indices)."""
         pressure = signals.need("taxel_pressure", self.name)
-        n_trials, n_taxels, n_samples = pressure.shape
+        _n_trials, n_taxels, n_samples = pressure.shape
         filtered = front_end(pressure, self.scalar("bandwidth_hz", 1.0), time.rate_hz)
         time_major = np.ascontiguousarray(filtered.reshape(-1, n_samples).T)
         refractory = max(1, math.ceil(self.scalar("refractory_s", 0.0) * time.rate_hz - 1e-9))
@@ -102,7 +143,7 @@ class NuskinTransduction(Effect):
         value = self.scalar("offset_counts", 0, 1023) + time_major[k, channel] / self.scalar(
             "pa_per_count", 1e-9
         )
-        jitter = rng.uniform(0.0, 1.0, size=k.size)
+        jitter = refractory_safe_jitter(k, channel, refractory, rng)
         t_ns = np.round((k + jitter) * (1e9 / time.rate_hz)).astype(np.int64)
         events = EventBatch(
             (channel // n_taxels).astype(np.int32),

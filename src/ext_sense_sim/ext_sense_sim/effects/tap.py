@@ -8,6 +8,8 @@ Its impulse is ``2 F tau / pi``.
 
 from __future__ import annotations
 
+from typing import Any, ClassVar
+
 import numpy as np
 
 from ext_sense_sim.effects.base import Effect, Signals, TimeBase
@@ -20,7 +22,7 @@ class ContactImpulse(Effect):
 
     name = "contact_impulse"
     gives = ("contact", "labels")
-    defaults = {
+    defaults: ClassVar[dict[str, Any]] = {
         "force_n": [1.0, 5.0],
         "duration_s": [0.0005, 0.003],
         "onset_s": [0.045, 0.055],
@@ -29,6 +31,7 @@ class ContactImpulse(Effect):
     }
 
     def setup(self) -> None:
+        """Check the parameters and precompute what every batch shares."""
         geometry = self.context.geometry
         if geometry.free_length_m <= 2 * self.scalar("margin_m", 0.0):
             raise SceneError(

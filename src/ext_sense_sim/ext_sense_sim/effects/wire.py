@@ -21,11 +21,12 @@ The signal ``wire`` is a list, per trial, of :class:`WireStream`.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
 from ext_sense_sim.effects.base import Effect, Signals, TimeBase
+from ext_sense_sim.errors import SceneError
 from ext_sense_sim.events import EventBatch
 
 
@@ -58,14 +59,14 @@ class NuskinWire(Effect):
     name = "nuskin_wire"
     needs = ("events",)
     gives = ("wire",)
-    defaults = {"latency_s": 0.001}
+    defaults: ClassVar[dict[str, Any]] = {"latency_s": 0.001}
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Give one :class:`WireStream` of words per trial."""
-        from ext_sense_drivers.nuskin.wire import encode_words  # noqa: PLC0415
+        from ext_sense_drivers.nuskin.wire import encode_words
 
         events: EventBatch = signals.need("events", self.name)
-        latency = int(round(self.scalar("latency_s", 0.0, 1.0) * 1e9))
+        latency = round(self.scalar("latency_s", 0.0, 1.0) * 1e9)
         bounds = np.searchsorted(events.trial, np.arange(time.n_trials + 1))
         streams = []
         for i in range(time.n_trials):
@@ -81,10 +82,11 @@ class AcesLine(Effect):
     name = "aces_line"
     needs = ("events",)
     gives = ("events",)
-    defaults = {"noise_std": 0.1, "threshold": 0.5}
+    defaults: ClassVar[dict[str, Any]] = {"noise_std": 0.1, "threshold": 0.5, "max_occupancy": 0.6}
 
     def setup(self) -> None:
-        from ext_sense_drivers.aces.bank import load_bank  # noqa: PLC0415
+        """Check the parameters and precompute what every batch shares."""
+        from ext_sense_drivers.aces.bank import load_bank
 
         self.bank = load_bank()
         self.sent = 0
@@ -92,17 +94,30 @@ class AcesLine(Effect):
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Replace ``events`` by what the receiver decodes from the line."""
-        from ext_sense_drivers.aces.decoder import decode_line  # noqa: PLC0415
-        from ext_sense_drivers.aces.encoder import encode_line  # noqa: PLC0415
+        from ext_sense_drivers.aces.decoder import decode_line
+        from ext_sense_drivers.aces.encoder import encode_line
 
         events: EventBatch = signals.need("events", self.name)
         bounds = np.searchsorted(events.trial, np.arange(time.n_trials + 1))
         parts = []
         for i in range(time.n_trials):
             ev = events.select(np.arange(bounds[i], bounds[i + 1]))
+            span = time.n_samples * time.dt * self.bank.sample_rate_hz
+            occupancy = ev.t_ns.size * self.bank.n_chips / span
+            if occupancy > self.scalar("max_occupancy", 0.0):
+                raise SceneError(
+                    f"Effect '{self.name}': trial {time.first_trial + i} puts {ev.t_ns.size} "
+                    f"events on the line, an occupancy of {occupancy:.2f} signatures per sample "
+                    f"(limit 'max_occupancy' = {self.params['max_occupancy']}); the line cannot "
+                    f"carry that many. Lower the contact forces or raise the NUSkin threshold."
+                )
             line = encode_line(
-                ev.t_ns, ev.taxel.astype(np.int64), ev.polarity.astype(np.int64),
-                bank=self.bank, noise_std=self.scalar("noise_std", 0.0), rng=rng,
+                ev.t_ns,
+                ev.taxel.astype(np.int64),
+                ev.polarity.astype(np.int64),
+                bank=self.bank,
+                noise_std=self.scalar("noise_std", 0.0),
+                rng=rng,
             )
             got = decode_line(line.samples, self.bank, threshold=self.scalar("threshold", 0, 1))
             value = np.zeros(got.size, np.uint16)
@@ -113,8 +128,13 @@ class AcesLine(Effect):
                     j = np.clip(np.searchsorted(ev.t_ns[sent], got.t_ns[mine]), 0, sent.size - 1)
                     value[mine] = ev.value[sent[j]]
             parts.append(
-                EventBatch(np.full(got.size, i, np.int32), got.t_ns.astype(np.int64),
-                           got.taxel.astype(np.uint16), got.polarity.astype(np.int8), value)
+                EventBatch(
+                    np.full(got.size, i, np.int32),
+                    got.t_ns.astype(np.int64),
+                    got.taxel.astype(np.uint16),
+                    got.polarity.astype(np.int8),
+                    value,
+                )
             )
             self.sent += ev.t_ns.size
             self.recovered += got.size
@@ -128,15 +148,16 @@ class BiotacWire(Effect):
     name = "biotac_wire"
     needs = ("biotac",)
     gives = ("wire",)
-    defaults = {"first_seq": 0}
+    defaults: ClassVar[dict[str, Any]] = {"first_seq": 0}
 
     def setup(self) -> None:
+        """Check the parameters and precompute what every batch shares."""
         self.seq = int(self.scalar("first_seq", 0, 65535))
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Give one :class:`WireStream` of frames per trial."""
-        from ext_sense_drivers.biotac.bridge import encode_frames  # noqa: PLC0415
-        from ext_sense_drivers.biotac.words import (  # noqa: PLC0415
+        from ext_sense_drivers.biotac.bridge import encode_frames
+        from ext_sense_drivers.biotac.words import (
             ELECTRODE_POSITIONS,
             PAC_POSITIONS,
             PDC_POSITION,
@@ -200,9 +221,10 @@ class WireFaults(Effect):
     name = "wire_faults"
     needs = ("wire",)
     gives = ("wire",)
-    defaults = {"lost": 1e-4, "flipped": 1e-4, "extra": 1e-4}
+    defaults: ClassVar[dict[str, Any]] = {"lost": 1e-4, "flipped": 1e-4, "extra": 1e-4}
 
     def setup(self) -> None:
+        """Check the parameters and precompute what every batch shares."""
         self.counts = {"lost": 0, "flipped": 0, "extra": 0}
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import threading
 
-from ext_sense_msgs.msg import ContactGroundTruth
 from rclpy.node import Node
 
+from ext_sense_msgs.msg import ContactGroundTruth
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
@@ -28,21 +28,48 @@ class SimDeviceNode(Node):
 
     def __init__(self, **kwargs: object) -> None:
         super().__init__("sim_device", **kwargs)
-        device = declare(self, "device", "nuskin", "Emulated sensor: nuskin or biotac.",
-                         read_only=True)
-        scene_name = declare(self, "scene", "", "Shipped scene name or scene file path "
-                             "(empty: the 30 cm rod taps of the device).", read_only=True)
+        device = declare(
+            self, "device", "nuskin", "Emulated sensor: nuskin or biotac.", read_only=True
+        )
+        scene_name = declare(
+            self,
+            "scene",
+            "",
+            "Shipped scene name or scene file path (empty: the 30 cm rod taps of the device).",
+            read_only=True,
+        )
         link = declare(self, "link", "pty", "Link: pty or can.", read_only=True)
-        port_link = declare(self, "port_link", "", "Path of a symlink to create to the pty "
-                            "(empty: none).", read_only=True)
-        can_channel = declare(self, "can_channel", "ext_sense", "python-can virtual channel.",
-                              read_only=True)
-        trials = declare(self, "trials", 0, "Trials to stream (0 = forever).", low=0,
-                         high=1_000_000, read_only=True)
-        seed = declare(self, "seed", 0, "Seed of the stream.", low=0, high=2**31 - 1,
-                       read_only=True)
-        period = declare(self, "trial_period_s", 1.0, "Time between trial starts, s.",
-                         low=0.01, high=3600.0, read_only=True)
+        port_link = declare(
+            self,
+            "port_link",
+            "",
+            "Path of a symlink to create to the pty (empty: none).",
+            read_only=True,
+        )
+        can_channel = declare(
+            self, "can_channel", "ext_sense", "python-can virtual channel.", read_only=True
+        )
+        trials = declare(
+            self,
+            "trials",
+            0,
+            "Trials to stream (0 = forever).",
+            low=0,
+            high=1_000_000,
+            read_only=True,
+        )
+        seed = declare(
+            self, "seed", 0, "Seed of the stream.", low=0, high=2**31 - 1, read_only=True
+        )
+        period = declare(
+            self,
+            "trial_period_s",
+            1.0,
+            "Time between trial starts, s.",
+            low=0.01,
+            high=3600.0,
+            read_only=True,
+        )
         default = {"nuskin": "tap_rod30_nuskin", "biotac": "tap_rod30_biotac"}
         if device not in default:
             raise ValueError(f"The 'device' parameter must be nuskin or biotac. Got {device!r}.")
@@ -64,15 +91,27 @@ class SimDeviceNode(Node):
 
     def _run(self, seed: int, trials: int, period: float) -> None:
         try:
-            self.stats = stream(self.scene, self.sink.write, seed=seed, trials=trials,
-                                period_s=period, on_onset=self._publish, stop=self._stop)
-        except Exception as err:  # noqa: BLE001 - reported on /diagnostics, not a crash
+            self.stats = stream(
+                self.scene,
+                self.sink.write,
+                seed=seed,
+                trials=trials,
+                period_s=period,
+                on_onset=self._publish,
+                stop=self._stop,
+            )
+        except Exception as err:
             self.error = repr(err)
             self.get_logger().error(f"stream stopped: {err!r}")
 
     def _publish(self, gt: GroundTruth) -> None:
-        msg = ContactGroundTruth(task=gt.task, trial=gt.trial, tap_position_m=gt.tap_position_m,
-                                 rod_length_m=gt.rod_length_m, class_label=gt.class_label)
+        msg = ContactGroundTruth(
+            task=gt.task,
+            trial=gt.trial,
+            tap_position_m=gt.tap_position_m,
+            rod_length_m=gt.rod_length_m,
+            class_label=gt.class_label,
+        )
         fill_stamp(msg.header.stamp, gt.stamp_ns)
         msg.header.frame_id = self.scene.sensor.label
         self.pub.publish(msg)
@@ -81,8 +120,11 @@ class SimDeviceNode(Node):
     def _check(self) -> tuple[Level, str, dict[str, object]]:
         if self.error:
             return Level.ERROR, self.error, {}
-        return Level.OK, "streaming", {"trials": self.stats.trials,
-                                       "dropped_bytes": getattr(self.sink, "dropped_bytes", 0)}
+        return (
+            Level.OK,
+            "streaming",
+            {"trials": self.stats.trials, "dropped_bytes": getattr(self.sink, "dropped_bytes", 0)},
+        )
 
     def destroy_node(self) -> None:
         """Stop the stream thread and close the link."""

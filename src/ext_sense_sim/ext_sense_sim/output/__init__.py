@@ -15,10 +15,10 @@ def write_outputs(
     """Write the requested outputs of one run into ``out``; returns the files written.
 
     ``raw`` needs the scene to list a wire effect (else nothing is written for it);
-    ``bag`` is not implemented yet and is skipped.
+    ``bag`` is skipped (with a note in the summary) when ``ext_sense_bags`` is not installed.
     """
-    from ext_sense_sim.output.paper import write_biotac_csv, write_tact  # noqa: PLC0415
-    from ext_sense_sim.output.raw import write_raw  # noqa: PLC0415
+    from ext_sense_sim.output.paper import write_biotac_csv, write_tact
+    from ext_sense_sim.output.raw import write_raw
 
     written: list[Path] = []
     arrays = collector.arrays()
@@ -31,6 +31,14 @@ def write_outputs(
             written.append(write_biotac_csv(arrays, out / "biotac" / "biotac.csv"))
     if "raw" in formats and batches and "wire" in batches[0][1]:
         streams = [s for _, signals in batches for s in signals["wire"]]
-        trial_ns = int(round(scene.trial_s * 1e9))
+        trial_ns = round(scene.trial_s * 1e9)
         written += write_raw(streams, scene.sensor.label, out / "raw", trial_ns)
+    if "bag" in formats:
+        try:
+            from ext_sense_sim.output.bag import write_bag
+
+            written += write_bag(arrays, out / "bag", scene.trial_s)
+        except ModuleNotFoundError as err:
+            if err.name != "ext_sense_bags":
+                raise
     return written

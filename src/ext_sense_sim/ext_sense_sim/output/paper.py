@@ -40,8 +40,7 @@ def write_tact(arrays: dict[str, np.ndarray], folder: Path, trial_s: float) -> l
         paths.append(path)
         y = arrays["y"][i]
         rows.append(
-            f"{i},{name},{y},{arrays['onset_ns'][i] / 1e9:.9f},{t0:.6f},"
-            f"{arrays['rod_length_m'][i]}"
+            f"{i},{name},{y},{arrays['onset_ns'][i] / 1e9:.9f},{t0:.6f},{arrays['rod_length_m'][i]}"
         )
     essentials = folder / "essentials.csv"
     essentials.write_text("\n".join(rows) + "\n")
@@ -61,8 +60,12 @@ def write_biotac_csv(arrays: dict[str, np.ndarray], path: Path) -> Path:
             t = (arrays["pac_t0_ns"][i] + np.arange(n_pac) * 1e9 / 2200) / 1e9
             for s in range(n_sensors):
                 cols = [
-                    np.full(n_pac, i), np.full(n_pac, s), np.round(t, 7), pac[i, s],
-                    arrays["pdc"][i, s, frame], arrays["tac"][i, s, frame],
+                    np.full(n_pac, i),
+                    np.full(n_pac, s),
+                    np.round(t, 7),
+                    pac[i, s],
+                    arrays["pdc"][i, s, frame],
+                    arrays["tac"][i, s, frame],
                     arrays["tdc"][i, s, frame],
                 ]
                 table = np.column_stack([*cols, arrays["electrodes"][i, s, frame]])
