@@ -50,7 +50,7 @@ def run_one(spec: NodeSpec, use_sim_time: bool) -> int:
     import rclpy
     from rclpy.executors import ExternalShutdownException
 
-    from ext_sense_runtime.executor import make_executor
+    from ext_sense_runtime.executor import make_executor, spin_until_shutdown
 
     rclpy.init(args=[])
     node = None
@@ -58,7 +58,7 @@ def run_one(spec: NodeSpec, use_sim_time: bool) -> int:
         node = spec.node_class()(**_node_kwargs(spec, use_sim_time))
         executor = make_executor()
         executor.add_node(node)
-        executor.spin()
+        spin_until_shutdown(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
@@ -73,7 +73,7 @@ def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool) -> int:
     import rclpy
     from rclpy.executors import ExternalShutdownException
 
-    from ext_sense_runtime.executor import make_executor
+    from ext_sense_runtime.executor import make_executor, spin_until_shutdown
 
     rclpy.init(args=[])
     created = []
@@ -83,7 +83,7 @@ def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool) -> int:
             node = spec.node_class()(**_node_kwargs(spec, use_sim_time))
             created.append(node)
             executor.add_node(node)
-        executor.spin()
+        spin_until_shutdown(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from ext_sense_drivers.biotac.bridge import (
     STANDARD_FRAME_SIZE,
     BridgeDecoder,
+    SequenceTracker,
     encode_frame,
     encode_frames,
     encode_standard_frame,
@@ -238,3 +239,20 @@ def test_garbage_resync_and_truncated_tail():
         assert c.truncated == 1
         assert c.skipped_bytes == len(garbage) + 50
         assert c.bytes_total == len(stream)
+
+
+@given(
+    st.lists(st.tuples(st.integers(0, 4), st.integers(0, 65535)), min_size=9, max_size=60),
+    st.integers(0, 3),
+)
+def test_sequence_tracker_batch_equals_per_frame(pairs, split):
+    sensor = np.array([p[0] for p in pairs], dtype=np.uint8)
+    seq = np.array([p[1] for p in pairs], dtype=np.uint16)
+    one, batch = SequenceTracker(), SequenceTracker()
+    expected = [one.step(int(a), int(b)) for a, b in zip(sensor, seq, strict=True)]
+    got = []
+    for part in np.array_split(np.arange(len(pairs)), split + 1):
+        gap, reset = batch.steps(sensor[part], seq[part])
+        got += list(zip(gap.tolist(), reset.tolist(), strict=True))
+    assert got == expected
+    assert vars(one) == vars(batch)

@@ -1,1 +1,1 @@
-"""Contact windows, features, models, training and evaluation, and the windowing and inference nodes."""
+"""Contact windows, features, models, training and evaluation; the windowing and inference nodes."""

@@ -1,3 +1,4 @@
+# ruff: noqa: N803, N806  (X / F for sample matrices, as in scikit-learn)
 """Deployable model bundles: train, save, load, predict one window (no ROS).
 
 A bundle is a directory holding
@@ -31,7 +32,7 @@ from sklearn.pipeline import Pipeline
 
 from ext_sense_perception.dataset import WindowSet
 from ext_sense_perception.errors import PerceptionError
-from ext_sense_perception.features import FeatureKind, Geometry, WindowFeatures, as_model_input
+from ext_sense_perception.features import FeatureKind, Geometry, as_model_input
 from ext_sense_perception.models import head_of, make_pipeline
 
 CARD_VERSION = 1
@@ -79,7 +80,19 @@ def _final_classifier(est: Any, y: np.ndarray, seed: int) -> Any:
     return CalibratedClassifierCV(est, method="sigmoid", cv=cv)
 
 
-def train(
+def train(*args: Any, **kwargs: Any) -> TrainedModel:
+    """Fit a deployable model on all windows; see :func:`_train` (BLAS kept single-threaded).
+
+    Small matrices on a shared 2-core machine run up to 20x slower with threaded BLAS
+    (threads spin against each other), so training pins BLAS/OpenMP to one thread.
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return _train(*args, **kwargs)
+
+
+def _train(
     ws: WindowSet,
     features: str,
     model: str,
@@ -122,7 +135,9 @@ def train(
         if precompute:
             fitted_features = clone(feats).fit(X[:1])
             F = fitted_features.transform(X)
-            search = GridSearchCV(head_of(pipe), grid, cv=cv, scoring=scoring, n_jobs=n_jobs).fit(F, ws.y)
+            search = GridSearchCV(head_of(pipe), grid, cv=cv, scoring=scoring, n_jobs=n_jobs).fit(
+                F, ws.y
+            )
             best = clone(pipe).set_params(**search.best_params_)
             best.steps[0] = ("features", fitted_features)
             head = clone(head_of(best))
@@ -134,27 +149,39 @@ def train(
 
             with tempfile.TemporaryDirectory(prefix="ext_sense_cv_") as cache:
                 cached = clone(pipe).set_params(memory=Memory(cache, verbose=0))
-                search = GridSearchCV(cached, grid, cv=cv, scoring=scoring, n_jobs=n_jobs).fit(X, ws.y)
+                search = GridSearchCV(cached, grid, cv=cv, scoring=scoring, n_jobs=n_jobs).fit(
+                    X, ws.y
+                )
             best = clone(pipe).set_params(**search.best_params_)
             best.steps[0] = ("features", clone(best.steps[0][1]).fit(X))
             head = clone(head_of(best))
-            head_input = best.steps[0][1].transform(X) if FeatureKind.parse(features) is not FeatureKind.AUTOENCODER else None
+            head_input = (
+                best.steps[0][1].transform(X)
+                if FeatureKind.parse(features) is not FeatureKind.AUTOENCODER
+                else None
+            )
         metrics: dict[str, Any] = {"cv_folds": cv.get_n_splits()}
         if ws.is_regression:
             metrics["cv_mae_m"] = float(-search.best_score_)
             if head_input is not None:
-                oof = cross_val_predict(head, head_input, ws.y, cv=KFold(4, shuffle=True, random_state=seed))
+                oof = cross_val_predict(
+                    head, head_input, ws.y, cv=KFold(4, shuffle=True, random_state=seed)
+                )
                 resid = ws.y - oof
                 metrics["residual_std_m"] = float(np.sqrt(np.mean(resid**2)))
                 metrics["pi95_halfwidth_m"] = float(np.quantile(np.abs(resid), 0.95))
             else:
                 metrics["residual_std_m"] = float(-search.best_score_ * np.sqrt(np.pi / 2))
-            fitted_head = head.fit(head_input if head_input is not None else best.steps[0][1].transform(X), ws.y)
+            fitted_head = head.fit(
+                head_input if head_input is not None else best.steps[0][1].transform(X), ws.y
+            )
         else:
             metrics["cv_accuracy"] = float(search.best_score_)
             scaler, est = head.steps[0][1], head.steps[1][1]
             final = Pipeline([("scale", scaler), ("model", _final_classifier(est, ws.y, seed))])
-            fitted_head = final.fit(head_input if head_input is not None else best.steps[0][1].transform(X), ws.y)
+            fitted_head = final.fit(
+                head_input if head_input is not None else best.steps[0][1].transform(X), ws.y
+            )
     pipeline = Pipeline([best.steps[0], *fitted_head.steps])
     train_s = time.perf_counter() - t0
     g = ws.geometry
@@ -164,10 +191,16 @@ def train(
         "task": ws.task,
         "sensor": ws.sensor,
         "features": features,
-        "feature_params": {k: v for k, v in fp.items() if isinstance(v, (int, float, str, type(None)))},
+        "feature_params": {
+            k: v for k, v in fp.items() if isinstance(v, (int, float, str, type(None)))
+        },
         "model": model,
         "best_params": {k: _jsonable(v) for k, v in search.best_params_.items()},
-        "rate_hz": rate_hz if rate_hz is not None else 1e9 / g.period_ns if g.sensor == "biotac" else None,
+        "rate_hz": rate_hz
+        if rate_hz is not None
+        else 1e9 / g.period_ns
+        if g.sensor == "biotac"
+        else None,
         "window": {
             "n_channels": g.n_channels,
             "n_samples": g.n_samples,
@@ -199,7 +232,11 @@ def _jsonable(v: Any) -> Any:
 
 
 def _card_id(card: dict[str, Any]) -> str:
-    body = json.dumps({k: card[k] for k in sorted(card) if k not in ("train_s", "id")}, sort_keys=True, default=str)
+    body = json.dumps(
+        {k: card[k] for k in sorted(card) if k not in ("train_s", "id")},
+        sort_keys=True,
+        default=str,
+    )
     digest = hashlib.sha256(body.encode()).hexdigest()[:10]
     return f"{card['task']}-{card['sensor']}-{card['features']}-{card['model']}-{digest}"
 
@@ -228,10 +265,14 @@ def train_anytime(
     """
     g = ws.geometry
     full = g.n_samples * g.period_ns - g.pre_ns
-    return [train(ws.crop(int(p)), features, model, **kwargs) for p in sorted(posts_ns) if 0 < p < full]
+    return [
+        train(ws.crop(int(p)), features, model, **kwargs) for p in sorted(posts_ns) if 0 < p < full
+    ]
 
 
-def save(trained: TrainedModel, out_dir: str | Path, anytime: list[TrainedModel] | tuple = ()) -> Path:
+def save(
+    trained: TrainedModel, out_dir: str | Path, anytime: list[TrainedModel] | tuple = ()
+) -> Path:
     """Write ``model.onnx``, ``model.joblib`` and ``model_card.json`` into ``out_dir``.
 
     Anytime models go to ``out_dir/anytime/post_<ms>ms/`` (bundles of their own) and the main
@@ -266,7 +307,9 @@ def save(trained: TrainedModel, out_dir: str | Path, anytime: list[TrainedModel]
     w = card["window"]
     error = None
     try:
-        (out / ONNX_FILE).write_bytes(to_onnx_bytes(trained.pipeline, w["n_channels"] * w["n_samples"]))
+        (out / ONNX_FILE).write_bytes(
+            to_onnx_bytes(trained.pipeline, w["n_channels"] * w["n_samples"])
+        )
     except PerceptionError as err:
         card["onnx"] = None
         error = err
@@ -285,14 +328,22 @@ class ModelBundle:
         runner: ONNX Runtime session or the scikit-learn pipeline.
     """
 
-    def __init__(self, card: dict[str, Any], backend: str, runner: Any, anytime: tuple = ()) -> None:
+    def __init__(
+        self, card: dict[str, Any], backend: str, runner: Any, anytime: tuple = ()
+    ) -> None:
         self.card = card
-        self.anytime: tuple[ModelBundle, ...] = tuple(sorted(anytime, key=lambda m: m.post_onset_ns))
+        self.anytime: tuple[ModelBundle, ...] = tuple(
+            sorted(anytime, key=lambda m: m.post_onset_ns)
+        )
         self.backend = backend
         self._runner = runner
         w = card["window"]
         self.geometry = Geometry(
-            int(w["n_channels"]), int(w["n_samples"]), int(w["sample_period_ns"]), int(w["pre_onset_ns"]), card["sensor"]
+            int(w["n_channels"]),
+            int(w["n_samples"]),
+            int(w["sample_period_ns"]),
+            int(w["pre_onset_ns"]),
+            card["sensor"],
         )
         self.class_names = tuple(card.get("class_names", ()))
         self.model_id = str(card.get("id", ""))
@@ -335,8 +386,9 @@ class ModelBundle:
         return np.asarray(self._runner.predict(X), dtype=np.float64).reshape(-1), None
 
     def model_for(self, window: Any) -> ModelBundle:
-        """The model for a window's post-onset length: this one, or the longest anytime model
-        that fits a shorter (provisional) window.
+        """The model for a window's post-onset length.
+
+        This model, or for a shorter (provisional) window the longest anytime model that fits.
 
         Raises:
             PerceptionError: when no model fits the window's post-onset length.
@@ -386,10 +438,16 @@ class ModelBundle:
             "compute_latency_ns": int(latency),
         }
         if not self.class_names:
-            return Estimate(**common, tap_position_m=float(pred[0]), tap_position_std_m=self.position_std_m)
+            return Estimate(
+                **common, tap_position_m=float(pred[0]), tap_position_std_m=self.position_std_m
+            )
         p = proba[0]
         idx = int(np.argmax(p))
-        stab = float(p[self.class_names.index("stable")]) if "stable" in self.class_names else float("nan")
+        stab = (
+            float(p[self.class_names.index("stable")])
+            if "stable" in self.class_names
+            else float("nan")
+        )
         return Estimate(
             **common,
             class_index=idx,
@@ -415,14 +473,16 @@ def load_model(directory: str | Path, backend: str = "onnx") -> ModelBundle:
     """
     d = Path(directory)
     if backend not in ("onnx", "sklearn"):
-        raise PerceptionError(f"The 'backend' parameter must be 'onnx' or 'sklearn'. Got {backend!r} instead.")
+        raise PerceptionError(
+            f"The 'backend' parameter must be 'onnx' or 'sklearn'. Got {backend!r} instead."
+        )
     card_path = d / CARD_FILE
     if not card_path.is_file():
         raise PerceptionError(f"Model card missing: {str(card_path)!r} does not exist.")
     try:
         card = json.loads(card_path.read_text())
         for key in ("task", "sensor", "window", "features", "model"):
-            card[key]  # noqa: B018 - presence check
+            card[key]
     except (ValueError, KeyError, TypeError) as err:
         raise PerceptionError(f"Model card {str(card_path)!r} is corrupt: {err}") from err
     if backend == "onnx":
@@ -435,7 +495,9 @@ def load_model(directory: str | Path, backend: str = "onnx") -> ModelBundle:
             opts = ort.SessionOptions()
             opts.intra_op_num_threads = 1
             opts.inter_op_num_threads = 1
-            runner = ort.InferenceSession(str(path), sess_options=opts, providers=["CPUExecutionProvider"])
+            runner = ort.InferenceSession(
+                str(path), sess_options=opts, providers=["CPUExecutionProvider"]
+            )
         except Exception as err:  # onnxruntime raises its own exception types
             raise PerceptionError(f"ONNX model {str(path)!r} is corrupt: {err}") from err
     else:
@@ -448,5 +510,8 @@ def load_model(directory: str | Path, backend: str = "onnx") -> ModelBundle:
             runner = joblib.load(path)
         except Exception as err:  # unpickling raises many types
             raise PerceptionError(f"scikit-learn model {str(path)!r} is corrupt: {err}") from err
-    anytime = tuple(load_model(d / "anytime" / f"post_{ms:g}ms", backend) for ms in card.get("anytime_post_ms", []))
+    anytime = tuple(
+        load_model(d / "anytime" / f"post_{ms:g}ms", backend)
+        for ms in card.get("anytime_post_ms", [])
+    )
     return ModelBundle(card, backend, runner, anytime)

@@ -1,3 +1,4 @@
+# ruff: noqa: N806  (X / F for sample matrices, as in scikit-learn)
 """``ext-sense features|train|evaluate|report``: learning from recordings.
 
 Heavy imports (scikit-learn, ONNX Runtime, matplotlib) live inside the handlers so
@@ -16,32 +17,68 @@ MS = 1_000_000
 
 
 def _common(p: argparse.ArgumentParser, *, need_task: bool = True) -> None:
-    p.add_argument("--task", required=need_task, help="tap_localization, handover_stability or food_identification")
+    p.add_argument(
+        "--task",
+        required=need_task,
+        help="tap_localization, handover_stability or food_identification",
+    )
     p.add_argument("--sensor", required=need_task, help="nuskin or biotac")
     p.add_argument(
         "--data",
         required=True,
-        help="simulator dataset.npz, the paper's preprocessed .npz, a food-poking capture directory, "
+        help="simulator dataset.npz, the paper's preprocessed .npz, a food-poking capture "
+        "directory, "
         "or (features only) one recording (.tact / BioTac .csv)",
     )
-    p.add_argument("--features", default=None, help="baseline, fft, est, activity, autoencoder (default: the project's best)")
-    p.add_argument("--model", default=None, help="svm_linear, svm_rbf, svm, mlp, gru, random_forest (default: best)")
-    p.add_argument("--post-ms", type=float, default=None, help="post-contact window used, ms (default: all)")
-    p.add_argument("--rate-hz", type=float, default=None, help="reduced sampling rate, Hz (NUSkin refractory / BioTac decimation)")
-    p.add_argument("--channels", default=None, help="all, left, right, taxel:N or ids:a,b,c (default all)")
-    p.add_argument("--bin-ms", type=float, default=None, help="NUSkin feature bin, ms (default 5; food 50)")
+    p.add_argument(
+        "--features",
+        default=None,
+        help="baseline, fft, est, activity, autoencoder (default: the project's best)",
+    )
+    p.add_argument(
+        "--model",
+        default=None,
+        help="svm_linear, svm_rbf, svm, mlp, gru, random_forest (default: best)",
+    )
+    p.add_argument(
+        "--post-ms", type=float, default=None, help="post-contact window used, ms (default: all)"
+    )
+    p.add_argument(
+        "--rate-hz",
+        type=float,
+        default=None,
+        help="reduced sampling rate, Hz (NUSkin refractory / BioTac decimation)",
+    )
+    p.add_argument(
+        "--channels", default=None, help="all, left, right, taxel:N or ids:a,b,c (default all)"
+    )
+    p.add_argument(
+        "--bin-ms", type=float, default=None, help="NUSkin feature bin, ms (default 5; food 50)"
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``features``, ``train``, ``evaluate`` and ``report``."""
-    p = subparsers.add_parser("features", help="compute a feature set from a recording or dataset into an .npy")
+    p = subparsers.add_parser(
+        "features", help="compute a feature set from a recording or dataset into an .npy"
+    )
     _common(p)
-    p.add_argument("--essentials", default=None, help="the paper's essentials CSV (onsets and labels) for a raw recording")
-    p.add_argument("--out", required=True, help="output .npy (features, (n_windows, n_features)); labels go to OUT.labels.npy")
+    p.add_argument(
+        "--essentials",
+        default=None,
+        help="the paper's essentials CSV (onsets and labels) for a raw recording",
+    )
+    p.add_argument(
+        "--out",
+        required=True,
+        help="output .npy (features, (n_windows, n_features)); labels go to OUT.labels.npy",
+    )
     p.set_defaults(func=_cmd_features)
 
-    p = subparsers.add_parser("train", help="train a deployable model bundle (model.onnx, model.joblib, model_card.json)")
+    p = subparsers.add_parser(
+        "train", help="train a deployable model bundle (model.onnx, model.joblib, model_card.json)"
+    )
     _common(p)
     p.add_argument("--out", required=True, help="bundle directory")
     p.add_argument(
@@ -52,15 +89,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.set_defaults(func=_cmd_train)
 
-    p = subparsers.add_parser("evaluate", help="the paper's protocol (K random 90/10 splits, 4-fold grid search)")
+    p = subparsers.add_parser(
+        "evaluate", help="the paper's protocol (K random 90/10 splits, 4-fold grid search)"
+    )
     _common(p)
-    p.add_argument("--k", type=int, default=None, help="splits (default: 5 for tap and RNNs, else 20)")
+    p.add_argument(
+        "--k", type=int, default=None, help="splits (default: 5 for tap and RNNs, else 20)"
+    )
     p.add_argument("--json", default=None, help="write the result as JSON here")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_evaluate)
 
-    p = subparsers.add_parser("report", help="paper-style tables (markdown) and plots (PNG) of accuracy against time")
-    p.add_argument("--data", action="append", required=True, help="dataset (repeatable: one per task/rod)")
+    p = subparsers.add_parser(
+        "report", help="paper-style tables (markdown) and plots (PNG) of accuracy against time"
+    )
+    p.add_argument(
+        "--data", action="append", required=True, help="dataset (repeatable: one per task/rod)"
+    )
     p.add_argument("--out", required=True, help="output directory (report.md and PNGs)")
     p.add_argument("--k", type=int, default=None, help="splits per point (default 3; quick)")
     p.add_argument("--quick", action="store_true", help="fewer points, for a smoke run")
@@ -76,15 +121,17 @@ def _load(args: argparse.Namespace):
     if args.rate_hz is not None and args.sensor == "nuskin":
         kwargs["rate_hz"] = args.rate_hz
     if path.suffix in (".tact", ".csv"):
-        ws = from_recording(path, args.task, args.sensor, essentials=getattr(args, "essentials", None))
+        ws = from_recording(
+            path, args.task, args.sensor, essentials=getattr(args, "essentials", None)
+        )
     else:
         ws = load_window_set(path, args.task, args.sensor, **kwargs)
     if args.post_ms is not None:
-        ws = ws.crop(int(round(args.post_ms * MS)))
+        ws = ws.crop(round(args.post_ms * MS))
     return ws
 
 
-def _choice(args: argparse.Namespace, ws) -> tuple[str, str, dict[str, Any], dict[str, list[Any]]]:  # noqa: ANN001
+def _choice(args: argparse.Namespace, ws) -> tuple[str, str, dict[str, Any], dict[str, list[Any]]]:
     from ext_sense_perception.models import default_choice, default_feature_grid
 
     features, model = default_choice(ws.task, ws.sensor)
@@ -94,7 +141,7 @@ def _choice(args: argparse.Namespace, ws) -> tuple[str, str, dict[str, Any], dic
     if args.channels:
         params["channels"] = args.channels
     if args.bin_ms is not None:
-        params["bin_ns"] = int(round(args.bin_ms * MS))
+        params["bin_ns"] = round(args.bin_ms * MS)
     if args.rate_hz is not None and ws.sensor == "biotac":
         params["rate_hz"] = args.rate_hz
     return features, model, params, default_feature_grid(ws.task, ws.sensor, features)
@@ -123,7 +170,9 @@ def _cmd_features(args: argparse.Namespace) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     np.save(out, F.astype(np.float32))
     np.save(out.with_suffix(".labels.npy"), ws.y)
-    print(f"{out}: {F.shape[0]} windows x {F.shape[1]} {features} features ({ws.task}, {ws.sensor})")
+    print(
+        f"{out}: {F.shape[0]} windows x {F.shape[1]} {features} features ({ws.task}, {ws.sensor})"
+    )
     return 0
 
 
@@ -134,18 +183,33 @@ def _cmd_train(args: argparse.Namespace) -> int:
     try:
         ws = _load(args)
         features, model, params, grid = _choice(args, ws)
-        trained = bundle.train(ws, features, model, params, grid, seed=args.seed, rate_hz=args.rate_hz)
+        trained = bundle.train(
+            ws, features, model, params, grid, seed=args.seed, rate_hz=args.rate_hz
+        )
         posts = _anytime_posts(args.anytime_ms, ws.task)
         anytime = bundle.train_anytime(
-            ws, features, model, posts, feature_params=params, feature_grid=grid, seed=args.seed, rate_hz=args.rate_hz
+            ws,
+            features,
+            model,
+            posts,
+            feature_params=params,
+            feature_grid=grid,
+            seed=args.seed,
+            rate_hz=args.rate_hz,
         )
         bundle.save(trained, args.out, anytime)
     except PerceptionError as err:
         return _fail(err)
     card = trained.card
     if anytime:
-        print(f"anytime models for {[a.card['window']['post_onset_ns'] / MS for a in anytime]} ms post-contact")
-    print(f"{args.out}: {card['id']} trained on {card['n_train']} windows in {card['train_s']:.1f} s; metrics {card['metrics']}")
+        print(
+            f"anytime models for {[a.card['window']['post_onset_ns'] / MS for a in anytime]} ms "
+            "post-contact"
+        )
+    print(
+        f"{args.out}: {card['id']} trained on {card['n_train']} windows in {card['train_s']:.1f} "
+        f"s; metrics {card['metrics']}"
+    )
     return 0
 
 
@@ -157,12 +221,14 @@ def _anytime_posts(text: str | None, task: str) -> tuple[int, ...]:
     if text.strip().lower() in ("", "none"):
         return ()
     try:
-        return tuple(int(round(float(v) * MS)) for v in text.split(","))
+        return tuple(round(float(v) * MS) for v in text.split(","))
     except ValueError as err:
-        raise PerceptionError(f"The '--anytime-ms' option must list numbers. Got {text!r} instead.") from err
+        raise PerceptionError(
+            f"The '--anytime-ms' option must list numbers. Got {text!r} instead."
+        ) from err
 
 
-def measure_inference(trained, ws, n: int = 200) -> dict[str, float]:  # noqa: ANN001
+def measure_inference(trained, ws, n: int = 200) -> dict[str, float]:
     """Single-window inference latency (prepare + features + model) for both backends, ms."""
     import tempfile
     import time
@@ -188,8 +254,18 @@ def measure_inference(trained, ws, n: int = 200) -> dict[str, float]:  # noqa: A
     return out
 
 
-def evaluation_record(ws, features: str, model: str, params: dict[str, Any], grid: dict[str, list[Any]], k: int | None,
-                      seed: int, progress: bool, rate_hz: float | None, timing: bool = True) -> dict[str, Any]:  # noqa: ANN001
+def evaluation_record(
+    ws,
+    features: str,
+    model: str,
+    params: dict[str, Any],
+    grid: dict[str, list[Any]],
+    k: int | None,
+    seed: int,
+    progress: bool,
+    rate_hz: float | None,
+    timing: bool = True,
+) -> dict[str, Any]:
     """Run the protocol and (optionally) time a model trained on everything; JSON-ready dict."""
     import numpy as np
 
@@ -226,8 +302,14 @@ def evaluation_record(ws, features: str, model: str, params: dict[str, Any], gri
         t = measure_inference(trained, ws)
         rec.update(
             {
-                "infer_p50_ms": {"sklearn": t["infer_p50_ms_sklearn"], "onnx": t["infer_p50_ms_onnx"]},
-                "infer_p99_ms": {"sklearn": t["infer_p99_ms_sklearn"], "onnx": t["infer_p99_ms_onnx"]},
+                "infer_p50_ms": {
+                    "sklearn": t["infer_p50_ms_sklearn"],
+                    "onnx": t["infer_p50_ms_onnx"],
+                },
+                "infer_p99_ms": {
+                    "sklearn": t["infer_p99_ms_sklearn"],
+                    "onnx": t["infer_p99_ms_onnx"],
+                },
                 "infer_p50_ms_sklearn": t["infer_p50_ms_sklearn"],
                 "infer_p99_ms_sklearn": t["infer_p99_ms_sklearn"],
                 "infer_p50_ms_onnx": t["infer_p50_ms_onnx"],
@@ -246,12 +328,15 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     try:
         ws = _load(args)
         features, model, params, grid = _choice(args, ws)
-        rec = evaluation_record(ws, features, model, params, grid, args.k, args.seed, not args.no_progress, args.rate_hz)
+        rec = evaluation_record(
+            ws, features, model, params, grid, args.k, args.seed, not args.no_progress, args.rate_hz
+        )
     except PerceptionError as err:
         return _fail(err)
     unit = "m" if rec["metric"] == "mae_m" else ""
     print(
-        f"{rec['task']} {rec['sensor']} {features}+{model}: {rec['metric']} {rec['mean']:.4f} +- {rec['std']:.4f} {unit}"
+        f"{rec['task']} {rec['sensor']} {features}+{model}: {rec['metric']} {rec['mean']:.4f} +- "
+        f"{rec['std']:.4f} {unit}"
         f" (k={rec['k']}, {rec['n_windows']} windows"
         + (f", excluded {', '.join(rec['excluded'])}" if rec["excluded"] else "")
         + ")"
@@ -261,8 +346,10 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         for name, row in zip(rec["class_names"], rec["confusion"], strict=True):
             print(f"  {name:>12s} {row}")
     print(
-        f"train {rec['train_s']:.2f} s/split; inference p50/p99 sklearn {rec['infer_p50_ms_sklearn']:.3f}/"
-        f"{rec['infer_p99_ms_sklearn']:.3f} ms, onnx {rec['infer_p50_ms_onnx']:.3f}/{rec['infer_p99_ms_onnx']:.3f} ms;"
+        f"train {rec['train_s']:.2f} s/split; inference p50/p99 sklearn "
+        f"{rec['infer_p50_ms_sklearn']:.3f}/"
+        f"{rec['infer_p99_ms_sklearn']:.3f} ms, onnx "
+        f"{rec['infer_p50_ms_onnx']:.3f}/{rec['infer_p99_ms_onnx']:.3f} ms;"
         f" decision latency {rec['decision_latency_ms']:.1f} ms"
     )
     if args.json:
@@ -276,7 +363,9 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from ext_sense_perception.report import build_report
 
     try:
-        path = build_report([Path(d) for d in args.data], Path(args.out), k=args.k, quick=args.quick, seed=args.seed)
+        path = build_report(
+            [Path(d) for d in args.data], Path(args.out), k=args.k, quick=args.quick, seed=args.seed
+        )
     except PerceptionError as err:
         return _fail(err)
     print(f"report written to {path}")

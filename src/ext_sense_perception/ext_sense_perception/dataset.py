@@ -1,7 +1,9 @@
+# ruff: noqa: N806  (X / F for sample matrices, as in scikit-learn)
 """Labelled sets of contact windows built from recordings (no ROS).
 
 Every source becomes a :class:`WindowSet`: windows ``(n, n_channels, n_samples)`` float32 cut
-exactly as the online windowers cut them (:func:`~ext_sense_perception.windows.window_from_recording`),
+exactly as the online windowers cut them
+(:func:`~ext_sense_perception.windows.window_from_recording`),
 their labels, and the geometry a model trained on them accepts.
 """
 
@@ -16,7 +18,11 @@ import numpy as np
 from ext_sense_perception.enums import Sensor, Task
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features import Geometry, refractory_mask
-from ext_sense_perception.importers import food_poking_trials, load_preprocessed_npz, load_sim_dataset
+from ext_sense_perception.importers import (
+    food_poking_trials,
+    load_preprocessed_npz,
+    load_sim_dataset,
+)
 from ext_sense_perception.windows import MS, PAC_PERIOD_NS, WindowConfig, window_from_recording
 
 DEFAULT_DATASET_BIN_NS = 1 * MS  # offline NUSkin bin: 4x coarser than online, 4x less memory
@@ -51,7 +57,10 @@ class WindowSet(NamedTuple):
     def subset(self, mask: np.ndarray) -> WindowSet:
         """The windows selected by a boolean mask or index array."""
         return self._replace(
-            X=self.X[mask], y=self.y[mask], groups=self.groups[mask], rod_length_m=self.rod_length_m[mask]
+            X=self.X[mask],
+            y=self.y[mask],
+            groups=self.groups[mask],
+            rod_length_m=self.rod_length_m[mask],
         )
 
     def crop(self, post_ns: int) -> WindowSet:
@@ -64,9 +73,12 @@ class WindowSet(NamedTuple):
         n = int((g.pre_ns + post_ns) // g.period_ns)
         if not 0 < n <= g.n_samples:
             raise PerceptionError(
-                f"The 'post_ns' parameter must be in (-pre, {g.n_samples * g.period_ns - g.pre_ns}]. Got {post_ns} instead."
+                "The 'post_ns' parameter must be in (-pre, "
+                f"{g.n_samples * g.period_ns - g.pre_ns}]. Got {post_ns} instead."
             )
-        return self._replace(X=np.ascontiguousarray(self.X[:, :, :n]), geometry=g._replace(n_samples=n))
+        return self._replace(
+            X=np.ascontiguousarray(self.X[:, :, :n]), geometry=g._replace(n_samples=n)
+        )
 
 
 def file_hash(*paths: str | Path) -> str:
@@ -137,21 +149,30 @@ def from_sim_dataset(
             if rate_hz is not None:
                 keep = refractory_mask(t, tax, rate_hz)
                 t, tax, pol = t[keep], tax[keep], pol[keep]
-            windows.append(window_from_recording(config, int(onsets[i]), t_ns=t, taxel=tax, polarity=pol))
+            windows.append(
+                window_from_recording(config, int(onsets[i]), t_ns=t, taxel=tax, polarity=pol)
+            )
     else:
         if "pac" not in d:
             raise PerceptionError(f"BioTac dataset {str(path)!r} must hold 'pac'.")
         pac = np.asarray(d["pac"])
         t0 = np.asarray(d.get("pac_t0_ns", np.zeros(n, np.int64)), dtype=np.int64)
         for i in range(n):
-            windows.append(window_from_recording(config, int(onsets[i]), pac=pac[i], pac_t0_ns=int(t0[i])))
+            windows.append(
+                window_from_recording(config, int(onsets[i]), pac=pac[i], pac_t0_ns=int(t0[i]))
+            )
     X = np.stack([w.data for w in windows]) if windows else np.zeros((0, 0, 0), np.float32)
-    regression = str(d.get("label_kind", "regression" if task.is_regression else "classification")) == "regression"
+    regression = (
+        str(d.get("label_kind", "regression" if task.is_regression else "classification"))
+        == "regression"
+    )
     y, names = _labels(d["y"], regression)
     geometry = Geometry(X.shape[1], X.shape[2], config.period_ns, config.pre_ns, sensor.label)
     rod = np.asarray(d.get("rod_length_m", np.full(n, np.nan)), dtype=np.float64)
     groups = np.asarray(d.get("trial", np.arange(n)))
-    return WindowSet(task.label, sensor.label, X, y, geometry, names, groups, rod, str(path), file_hash(path))
+    return WindowSet(
+        task.label, sensor.label, X, y, geometry, names, groups, rod, str(path), file_hash(path)
+    )
 
 
 def from_food_poking(
@@ -178,7 +199,12 @@ def from_food_poking(
     """
     recs, excluded = food_poking_trials(directory, include_empty=include_empty)
     config = WindowConfig.for_task(
-        Task.FOOD_IDENTIFICATION, Sensor.NUSKIN, pre_ns=0, post_ns=post_ns, bin_ns=bin_ns, provisional_post_ns=()
+        Task.FOOD_IDENTIFICATION,
+        Sensor.NUSKIN,
+        pre_ns=0,
+        post_ns=post_ns,
+        bin_ns=bin_ns,
+        provisional_post_ns=(),
     )
     windows = []
     for rec in recs:
@@ -187,11 +213,17 @@ def from_food_poking(
         if rate_hz is not None:
             keep = refractory_mask(t, tax, rate_hz)
             t, tax, pol = t[keep], tax[keep], pol[keep]
-        windows.append(window_from_recording(config, rec.motion.start_ns, t_ns=t, taxel=tax, polarity=pol))
+        windows.append(
+            window_from_recording(config, rec.motion.start_ns, t_ns=t, taxel=tax, polarity=pol)
+        )
     X = np.stack([w.data for w in windows])
     y, names = _labels(np.array([r.label for r in recs]), regression=False)
     geometry = Geometry(X.shape[1], X.shape[2], config.period_ns, config.pre_ns, "nuskin")
-    files = [p for p in sorted(Path(directory).glob("*_zero_*")) if p.suffix in (".tact", ".bag") and "_raw" not in p.name]
+    files = [
+        p
+        for p in sorted(Path(directory).glob("*_zero_*"))
+        if p.suffix in (".tact", ".bag") and "_raw" not in p.name
+    ]
     files = [p for p in files if p.stem.split("_zero_")[0] != "empty" or include_empty]
     return WindowSet(
         Task.FOOD_IDENTIFICATION.label,
@@ -208,7 +240,9 @@ def from_food_poking(
     )
 
 
-def from_preprocessed_npz(path: str | Path, task: str, sensor: str, frequency_hz: float | None = None) -> WindowSet:
+def from_preprocessed_npz(
+    path: str | Path, task: str, sensor: str, frequency_hz: float | None = None
+) -> WindowSet:
     """The paper's preprocessed ``.npz`` as a window set.
 
     NUSkin: 5 ms bins from 50 ms before contact (handover v2 and food: from 0). BioTac: 2200 Hz
@@ -234,7 +268,7 @@ def from_preprocessed_npz(path: str | Path, task: str, sensor: str, frequency_hz
         period = 5 * MS if task_e is not Task.FOOD_IDENTIFICATION else 50 * MS
         pre = 50 * MS if task_e is Task.TAP_LOCALIZATION else 0
     else:
-        period = PAC_PERIOD_NS if frequency_hz is None else int(round(1e9 / frequency_hz))
+        period = PAC_PERIOD_NS if frequency_hz is None else round(1e9 / frequency_hz)
         pre = 100 * period
     y, names = _labels(labels, regression=task_e.is_regression)
     if task_e.is_regression:
@@ -242,11 +276,22 @@ def from_preprocessed_npz(path: str | Path, task: str, sensor: str, frequency_hz
     geometry = Geometry(signals.shape[1], signals.shape[2], period, pre, sensor_e.label)
     n = len(signals)
     return WindowSet(
-        task_e.label, sensor_e.label, signals, y, geometry, names, np.arange(n), np.full(n, np.nan), str(path), file_hash(path)
+        task_e.label,
+        sensor_e.label,
+        signals,
+        y,
+        geometry,
+        names,
+        np.arange(n),
+        np.full(n, np.nan),
+        str(path),
+        file_hash(path),
     )
 
 
-def load_window_set(data: str | Path, task: str | None = None, sensor: str | None = None, **kwargs: object) -> WindowSet:
+def load_window_set(
+    data: str | Path, task: str | None = None, sensor: str | None = None, **kwargs: object
+) -> WindowSet:
     """Any supported source as a window set, chosen by what ``data`` is.
 
     Args:
@@ -272,16 +317,25 @@ def load_window_set(data: str | Path, task: str | None = None, sensor: str | Non
             raise PerceptionError(f"Cannot read {str(path)!r}: {err}") from err
         if "signals" in files:
             if task is None or sensor is None:
-                raise PerceptionError("The 'task' and 'sensor' parameters are needed for a preprocessed npz. Got None.")
+                raise PerceptionError(
+                    "The 'task' and 'sensor' parameters are needed for a preprocessed npz. Got "
+                    "None."
+                )
             return from_preprocessed_npz(path, task, sensor, **kwargs)  # type: ignore[arg-type]
         ws = from_sim_dataset(path, **kwargs)  # type: ignore[arg-type]
         if task is not None and Task.parse(task).label != ws.task:
-            raise PerceptionError(f"The 'task' parameter must match the dataset's {ws.task!r}. Got {task!r} instead.")
+            raise PerceptionError(
+                f"The 'task' parameter must match the dataset's {ws.task!r}. Got {task!r} instead."
+            )
         if sensor is not None and Sensor.parse(sensor).label != ws.sensor:
-            raise PerceptionError(f"The 'sensor' parameter must match the dataset's {ws.sensor!r}. Got {sensor!r} instead.")
+            raise PerceptionError(
+                f"The 'sensor' parameter must match the dataset's {ws.sensor!r}. Got {sensor!r} "
+                "instead."
+            )
         return ws
     raise PerceptionError(
-        f"The 'data' parameter must be a food-poking directory or an .npz dataset. Got {str(path)!r} instead."
+        "The 'data' parameter must be a food-poking directory or an .npz dataset. Got "
+        f"{str(path)!r} instead."
     )
 
 
@@ -331,34 +385,51 @@ def from_recording(
             onsets = np.array([read_arm_motion(path.with_suffix(".bag")).start_ns])
             labels = np.array([path.stem.split("_zero_")[0]])
             if config is None:
-                config = WindowConfig.for_task(task_e, sensor_e, pre_ns=0, post_ns=FOOD_CAPTURE_POST_NS, bin_ns=FOOD_CAPTURE_BIN_NS)
+                config = WindowConfig.for_task(
+                    task_e,
+                    sensor_e,
+                    pre_ns=0,
+                    post_ns=FOOD_CAPTURE_POST_NS,
+                    bin_ns=FOOD_CAPTURE_BIN_NS,
+                )
         else:
             events = read_paper_tact(path)
             key = "t" if "t" in cols else "tapped_time"
             if key not in cols:
-                raise PerceptionError(f"Essentials {str(essentials)!r} must have a 't' or 'tapped_time' column.")
+                raise PerceptionError(
+                    f"Essentials {str(essentials)!r} must have a 't' or 'tapped_time' column."
+                )
             onsets = (np.round(cols[key] * 1e6).astype(np.int64)) * 1000
             labels = _paper_labels(cols, task_e)
         config = config or WindowConfig.for_task(task_e, sensor_e, bin_ns=DEFAULT_DATASET_BIN_NS)
         wins = [
-            window_from_recording(config, int(o), t_ns=events.t_ns, taxel=events.taxel, polarity=events.polarity)
+            window_from_recording(
+                config, int(o), t_ns=events.t_ns, taxel=events.taxel, polarity=events.polarity
+            )
             for o in onsets
         ]
     else:
         if essentials is None:
-            raise PerceptionError("The 'essentials' parameter is needed for a BioTac recording. Got None instead.")
+            raise PerceptionError(
+                "The 'essentials' parameter is needed for a BioTac recording. Got None instead."
+            )
         pac, t_ns = read_biotac_csv(path)
         if "orignal_index" in cols:
             idx = cols["orignal_index"].astype(int)
         elif "tapped_time" in cols:
-            idx = np.searchsorted(t_ns, (np.round(cols["tapped_time"] * 1e6).astype(np.int64)) * 1000)
+            idx = np.searchsorted(
+                t_ns, (np.round(cols["tapped_time"] * 1e6).astype(np.int64)) * 1000
+            )
         else:
-            raise PerceptionError(f"Essentials {str(essentials)!r} must have 'orignal_index' or 'tapped_time'.")
+            raise PerceptionError(
+                f"Essentials {str(essentials)!r} must have 'orignal_index' or 'tapped_time'."
+            )
         labels = _paper_labels(cols, task_e)
         config = config or WindowConfig.for_task(task_e, sensor_e)
         # sample i of the recording sits at i periods from sample 0: the paper's crops are by index
         wins = [
-            window_from_recording(config, int(i) * PAC_PERIOD_NS, pac=pac[None, :], pac_t0_ns=0) for i in idx
+            window_from_recording(config, int(i) * PAC_PERIOD_NS, pac=pac[None, :], pac_t0_ns=0)
+            for i in idx
         ]
     X = np.stack([w.data for w in wins])
     y, names = _labels(labels, regression=task_e.is_regression)
@@ -366,7 +437,16 @@ def from_recording(
     n = len(X)
     hashed = [path] + ([Path(essentials)] if essentials is not None else [])
     return WindowSet(
-        task_e.label, sensor_e.label, X, y, geometry, names, np.arange(n), np.full(n, np.nan), str(path), file_hash(*hashed)
+        task_e.label,
+        sensor_e.label,
+        X,
+        y,
+        geometry,
+        names,
+        np.arange(n),
+        np.full(n, np.nan),
+        str(path),
+        file_hash(*hashed),
     )
 
 

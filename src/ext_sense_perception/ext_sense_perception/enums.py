@@ -36,13 +36,19 @@ class Task(IntEnum):
         if isinstance(value, int):
             return cls(value)
         key = str(value).strip().upper().replace("-", "_")
-        aliases = {"TAP": "TAP_LOCALIZATION", "HANDOVER": "HANDOVER_STABILITY", "FOOD": "FOOD_IDENTIFICATION"}
+        aliases = {
+            "TAP": "TAP_LOCALIZATION",
+            "HANDOVER": "HANDOVER_STABILITY",
+            "FOOD": "FOOD_IDENTIFICATION",
+        }
         key = aliases.get(key, key)
         try:
             return cls[key]
         except KeyError as err:
             names = ", ".join(t.label for t in cls)
-            raise PerceptionError(f"The 'task' parameter must be one of {names}. Got {value!r} instead.") from err
+            raise PerceptionError(
+                f"The 'task' parameter must be one of {names}. Got {value!r} instead."
+            ) from err
 
 
 class Sensor(IntEnum):

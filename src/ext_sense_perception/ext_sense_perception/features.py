@@ -1,3 +1,4 @@
+# ruff: noqa: N803  (X / F for sample matrices, as in scikit-learn)
 """Feature sets computed from contact windows (no ROS).
 
 Every feature set here is a fixed linear map along the time axis of the window (rebinning,
@@ -16,6 +17,7 @@ per-taxel refractory drop works on events, before binning: :func:`refractory_mas
 
 from __future__ import annotations
 
+import itertools
 from enum import IntEnum
 from typing import NamedTuple
 
@@ -50,12 +52,16 @@ class FeatureKind(IntEnum):
         if isinstance(value, int):
             return cls(value)
         key = str(value).strip().upper()
-        key = {"AE": "AUTOENCODER", "RAW": "BASELINE", "BINNED": "BASELINE", "PAC": "BASELINE"}.get(key, key)
+        key = {"AE": "AUTOENCODER", "RAW": "BASELINE", "BINNED": "BASELINE", "PAC": "BASELINE"}.get(
+            key, key
+        )
         try:
             return cls[key]
         except KeyError as err:
             names = ", ".join(k.name.lower() for k in cls)
-            raise PerceptionError(f"The 'features' parameter must be one of {names}. Got {value!r} instead.") from err
+            raise PerceptionError(
+                f"The 'features' parameter must be one of {names}. Got {value!r} instead."
+            ) from err
 
 
 class Geometry(NamedTuple):
@@ -93,13 +99,19 @@ def select_channels(selection: str | None, n_channels: int) -> np.ndarray:
         try:
             ids = [int(v) for v in selection.split(":", 1)[1].split(",")]
         except ValueError as err:
-            raise PerceptionError(f"The 'channels' parameter must list integer ids. Got {selection!r} instead.") from err
+            raise PerceptionError(
+                f"The 'channels' parameter must list integer ids. Got {selection!r} instead."
+            ) from err
         idx = np.asarray(ids) - 1
         if idx.size == 0 or idx.min() < 0 or idx.max() >= n_channels:
-            raise PerceptionError(f"The 'channels' parameter must name ids in 1..{n_channels}. Got {selection!r} instead.")
+            raise PerceptionError(
+                f"The 'channels' parameter must name ids in 1..{n_channels}. Got {selection!r} "
+                "instead."
+            )
         return idx
     raise PerceptionError(
-        f"The 'channels' parameter must be all, left, right, taxel:N or ids:a,b. Got {selection!r} instead."
+        "The 'channels' parameter must be all, left, right, taxel:N or ids:a,b. Got "
+        f"{selection!r} instead."
     )
 
 
@@ -123,7 +135,7 @@ def refractory_mask(t_ns: np.ndarray, taxel: np.ndarray, rate_hz: float) -> np.n
         raise PerceptionError(f"The 'rate_hz' parameter must be > 0. Got {rate_hz!r} instead.")
     t = np.asarray(t_ns, dtype=np.int64)
     tax = np.asarray(taxel)
-    tau = int(round(1e9 / rate_hz))
+    tau = round(1e9 / rate_hz)
     keep = np.zeros(len(t), dtype=bool)
     order = np.argsort(tax, kind="stable")
     bounds = np.flatnonzero(np.diff(tax[order])) + 1
@@ -154,7 +166,9 @@ def decimation_indices(n_samples: int, rate_hz: float, base_rate_hz: float) -> n
         Sorted indices.
     """
     if not 0 < rate_hz <= base_rate_hz:
-        raise PerceptionError(f"The 'rate_hz' parameter must be in (0, {base_rate_hz}]. Got {rate_hz!r} instead.")
+        raise PerceptionError(
+            f"The 'rate_hz' parameter must be in (0, {base_rate_hz}]. Got {rate_hz!r} instead."
+        )
     if rate_hz >= base_rate_hz:
         return np.arange(n_samples)
     keep = max(int(rate_hz / base_rate_hz * n_samples) + 1, 1)
@@ -181,7 +195,9 @@ def _dft_matrices(n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.cos(ang), -np.sin(ang)
 
 
-def est_kernel(t_s: np.ndarray, weights: list[tuple[np.ndarray, np.ndarray]], slope: float = 0.1) -> np.ndarray:
+def est_kernel(
+    t_s: np.ndarray, weights: list[tuple[np.ndarray, np.ndarray]], slope: float = 0.1
+) -> np.ndarray:
     """Evaluate the EST kernel MLP (1 -> 30 -> 30 -> 1, Leaky ReLU) at lags ``t_s`` seconds.
 
     Args:
@@ -200,7 +216,9 @@ def est_kernel(t_s: np.ndarray, weights: list[tuple[np.ndarray, np.ndarray]], sl
     return h[:, 0]
 
 
-def fit_est_kernel(tau_s: float = 0.005, span_s: float = 0.05, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
+def fit_est_kernel(
+    tau_s: float = 0.005, span_s: float = 0.05, seed: int = 0
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """Weights of the EST kernel MLP, fitted to a decaying exponential ``exp(-t / tau)``.
 
     The paper learns this kernel end to end with the classifier (torch). Without torch the
@@ -217,7 +235,9 @@ def fit_est_kernel(tau_s: float = 0.005, span_s: float = 0.05, seed: int = 0) ->
     """
     rng = np.random.default_rng(seed)
     sizes = [1, 30, 30, 1]
-    weights = [(rng.normal(0, np.sqrt(2.0 / a), (a, b)), np.zeros(b)) for a, b in zip(sizes[:-1], sizes[1:], strict=True)]
+    weights = [
+        (rng.normal(0, np.sqrt(2.0 / a), (a, b)), np.zeros(b)) for a, b in itertools.pairwise(sizes)
+    ]
     x = np.linspace(0.0, span_s, 256)[:, None] / span_s
     y = np.exp(-x[:, 0] * span_s / tau_s)[:, None]
     lr, slope = 0.01, 0.1
@@ -334,14 +354,17 @@ class WindowFeatures(BaseEstimator, TransformerMixin):
     def _reduce_matrix(self, used: int) -> np.ndarray:
         """Time map from the window to the series the features see (rebin or decimate)."""
         if self.sensor == "nuskin":
-            factor = max(int(round(self.bin_ns / self.period_ns)), 1)
+            factor = max(round(self.bin_ns / self.period_ns), 1)
             if factor * self.period_ns != self.bin_ns and factor > 1:
                 raise PerceptionError(
-                    f"The 'bin_ns' parameter must be a multiple of the window period {self.period_ns}. "
+                    "The 'bin_ns' parameter must be a multiple of the window period "
+                    f"{self.period_ns}. "
                     f"Got {self.bin_ns} instead."
                 )
             if used // factor < 1:
-                raise PerceptionError(f"The 'bin_ns' parameter must fit the window. Got {self.bin_ns} instead.")
+                raise PerceptionError(
+                    f"The 'bin_ns' parameter must fit the window. Got {self.bin_ns} instead."
+                )
             return _rebin_matrix(used, factor)
         base = 1e9 / self.period_ns
         if self.rate_hz is None:
@@ -351,13 +374,27 @@ class WindowFeatures(BaseEstimator, TransformerMixin):
     def _check_params(self) -> None:
         kind = FeatureKind.parse(self.kind)
         if self.sensor not in ("nuskin", "biotac"):
-            raise PerceptionError(f"The 'sensor' parameter must be 'nuskin' or 'biotac'. Got {self.sensor!r} instead.")
-        for name in ("n_channels", "n_samples", "period_ns", "bin_ns", "est_samples", "ae_code", "activity_bin_ns"):
+            raise PerceptionError(
+                f"The 'sensor' parameter must be 'nuskin' or 'biotac'. Got {self.sensor!r} instead."
+            )
+        for name in (
+            "n_channels",
+            "n_samples",
+            "period_ns",
+            "bin_ns",
+            "est_samples",
+            "ae_code",
+            "activity_bin_ns",
+        ):
             value = getattr(self, name)
             if not (isinstance(value, (int, np.integer)) and value > 0):
-                raise PerceptionError(f"The {name!r} parameter must be a positive integer. Got {value!r} instead.")
+                raise PerceptionError(
+                    f"The {name!r} parameter must be a positive integer. Got {value!r} instead."
+                )
         if kind is FeatureKind.ACTIVITY and self.sensor != "nuskin":
-            raise PerceptionError("The 'kind' parameter 'activity' needs NUSkin windows. Got biotac instead.")
+            raise PerceptionError(
+                "The 'kind' parameter 'activity' needs NUSkin windows. Got biotac instead."
+            )
 
     def fit(self, X: np.ndarray, y: np.ndarray | None = None) -> WindowFeatures:
         """Build the maps for the geometry (and train the autoencoder on ``X``).
@@ -398,7 +435,9 @@ class WindowFeatures(BaseEstimator, TransformerMixin):
         self.time_maps32_ = [m.astype(np.float32) for m in self.time_maps_]
         if kind is FeatureKind.AUTOENCODER:
             self._fit_autoencoder(self._base(self._validate(X)))
-        self.n_features_out_ = int(self.transform(np.zeros((1, self.n_channels * self.n_samples), np.float32)).shape[1])
+        self.n_features_out_ = int(
+            self.transform(np.zeros((1, self.n_channels * self.n_samples), np.float32)).shape[1]
+        )
         return self
 
     def _pad(self, m: np.ndarray) -> np.ndarray:
@@ -410,7 +449,9 @@ class WindowFeatures(BaseEstimator, TransformerMixin):
         return out
 
     def _est_matrix(self, used: int) -> np.ndarray:
-        weights = fit_est_kernel(self.est_tau_s, span_s=max(10 * self.est_tau_s, 0.01), seed=self.random_state)
+        weights = fit_est_kernel(
+            self.est_tau_s, span_s=max(10 * self.est_tau_s, 0.01), seed=self.random_state
+        )
         self.est_weights_ = weights
         times = np.linspace(0, used - 1, self.est_samples).round().astype(int)
         lags = (times[None, :] - np.arange(used)[:, None]) * (self.period_ns * 1e-9)
@@ -442,7 +483,9 @@ class WindowFeatures(BaseEstimator, TransformerMixin):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
             net.fit(z, z)
-        self.ae_layers_ = [(w.copy(), b.copy()) for w, b in zip(net.coefs_[:3], net.intercepts_[:3], strict=True)]
+        self.ae_layers_ = [
+            (w.copy(), b.copy()) for w, b in zip(net.coefs_[:3], net.intercepts_[:3], strict=True)
+        ]
 
     # -- evaluation --------------------------------------------------------------------------
     def _validate(self, X: np.ndarray) -> np.ndarray:
@@ -452,10 +495,13 @@ class WindowFeatures(BaseEstimator, TransformerMixin):
         if x.ndim != 2 or x.shape[1] != self.n_channels * self.n_samples:
             raise PerceptionError(
                 f"The 'X' parameter must have shape (n, {self.n_channels * self.n_samples}) "
-                f"(= {self.n_channels} channels x {self.n_samples} samples). Got {np.shape(X)} instead."
+                f"(= {self.n_channels} channels x {self.n_samples} samples). Got {np.shape(X)} "
+                "instead."
             )
         if not np.isfinite(x).all():
-            raise PerceptionError("The 'X' parameter (window data) must be finite. Got NaN or inf instead.")
+            raise PerceptionError(
+                "The 'X' parameter (window data) must be finite. Got NaN or inf instead."
+            )
         return x
 
     def _base(self, x: np.ndarray) -> np.ndarray:
@@ -546,7 +592,8 @@ def as_model_input(window: object, geometry: Geometry) -> np.ndarray:
         x = x.reshape(len(window.channels), -1)  # type: ignore[attr-defined]
     if x.ndim != 2 or x.shape[0] != geometry.n_channels:
         raise PerceptionError(
-            f"The 'window.data' parameter must have {geometry.n_channels} channels. Got shape {x.shape} instead."
+            f"The 'window.data' parameter must have {geometry.n_channels} channels. Got shape "
+            f"{x.shape} instead."
         )
     factor = 1
     if hasattr(window, "sample_period_ns"):

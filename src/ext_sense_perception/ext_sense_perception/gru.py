@@ -1,3 +1,4 @@
+# ruff: noqa: N803  (X / F for sample matrices, as in scikit-learn)
 """GRU(16) + MLP(16, 8) estimator on the binned series (torch, optional extra).
 
 torch is imported only in :meth:`GRUEstimator.fit`; without it the model gives a clear
@@ -72,7 +73,11 @@ class GRUEstimator(BaseEstimator):
             n_out = len(self.classes_)
         gru = torch.nn.GRU(seq.shape[2], self.hidden, batch_first=True)
         head = torch.nn.Sequential(
-            torch.nn.Linear(self.hidden, 16), torch.nn.ReLU(), torch.nn.Linear(16, 8), torch.nn.ReLU(), torch.nn.Linear(8, n_out)
+            torch.nn.Linear(self.hidden, 16),
+            torch.nn.ReLU(),
+            torch.nn.Linear(16, 8),
+            torch.nn.ReLU(),
+            torch.nn.Linear(8, n_out),
         )
         params = list(gru.parameters()) + list(head.parameters())
         opt = torch.optim.Adam(params, lr=self.lr)

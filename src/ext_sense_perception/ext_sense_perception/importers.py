@@ -48,7 +48,9 @@ def _seconds_to_ns(text_seconds: np.ndarray) -> np.ndarray:
 def _load_rows(path: Path, n_cols: int) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
-        raise PerceptionError(f"The 'path' parameter must name an existing file. Got {str(path)!r} instead.")
+        raise PerceptionError(
+            f"The 'path' parameter must name an existing file. Got {str(path)!r} instead."
+        )
     try:
         rows = np.loadtxt(path, dtype=np.float64, ndmin=2)
     except ValueError as err:
@@ -56,7 +58,10 @@ def _load_rows(path: Path, n_cols: int) -> np.ndarray:
     if rows.size == 0:
         return np.zeros((0, n_cols))
     if rows.shape[1] != n_cols:
-        raise PerceptionError(f"Event file {str(path)!r} must have {n_cols} columns per line. Got {rows.shape[1]} instead.")
+        raise PerceptionError(
+            f"Event file {str(path)!r} must have {n_cols} columns per line. Got {rows.shape[1]} "
+            "instead."
+        )
     return rows
 
 
@@ -126,7 +131,9 @@ def read_csv_columns(path: str | Path) -> dict[str, np.ndarray]:
     """
     path = Path(path)
     if not path.is_file():
-        raise PerceptionError(f"The 'path' parameter must name an existing file. Got {str(path)!r} instead.")
+        raise PerceptionError(
+            f"The 'path' parameter must name an existing file. Got {str(path)!r} instead."
+        )
     with path.open(newline="") as fh:
         reader = csv.reader(fh)
         try:
@@ -161,7 +168,9 @@ def read_biotac_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     cols = read_csv_columns(path)
     for name in ("pac", "t"):
         if name not in cols:
-            raise PerceptionError(f"BioTac CSV {str(path)!r} must have a {name!r} column. Got {sorted(cols)} instead.")
+            raise PerceptionError(
+                f"BioTac CSV {str(path)!r} must have a {name!r} column. Got {sorted(cols)} instead."
+            )
     return cols["pac"].astype(np.float64), _seconds_to_ns(cols["t"])
 
 
@@ -208,7 +217,9 @@ def read_arm_motion(bag: str | Path, speed_threshold: float = 0.05) -> ArmMotion
     """
     bag = Path(bag)
     if not bag.is_file():
-        raise PerceptionError(f"The 'bag' parameter must name an existing file. Got {str(bag)!r} instead.")
+        raise PerceptionError(
+            f"The 'bag' parameter must name an existing file. Got {str(bag)!r} instead."
+        )
     try:
         from rosbags.highlevel import AnyReader
 
@@ -218,7 +229,9 @@ def read_arm_motion(bag: str | Path, speed_threshold: float = 0.05) -> ArmMotion
             conns = [c for c in reader.connections if c.msgtype.endswith("FrankaState")]
             for conn, _, raw in reader.messages(connections=conns):
                 msg = reader.deserialize(raw, conn.msgtype)
-                times.append(int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec))
+                times.append(
+                    int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+                )
                 speeds.append(float(np.abs(np.asarray(msg.dq)).sum()))
     except Exception as err:  # rosbags raises many types on corrupt bags
         raise PerceptionError(f"Cannot read arm state from bag {str(bag)!r}: {err}") from err
@@ -226,7 +239,9 @@ def read_arm_motion(bag: str | Path, speed_threshold: float = 0.05) -> ArmMotion
     s = np.asarray(speeds)
     moving = np.flatnonzero(s > speed_threshold)
     if len(moving) == 0:
-        raise PerceptionError(f"The arm never moves in {str(bag)!r} (speed threshold {speed_threshold} rad/s).")
+        raise PerceptionError(
+            f"The arm never moves in {str(bag)!r} (speed threshold {speed_threshold} rad/s)."
+        )
     return ArmMotion(int(t[moving[0]]), int(t[moving[-1]]), t, s)
 
 
@@ -239,7 +254,9 @@ class Recording(NamedTuple):
     motion: ArmMotion
 
 
-def food_poking_trials(directory: str | Path, include_empty: bool = False) -> tuple[list[Recording], list[str]]:
+def food_poking_trials(
+    directory: str | Path, include_empty: bool = False
+) -> tuple[list[Recording], list[str]]:
     """All trials of the real food-poking captures.
 
     Args:
@@ -255,7 +272,9 @@ def food_poking_trials(directory: str | Path, include_empty: bool = False) -> tu
     """
     directory = Path(directory)
     if not directory.is_dir():
-        raise PerceptionError(f"The 'data' parameter must be a directory. Got {str(directory)!r} instead.")
+        raise PerceptionError(
+            f"The 'data' parameter must be a directory. Got {str(directory)!r} instead."
+        )
     recs: list[Recording] = []
     excluded: list[str] = []
     for tact in sorted(directory.glob("*_zero_*.tact")):
@@ -266,7 +285,11 @@ def food_poking_trials(directory: str | Path, include_empty: bool = False) -> tu
         if label == "empty" and not include_empty:
             excluded.append(name)
             continue
-        recs.append(Recording(name, label, read_capture_tact(tact), read_arm_motion(tact.with_suffix(".bag"))))
+        recs.append(
+            Recording(
+                name, label, read_capture_tact(tact), read_arm_motion(tact.with_suffix(".bag"))
+            )
+        )
     if not recs:
         raise PerceptionError(f"No '<food>_zero_<n>.tact' trials in {str(directory)!r}.")
     return recs, excluded
@@ -292,7 +315,9 @@ def load_sim_dataset(path: str | Path) -> dict[str, np.ndarray]:
         raise PerceptionError(f"Cannot read dataset {str(path)!r}: {err}") from err
     for key in ("task", "sensor", "y", "onset_ns"):
         if key not in data:
-            raise PerceptionError(f"Dataset {str(path)!r} must hold {key!r}. Got {sorted(data)} instead.")
+            raise PerceptionError(
+                f"Dataset {str(path)!r} must hold {key!r}. Got {sorted(data)} instead."
+            )
     for key in ("task", "sensor", "label_kind"):
         if key in data:
             data[key] = str(data[key])

@@ -29,7 +29,9 @@ C_GRID = (1.0, 3.0, 10.0, 30.0, 100.0)
 REGRESSION_EPSILON_M = 0.001  # 0.1 cm, scikit-learn's default epsilon on the paper's cm labels
 
 
-def make_estimator(name: str, regression: bool, seed: int = 0) -> tuple[BaseEstimator, dict[str, list[Any]]]:
+def make_estimator(
+    name: str, regression: bool, seed: int = 0
+) -> tuple[BaseEstimator, dict[str, list[Any]]]:
     """The final estimator of a pipeline and its grid (keys without the ``model__`` prefix).
 
     Args:
@@ -48,27 +50,44 @@ def make_estimator(name: str, regression: bool, seed: int = 0) -> tuple[BaseEsti
     if name in ("svm_linear", "svm_rbf", "svm"):
         kernels = {"svm_linear": ["linear"], "svm_rbf": ["rbf"], "svm": ["linear", "rbf"]}[name]
         if regression:
-            return SVR(kernel=kernels[0], epsilon=REGRESSION_EPSILON_M), {"C": c_grid, "kernel": kernels}
+            return SVR(kernel=kernels[0], epsilon=REGRESSION_EPSILON_M), {
+                "C": c_grid,
+                "kernel": kernels,
+            }
         est = SVC(kernel=kernels[0], random_state=seed)
         return est, {"C": c_grid, "kernel": kernels}
     if name == "mlp":
-        kw = {"hidden_layer_sizes": (16, 8), "activation": "relu", "solver": "lbfgs", "max_iter": 500, "random_state": seed}
+        kw = {
+            "hidden_layer_sizes": (16, 8),
+            "activation": "relu",
+            "solver": "lbfgs",
+            "max_iter": 500,
+            "random_state": seed,
+        }
         est = MLPRegressor(**kw) if regression else MLPClassifier(**kw)
         return est, {"alpha": [1e-4, 1e-2, 1.0]}
     if name == "random_forest":
         if regression:
-            raise PerceptionError("The 'model' parameter 'random_forest' is for classification only.")
-        return RandomForestClassifier(n_estimators=200, random_state=seed), {"max_features": ["sqrt"]}
+            raise PerceptionError(
+                "The 'model' parameter 'random_forest' is for classification only."
+            )
+        return RandomForestClassifier(n_estimators=200, random_state=seed), {
+            "max_features": ["sqrt"]
+        }
     if name == "gru":
         from ext_sense_perception.gru import GRUEstimator, _torch
 
         _torch()  # fail now with a clear message, not inside every grid-search fit
 
         return GRUEstimator(regression=regression, random_state=seed), {"hidden": [16]}
-    raise PerceptionError(f"The 'model' parameter must be one of {', '.join(MODEL_NAMES)}. Got {name!r} instead.")
+    raise PerceptionError(
+        f"The 'model' parameter must be one of {', '.join(MODEL_NAMES)}. Got {name!r} instead."
+    )
 
 
-def make_pipeline(features: WindowFeatures, name: str, regression: bool, seed: int = 0) -> tuple[Pipeline, dict[str, list[Any]]]:
+def make_pipeline(
+    features: WindowFeatures, name: str, regression: bool, seed: int = 0
+) -> tuple[Pipeline, dict[str, list[Any]]]:
     """Features -> scaler -> model, and the grid with pipeline-prefixed keys.
 
     Args:

@@ -23,14 +23,14 @@ INPUT_NAME = "window"
 _registered = False
 
 
-def _shape_calculator(operator) -> None:  # noqa: ANN001 - skl2onnx's Operator
+def _shape_calculator(operator) -> None:
     from skl2onnx.common.data_types import FloatTensorType
 
     op = operator.raw_operator
     operator.outputs[0].type = FloatTensorType([None, int(op.n_features_out_)])
 
 
-def _converter(scope, operator, container) -> None:  # noqa: ANN001 - skl2onnx's types
+def _converter(scope, operator, container) -> None:
     from skl2onnx.algebra.onnx_ops import (
         OnnxAbs,
         OnnxAdd,
@@ -51,8 +51,12 @@ def _converter(scope, operator, container) -> None:  # noqa: ANN001 - skl2onnx's
     op: WindowFeatures = operator.raw_operator
     v = container.target_opset
     f32 = np.float32
-    x = OnnxReshape(operator.inputs[0], np.array([-1, op.n_channels, op.n_samples], np.int64), op_version=v)
-    if len(op.channel_index_) != op.n_channels or np.any(op.channel_index_ != np.arange(op.n_channels)):
+    x = OnnxReshape(
+        operator.inputs[0], np.array([-1, op.n_channels, op.n_samples], np.int64), op_version=v
+    )
+    if len(op.channel_index_) != op.n_channels or np.any(
+        op.channel_index_ != np.arange(op.n_channels)
+    ):
         x = OnnxGather(x, op.channel_index_.astype(np.int64), axis=1, op_version=v)
     n_sel = len(op.channel_index_)
     kind = op.kind_
@@ -64,23 +68,46 @@ def _converter(scope, operator, container) -> None:  # noqa: ANN001 - skl2onnx's
         re = OnnxMatMul(x, maps[0], op_version=v)
         im = OnnxMatMul(x, maps[1], op_version=v)
         power = OnnxAdd(OnnxMul(re, re, op_version=v), OnnxMul(im, im, op_version=v), op_version=v)
-        y = OnnxMul(OnnxSqrt(power, op_version=v), np.array([FFT_SCALE_IN * FFT_SCALE_OUT], f32), op_version=v)
+        y = OnnxMul(
+            OnnxSqrt(power, op_version=v),
+            np.array([FFT_SCALE_IN * FFT_SCALE_OUT], f32),
+            op_version=v,
+        )
         y = OnnxReshape(y, np.array([-1, n_sel * maps[0].shape[1]], np.int64), op_version=v)
         if kind is FeatureKind.AUTOENCODER:
             y = OnnxMul(
-                OnnxSub(y, op.ae_mean_.astype(f32), op_version=v), (1.0 / op.ae_scale_).astype(f32), op_version=v
+                OnnxSub(y, op.ae_mean_.astype(f32), op_version=v),
+                (1.0 / op.ae_scale_).astype(f32),
+                op_version=v,
             )
             for w, b in op.ae_layers_:
-                y = OnnxRelu(OnnxAdd(OnnxMatMul(y, w.astype(f32), op_version=v), b.astype(f32), op_version=v), op_version=v)
+                y = OnnxRelu(
+                    OnnxAdd(
+                        OnnxMatMul(y, w.astype(f32), op_version=v), b.astype(f32), op_version=v
+                    ),
+                    op_version=v,
+                )
     else:  # ACTIVITY
         nb = op.activity_bins_
         n_seg = maps[0].shape[1] - nb
         a = OnnxMatMul(OnnxAbs(x, op_version=v), maps[0], op_version=v)
         one = np.array([1.0], f32)
-        over = OnnxSlice(a, np.array([0], np.int64), np.array([nb], np.int64), np.array([2], np.int64), op_version=v)
+        over = OnnxSlice(
+            a,
+            np.array([0], np.int64),
+            np.array([nb], np.int64),
+            np.array([2], np.int64),
+            op_version=v,
+        )
         over = OnnxReduceSum(over, np.array([1], np.int64), keepdims=0, op_version=v)
         over = OnnxLog(OnnxAdd(over, one, op_version=v), op_version=v)
-        seg = OnnxSlice(a, np.array([nb], np.int64), np.array([nb + n_seg], np.int64), np.array([2], np.int64), op_version=v)
+        seg = OnnxSlice(
+            a,
+            np.array([nb], np.int64),
+            np.array([nb + n_seg], np.int64),
+            np.array([2], np.int64),
+            op_version=v,
+        )
         seg = OnnxLog(OnnxAdd(seg, one, op_version=v), op_version=v)
         seg = OnnxReshape(seg, np.array([-1, n_sel * n_seg], np.int64), op_version=v)
         y = OnnxConcat(over, seg, axis=1, op_version=v)
@@ -95,7 +122,9 @@ def register_converters() -> None:
         return
     from skl2onnx import update_registered_converter
 
-    update_registered_converter(WindowFeatures, "ExtSenseWindowFeatures", _shape_calculator, _converter)
+    update_registered_converter(
+        WindowFeatures, "ExtSenseWindowFeatures", _shape_calculator, _converter
+    )
     _registered = True
 
 
@@ -121,7 +150,9 @@ def to_onnx_bytes(pipeline: Pipeline, n_inputs: int) -> bytes:
     options = {id(final): {"zipmap": False}} if hasattr(final, "classes_") else None
     try:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore", FutureWarning)  # skl2onnx reads SVC attributes sklearn 1.9 deprecates
+            warnings.simplefilter(
+                "ignore", FutureWarning
+            )  # skl2onnx reads SVC attributes sklearn 1.9 deprecates
             onx = convert_sklearn(
                 pipeline,
                 initial_types=[(INPUT_NAME, FloatTensorType([None, int(n_inputs)]))],

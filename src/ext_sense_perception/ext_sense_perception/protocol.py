@@ -1,3 +1,4 @@
+# ruff: noqa: N806  (X / F for sample matrices, as in scikit-learn)
 """The paper's evaluation protocol (no ROS).
 
 K times: a random 90/10 split (stratified for classes); a grid search with 4-fold
@@ -18,7 +19,13 @@ import numpy as np
 from sklearn.base import clone
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.metrics import accuracy_score, confusion_matrix, mean_absolute_error
-from sklearn.model_selection import GridSearchCV, KFold, ShuffleSplit, StratifiedKFold, StratifiedShuffleSplit
+from sklearn.model_selection import (
+    GridSearchCV,
+    KFold,
+    ShuffleSplit,
+    StratifiedKFold,
+    StratifiedShuffleSplit,
+)
 
 from ext_sense_perception.dataset import WindowSet
 from ext_sense_perception.errors import PerceptionError
@@ -92,7 +99,9 @@ def features_for(ws: WindowSet, kind: str, **params: Any) -> WindowFeatures:
 def _splits(ws: WindowSet, k: int, test_size: float, seed: int):
     if ws.is_regression:
         return ShuffleSplit(n_splits=k, test_size=test_size, random_state=seed).split(ws.X, ws.y)
-    return StratifiedShuffleSplit(n_splits=k, test_size=test_size, random_state=seed).split(ws.X, ws.y)
+    return StratifiedShuffleSplit(n_splits=k, test_size=test_size, random_state=seed).split(
+        ws.X, ws.y
+    )
 
 
 def _inner_cv(ws: WindowSet, y: np.ndarray, seed: int):
@@ -107,7 +116,15 @@ def default_k(ws: WindowSet, model: str) -> int:
     return 5 if (ws.is_regression or model == "gru") else 20
 
 
-def evaluate(
+def evaluate(*args: Any, **kwargs: Any) -> EvalResult:
+    """Run the protocol; see :func:`_evaluate` (BLAS pinned to one thread, as in training)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return _evaluate(*args, **kwargs)
+
+
+def _evaluate(
     ws: WindowSet,
     features: WindowFeatures,
     model: str,
@@ -142,12 +159,16 @@ def evaluate(
     if n < 8:
         raise PerceptionError(f"The 'ws' parameter must hold at least 8 windows. Got {n} instead.")
     if not ws.is_regression and len(ws.class_names) < 2:
-        raise PerceptionError(f"Classification needs at least 2 classes. Got {ws.class_names} instead.")
+        raise PerceptionError(
+            f"Classification needs at least 2 classes. Got {ws.class_names} instead."
+        )
     k = default_k(ws, model) if k is None else int(k)
     X = ws.X.reshape(n, -1)
     pipe, grid = make_pipeline(features, model, ws.is_regression, seed)
     grid.update(feature_grid or {})
-    precompute = FeatureKind.parse(features.kind) is not FeatureKind.AUTOENCODER and not feature_grid
+    precompute = (
+        FeatureKind.parse(features.kind) is not FeatureKind.AUTOENCODER and not feature_grid
+    )
     if precompute:
         F = clone(features).fit(X[:1]).transform(X)
         search_pipe, search_X = head_of(pipe), F
@@ -195,7 +216,9 @@ def evaluate(
         else:
             scores.append(accuracy_score(ws.y[test], pred))
             conf += confusion_matrix(ws.y[test], pred, labels=labels)
-            proba = search.predict_proba(search_X[test]) if hasattr(search, "predict_proba") else None
+            proba = (
+                search.predict_proba(search_X[test]) if hasattr(search, "predict_proba") else None
+            )
             y_std.append(proba.max(axis=1) if proba is not None else np.full(len(test), np.nan))
     if cache is not None:
         cache.cleanup()

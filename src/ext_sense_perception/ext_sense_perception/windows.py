@@ -121,17 +121,36 @@ class WindowConfig:
         object.__setattr__(
             self, "provisional_post_ns", tuple(sorted(int(p) for p in self.provisional_post_ns))
         )
-        _check(self.post_ns > 0 and self.post_ns <= 60_000 * MS, "post_ns", "in (0, 60 s]", self.post_ns)
+        _check(
+            self.post_ns > 0 and self.post_ns <= 60_000 * MS,
+            "post_ns",
+            "in (0, 60 s]",
+            self.post_ns,
+        )
         _check(-self.pre_ns < self.post_ns, "pre_ns", f"> -post_ns ({-self.post_ns})", self.pre_ns)
         _check(self.pre_ns <= 10_000 * MS, "pre_ns", "<= 10 s", self.pre_ns)
         _check(0 < self.bin_ns <= 1000 * MS, "bin_ns", "in (0, 1 s]", self.bin_ns)
         for p in self.provisional_post_ns:
-            _check(-self.pre_ns < p < self.post_ns, "provisional_post_ns", f"each in (-pre_ns, {self.post_ns})", p)
+            _check(
+                -self.pre_ns < p < self.post_ns,
+                "provisional_post_ns",
+                f"each in (-pre_ns, {self.post_ns})",
+                p,
+            )
         _check(self.debounce_ns >= 0, "debounce_ns", ">= 0", self.debounce_ns)
-        _check(self.onset_source in ("signal", "external"), "onset_source", "'signal' or 'external'", self.onset_source)
+        _check(
+            self.onset_source in ("signal", "external"),
+            "onset_source",
+            "'signal' or 'external'",
+            self.onset_source,
+        )
         _check(self.activity_window_ns > 0, "activity_window_ns", "> 0", self.activity_window_ns)
-        _check(self.activity_min_events >= 1, "activity_min_events", ">= 1", self.activity_min_events)
-        _check(self.pac_energy_window_ns > 0, "pac_energy_window_ns", "> 0", self.pac_energy_window_ns)
+        _check(
+            self.activity_min_events >= 1, "activity_min_events", ">= 1", self.activity_min_events
+        )
+        _check(
+            self.pac_energy_window_ns > 0, "pac_energy_window_ns", "> 0", self.pac_energy_window_ns
+        )
         _check(self.pac_threshold_sigma > 0, "pac_threshold_sigma", "> 0", self.pac_threshold_sigma)
         _check(self.pac_min_rms >= 0, "pac_min_rms", ">= 0", self.pac_min_rms)
         _check(self.pac_baseline_tau_ns > 0, "pac_baseline_tau_ns", "> 0", self.pac_baseline_tau_ns)
@@ -286,7 +305,9 @@ class _WindowerBase:
         """
         out = self._emit_due()
         for pending in self._pending:
-            out.append(self._make(pending.onset_ns, self.config.post_ns, provisional=False, truncated=True))
+            out.append(
+                self._make(pending.onset_ns, self.config.post_ns, provisional=False, truncated=True)
+            )
             self._counts["windows"] += 1
             self._counts["truncated_windows"] += 1
         self._pending.clear()
@@ -302,10 +323,14 @@ class _WindowerBase:
             for post in cfg.provisional_post_ns:
                 if post not in pending.done and pending.onset_ns + post <= self._now_ns:
                     pending.done.add(post)
-                    out.append(self._make(pending.onset_ns, post, provisional=True, truncated=False))
+                    out.append(
+                        self._make(pending.onset_ns, post, provisional=True, truncated=False)
+                    )
                     self._counts["provisional_windows"] += 1
             if pending.onset_ns + cfg.post_ns <= self._now_ns:
-                out.append(self._make(pending.onset_ns, cfg.post_ns, provisional=False, truncated=False))
+                out.append(
+                    self._make(pending.onset_ns, cfg.post_ns, provisional=False, truncated=False)
+                )
                 self._counts["windows"] += 1
             else:
                 still.append(pending)
@@ -318,13 +343,17 @@ class _WindowerBase:
         if self._now_ns is None:
             return None
         cfg = self.config
-        lookback = max(cfg.pre_ns, 0) + cfg.history_ns + cfg.activity_window_ns + cfg.pac_energy_window_ns
+        lookback = (
+            max(cfg.pre_ns, 0) + cfg.history_ns + cfg.activity_window_ns + cfg.pac_energy_window_ns
+        )
         keep = self._now_ns - lookback
         for pending in self._pending:
             keep = min(keep, pending.onset_ns - cfg.pre_ns)
         return keep
 
-    def _make(self, onset_ns: int, post_ns: int, *, provisional: bool, truncated: bool) -> ContactWindow:
+    def _make(
+        self, onset_ns: int, post_ns: int, *, provisional: bool, truncated: bool
+    ) -> ContactWindow:
         cfg = self.config
         period = cfg.period_ns
         n = max(int((cfg.pre_ns + post_ns) // period), 0)
@@ -363,7 +392,10 @@ class EventWindower(_WindowerBase):
     def __init__(self, config: WindowConfig | None = None) -> None:
         config = config or WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.NUSKIN)
         if config.sensor is not Sensor.NUSKIN:
-            raise PerceptionError(f"The 'config.sensor' parameter must be nuskin for EventWindower. Got {config.sensor.label!r} instead.")
+            raise PerceptionError(
+                "The 'config.sensor' parameter must be nuskin for EventWindower. Got "
+                f"{config.sensor.label!r} instead."
+            )
         super().__init__(config)
         self._chunks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._recent = np.empty(0, dtype=np.int64)
@@ -379,9 +411,11 @@ class EventWindower(_WindowerBase):
 
         Args:
             t_ns: Event times (n,) int64 ns (epoch or monotonic, one clock throughout).
-            taxel: Taxel ids (n,) 1..n_taxels; others are counted in ``bad_taxel_events`` and dropped.
+            taxel: Taxel ids (n,) 1..n_taxels; others are counted in ``bad_taxel_events``
+                and dropped.
             polarity: (n,) int8, +1 / -1 / 0.
-            now_ns: Stream time after this batch, ns (e.g. the batch's end); default the newest event.
+            now_ns: Stream time after this batch, ns (e.g. the batch's end); default: the
+                newest event.
 
         Returns:
             Completed and provisional windows, oldest first.
@@ -398,7 +432,9 @@ class EventWindower(_WindowerBase):
                 f"Got shapes {t.shape}, {tax.shape}, {pol.shape} instead."
             )
         if t.dtype.kind not in "iu":
-            raise PerceptionError(f"The 't_ns' parameter must be integer nanoseconds. Got dtype {t.dtype} instead.")
+            raise PerceptionError(
+                f"The 't_ns' parameter must be integer nanoseconds. Got dtype {t.dtype} instead."
+            )
         t = t.astype(np.int64, copy=False)
         tax = tax.astype(np.int64, copy=False)
         ok = (tax >= 1) & (tax <= self.config.n_taxels)
@@ -481,9 +517,14 @@ class PacWindower(_WindowerBase):
     def __init__(self, config: WindowConfig | None = None, n_sensors: int = 1) -> None:
         config = config or WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.BIOTAC)
         if config.sensor is not Sensor.BIOTAC:
-            raise PerceptionError(f"The 'config.sensor' parameter must be biotac for PacWindower. Got {config.sensor.label!r} instead.")
+            raise PerceptionError(
+                "The 'config.sensor' parameter must be biotac for PacWindower. Got "
+                f"{config.sensor.label!r} instead."
+            )
         if n_sensors < 1:
-            raise PerceptionError(f"The 'n_sensors' parameter must be >= 1. Got {n_sensors!r} instead.")
+            raise PerceptionError(
+                f"The 'n_sensors' parameter must be >= 1. Got {n_sensors!r} instead."
+            )
         super().__init__(config)
         self.n_sensors = n_sensors
         self._period = PAC_PERIOD_NS
@@ -524,21 +565,26 @@ class PacWindower(_WindowerBase):
             x = x[None, :]
         if x.ndim != 2 or x.shape[0] != self.n_sensors:
             raise PerceptionError(
-                f"The 'pac' parameter must have shape (n,) or ({self.n_sensors}, n). Got {np.shape(pac)} instead."
+                f"The 'pac' parameter must have shape (n,) or ({self.n_sensors}, n). Got "
+                f"{np.shape(pac)} instead."
             )
         if not np.isfinite(x).all():
             raise PerceptionError("The 'pac' parameter must be finite. Got NaN or inf instead.")
         period_ns = int(period_ns)
         if self._t_first is None:
             if period_ns <= 0:
-                raise PerceptionError(f"The 'period_ns' parameter must be > 0. Got {period_ns} instead.")
+                raise PerceptionError(
+                    f"The 'period_ns' parameter must be > 0. Got {period_ns} instead."
+                )
             self._period = period_ns
             self._t_first = int(t0_ns)
             self._m = max(1, round(self.config.pac_energy_window_ns / period_ns))
             self._alpha = float(1.0 - np.exp(-period_ns / self.config.pac_baseline_tau_ns))
             self._baseline = x[:, :1].mean(axis=1) if x.shape[1] else None
         elif period_ns != self._period:
-            raise PerceptionError(f"The 'period_ns' parameter must stay {self._period}. Got {period_ns} instead.")
+            raise PerceptionError(
+                f"The 'period_ns' parameter must stay {self._period}. Got {period_ns} instead."
+            )
         if valid is not None:
             mask = np.broadcast_to(np.asarray(valid, dtype=bool).reshape(x.shape[0], -1), x.shape)
             if not mask.all():
@@ -584,7 +630,11 @@ class PacWindower(_WindowerBase):
         self._n_total += x.shape[1]
         if detect:
             self._detect(dev_sq, first_index)
-        self._tail_sq = np.concatenate([self._tail_sq, dev_sq])[-(self._m - 1) :] if self._m > 1 else np.empty(0)
+        self._tail_sq = (
+            np.concatenate([self._tail_sq, dev_sq])[-(self._m - 1) :]
+            if self._m > 1
+            else np.empty(0)
+        )
 
     def _detect(self, dev_sq: np.ndarray, first_index: int) -> None:
         cfg = self.config
@@ -687,13 +737,18 @@ def window_from_recording(
     start = int(onset_ns) - config.pre_ns
     if config.sensor is Sensor.NUSKIN:
         if t_ns is None or taxel is None:
-            raise PerceptionError("The 't_ns' and 'taxel' parameters are needed for a NUSkin window. Got None instead.")
+            raise PerceptionError(
+                "The 't_ns' and 'taxel' parameters are needed for a NUSkin window. Got None "
+                "instead."
+            )
         pol = np.ones(len(t_ns), np.int8) if polarity is None else polarity
         data = bin_events(np.asarray(t_ns), taxel, pol, start, n, period, config.n_taxels)
         channels = np.arange(1, config.n_taxels + 1, dtype=np.uint16)
     else:
         if pac is None:
-            raise PerceptionError("The 'pac' parameter is needed for a BioTac window. Got None instead.")
+            raise PerceptionError(
+                "The 'pac' parameter is needed for a BioTac window. Got None instead."
+            )
         x = np.atleast_2d(np.asarray(pac, dtype=np.float32))
         first = -(-(start - int(pac_t0_ns)) // period)
         data = np.zeros((x.shape[0], n), np.float32)

@@ -10,7 +10,9 @@ import pytest
 MS = 1_000_000
 
 
-def synthetic_tap_dataset(path: Path, n: int = 48, seed: int = 0, task: str = "tap_localization") -> Path:
+def synthetic_tap_dataset(
+    path: Path, n: int = 48, seed: int = 0, task: str = "tap_localization"
+) -> Path:
     """Taps whose event rhythm on each finger depends on the label (position or class)."""
     rng = np.random.default_rng(seed)
     y = rng.uniform(0.02, 0.28, n)
@@ -34,8 +36,10 @@ def synthetic_tap_dataset(path: Path, n: int = 48, seed: int = 0, task: str = "t
     labels: np.ndarray = y
     if task != "tap_localization":
         label_kind = "classification"
-        labels = np.where(y > 0.15, "stable", "unstable") if task == "handover_stability" else np.where(
-            y < 0.1, "apple", np.where(y < 0.2, "tofu", "water")
+        labels = (
+            np.where(y > 0.15, "stable", "unstable")
+            if task == "handover_stability"
+            else np.where(y < 0.1, "apple", np.where(y < 0.2, "tofu", "water"))
         )
     np.savez(
         path,
@@ -66,7 +70,9 @@ def synthetic_biotac_dataset(path: Path, n: int = 32, seed: int = 0) -> Path:
     pac = np.full((n, 1, n_samples), 2000.0)
     for i in range(n):
         f = 100 + 1000 * y[i]
-        burst = 300 * np.sin(2 * np.pi * f * (t - t[onset_idx])) * np.exp(-(t - t[onset_idx]) / 0.05)
+        burst = (
+            300 * np.sin(2 * np.pi * f * (t - t[onset_idx])) * np.exp(-(t - t[onset_idx]) / 0.05)
+        )
         pac[i, 0, onset_idx:] += burst[onset_idx:]
         pac[i, 0] += rng.normal(0, 2, n_samples)
     np.savez(
@@ -91,12 +97,16 @@ def tap_npz(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="session")
 def food_npz(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return synthetic_tap_dataset(tmp_path_factory.mktemp("food") / "dataset.npz", n=45, task="food_identification")
+    return synthetic_tap_dataset(
+        tmp_path_factory.mktemp("food") / "dataset.npz", n=45, task="food_identification"
+    )
 
 
 @pytest.fixture(scope="session")
 def handover_npz(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return synthetic_tap_dataset(tmp_path_factory.mktemp("handover") / "dataset.npz", n=40, task="handover_stability")
+    return synthetic_tap_dataset(
+        tmp_path_factory.mktemp("handover") / "dataset.npz", n=40, task="handover_stability"
+    )
 
 
 @pytest.fixture(scope="session")

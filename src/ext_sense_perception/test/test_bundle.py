@@ -1,3 +1,4 @@
+# ruff: noqa: N806
 from __future__ import annotations
 
 import json
@@ -35,11 +36,22 @@ def food_bundle(food_npz: Path, tmp_path_factory: pytest.TempPathFactory) -> tup
 
 
 def test_bundle_files_and_card(tap_bundle):
-    out, ws = tap_bundle
+    out, _ws = tap_bundle
     for name in ("model.onnx", "model.joblib", "model_card.json"):
         assert (out / name).is_file()
     card = json.loads((out / "model_card.json").read_text())
-    for key in ("task", "sensor", "features", "model", "rate_hz", "window", "metrics", "data_hash", "class_names", "id"):
+    for key in (
+        "task",
+        "sensor",
+        "features",
+        "model",
+        "rate_hz",
+        "window",
+        "metrics",
+        "data_hash",
+        "class_names",
+        "id",
+    ):
         assert key in card
     assert card["task"] == "tap_localization"
     assert card["window"]["post_onset_ns"] == 250 * MS
@@ -55,7 +67,9 @@ def test_tap_model_learns_and_backends_agree(tap_bundle):
     a, _ = onnx.raw_predict(X)
     b, _ = skl.raw_predict(X)
     _agree(a, b)
-    assert np.mean(np.abs(b - ws.y)) < 0.5 * np.mean(np.abs(ws.y - ws.y.mean()))  # learned something
+    assert np.mean(np.abs(b - ws.y)) < 0.5 * np.mean(
+        np.abs(ws.y - ws.y.mean())
+    )  # learned something
     est = onnx.predict(ws.X[0])
     assert est.task == "tap_localization"
     assert est.tap_position_std_m == pytest.approx(onnx.position_std_m)
@@ -69,8 +83,8 @@ def test_classifier_probabilities_agree_and_sum_to_one(food_bundle):
     onnx = bundle.load_model(out, "onnx")
     skl = bundle.load_model(out, "sklearn")
     X = ws.X.reshape(len(ws.X), -1)
-    la, pa = onnx.raw_predict(X)
-    lb, pb = skl.raw_predict(X)
+    _la, pa = onnx.raw_predict(X)
+    _lb, pb = skl.raw_predict(X)
     _agree(pa, pb, rtol=1e-4, atol=1e-5)
     np.testing.assert_allclose(pa.sum(axis=1), 1.0, atol=1e-5)
     est = skl.predict(ws.X[3])
@@ -84,7 +98,9 @@ def test_backends_agree_on_extreme_inputs(tap_bundle, food_bundle):
         onnx = bundle.load_model(out, "onnx")
         skl = bundle.load_model(out, "sklearn")
         n = onnx.geometry.n_channels * onnx.geometry.n_samples
-        extremes = np.stack([np.zeros(n), np.full(n, 1e4), np.full(n, -1e4), np.tile([1e4, -1e4], n // 2)]).astype(np.float32)
+        extremes = np.stack(
+            [np.zeros(n), np.full(n, 1e4), np.full(n, -1e4), np.tile([1e4, -1e4], n // 2)]
+        ).astype(np.float32)
         a = onnx.raw_predict(extremes)
         b = skl.raw_predict(extremes)
         idx = 1 if a[1] is not None else 0
@@ -96,7 +112,9 @@ def test_backends_agree_on_extreme_inputs(tap_bundle, food_bundle):
 def test_backends_agree_on_random_windows(tap_bundle, seed, scale, density):
     out, _ = tap_bundle
     rng = np.random.default_rng(seed)
-    x = (rng.integers(-scale, scale + 1, 80 * 300) * (rng.random(80 * 300) < density)).astype(np.float32)
+    x = (rng.integers(-scale, scale + 1, 80 * 300) * (rng.random(80 * 300) < density)).astype(
+        np.float32
+    )
     a, _ = bundle.load_model(out, "onnx").raw_predict(x[None])
     b, _ = bundle.load_model(out, "sklearn").raw_predict(x[None])
     _agree(a, b)
@@ -110,8 +128,12 @@ def test_anytime_models_serve_provisional_windows(tap_bundle, tap_npz):
     sel = data["ev_trial"] == 0
     t = data["ev_t_ns"][sel]
     order = np.argsort(t)
-    w = EventWindower(WindowConfig.for_task("tap", "nuskin", provisional_post_ns=(25 * MS, 50 * MS, 120 * MS)))
-    windows = w.feed(t[order], data["ev_taxel"][sel][order], data["ev_polarity"][sel][order]) + w.advance(10**12)
+    w = EventWindower(
+        WindowConfig.for_task("tap", "nuskin", provisional_post_ns=(25 * MS, 50 * MS, 120 * MS))
+    )
+    windows = w.feed(
+        t[order], data["ev_taxel"][sel][order], data["ev_polarity"][sel][order]
+    ) + w.advance(10**12)
     assert [x.post_ns for x in windows] == [25 * MS, 50 * MS, 120 * MS, 250 * MS]
     with pytest.raises(PerceptionError, match="post_onset_ns"):
         model.predict(windows[0])  # 25 ms: shorter than every model
@@ -145,7 +167,9 @@ def test_missing_and_corrupt_files_give_clear_errors(tap_bundle, tmp_path):
         bundle.load_model(out, "tensorrt")
     broken = tmp_path / "broken"
     broken.mkdir()
-    (broken / "model_card.json").write_text((out / "model_card.json").read_text().replace('"anytime_post_ms"', '"x"'))
+    (broken / "model_card.json").write_text(
+        (out / "model_card.json").read_text().replace('"anytime_post_ms"', '"x"')
+    )
     with pytest.raises(PerceptionError, match="ONNX model missing"):
         bundle.load_model(broken, "onnx")
     (broken / "model.onnx").write_bytes(b"not an onnx model")
@@ -157,7 +181,7 @@ def test_missing_and_corrupt_files_give_clear_errors(tap_bundle, tmp_path):
     with pytest.raises(PerceptionError, match="corrupt"):
         bundle.load_model(broken, "sklearn")
     (broken / "model_card.json").write_text("{not json")
-    with pytest.raises(PerceptionError, match="card .* is corrupt"):
+    with pytest.raises(PerceptionError, match=r"card .* is corrupt"):
         bundle.load_model(broken, "onnx")
 
 
@@ -170,17 +194,23 @@ def test_biotac_model_roundtrip(biotac_npz, tmp_path):
     _agree(a, b)
 
 
-@pytest.mark.parametrize(("features", "model"), [("baseline", "mlp"), ("est", "svm_linear"), ("autoencoder", "svm_rbf")])
+@pytest.mark.parametrize(
+    ("features", "model"), [("baseline", "mlp"), ("est", "svm_linear"), ("autoencoder", "svm_rbf")]
+)
 def test_other_feature_sets_export_and_agree(handover_npz, tmp_path, features, model):
     ws = from_sim_dataset(handover_npz)
-    out = bundle.save(bundle.train(ws, features, model, feature_params={"ae_max_iter": 10}), tmp_path / "m")
+    out = bundle.save(
+        bundle.train(ws, features, model, feature_params={"ae_max_iter": 10}), tmp_path / "m"
+    )
     onnx = bundle.load_model(out, "onnx")
     skl = bundle.load_model(out, "sklearn")
     X = ws.X.reshape(len(ws.X), -1)
     _agree(onnx.raw_predict(X)[1], skl.raw_predict(X)[1], rtol=1e-4, atol=1e-5)
     est = onnx.predict(ws.X[0])
     assert 0.0 <= est.stability_probability <= 1.0
-    assert est.stability_probability == pytest.approx(est.class_probabilities[est.class_names.index("stable")])
+    assert est.stability_probability == pytest.approx(
+        est.class_probabilities[est.class_names.index("stable")]
+    )
 
 
 def test_gru_without_torch_is_a_clear_error(handover_npz):

@@ -1,3 +1,4 @@
+# ruff: noqa: N803, N806
 from __future__ import annotations
 
 import numpy as np
@@ -61,7 +62,15 @@ def test_fft_matches_numpy_with_paper_scaling():
 def test_biotac_fft_with_decimation():
     rng = np.random.default_rng(0)
     X = rng.normal(2000, 30, (3, 660))
-    tf = WindowFeatures(kind="fft", n_channels=1, n_samples=660, period_ns=454_545, pre_ns=110 * 454_545, sensor="biotac", rate_hz=500)
+    tf = WindowFeatures(
+        kind="fft",
+        n_channels=1,
+        n_samples=660,
+        period_ns=454_545,
+        pre_ns=110 * 454_545,
+        sensor="biotac",
+        rate_hz=500,
+    )
     F = tf.fit(X).transform(X)
     idx = decimation_indices(660, 500, 1e9 / 454_545)
     expected = np.abs(np.fft.rfft(X[:, idx] / 1000.0, axis=1)) / 10.0
@@ -146,8 +155,12 @@ def test_nan_and_shape_rejected_with_clear_errors():
 def test_as_model_input_crops_and_rebins_online_windows():
     g = Geometry(80, 300, MS, 50 * MS, "nuskin")
     rng = np.random.default_rng(0)
-    fine = rng.integers(-1, 2, (80, 1400)).astype(np.float32)  # 0.25 ms bins, 100 ms pre, 250 ms post
-    win = ContactWindow("tap_localization", "nuskin", 0, 100 * MS, 250 * MS, 250_000, np.arange(1, 81), fine)
+    fine = rng.integers(-1, 2, (80, 1400)).astype(
+        np.float32
+    )  # 0.25 ms bins, 100 ms pre, 250 ms post
+    win = ContactWindow(
+        "tap_localization", "nuskin", 0, 100 * MS, 250 * MS, 250_000, np.arange(1, 81), fine
+    )
     row = as_model_input(win, g).reshape(80, 300)
     np.testing.assert_array_equal(row, fine[:, 200:1400].reshape(80, 300, 4).sum(axis=2))
     short = win._replace(data=fine[:, :600], post_onset_ns=50 * MS)

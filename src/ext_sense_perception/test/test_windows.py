@@ -22,7 +22,11 @@ EPOCH = 1_700_000_000_000_000_000  # epoch nanoseconds: must not lose precision 
 
 def _tap_stream(onset: int, rng: np.random.Generator, background_s: float = 1.0):
     """Sparse background events plus a dense burst at ``onset``."""
-    bg = np.sort(rng.integers(0, int(background_s * 1e9), 100)) if background_s > 0 else np.empty(0, np.int64)
+    bg = (
+        np.sort(rng.integers(0, int(background_s * 1e9), 100))
+        if background_s > 0
+        else np.empty(0, np.int64)
+    )
     burst = onset + np.sort(rng.integers(0, 30 * MS, 400))
     t = np.sort(np.concatenate([bg, burst])) + EPOCH
     tax = rng.integers(1, 81, len(t)).astype(np.uint16)
@@ -180,8 +184,10 @@ def test_pac_windower_detects_burst_and_keeps_pre_onset():
     assert 2200 <= onset_index <= 2203
     assert win.data.shape == (2, (50 * MS + 250 * MS) // PAC_PERIOD_NS)
     pre = (50 * MS) // PAC_PERIOD_NS
-    first = int(round(onset_index)) - pre
-    np.testing.assert_allclose(win.data[:, :10], x[:, first : first + 10].astype(np.float32), atol=1e-3)
+    first = round(onset_index) - pre
+    np.testing.assert_allclose(
+        win.data[:, :10], x[:, first : first + 10].astype(np.float32), atol=1e-3
+    )
     assert len(out) == 5
 
 
@@ -213,7 +219,11 @@ def test_window_from_recording_matches_online_window():
     rng = np.random.default_rng(5)
     t, tax, pol = _tap_stream(400 * MS, rng)
     w = EventWindower()
-    online = [x for x in _feed_in_batches(w, t, tax, pol) + w.advance(EPOCH + 2_000 * MS) if not x.provisional][0]
+    online = next(
+        x
+        for x in _feed_in_batches(w, t, tax, pol) + w.advance(EPOCH + 2_000 * MS)
+        if not x.provisional
+    )
     offline = window_from_recording(w.config, online.onset_ns, t_ns=t, taxel=tax, polarity=pol)
     np.testing.assert_array_equal(online.data, offline.data)
     assert offline.post_ns == online.post_ns
@@ -221,7 +231,10 @@ def test_window_from_recording_matches_online_window():
 
 @settings(max_examples=60, deadline=None)
 @given(
-    st.lists(st.tuples(st.integers(0, 10_000_000), st.integers(0, 90), st.sampled_from([-1, 0, 1])), max_size=60),
+    st.lists(
+        st.tuples(st.integers(0, 10_000_000), st.integers(0, 90), st.sampled_from([-1, 0, 1])),
+        max_size=60,
+    ),
     st.integers(1, 40),
 )
 def test_bin_events_conserves_signed_counts(events, n_bins):
@@ -238,9 +251,13 @@ def test_bin_events_conserves_signed_counts(events, n_bins):
 
 def test_empty_and_single_event_windows():
     cfg = WindowConfig.for_task("tap", "nuskin")
-    empty = window_from_recording(cfg, EPOCH, t_ns=np.empty(0, np.int64), taxel=np.empty(0, np.uint16))
+    empty = window_from_recording(
+        cfg, EPOCH, t_ns=np.empty(0, np.int64), taxel=np.empty(0, np.uint16)
+    )
     assert empty.data.shape == (80, 1200)
     assert not empty.data.any()
-    one = window_from_recording(cfg, EPOCH, t_ns=np.array([EPOCH], np.int64), taxel=np.array([7], np.uint16))
+    one = window_from_recording(
+        cfg, EPOCH, t_ns=np.array([EPOCH], np.int64), taxel=np.array([7], np.uint16)
+    )
     assert one.data.sum() == 1
     assert one.data[6, 200] == 1  # 50 ms of pre-onset at 0.25 ms bins

@@ -12,7 +12,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from ext_sense_runtime.executor import make_executor
+from ext_sense_runtime.executor import make_executor, spin_until_shutdown
 
 
 def run_node(factory: Callable[[], Node], args: Sequence[str] | None = None) -> int:
@@ -31,7 +31,7 @@ def run_node(factory: Callable[[], Node], args: Sequence[str] | None = None) -> 
         node = factory()
         executor = make_executor()
         executor.add_node(node)
-        executor.spin()
+        spin_until_shutdown(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

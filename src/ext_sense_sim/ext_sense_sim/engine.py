@@ -26,10 +26,11 @@ SENSOR_SIGNAL = {Sensor.NUSKIN: "events", Sensor.BIOTAC: "biotac"}
 
 @dataclass
 class EffectStats:
-    """Calls and wall time of one effect over a run."""
+    """Calls, wall time and CPU time (of the calling thread) of one effect over a run."""
 
     calls: int = 0
     seconds: float = 0.0
+    cpu_seconds: float = 0.0
 
 
 def provider_of(signal: str) -> list[str]:
@@ -86,11 +87,12 @@ class Simulator:
         tb = TimeBase(self.scene.rate_hz, self.scene.n_samples, n_trials, first)
         signals = Signals()
         for effect in self.effects:
-            start = _time.perf_counter()
+            start, cpu = _time.perf_counter(), _time.thread_time()
             effect.run(signals, tb, rng)
             stat = self.stats[effect.name]
             stat.calls += 1
             stat.seconds += _time.perf_counter() - start
+            stat.cpu_seconds += _time.thread_time() - cpu
         return tb, signals
 
     def batches(self, trials: int, seed: int) -> Iterator[tuple[TimeBase, Signals]]:

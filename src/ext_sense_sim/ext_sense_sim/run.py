@@ -16,6 +16,7 @@ from typing import Any
 
 from ext_sense_sim.dataset import DatasetCollector
 from ext_sense_sim.engine import Simulator
+from ext_sense_sim.errors import SceneError
 from ext_sense_sim.scene import Scene
 
 
@@ -34,12 +35,20 @@ def run_scene(
         trials: Number of trials (default: the scene's).
         seed: Seed (default: the scene's).
         formats: Which outputs to write.
+
+    Raises:
+        SceneError: A bad scene, or an output folder that is not empty.
     """
     from ext_sense_sim.output import write_outputs
 
     trials = scene.trials if trials is None else int(trials)
     seed = scene.seed if seed is None else int(seed)
     out = Path(out)
+    if out.exists() and any(out.iterdir()):
+        raise SceneError(
+            f"The output folder {out} must be new or empty (it holds a previous run, whose "
+            f"files would mix with this one). Choose another --out or remove it."
+        )
     out.mkdir(parents=True, exist_ok=True)
     sim = Simulator(scene)
     collector = DatasetCollector(scene, seed)

@@ -11,6 +11,7 @@ be simulated before its start is sent late and counted in ``late_trials``.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import threading
 import time
@@ -62,7 +63,7 @@ def plan_trials(scene: Scene, seed: int) -> Iterator[PlannedTrial]:
             f"Scene '{scene.name}' cannot be streamed: it needs effect '{wire}', which its "
             f"effects list lacks."
         )
-    single = Scene(**{**scene.__dict__, "batch_size": 1})
+    single = dataclasses.replace(scene, batch_size=1)
     sim = Simulator(single)
     seeds = np.random.SeedSequence(int(seed))
     k = 0

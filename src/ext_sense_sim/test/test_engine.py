@@ -176,3 +176,25 @@ def test_biotac_and_classes(tmp_path):
     assert sorted(sig["labels"].class_label) == sorted(
         ["empty", "water", "tofu", "banana", "watermelon", "apple", "green_pepper"]
     )
+
+
+def test_stream_over_a_virtual_can_channel():
+    can = pytest.importorskip("can")
+    from ext_sense_sim.streaming import open_link
+
+    sc = scene(
+        ["contact_impulse", "beam_modes", "grasp_transfer", "nuskin_transduction", "nuskin_wire"]
+    )
+    receiver = can.Bus(interface="virtual", channel="sim_test_can")
+    sink = open_link("can", can_channel="sim_test_can")
+    try:
+        stats = stream(sc, sink.write, seed=2, trials=1, period_s=0.1)
+        data = b""
+        while (msg := receiver.recv(timeout=0.2)) is not None:
+            assert msg.arbitration_id == 0x100
+            data += bytes(msg.data)
+    finally:
+        sink.close()
+        receiver.shutdown()
+    assert stats.bytes > 0
+    assert len(data) == stats.bytes

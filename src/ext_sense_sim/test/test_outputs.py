@@ -141,3 +141,48 @@ def test_bag_holds_events_and_ground_truth(tmp_path):
     assert n_events == d["ev_t_ns"].size
     assert [t.trial for t in truths] == [0, 1]
     np.testing.assert_allclose([t.tap_position_m for t in truths], d["y"])
+
+
+def test_serve_prints_its_pty_and_the_onsets(tmp_path):
+    import subprocess
+    import sys
+
+    link = tmp_path / "port"
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "ext_sense.cli",
+            "sim",
+            "serve",
+            "nuskin",
+            "--scene",
+            "tap_rod20_nuskin",
+            "--trials",
+            "2",
+            "--period",
+            "0.3",
+            "--link",
+            str(link),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("sim serve nuskin: streaming scene tap_rod20_nuskin on /dev/")
+    assert sum(line.startswith("trial ") for line in lines) == 2
+    assert lines[-1].startswith("sent 2 trials")
+    assert not link.exists()  # removed on close
+
+
+def test_run_refuses_a_used_output_folder(tmp_path, capsys):
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "old.txt").write_text("x")
+    assert (
+        ext_sense_main(["sim", "run", "tap_rod20_nuskin", "--out", str(out), "--trials", "1"]) == 2
+    )
+    assert "must be new or empty" in capsys.readouterr().err

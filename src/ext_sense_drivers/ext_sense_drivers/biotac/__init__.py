@@ -3,7 +3,8 @@
 Pure Python/NumPy (no rclpy): :mod:`.words` (reply word codec and the standard 44-word
 sequence), :mod:`.crc` (CRC-16/CCITT-FALSE), :mod:`.bridge` (frame encoder and the vectorised
 streaming :class:`~.bridge.BridgeDecoder`), :mod:`.reference` (a plain per-byte decoder kept as
-the reference for tests and the benchmark), :mod:`.clock` (integer-nanosecond sample times) and
-:mod:`.jsonl` (the JSON-lines form used by ``ext-sense biotac``). The protocol is documented in
+the reference for tests and the benchmark), :mod:`.clock` (integer-nanosecond sample times),
+:mod:`.jsonl` (the JSON-lines form used by ``ext-sense biotac``), :mod:`.driver_config` (the
+``biotac_driver`` node's settings) and :mod:`.cli`. The protocol is documented in
 ``docs/biotac_bridge.md``.
 """

@@ -408,10 +408,13 @@ class BridgeDecoder:
     Feed it chunks as they arrive; each call returns the frames the chunk completed. Chunk
     boundaries never change the result. Bad bytes never raise: they are counted.
 
-    Example:
-        >>> dec = BridgeDecoder()
-        >>> frames = dec.feed(chunk)  # BridgeFrames
-        >>> dec.counters.crc_failures
+    Example::
+
+        dec = BridgeDecoder()
+        for chunk in chunks:
+            frames = dec.feed(chunk)  # BridgeFrames, frames.n rows
+        frames = dec.flush()  # end of stream
+        print(dec.counters.summary())
     """
 
     def __init__(self) -> None:
@@ -509,7 +512,7 @@ class BridgeDecoder:
             acc_idx, stop = self._walk(cands, complete, valid, total, final)
         else:
             acc_idx, stop = v_idx, -1
-            if not final and not complete[-1]:  # incomplete candidates sit at the end only
+            if not final and not complete.all():
                 for i in np.flatnonzero(~complete):
                     j = np.searchsorted(v_start, cands[i], side="right") - 1
                     if j < 0 or cands[i] >= v_end[j]:

@@ -15,10 +15,16 @@ from __future__ import annotations
 import time
 from typing import Any
 
+import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from ext_sense_drivers.biotac.bridge import MAX_SENSORS, BridgeDecoder, BridgeFrames
+from ext_sense_drivers.biotac.bridge import (
+    MAX_SENSORS,
+    STANDARD_FRAME_SIZE,
+    BridgeDecoder,
+    BridgeFrames,
+)
 from ext_sense_drivers.biotac.clock import FRAME_RATE_HZ, PAC_PERIOD_NS, FrameClock
 from ext_sense_drivers.biotac.driver_config import BioTacDriverConfig
 from ext_sense_drivers.transports.base import LinkState
@@ -164,6 +170,7 @@ class BioTacDriverNode(Node):
         # Monotonic host ns -> ROS time ns, fixed at start so stamps never step back.
         self._mono_to_ros_ns = self.get_clock().now().nanoseconds - time.monotonic_ns()
         self._last_arrival_ns = time.monotonic_ns()
+        self._bytes_fed = 0  # stream position of the next byte given to the decoder
         self._dropped = [0] * MAX_SENSORS
         self._parity = [0] * MAX_SENSORS
         self._errors = [0] * MAX_SENSORS
@@ -210,19 +217,33 @@ class BioTacDriverNode(Node):
         are decoded before the held-back bytes are flushed.
         """
         exhausted = self.reader.state == LinkState.EXHAUSTED
-        for chunk in self.reader.drain():
-            self._last_arrival_ns = chunk.t_ns
-            self._publish(self.decoder.feed(chunk.data), chunk.t_ns)
+        chunks = self.reader.drain()
+        if chunks:
+            # One decoder call per tick (its fixed cost dominates at a frame or two per chunk);
+            # each frame keeps the arrival time of the chunk that completed it.
+            ends = self._bytes_fed + np.cumsum([len(c.data) for c in chunks])
+            times = np.array([c.t_ns for c in chunks], dtype=np.int64)
+            frames = self.decoder.feed(b"".join(c.data for c in chunks))
+            self._bytes_fed = int(ends[-1])
+            self._last_arrival_ns = int(times[-1])
+            done = np.searchsorted(ends, frames.offset + STANDARD_FRAME_SIZE, side="left")
+            self._publish(frames, times[np.minimum(done, len(chunks) - 1)])
         if exhausted and self.decoder.pending_bytes:
-            self._publish(self.decoder.flush(), self._last_arrival_ns)
+            frames = self.decoder.flush()
+            self._publish(frames, np.full(frames.n, self._last_arrival_ns, dtype=np.int64))
 
-    def _publish(self, frames: BridgeFrames, arrival_ns: int) -> None:
-        """One message per frame, stamped with the first PAC sample's ROS time."""
-        arrival_ros_ns = int(arrival_ns) + self._mono_to_ros_ns
+    def _publish(self, frames: BridgeFrames, arrival_ns: np.ndarray) -> None:
+        """One message per frame, stamped with the first PAC sample's ROS time.
+
+        Args:
+            frames: Decoded frames.
+            arrival_ns: ``(n,)`` monotonic host arrival time of each frame, integer ns.
+        """
+        arrivals = (arrival_ns + np.int64(self._mono_to_ros_ns)).tolist()
         for k in range(frames.n):
             s = int(frames.sensor_id[k])
             gap = int(frames.gap[k])
-            first_ns = self.clocks[s].update(arrival_ros_ns, gap, bool(frames.seq_reset[k]))
+            first_ns = self.clocks[s].update(arrivals[k], gap, bool(frames.seq_reset[k]))
             self._dropped[s] += gap
             self._parity[s] += int(frames.parity_errors[k])
             self._errors[s] += int(frames.error_replies[k])

@@ -101,7 +101,7 @@ class AcesLineStream:
 
     Args:
         **decoder_kwargs: Passed to ``ext_sense_drivers.aces.LineDecoder`` (``threshold``,
-            ``amplitude``, ``fft_size``, ``bank``).
+            ``amplitude``, ``window``, ``bank``).
     """
 
     def __init__(self, **decoder_kwargs: object) -> None:

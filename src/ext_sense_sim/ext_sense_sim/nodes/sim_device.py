@@ -74,6 +74,11 @@ class SimDeviceNode(Node):
         if device not in default:
             raise ValueError(f"The 'device' parameter must be nuskin or biotac. Got {device!r}.")
         self.scene = load_scene(scene_name or default[device])
+        if self.scene.sensor.label != device:
+            raise ValueError(
+                f"The 'scene' parameter names a {self.scene.sensor.label} scene "
+                f"({self.scene.name}) but 'device' is {device!r}."
+            )
         self.sink = open_link(link, link_path=port_link, can_channel=can_channel)
         self.port = getattr(self.sink, "path", f"can:{can_channel}")
         self.pub = self.create_publisher(ContactGroundTruth, "ground_truth", GROUND_TRUTH_QOS)
