@@ -47,25 +47,10 @@ def _node_kwargs(spec: NodeSpec, use_sim_time: bool, context: Any = None) -> dic
 
 def run_one(spec: NodeSpec, use_sim_time: bool) -> int:
     """Start one node in this process and spin it until shutdown (the child side)."""
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
+    from ext_sense_runtime.node_main import run_node
 
-    from ext_sense_runtime.executor import make_executor, spin_until_shutdown
-
-    rclpy.init(args=[])
-    node = None
-    try:
-        node = spec.node_class()(**_node_kwargs(spec, use_sim_time))
-        executor = make_executor()
-        executor.add_node(node)
-        spin_until_shutdown(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    node_class = spec.node_class()
+    return run_node(lambda: node_class(**_node_kwargs(spec, use_sim_time)), args=[])
 
 
 def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool) -> int:

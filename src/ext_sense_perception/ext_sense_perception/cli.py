@@ -281,7 +281,8 @@ def evaluation_record(
         "features": features,
         "feature_params": params,
         "model": model,
-        "rate_hz": rate_hz if rate_hz is not None else (1e9 / g.period_ns),
+        "rate_hz": rate_hz if rate_hz is not None else nominal_rate_hz(ws.sensor),
+        "time_resolution_ms": g.period_ns / MS,
         "window_post_ms": res.post_ns / MS,
         "metric": res.metric,
         "mean": res.mean,
@@ -320,6 +321,11 @@ def evaluation_record(
             }
         )
     return rec
+
+
+def nominal_rate_hz(sensor: str) -> float:
+    """The sensor's own sampling rate when none was reduced: NUSkin 4 kHz, BioTac PAC 2200 Hz."""
+    return 4000.0 if sensor == "nuskin" else 2200.0
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:

@@ -141,14 +141,14 @@ def refractory_mask(t_ns: np.ndarray, taxel: np.ndarray, rate_hz: float) -> np.n
     bounds = np.flatnonzero(np.diff(tax[order])) + 1
     for group in np.split(order, bounds):
         times = t[group]
+        local = np.zeros(len(group), dtype=bool)
         last = None
-        kept = keep_local = np.zeros(len(group), dtype=bool)
         # spikes are sparse per taxel, so a short loop per taxel is cheap
         for i, ti in enumerate(times):
             if last is None or ti - last >= tau:
-                keep_local[i] = True
+                local[i] = True
                 last = ti
-        keep[group] = kept
+        keep[group] = local
     return keep
 
 

@@ -50,11 +50,11 @@ def make_estimator(
     if name in ("svm_linear", "svm_rbf", "svm"):
         kernels = {"svm_linear": ["linear"], "svm_rbf": ["rbf"], "svm": ["linear", "rbf"]}[name]
         if regression:
-            return SVR(kernel=kernels[0], epsilon=REGRESSION_EPSILON_M), {
+            return SVR(kernel=kernels[0], epsilon=REGRESSION_EPSILON_M, cache_size=1000), {
                 "C": c_grid,
                 "kernel": kernels,
             }
-        est = SVC(kernel=kernels[0], random_state=seed)
+        est = SVC(kernel=kernels[0], random_state=seed, cache_size=1000)
         return est, {"C": c_grid, "kernel": kernels}
     if name == "mlp":
         kw = {

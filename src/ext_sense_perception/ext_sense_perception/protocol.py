@@ -50,6 +50,7 @@ class EvalResult(NamedTuple):
     y_pred: np.ndarray
     y_std: np.ndarray  # predicted std (regression) or max probability (classes), per test window
     post_ns: int
+    proba: np.ndarray | None = None  # calibrated class probabilities per test window (classes)
 
     @property
     def mean(self) -> float:
@@ -176,7 +177,7 @@ def _evaluate(
         search_pipe, search_X = pipe, X
     from tqdm import tqdm
 
-    scores, times, params = [], [], []
+    scores, times, params, probas = [], [], [], []
     y_true, y_pred, y_std = [], [], []
     labels = list(ws.class_names)
     conf = np.zeros((len(labels), len(labels)), dtype=np.int64) if labels else None
@@ -216,10 +217,9 @@ def _evaluate(
         else:
             scores.append(accuracy_score(ws.y[test], pred))
             conf += confusion_matrix(ws.y[test], pred, labels=labels)
-            proba = (
-                search.predict_proba(search_X[test]) if hasattr(search, "predict_proba") else None
-            )
-            y_std.append(proba.max(axis=1) if proba is not None else np.full(len(test), np.nan))
+            proba = _calibrated_proba(search, search_X[train], ws.y[train], search_X[test], seed)
+            probas.append(proba)
+            y_std.append(proba.max(axis=1))
     if cache is not None:
         cache.cleanup()
     g = ws.geometry
@@ -238,4 +238,24 @@ def _evaluate(
         y_pred=np.concatenate(y_pred),
         y_std=np.concatenate(y_std),
         post_ns=int(g.n_samples * g.period_ns - g.pre_ns),
+        proba=np.concatenate(probas) if probas else None,
     )
+
+
+def _calibrated_proba(search, x_train, y_train, x_test, seed: int) -> np.ndarray:
+    """Test-set class probabilities: the model's own, or Platt-calibrated inside the training set.
+
+    Columns follow the sorted class names.
+    """
+    from sklearn.calibration import CalibratedClassifierCV
+
+    best = search.best_estimator_
+    if hasattr(best, "predict_proba"):
+        try:
+            return best.predict_proba(x_test)
+        except AttributeError:
+            pass
+    smallest = int(np.min(np.unique(y_train, return_counts=True)[1]))
+    cv = StratifiedKFold(min(3, max(smallest, 2)), shuffle=True, random_state=seed)
+    cal = CalibratedClassifierCV(clone(best), method="sigmoid", cv=cv).fit(x_train, y_train)
+    return cal.predict_proba(x_test)

@@ -162,3 +162,24 @@ def test_cli_errors_are_clear(tmp_path, capsys):
     )
     assert rc == 2
     assert "trials" in capsys.readouterr().err
+
+
+def test_report_quick_writes_tables_and_plots(tap_npz, tmp_path):
+    from ext_sense_perception.report import build_report
+
+    md = build_report([tap_npz], tmp_path / "rep", k=2, quick=True)
+    text = md.read_text()
+    for heading in ("Features and models", "Decision latency", "Sampling rate", "Two fingers"):
+        assert heading in text
+    assert "95% PI coverage" in text
+    pngs = sorted(p.name for p in (tmp_path / "rep").glob("*.png"))
+    assert len(pngs) == 3
+    records = json.loads((tmp_path / "rep" / "report.json").read_text())
+    assert {r["post_ms"] for r in records} >= {25.0, 250.0}
+
+
+def test_protocol_classification_probabilities_are_calibrated_per_split(handover_npz):
+    ws = from_sim_dataset(handover_npz)
+    r = evaluate(ws, features_for(ws, "fft"), "svm_rbf", k=2, progress=False)
+    assert r.proba.shape == (len(r.y_true), 2)
+    np.testing.assert_allclose(r.proba.sum(axis=1), 1.0, atol=1e-9)

@@ -14,9 +14,11 @@ from the pad centre), a finger of side ``s = +1`` (left) / ``-1`` (right) feels
 ``p = w * (F_grip / A + s (V_n / A + M_n u / I)
        + k_t (c - c0) / s_w (V_t / A + M_t u / I) + k_a (u / u_max) F_ax / A)``
 
-times a fixed per-taxel gain (manufacturing spread). Loads toward the pads (``V_n``,
-``M_n``) load one pad and unload the other; loads along the pads shear the pad and reach the
-piezoresistive layer only through the coupling ``k_t``; the axial force likewise with ``k_a``.
+times a fixed per-taxel gain (manufacturing spread), and never below zero: where the
+dynamic load would pull, that part of the pad loses contact (unilateral contact). Loads
+toward the pads (``V_n``, ``M_n``) load one pad and unload the other; loads along the pads
+shear the pad and reach the piezoresistive layer only through the coupling ``k_t``; the axial
+force likewise with ``k_a``.
 """
 
 from __future__ import annotations
@@ -100,4 +102,5 @@ class GraspTransfer(Effect):
         w = self.weights(offsets, rng, n).astype(np.float32)
         pressure = np.matmul(w[:, :, 1:], load.astype(np.float32))
         pressure += w[:, :, 0:1]
+        np.maximum(pressure, 0.0, out=pressure)  # a pad can push but not pull
         signals["taxel_pressure"] = pressure

@@ -1,0 +1,142 @@
+"""Perception benchmark: training time and single-window inference latency, both backends.
+
+Prints, side by side in one run:
+- FFT + SVR (RBF) trained on N synthetic NUSkin taps (grid search with 4-fold CV, refit,
+  residual CV): seconds (target <= 30 s for N = 1000);
+- features + model for one window, p50/p99 over many windows, ONNX Runtime against the
+  scikit-learn pipeline (target ONNX p99 <= 2 ms), from a 0.25 ms online window (rebinned) and
+  from a model-geometry row;
+- the online windower's throughput on a dense event stream.
+
+    python bench/bench_perception.py            # 1000 taps
+    python bench/bench_perception.py --quick    # 200 taps, a few seconds
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import tempfile
+import time
+
+import numpy as np
+
+from ext_sense_perception import bundle
+from ext_sense_perception.dataset import WindowSet
+from ext_sense_perception.features import Geometry
+from ext_sense_perception.windows import MS, ContactWindow, EventWindower
+
+
+def synthetic_taps(n: int, seed: int = 0) -> WindowSet:
+    """Windows (n, 80, 300) at 1 ms: each finger rings at a frequency set by the tap position."""
+    rng = np.random.default_rng(seed)
+    y = rng.uniform(0.02, 0.28, n)
+    t = np.arange(300)
+    x = np.zeros((n, 80, 300), np.float32)
+    for i in range(n):
+        f = 40 + 400 * y[i]
+        ring = (
+            np.sin(2 * np.pi * f * (t - 50) / 1000.0)
+            * np.exp(-np.maximum(t - 50, 0) / 60.0)
+            * (t >= 50)
+        )
+        gain = rng.uniform(0.5, 3.0, (80, 1))
+        x[i] = np.round(gain * ring + rng.normal(0, 0.3, (80, 300)))
+    g = Geometry(80, 300, MS, 50 * MS, "nuskin")
+    return WindowSet(
+        "tap_localization",
+        "nuskin",
+        x,
+        y,
+        g,
+        (),
+        np.arange(n),
+        np.full(n, 0.3),
+        "synthetic",
+        "none",
+    )
+
+
+def percentiles(times_ms: list[float]) -> tuple[float, float]:
+    return float(np.percentile(times_ms, 50)), float(np.percentile(times_ms, 99))
+
+
+def time_predict(model: bundle.ModelBundle, windows: list, repeat: int) -> tuple[float, float]:
+    model.predict(windows[0])
+    out = []
+    for i in range(repeat):
+        t0 = time.perf_counter_ns()
+        model.predict(windows[i % len(windows)])
+        out.append((time.perf_counter_ns() - t0) / 1e6)
+    return percentiles(out)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--quick", action="store_true", help="200 taps and fewer repeats")
+    ap.add_argument("--taps", type=int, default=None)
+    args = ap.parse_args()
+    n = args.taps or (200 if args.quick else 1000)
+    repeat = 300 if args.quick else 2000
+
+    ws = synthetic_taps(n)
+    t0 = time.perf_counter()
+    trained = bundle.train(ws, "fft", "svm_rbf")
+    train_s = time.perf_counter() - t0
+    print(
+        f"train FFT + SVR (RBF) on {n} taps: {train_s:.2f} s (target <= 30 s for 1000)  "
+        f"cv MAE {trained.card['metrics']['cv_mae_m'] * 100:.2f} cm"
+    )
+
+    fine = []
+    rng = np.random.default_rng(1)
+    for i in range(64):
+        up = np.repeat(ws.X[i], 4, axis=1) / 4.0  # 0.25 ms online window of the same signal
+        up = np.round(up + rng.normal(0, 0.1, up.shape)).astype(np.float32)
+        fine.append(
+            ContactWindow(
+                "tap_localization", "nuskin", 0, 50 * MS, 250 * MS, 250_000, np.arange(1, 81), up
+            )
+        )
+    rows = [ws.X[i] for i in range(64)]
+    with tempfile.TemporaryDirectory() as tmp:
+        bundle.save(trained, tmp)
+        results = {}
+        for backend in ("sklearn", "onnx"):
+            m = bundle.load_model(tmp, backend)
+            results[backend, "row"] = time_predict(m, rows, repeat)
+            results[backend, "online"] = time_predict(m, fine, repeat)
+    print(f"{'one window, features + model':34s} {'p50 ms':>8s} {'p99 ms':>8s}")
+    for (backend, kind), (p50, p99) in results.items():
+        print(f"  {backend:8s} {kind:24s} {p50:8.3f} {p99:8.3f}")
+    ratio = results["sklearn", "online"][1] / results["onnx", "online"][1]
+    print(
+        f"onnx online p99 {results['onnx', 'online'][1]:.3f} ms (target <= 2 ms); "
+        f"sklearn/onnx p99 ratio {ratio:.1f}x"
+    )
+
+    # windower throughput: 80 taxels, ~100k events/s, 1 ms batches
+    w = EventWindower()
+    seconds = 0.5 if args.quick else 2.0
+    n_ev = int(100_000 * seconds)
+    t = np.sort(rng.integers(0, int(seconds * 1e9), n_ev)).astype(np.int64)
+    tax = rng.integers(1, 81, n_ev).astype(np.uint16)
+    pol = rng.choice(np.array([-1, 1], np.int8), n_ev)
+    edges = np.searchsorted(t, np.arange(0, int(seconds * 1e9), MS))
+    t0 = time.perf_counter()
+    windows = 0
+    for a, b in itertools.pairwise(edges):
+        windows += len(w.feed(t[a:b], tax[a:b], pol[a:b]))
+    el = time.perf_counter() - t0
+    print(
+        f"windower: {n_ev / el / 1e6:.2f} M events/s ({len(edges) - 1} batches of 1 ms, "
+        f"{windows} windows, "
+        f"{el / (len(edges) - 1) * 1e6:.0f} us per batch)"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
