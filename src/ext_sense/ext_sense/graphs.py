@@ -28,6 +28,8 @@ TOPIC_TAP_MARKER = f"{NS}/tap_marker"
 TOPIC_MOTION_START = f"{NS}/motion_start"
 
 SENSORS = ("nuskin", "biotac")
+STARTUP_SPARE_TRIALS = 3
+"""Extra simulated trials: those streamed while the graph is still starting are lost."""
 SOURCES = ("sim", "serial", "can", "bag")
 BACKENDS = ("onnx", "sklearn")
 
@@ -122,7 +124,11 @@ def _source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                     "link": "can" if over_can else "pty",
                     "port_link": _port(task, args),
                     "can_channel": args["can_channel"],
-                    "trials": int(args["trials"]),
+                    # the device streams from start-up, like a real one: trials sent before
+                    # the driver has the port are lost, so spare ones keep N scored trials
+                    "trials": int(args["trials"]) + STARTUP_SPARE_TRIALS
+                    if int(args["trials"]) > 0
+                    else 0,
                     "seed": int(args["seed"]),
                 },
                 remappings=(("ground_truth", TOPIC_GROUND_TRUTH),),

@@ -29,13 +29,26 @@ def frame_bytes(sensor, seq):
     return encode_frame(seq, sensor, words)
 
 
+def stamp_ns(m):
+    return m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+
+
 def assert_stamps_within(msgs, t_start_ns, t_end_ns):
     """Stamps are ROS-time ns of the first PAC sample: the clock model puts each one between
     (some frame's arrival - lead) and the frame's own arrival - lead, so inside the test's run."""
     lead_ns = 10_000_000 + 960_000  # frame span + 96 bytes at the default 1 Mbaud
     for m in msgs:
-        t = m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
-        assert t_start_ns - lead_ns - 1_000_000 <= t <= t_end_ns
+        assert t_start_ns - lead_ns - 1_000_000 <= stamp_ns(m) <= t_end_ns
+
+
+def assert_stamps_never_decrease(msgs):
+    """Per sensor, stamps in sequence order never go back. They need not strictly increase:
+    from a source faster than 100 frames/s (a replay faster than 9600 bytes/s per sensor) the
+    clock model stamps each frame at its arrival - lead, so frames that one read completed share
+    a stamp, and how many do depends on how often the reader thread got the CPU."""
+    for s in {m.sensor_id for m in msgs}:
+        stamps = [stamp_ns(m) for m in msgs if m.sensor_id == s]
+        assert stamps == sorted(stamps), f"sensor {s}: a stamp went back"
 
 
 class FakeBridge:
@@ -165,6 +178,7 @@ def test_two_sensors_unplug_replug(tmp_path):
             assert series == sorted(series)
         assert msgs[-1].parity_errors >= sum(1 for q in seqs if q % 10 == 3)
     assert_stamps_within(got, t_start_ns, t_end_ns)
+    assert_stamps_never_decrease(got)
     c = node.decoder.counters
     assert c.crc_failures + c.skipped_bytes > 0  # the garbage burst was counted, not fatal
     statuses = {st.name: st for d in diags for st in d.status}
@@ -243,3 +257,4 @@ def test_file_replay_publishes_every_frame_once(tmp_path):
         assert msgs[-1].dropped_frames == c.dropped_frames[s]
         assert msgs[-1].parity_errors == c.parity_errors[s]
     assert_stamps_within(got, t_start_ns, t_end_ns)
+    assert_stamps_never_decrease(got)

@@ -110,6 +110,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--k", type=int, default=None, help="splits per point (default 3; quick)")
     p.add_argument("--quick", action="store_true", help="fewer points, for a smoke run")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--bin-ms", type=float, default=None, help="NUSkin FFT/baseline bin, ms (default 5)"
+    )
     p.set_defaults(func=_cmd_report)
 
 
@@ -369,8 +372,14 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from ext_sense_perception.report import build_report
 
     try:
+        params = {"bin_ns": round(args.bin_ms * MS)} if args.bin_ms else None
         path = build_report(
-            [Path(d) for d in args.data], Path(args.out), k=args.k, quick=args.quick, seed=args.seed
+            [Path(d) for d in args.data],
+            Path(args.out),
+            k=args.k,
+            quick=args.quick,
+            seed=args.seed,
+            base_params=params,
         )
     except PerceptionError as err:
         return _fail(err)

@@ -391,6 +391,7 @@ def from_recording(
                     pre_ns=0,
                     post_ns=FOOD_CAPTURE_POST_NS,
                     bin_ns=FOOD_CAPTURE_BIN_NS,
+                    provisional_post_ns=(),
                 )
         else:
             events = read_paper_tact(path)

@@ -139,8 +139,12 @@ def report_dataset(
     quick: bool,
     seed: int,
     records: list[dict[str, Any]],
+    base_params: dict[str, Any] | None = None,
 ) -> list[str]:
-    """Markdown lines (and PNGs in ``out``) for one window set."""
+    """Markdown lines (and PNGs in ``out``) for one window set.
+
+    ``base_params`` (e.g. ``{"bin_ns": 2_000_000}``) apply to every NUSkin evaluation.
+    """
     src = Path(str(path))
     name = f"{ws.task}_{ws.sensor}_{src.parent.name if src.is_file() else src.name}"
     lower = ws.is_regression
@@ -151,6 +155,8 @@ def report_dataset(
         lines += [f"Excluded: {', '.join(ws.excluded)} (single trial of its class).", ""]
 
     def run(wset: WindowSet, features: str, model: str, **params: Any) -> EvalResult:
+        if wset.sensor == "nuskin" and features in ("baseline", "fft", "autoencoder"):
+            params = {**(base_params or {}), **params}
         grid = default_feature_grid(wset.task, wset.sensor, features)
         t0 = time.perf_counter()
         res = evaluate(
@@ -322,7 +328,12 @@ def report_dataset(
 
 
 def build_report(
-    datasets: list[Path], out: Path, k: int | None = None, quick: bool = False, seed: int = 0
+    datasets: list[Path],
+    out: Path,
+    k: int | None = None,
+    quick: bool = False,
+    seed: int = 0,
+    base_params: dict[str, Any] | None = None,
 ) -> Path:
     """Evaluate every dataset and write ``out/report.md``, PNGs and ``out/report.json``.
 
@@ -332,6 +343,7 @@ def build_report(
         k: Random splits per point (default 3, or 2 with ``quick``).
         quick: Fewer features, models, rates and taxels.
         seed: Seed.
+        base_params: Feature parameters for every NUSkin evaluation (e.g. ``bin_ns``).
 
     Returns:
         The markdown file.
@@ -352,10 +364,18 @@ def build_report(
     with threadpool_limits(limits=1):
         for path in datasets:
             ws = load_window_set(path)
-            lines += report_dataset(ws, path, out, k, quick, seed, records)
+            lines += report_dataset(ws, path, out, k, quick, seed, records, base_params)
             if ws.task == "tap_localization" and np.isfinite(ws.rod_length_m).any():
                 feat0, model0 = default_choice(ws.task, ws.sensor)
-                res = evaluate(ws, features_for(ws, feat0), model0, k=k, seed=seed, progress=False)
+                params = base_params if ws.sensor == "nuskin" else None
+                res = evaluate(
+                    ws,
+                    features_for(ws, feat0, **(params or {})),
+                    model0,
+                    k=k,
+                    seed=seed,
+                    progress=False,
+                )
                 rods.append((float(np.nanmedian(ws.rod_length_m)), res))
     if len(rods) > 1:
         lines += [

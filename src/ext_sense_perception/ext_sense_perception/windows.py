@@ -470,10 +470,14 @@ class EventWindower(_WindowerBase):
         lo = np.searchsorted(both, new_t - cfg.activity_window_ns, side="right")
         counts = np.arange(first_new, len(both)) - lo + 1
         hits = np.flatnonzero(counts >= k)
-        for h in hits:
-            onset = int(both[lo[h]])
-            if self._next_allowed_ns is None or onset >= self._next_allowed_ns:
-                self._add_onset(onset)
+        starts = both[lo[hits]]  # onset candidates: first event of each qualifying burst
+        while len(starts):
+            if self._next_allowed_ns is not None:
+                starts = starts[starts >= self._next_allowed_ns]
+                if not len(starts):
+                    break
+            self._add_onset(int(starts[0]))
+            starts = starts[1:]
         cut = np.searchsorted(both, both[-1] - cfg.activity_window_ns, side="right")
         self._recent = both[cut:]
 

@@ -112,3 +112,9 @@ def handover_npz(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="session")
 def biotac_npz(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return synthetic_biotac_dataset(tmp_path_factory.mktemp("biotac") / "dataset.npz")
+
+
+@pytest.fixture(scope="session")
+def make_tap_dataset():
+    """The synthetic NUSkin dataset writer, for tests that need their own size."""
+    return synthetic_tap_dataset

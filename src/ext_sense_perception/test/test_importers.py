@@ -138,3 +138,13 @@ def test_real_food_poking_captures(food_poking_dir):
     assert ws.X.shape == (44, 80, 300)
     # every trial has events after the arm starts moving
     assert (np.abs(ws.X).sum(axis=(1, 2)) > 100).all()
+
+
+@pytest.mark.real_data
+def test_one_real_capture_matches_the_directory_loader(food_poking_dir):
+    one = from_recording(food_poking_dir / "apple_zero_1.tact", "food", "nuskin")
+    assert one.X.shape == (1, 80, 300)
+    assert one.y.tolist() == ["apple"]
+    everything = from_food_poking(food_poking_dir)
+    row = everything.X[everything.y == "apple"][1]  # apple_zero_0, apple_zero_1, apple_zero_10, ...
+    np.testing.assert_array_equal(one.X[0], row)

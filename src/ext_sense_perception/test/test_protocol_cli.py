@@ -6,8 +6,6 @@ import json
 import numpy as np
 import pytest
 
-from conftest import synthetic_tap_dataset
-
 from ext_sense.cli import main as ext_sense
 from ext_sense_perception.bundle import load_model
 from ext_sense_perception.dataset import from_sim_dataset
@@ -166,10 +164,10 @@ def test_cli_errors_are_clear(tmp_path, capsys):
     assert "trials" in capsys.readouterr().err
 
 
-def test_report_quick_writes_tables_and_plots(tmp_path):
+def test_report_quick_writes_tables_and_plots(tmp_path, make_tap_dataset):
     from ext_sense_perception.report import build_report
 
-    small = synthetic_tap_dataset(tmp_path / "small.npz", n=20, seed=3)
+    small = make_tap_dataset(tmp_path / "small.npz", n=20, seed=3)
     md = build_report([small], tmp_path / "rep", k=2, quick=True)
     text = md.read_text()
     for heading in ("Features and models", "Decision latency", "Sampling rate", "Two fingers"):

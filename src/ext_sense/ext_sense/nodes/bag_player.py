@@ -87,6 +87,15 @@ class BagPlayerNode(Node):
             high=60.0,
             read_only=True,
         )
+        self.wait_subscribers_s = declare(
+            self,
+            "wait_subscribers_s",
+            15.0,
+            "Before playing, wait up to this long until every played topic has a subscriber, s.",
+            low=0.0,
+            high=600.0,
+            read_only=True,
+        )
         self.linger_s = declare(
             self,
             "linger_s",
@@ -131,6 +140,12 @@ class BagPlayerNode(Node):
 
     def _play(self) -> None:
         try:
+            deadline = time.monotonic() + self.wait_subscribers_s
+            while time.monotonic() < deadline and not all(
+                p.get_subscription_count() for p in self._pubs.values()
+            ):
+                if self._stop.wait(0.05):
+                    return
             if self._stop.wait(self.start_delay_s):
                 return
             wall0 = log0 = None

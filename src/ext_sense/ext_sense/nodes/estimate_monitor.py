@@ -53,6 +53,18 @@ class EstimateMonitorNode(Node):
             )
             * 1e9
         )
+        self.give_up_ns = int(
+            declare(
+                self,
+                "give_up_s",
+                30.0,
+                "After any activity, stop after this long without "
+                "a message even if trials are missing, s; 0: never.",
+                low=0.0,
+                high=86400.0,
+            )
+            * 1e9
+        )
         tol_ms = declare(
             self,
             "match_tolerance_ms",
@@ -104,7 +116,10 @@ class EstimateMonitorNode(Node):
 
     def _on_timer(self) -> None:
         idle = time.monotonic_ns() - self._last_news
-        if self.expected and self.trials_seen >= self.expected and idle > self.idle_timeout_ns:
+        all_seen = self.expected and self.trials_seen >= self.expected
+        done = all_seen and idle > self.idle_timeout_ns
+        stalled = self.give_up_ns and self.trials_seen and idle > self.give_up_ns
+        if done or stalled:
             self._finish()
 
     def _maybe_finish(self) -> None:

@@ -55,6 +55,39 @@ _REFRESH_RATIO = 0.25
 """A decided stretch one signature long whose residual energy exceeds the noise floor by this
 fraction of one signature's energy sends the window through the matched filter."""
 
+MAX_NOISE = 0.6
+"""Residual test, absolute part: when even the quietest tenth of a window's decided stretches
+keeps more residual than noise of this RMS (chip amplitudes) would leave, the window is noise
+or interference beyond what the line is specified for (exact decoding was measured up to 0.4
+chip RMS), its correlations are not evidence, and all its detections are withheld."""
+
+_REDO_GAIN = 0.1
+"""Relative amplitude error above which a pass with rejected detections is decoded again."""
+
+MAX_DEPTH = 16.0
+"""Overload gate: a stretch of one signature length whose energy says it carries more than this
+many signatures per sample on average (energy per sample / amplitude squared; signatures add
+incoherently) is beyond what the line can separate. Its samples are not decoded (set to 0) and
+counted. Bursts of 12 signatures started within 0.1 ms (about 9.6 per sample over the stretch,
+more where they happen to add up) still decode; 16 did not. Also stops a constant or random
+full-scale input (64 and 21)."""
+
+SUSTAINED_SPAN = 4
+"""Signature lengths of the overload gate's second, longer stretch."""
+
+MAX_SUSTAINED_DEPTH = 7.0
+"""Overload gate on stretches of :data:`SUSTAINED_SPAN` signature lengths: a line that carries
+more than this many signatures per sample on average for that long is saturated (a random line
+at 95 % busy carries 3, and reaching 7 over four signature lengths is a 1e-4 event there;
+a burst of 12 signatures is 3 over such a stretch). Decoding a saturated line only costs time
+(the onset decoder's test budget and a matched filter per pass) and produces residue."""
+
+REJECT_RATIO = 0.5
+"""Residual test after decoding: a decided stretch one signature long whose residual energy
+still exceeds the noise floor by this fraction of one signature's energy was not explained by
+the detections around it (a burst too dense to separate: the cancellations left residue that
+made more false detections). Committed detections overlapping it are withheld and counted."""
+
 
 @dataclass(frozen=True)
 class LineCounters:
@@ -78,6 +111,15 @@ class LineCounters:
         residual_energy: Sum of squared residual of the decided samples after cancellation;
             near zero on a clean line, so a high ratio to ``input_energy`` means missed events,
             a wrong bank, a gain error, noise or a lost byte (wire samples out of step).
+        overload_samples: Samples not decoded because the line carried more than
+            :data:`MAX_DEPTH` signatures per sample around them (saturation, bursts beyond
+            separation, garbage input).
+        rejected: Detections withheld because the residual around them showed the decoding
+            there was wrong (see :data:`REJECT_RATIO`).
+        unresolved: Estimated signatures the decoder could not resolve: the energy of the
+            overloaded samples in units of one signature's energy (overlapping signatures add
+            incoherently), plus the rejected detections (the decoder's own count of what it
+            could not explain), rounded.
         mean_amplitude: Mean correlation per chip of all detections at acceptance, line
             units (0 before the first): the chip amplitude actually on the line, to compare
             with the decoder's nominal ``amplitude``.
@@ -96,6 +138,9 @@ class LineCounters:
     undone: int = 0
     input_energy: float = 0.0
     residual_energy: float = 0.0
+    overload_samples: int = 0
+    rejected: int = 0
+    unresolved: int = 0
     mean_amplitude: float = 0.0
     amplitude_in_use: float = 0.0
 
@@ -171,6 +216,8 @@ class LineDecoder:
         self._c = dict.fromkeys(LineCounters.__dataclass_fields__, 0)
         self._c["input_energy"] = 0.0
         self._c["residual_energy"] = 0.0
+        self._unresolved = 0.0
+        self._noisy = False
         self._strength = 0.0
         self._strength_n = 0
         self._set_amplitude(self.amplitude)
@@ -199,7 +246,14 @@ class LineDecoder:
     def counters(self) -> LineCounters:
         """A snapshot of the counters."""
         mean = self._strength / self._strength_n if self._strength_n else 0.0
-        return LineCounters(**{**self._c, "mean_amplitude": mean, "amplitude_in_use": self._amp})
+        return LineCounters(
+            **{
+                **self._c,
+                "unresolved": round(self._unresolved),
+                "mean_amplitude": mean,
+                "amplitude_in_use": self._amp,
+            }
+        )
 
     @property
     def latency_samples(self) -> int:
@@ -289,18 +343,40 @@ class LineDecoder:
         return EventBlock.concat(blocks) if blocks else EventBlock.empty()
 
     def _pass(self, limit: int | None) -> EventBlock:
-        """Decode one window, commit its first part, slide on (``limit``: end of real samples)."""
+        """Decode one window, commit its first part, slide on (``limit``: end of real samples).
+
+        A pass whose residual test withheld detections while they measured an amplitude more
+        than :data:`_REDO_GAIN` away from the one in use is decoded once more with the measured
+        amplitude (a gain error leaves residue at every cancellation until it is tracked); the
+        second result and its amplitude are kept only if fewer detections are withheld.
+        """
         buf = self._buf
         commit = self._commit if limit is None else min(self._commit, limit - self._base)
         self._c["passes"] += 1
-        if self.mode is DecodeMode.MATCHED_FILTER:
-            found = self._matched.detect(buf[: self.window], commit)
-            self._subtract(buf, found)
-            self._count(found)
-            strength, n = found.strength, int(found.code.size)
-        else:
-            found, strength, n = self._onset_pass(buf, commit)
-        found = self._annihilate(found)
+        before = (buf[: self.window].copy(), dict(self._c), self._unresolved)
+        found, strength, n = self._decode_window(buf, commit)
+        rejected = self._c["rejected"] - before[1]["rejected"]
+        if rejected and n and not self._noisy:
+            # Residue left: either a gain error (decoding again with the measured amplitude
+            # explains the window) or more than the line can separate (it does not; then the
+            # first result stands and the pass does not move the estimate).
+            lo, hi = AMPLITUDE_RANGE
+            measured = min(max(strength / n, lo * self.amplitude), hi * self.amplitude)
+            redo = self.track_amplitude and abs(measured - self._amp) > _REDO_GAIN * self._amp
+            if redo:
+                first = (buf[: self.window].copy(), dict(self._c), self._unresolved, found)
+                old = self._amp
+                buf[: self.window] = before[0]
+                self._c, self._unresolved = dict(before[1]), before[2]
+                self._set_amplitude(measured)
+                found, strength, n = self._decode_window(buf, commit)
+                if self._c["rejected"] - before[1]["rejected"] >= rejected:
+                    buf[: self.window] = first[0]
+                    self._c, self._unresolved, found = first[1], first[2], first[3]
+                    self._set_amplitude(old)
+                    redo = False
+            if not redo:
+                strength, n = 0.0, 0
         decided = buf[: max(commit, 0)]
         self._c["residual_energy"] += float(np.dot(decided, decided))
         self._c["detections"] += int(found.code.size)
@@ -316,21 +392,52 @@ class LineDecoder:
         self._track(strength, n)
         return block
 
-    def _onset_pass(
+    def _decode_window(
         self, buf: npt.NDArray[np.float64], commit: int
+    ) -> tuple[Detections, float, int]:
+        """Gate, detect, cancel and check one window (see :meth:`_pass`).
+
+        Returns:
+            The committed detections that passed the residual test, and the summed strength
+            and number of detections for the amplitude estimate (0 on an overloaded pass).
+        """
+        blanked = self._overload(buf, commit)
+        trusted = blanked is None
+        if self.mode is DecodeMode.MATCHED_FILTER:
+            found = self._matched.detect(buf[: self.window], commit)
+            self._subtract(buf, found)
+            self._count(found)
+            strength, n = found.strength, int(found.code.size)
+        else:
+            found, strength, n = self._onset_pass(buf, commit, refresh=trusted)
+        found = self._annihilate(found)
+        found = self._reject(buf, found, commit, blanked)
+        if not trusted or (self.mode is DecodeMode.ONSET and self._onset.exhausted):
+            # Detections around overloaded stretches, or on a window so full of onsets that
+            # the test budget ran out (noise, garbage), measure residue rather than the
+            # line's amplitude: such a pass does not move the estimate.
+            return found, 0.0, 0
+        return found, strength, n
+
+    def _onset_pass(
+        self, buf: npt.NDArray[np.float64], commit: int, refresh: bool = True
     ) -> tuple[Detections, float, int]:
         """Onset decoder, then the matched filter if the residual says something was missed.
 
         The onset decoder also runs (tentatively) up to one signature past ``commit``, so that
         every sample a committed signature touches can be checked for left-over energy; the
-        tentative detections are put back afterwards and decided in the next pass.
+        tentative detections are put back afterwards and decided in the next pass. With
+        ``refresh`` off (a pass the overload gate blanked) the onset decoder stops at
+        ``commit`` and the matched filter does not run: on a saturated line it would cost ten
+        times the onset decoder and find residue. The residual test then withholds what the
+        window could not explain.
 
         Returns:
             The committed detections, and the summed strength and number of all detections
             (tentative ones included) for the amplitude estimate.
         """
         length = self._length
-        scan = min(commit + length - 2, self.window - length + 1)
+        scan = min(commit + length - 2, self.window - length + 1) if refresh else commit
         found = self._onset.decode(buf, scan)
         self._count(found)
         strength, n = found.strength, int(found.code.size)
@@ -341,7 +448,7 @@ class LineDecoder:
                 buf, Detections(found.code[later], found.start[later], -found.sign[later])
             )
             found = Detections(found.code[~later], found.start[~later], found.sign[~later])
-        if missed:
+        if missed and refresh:
             self._c["refreshes"] += 1
             extra = self._matched.detect(buf[: self.window], commit)
             self._count(extra)
@@ -406,6 +513,105 @@ class LineDecoder:
             found.code.tolist(), found.start.tolist(), found.sign.tolist(), strict=True
         ):
             buf[t : t + self._length] -= s * self._chips[k]
+
+    def _stretch_energy(
+        self, r: npt.NDArray[np.float64], span: int | None = None
+    ) -> npt.NDArray[np.float64]:
+        """Energy of every stretch of ``span`` samples (default one signature) in ``r``."""
+        span = span or self._length
+        cum = np.concatenate(([0.0], np.cumsum(r * r)))
+        return cum[span:] - cum[:-span]
+
+    def _overload(
+        self, buf: npt.NDArray[np.float64], commit: int
+    ) -> npt.NDArray[np.int64] | None:
+        """Blank (and count) the samples before ``commit`` the line cannot separate.
+
+        Every stretch of one signature length that starts before ``commit`` and carries more
+        than :data:`MAX_DEPTH` signatures' energy per sample, and every stretch of
+        :data:`SUSTAINED_SPAN` lengths above :data:`MAX_SUSTAINED_DEPTH`, marks its samples
+        before ``commit``; those are set to 0 so that neither detector works on them. Later samples
+        are judged again by the next pass.
+
+        Returns:
+            The blanked samples, or None.
+        """
+        length = self._length
+        if commit <= 0:
+            return None
+        mark = np.zeros(buf.size + 1, np.int64)
+        hit = False
+        for span, depth in ((length, MAX_DEPTH), (SUSTAINED_SPAN * length, MAX_SUSTAINED_DEPTH)):
+            seg = buf[: min(commit + span - 1, buf.size)]
+            if seg.size < span:
+                continue
+            energy = self._stretch_energy(seg, span)[:commit]
+            starts = np.flatnonzero(energy > depth * self._amp**2 * span)
+            if starts.size:
+                hit = True
+                np.add.at(mark, starts, 1)
+                np.add.at(mark, starts + span, -1)
+        if not hit:
+            return None
+        blank = np.flatnonzero(np.cumsum(mark)[:commit] > 0)
+        lost = buf[blank]
+        self._unresolved += float(np.dot(lost, lost)) / (self._amp**2 * length)
+        self._c["overload_samples"] += int(blank.size)
+        buf[blank] = 0.0
+        return blank
+
+    def _reject(
+        self,
+        buf: npt.NDArray[np.float64],
+        found: Detections,
+        commit: int,
+        blanked: npt.NDArray[np.int64] | None,
+    ) -> Detections:
+        """Withhold committed detections in stretches the decoding left unexplained.
+
+        A stretch is unexplained when its residual energy exceeds the noise floor by
+        :data:`REJECT_RATIO` of a signature's energy, and every stretch is when the floor
+        itself is above :data:`MAX_NOISE`. A detection whose signature overlaps
+        samples the overload gate blanked is withheld too: its correlation was measured on
+        part of a signature, or on the residue of erased ones.
+
+        Returns:
+            ``found`` itself when nothing is withheld, else the kept detections.
+        """
+        length = self._length
+        decided = buf[: max(commit, 0)]
+        self._noisy = False
+        if decided.size < length:
+            return found
+        energy = self._stretch_energy(decided)
+        floor = float(np.partition(energy, energy.size // 10)[energy.size // 10])
+        self._noisy = floor > MAX_NOISE**2 * self._amp**2 * length
+        if self._noisy:
+            bad = np.ones(energy.size, dtype=bool)
+        else:
+            bad = energy - floor > REJECT_RATIO * self._amp**2 * length
+        if not bad.any() and blanked is None:
+            return found
+        mark = np.zeros(decided.size + 1, np.int64)
+        starts = np.flatnonzero(bad)
+        np.add.at(mark, starts, 1)
+        np.add.at(mark, starts + length, -1)
+        covered = np.cumsum(mark)[: decided.size] > 0
+        if blanked is not None:
+            covered[blanked[blanked < decided.size]] = True
+        if found.code.size == 0:
+            return found
+        # A detection [t, t + L) touches a bad sample if any sample of it (before commit) is.
+        cum = np.concatenate(([0], np.cumsum(covered)))
+        lo = np.clip(found.start, 0, decided.size)
+        hi = np.clip(found.start + length, 0, decided.size)
+        drop = cum[hi] - cum[lo] > 0
+        if not drop.any():
+            return found
+        self._c["rejected"] += int(drop.sum())
+        self._unresolved += float(drop.sum())
+        keep = ~drop
+        return Detections(found.code[keep], found.start[keep], found.sign[keep])
 
     def _missed_energy(self, decided: npt.NDArray[np.float64]) -> bool:
         """Whether the decided residual still holds a signature's worth of energy somewhere.

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 import scipy.fft
+from scipy.ndimage import minimum_filter1d
 
 from ext_sense_drivers.aces.bank import SignatureBank, xcorr_table
 from ext_sense_drivers.aces.detections import Detections
@@ -27,6 +28,18 @@ lines at 60% occupancy no true peak started below 0.58 of a full match before ca
 
 SURE_RATIO = 0.8
 """Candidates above this fraction of a full match are accepted in one round even when close."""
+
+MAX_CANDIDATES = 8192
+"""At most this many candidates (the strongest) enter cancellation: bounds memory and work on a
+window the line could not carry anyway (a line at 60 % occupancy gives a few hundred)."""
+
+MAX_WINNERS = 32
+"""At most this many candidates (the strongest) are accepted per round, so that one round's
+candidate pairs stay below ``MAX_WINNERS x 2 L x codes`` (650 000)."""
+
+MAX_ACCEPTED = 128
+"""At most this many signatures are accepted per window: 8 signatures per sample on average
+over the default window, more than the decoder's overload gate lets through for long."""
 
 
 class MatchedFilterSic:
@@ -75,6 +88,9 @@ class MatchedFilterSic:
         ck, cj = np.nonzero(np.abs(sub) > self._cand)
         cv = sub[ck, cj].astype(np.float64)
         ct = cols[cj]
+        if cv.size > MAX_CANDIDATES:
+            strongest = np.argpartition(-np.abs(cv), MAX_CANDIDATES - 1)[:MAX_CANDIDATES]
+            ck, ct, cv = ck[strongest], ct[strongest], cv[strongest]
         order = np.argsort(ct, kind="stable")
         ck, ct, cv = ck[order].astype(np.int64), ct[order].astype(np.int64), cv[order]
         k, t, s, mag, steps = self._cancel(ck, ct, cv)
@@ -110,18 +126,26 @@ class MatchedFilterSic:
         signs: list[npt.NDArray[np.int64]] = []
         mags: list[npt.NDArray[np.float64]] = []
         steps = 0
-        while True:
+        while steps < MAX_ACCEPTED:
             mag = np.where(active, np.abs(cv), 0.0)
             elig = np.flatnonzero(mag >= self._det)
             if elig.size == 0:
                 break
             te, me = ct[elig], mag[elig]
-            near = np.abs(te[:, None] - te[None, :]) < length
+            # Rank 0 = strongest (ties: first index). A candidate wins when no eligible one
+            # within one signature length ranks better: a running minimum of the best rank
+            # per start, over starts t - L + 1 .. t + L - 1 (memory linear in the window).
             rank = np.lexsort((elig, -me))
             pos = np.empty_like(rank)
             pos[rank] = np.arange(rank.size)
-            beaten = near & (pos[None, :] < pos[:, None])
-            win = elig[~beaten.any(axis=1) | (me >= self._sure)]
+            span = int(te[-1]) + 1
+            best = np.full(span, rank.size, np.int64)
+            np.minimum.at(best, te, pos)
+            nearest = minimum_filter1d(best, 2 * length - 1, mode="constant", cval=rank.size)
+            win = elig[(pos == nearest[te]) | (me >= self._sure)]
+            if win.size > MAX_WINNERS:
+                win = np.sort(win[np.argsort(-np.abs(cv[win]), kind="stable")[:MAX_WINNERS]])
+            win = win[: MAX_ACCEPTED - steps]
             acc.append(win)
             signs.append(np.where(cv[win] > 0, 1, -1))
             mags.append(np.abs(cv[win]))

@@ -27,6 +27,14 @@ from ext_sense_drivers.biotac.bridge import (
 )
 from ext_sense_drivers.biotac.clock import FRAME_RATE_HZ, PAC_PERIOD_NS, FrameClock
 from ext_sense_drivers.biotac.driver_config import BioTacDriverConfig
+from ext_sense_drivers.nodes.link_node import (
+    create_stream_publisher,
+    declare_backoff,
+    declare_link_parameters,
+    link_status,
+    monotonic_to_ros_ns,
+    stop_reader,
+)
 from ext_sense_drivers.transports.base import LinkState
 from ext_sense_drivers.transports.reader import Backoff, StreamReader
 from ext_sense_msgs.msg import BioTacFrame
@@ -34,67 +42,27 @@ from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
-from ext_sense_runtime.qos import SENSOR_STREAM_QOS
-from ext_sense_runtime.qos_events import QosEventCounter
 from ext_sense_runtime.stamps import fill_stamp
 
 
 def _declare_config(node: Node) -> BioTacDriverConfig:
     d = BioTacDriverConfig()
-    return BioTacDriverConfig(
-        transport=declare(
-            node, "transport", d.transport, "Byte source: serial, can or file.", read_only=True
-        ),
-        port=declare(
-            node, "port", d.port, "Serial device of the bridge or pyserial URL.", read_only=True
-        ),
-        baud=declare(
-            node,
-            "baud",
-            d.baud,
-            "Serial line rate, bit/s (8N1; five sensors need >= 480000). Also sets the "
+    link = declare_link_parameters(
+        node,
+        d,
+        {
+            "port": "Serial device of the bridge or pyserial URL.",
+            "baud": "Serial line rate, bit/s (8N1; five sensors need >= 480000). Also sets the "
             "transmission time in the clock model.",
-            low=1200,
-            high=100_000_000,
-            read_only=True,
-        ),
-        can_interface=declare(
-            node, "can_interface", d.can_interface, "python-can interface.", read_only=True
-        ),
-        can_channel=declare(
-            node, "can_channel", d.can_channel, "CAN channel on that interface.", read_only=True
-        ),
-        can_arbitration_id=declare(
-            node,
-            "can_arbitration_id",
-            d.can_arbitration_id,
-            "Arbitration id of the CAN frames carrying the bridge stream.",
-            low=0,
-            high=0x1FFFFFFF,
-            read_only=True,
-        ),
-        can_extended_id=declare(
-            node, "can_extended_id", d.can_extended_id, "29-bit extended CAN id.", read_only=True
-        ),
-        file_path=declare(
-            node,
-            "file_path",
-            d.file_path,
-            "Recorded bridge stream (transport file).",
-            read_only=True,
-        ),
-        file_bytes_per_s=declare(
-            node,
-            "file_bytes_per_s",
-            d.file_bytes_per_s,
-            "File replay rate, bytes/s (9600 per sensor is real time); 0 replays flat out.",
-            low=0.0,
-            high=1e9,
-            read_only=True,
-        ),
-        file_loop=declare(
-            node, "file_loop", d.file_loop, "Replay the file for ever.", read_only=True
-        ),
+            "can_arbitration_id": "Arbitration id of the CAN frames carrying the bridge stream.",
+            "can_extended_id": "29-bit extended CAN id.",
+            "file_path": "Recorded bridge stream (transport file).",
+            "file_bytes_per_s": "File replay rate, bytes/s (9600 per sensor is real time); "
+            "0 replays flat out.",
+        },
+    )
+    return BioTacDriverConfig(
+        **link,
         frame_id_prefix=declare(
             node,
             "frame_id_prefix",
@@ -148,37 +116,20 @@ class BioTacDriverNode(Node):
             high=1.0,
             read_only=True,
         )
-        initial_s = declare(
-            self,
-            "reconnect_initial_s",
-            0.1,
-            "First reconnect delay after the link vanished, s (doubles per failure).",
-            low=0.001,
-            high=60.0,
-            read_only=True,
-        )
-        max_s = declare(
-            self, "reconnect_max_s", 2.0, "Longest reconnect delay, s.", low=0.001, high=600.0
-        )
+        backoff = declare_backoff(self, "link", max_read_only=False)
         self.add_on_set_parameters_callback(self._on_set)
 
         self.decoder = BridgeDecoder()
         self.clocks: list[FrameClock] = [self.config.make_clock() for _ in range(MAX_SENSORS)]
-        self.reader = StreamReader(
-            self.config.make_transport(), backoff=Backoff(initial_s, max(initial_s, max_s))
-        )
-        # Monotonic host ns -> ROS time ns, fixed at start so stamps never step back.
-        self._mono_to_ros_ns = self.get_clock().now().nanoseconds - time.monotonic_ns()
+        self.reader = StreamReader(self.config.make_transport(), backoff=backoff)
+        self._mono_to_ros_ns = monotonic_to_ros_ns(self)
         self._last_arrival_ns = time.monotonic_ns()
         self._bytes_fed = 0  # stream position of the next byte given to the decoder
         self._dropped = [0] * MAX_SENSORS
         self._parity = [0] * MAX_SENSORS
         self._errors = [0] * MAX_SENSORS
         self.frames_published = 0
-        self._qos_events = QosEventCounter()
-        self._pub = self.create_publisher(
-            BioTacFrame, "frames", SENSOR_STREAM_QOS, event_callbacks=self._qos_events.publisher()
-        )
+        self._pub, self._qos_events = create_stream_publisher(self, BioTacFrame, "frames")
         self._updater = Updater(self.config.hardware_id)
         self._updater.add_check("link", self._check_link)
         self._rates: dict[int, RateTask] = {}
@@ -268,26 +219,8 @@ class BioTacDriverNode(Node):
         self.frames_published += frames.n
 
     def _check_link(self) -> tuple[Level, str, dict[str, object]]:
-        r = self.reader
-        state = r.state
-        values: dict[str, object] = {
-            "port_state": state.name.lower(),
-            "connects": r.connects,
-            "disconnects": r.disconnects,
-            "open_failures": r.open_failures,
-            "bytes_total": r.bytes_total,
-            "dropped_bytes": r.dropped_bytes,
-            "last_error": r.last_error,
-            "frames_published": self.frames_published,
-            **self._qos_events.as_values(),
-        }
-        if state == LinkState.CONNECTED:
-            return Level.OK, "connected", values
-        if state == LinkState.EXHAUSTED:
-            return Level.OK, "capture file replayed to its end", values
-        if state == LinkState.BACKOFF:
-            return Level.ERROR, f"link unavailable, retrying: {r.last_error}", values
-        return Level.WARN, state.name.lower(), values
+        values = {"frames_published": self.frames_published, **self._qos_events.as_values()}
+        return link_status(self.reader, "link", values)
 
     def _check_decode(self) -> tuple[Level, str, dict[str, object]]:
         c = self.decoder.counters
@@ -320,7 +253,7 @@ class BioTacDriverNode(Node):
 
     def destroy_node(self) -> None:
         """Stop the reader thread (closing the link) before the node goes."""
-        self.reader.stop()
+        stop_reader(self)
         super().destroy_node()
 
 

@@ -10,25 +10,30 @@ never fatal. ``/diagnostics`` carries the link state, the event rate and the dec
 from __future__ import annotations
 
 import array
-import time
 from typing import Any
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
+from ext_sense_drivers.nodes.link_node import (
+    create_stream_publisher,
+    declare_backoff,
+    declare_link_parameters,
+    link_status,
+    monotonic_to_ros_ns,
+    stop_reader,
+)
 from ext_sense_drivers.nuskin.driver_config import DriverConfig
 from ext_sense_drivers.nuskin.events import EventBlock
 from ext_sense_drivers.nuskin.streams import BatchCounters
 from ext_sense_drivers.transports.base import LinkState
-from ext_sense_drivers.transports.reader import Backoff, StreamReader
+from ext_sense_drivers.transports.reader import StreamReader
 from ext_sense_msgs.msg import TaxelEventBatch
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
-from ext_sense_runtime.qos import SENSOR_STREAM_QOS
-from ext_sense_runtime.qos_events import QosEventCounter
 from ext_sense_runtime.stamps import fill_stamp
 
 MAX_WORD_RATE_HZ = 320_000.0
@@ -37,41 +42,16 @@ MAX_WORD_RATE_HZ = 320_000.0
 
 def _declare_config(node: Node) -> DriverConfig:
     d = DriverConfig()
+    link = declare_link_parameters(
+        node,
+        d,
+        {
+            "baud": "Serial line rate, bit/s (also caps the arrival-clock spread).",
+            "file_bytes_per_s": "File replay rate, bytes/s; 0 uses file_pace.",
+        },
+    )
     return DriverConfig(
-        transport=declare(
-            node, "transport", d.transport, "Byte source: serial, can or file.", read_only=True
-        ),
-        port=declare(node, "port", d.port, "Serial device or pyserial URL.", read_only=True),
-        baud=declare(
-            node,
-            "baud",
-            d.baud,
-            "Serial line rate, bit/s (also caps the arrival-clock spread).",
-            low=1200,
-            high=100_000_000,
-            read_only=True,
-        ),
-        can_interface=declare(
-            node, "can_interface", d.can_interface, "python-can interface.", read_only=True
-        ),
-        can_channel=declare(
-            node, "can_channel", d.can_channel, "CAN channel on that interface.", read_only=True
-        ),
-        can_arbitration_id=declare(
-            node,
-            "can_arbitration_id",
-            d.can_arbitration_id,
-            "Arbitration id of the frames carrying the byte stream.",
-            low=0,
-            high=0x1FFFFFFF,
-            read_only=True,
-        ),
-        can_extended_id=declare(
-            node, "can_extended_id", d.can_extended_id, "29-bit extended id.", read_only=True
-        ),
-        file_path=declare(
-            node, "file_path", d.file_path, "Capture file (transport file).", read_only=True
-        ),
+        **link,
         file_pace=declare(
             node,
             "file_pace",
@@ -79,18 +59,6 @@ def _declare_config(node: Node) -> DriverConfig:
             "File replay pace: recorded (from the lab .tact markers), serial (baud/10 bytes/s) "
             "or flat (as fast as possible).",
             read_only=True,
-        ),
-        file_bytes_per_s=declare(
-            node,
-            "file_bytes_per_s",
-            d.file_bytes_per_s,
-            "File replay rate, bytes/s; 0 uses file_pace.",
-            low=0.0,
-            high=1e9,
-            read_only=True,
-        ),
-        file_loop=declare(
-            node, "file_loop", d.file_loop, "Replay the file for ever.", read_only=True
         ),
         mode=declare(
             node,
@@ -165,43 +133,17 @@ class NuskinDriverNode(Node):
             high=10_000_000,
             read_only=True,
         )
-        initial_s = declare(
-            self,
-            "reconnect_initial_s",
-            0.1,
-            "First reconnect delay after the port vanished, s (doubles per failure).",
-            low=0.001,
-            high=60.0,
-            read_only=True,
-        )
-        max_s = declare(
-            self,
-            "reconnect_max_s",
-            2.0,
-            "Longest reconnect delay, s.",
-            low=0.001,
-            high=600.0,
-            read_only=True,
-        )
+        backoff = declare_backoff(self, "port")
         self.add_on_set_parameters_callback(self._on_set)
 
         self.stream = self.config.make_stream()
-        self.reader = StreamReader(
-            self.config.make_transport(), backoff=Backoff(initial_s, max(initial_s, max_s))
-        )
-        # Monotonic host ns -> ROS time ns, fixed at start so stamps never step back.
-        self._mono_to_ros_ns = self.get_clock().now().nanoseconds - time.monotonic_ns()
+        self.reader = StreamReader(self.config.make_transport(), backoff=backoff)
+        self._mono_to_ros_ns = monotonic_to_ros_ns(self)
         self._connection = 0
         self._finished = False
         self.batches_published = 0
         self.decode_failures = 0
-        self._qos_events = QosEventCounter()
-        self._pub = self.create_publisher(
-            TaxelEventBatch,
-            "events",
-            SENSOR_STREAM_QOS,
-            event_callbacks=self._qos_events.publisher(),
-        )
+        self._pub, self._qos_events = create_stream_publisher(self, TaxelEventBatch, "events")
         self._updater = Updater(self.config.hardware_id)
         self._rate = RateTask("events", 0.0, MAX_WORD_RATE_HZ, unit="words_per_s")
         self._updater.add(self._rate)
@@ -276,26 +218,8 @@ class NuskinDriverNode(Node):
         self.batches_published += 1
 
     def _check_link(self) -> tuple[Level, str, dict[str, object]]:
-        r = self.reader
-        state = r.state
-        values: dict[str, object] = {
-            "port_state": state.name.lower(),
-            "connects": r.connects,
-            "disconnects": r.disconnects,
-            "open_failures": r.open_failures,
-            "bytes_total": r.bytes_total,
-            "dropped_bytes": r.dropped_bytes,
-            "last_error": r.last_error,
-            "batches_published": self.batches_published,
-            **self._qos_events.as_values(),
-        }
-        if state == LinkState.CONNECTED:
-            return Level.OK, "connected", values
-        if state == LinkState.EXHAUSTED:
-            return Level.OK, "capture file replayed to its end", values
-        if state == LinkState.BACKOFF:
-            return Level.ERROR, f"port unavailable, retrying: {r.last_error}", values
-        return Level.WARN, state.name.lower(), values
+        values = {"batches_published": self.batches_published, **self._qos_events.as_values()}
+        return link_status(self.reader, "port", values)
 
     def _check_decode(self) -> tuple[Level, str, dict[str, object]]:
         values = {**self.stream.diagnostics(), "decode_failures": self.decode_failures}
@@ -313,9 +237,7 @@ class NuskinDriverNode(Node):
 
     def destroy_node(self) -> None:
         """Stop the reader thread (closing the port) before the node goes."""
-        reader = getattr(self, "reader", None)  # absent when the constructor failed
-        if reader is not None:
-            reader.stop()
+        stop_reader(self)
         super().destroy_node()
 
 

@@ -9,20 +9,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 from pathlib import Path
+from typing import ClassVar
 
 from ext_sense_drivers.nuskin.clock import ArrivalClock
 from ext_sense_drivers.nuskin.errors import NuskinError
 from ext_sense_drivers.nuskin.streams import AcesLineStream, EventStream, WordStream
 from ext_sense_drivers.nuskin.wire import FlagPolarity
-from ext_sense_drivers.transports.base import Transport
+from ext_sense_drivers.transports.link_config import LinkConfig, TransportKind
 
-
-class TransportKind(IntEnum):
-    """Where the bytes come from."""
-
-    SERIAL = 0
-    CAN = 1
-    FILE = 2
+__all__ = ["DriverConfig", "Mode", "TransportKind"]
 
 
 class Mode(IntEnum):
@@ -42,32 +37,23 @@ def _choice(name: str, value: str, enum: type[IntEnum]) -> IntEnum:
 
 
 @dataclass(frozen=True)
-class DriverConfig:
-    """Driver settings (units in the names; see ``config/nuskin_driver.yaml``)."""
+class DriverConfig(LinkConfig):
+    """Driver settings (units in the names; see ``config/nuskin_driver.yaml``).
 
-    transport: str = "serial"
-    port: str = "/dev/ttyACM0"
+    The link settings (``transport`` ... ``file_loop``), :attr:`transport_kind`,
+    :attr:`hardware_id` and :meth:`make_transport` come from
+    :class:`~ext_sense_drivers.transports.link_config.LinkConfig`; errors are
+    :class:`NuskinError`.
+    """
+
+    error: ClassVar[type[Exception]] = NuskinError
+
     baud: int = 4_000_000
-    can_interface: str = "socketcan"
-    can_channel: str = "can0"
     can_arbitration_id: int = 0x100
-    can_extended_id: bool = False
-    file_path: str = ""
     file_pace: str = "recorded"
-    file_bytes_per_s: float = 0.0
-    file_loop: bool = False
     mode: str = "words"
     flag_polarity: str = "ignore"
     aces_threshold: float = 0.5
-
-    @property
-    def transport_kind(self) -> TransportKind:
-        """The transport as an enum.
-
-        Raises:
-            NuskinError: Not serial, can or file.
-        """
-        return _choice("transport", self.transport, TransportKind)  # type: ignore[return-value]
 
     @property
     def mode_kind(self) -> Mode:
@@ -77,16 +63,6 @@ class DriverConfig:
             NuskinError: Not words or aces_line.
         """
         return _choice("mode", self.mode, Mode)  # type: ignore[return-value]
-
-    @property
-    def hardware_id(self) -> str:
-        """What diagnostics show as the hardware id."""
-        kind = self.transport_kind
-        if kind == TransportKind.SERIAL:
-            return self.port
-        if kind == TransportKind.CAN:
-            return f"{self.can_interface}:{self.can_channel}#{self.can_arbitration_id:#x}"
-        return self.file_path
 
     def file_rate(self) -> float | None:
         """Replay rate of a file in bytes/s, or ``None`` for flat out.
@@ -113,33 +89,6 @@ class DriverConfig:
             "The 'file_pace' parameter must be one of ['recorded', 'flat', 'serial']. "
             f"Got {self.file_pace!r} instead."
         )
-
-    def make_transport(self) -> Transport:
-        """The configured byte source (not opened yet).
-
-        Raises:
-            NuskinError: Bad transport choice or file settings.
-            TransportError: Bad port, baud or CAN id.
-        """
-        kind = self.transport_kind
-        if kind == TransportKind.SERIAL:
-            from ext_sense_drivers.transports.serial_port import SerialTransport
-
-            return SerialTransport(self.port, self.baud)
-        if kind == TransportKind.CAN:
-            from ext_sense_drivers.transports.can_bus import CanTransport
-
-            return CanTransport(
-                self.can_interface,
-                self.can_channel,
-                self.can_arbitration_id,
-                extended=self.can_extended_id,
-            )
-        if not self.file_path:
-            raise NuskinError("The 'file_path' parameter must name a capture. Got '' instead.")
-        from ext_sense_drivers.transports.file_source import FileTransport
-
-        return FileTransport(self.file_path, self.file_rate(), loop=self.file_loop)
 
     def make_stream(self) -> EventStream:
         """The configured decoding path.

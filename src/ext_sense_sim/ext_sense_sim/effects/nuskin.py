@@ -21,6 +21,7 @@ import numpy as np
 from scipy.signal import butter, lfilter, lfilter_zi
 
 from ext_sense_sim.effects.base import Effect, Signals, TimeBase
+from ext_sense_sim.errors import SceneError
 from ext_sense_sim.events import EventBatch
 
 
@@ -47,7 +48,7 @@ _BLOCK = 32
 
 
 def level_crossing(
-    signal: np.ndarray, threshold: float, refractory: int
+    signal: np.ndarray, threshold: float, refractory: int, reset: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Send-on-delta encoding with a refractory period, vectorised across channels.
 
@@ -55,6 +56,10 @@ def level_crossing(
         signal: ``(n_samples, n_channels)`` (time-major, C-contiguous for speed).
         threshold: Change that triggers an event, same unit as ``signal``.
         refractory: Samples after an event during which the channel cannot fire (>= 1).
+        reset: ``False``: the reference steps one threshold toward the signal per event (a
+            change of ``n`` thresholds gives ``n`` events). ``True``: the reference jumps to
+            the signal at the event (one event per detected change, whatever its size; the
+            value field carries the size).
 
     Returns:
         ``(sample, channel, polarity)`` of every event in time order; polarity is +1/-1.
@@ -77,7 +82,10 @@ def level_crossing(
             fire = np.flatnonzero((np.abs(diff) >= thr) & (rd <= b + k))
             if fire.size:
                 sign = np.where(diff[fire] > 0, 1, -1)
-                r[fire] += thr * sign
+                if reset:
+                    r[fire] = sub[k, fire]
+                else:
+                    r[fire] += thr * sign
                 rd[fire] = b + k + refractory
                 samples.append(np.full(fire.size, b + k, dtype=np.int64))
                 channels.append(cand[fire])
@@ -123,11 +131,12 @@ class NuskinTransduction(Effect):
     needs = ("taxel_pressure",)
     gives = ("events",)
     defaults: ClassVar[dict[str, Any]] = {
-        "threshold_pa": 4000.0,
+        "threshold_pa": 1000.0,
         "refractory_s": 0.00025,
         "bandwidth_hz": 1500.0,
         "offset_counts": 70.0,
-        "pa_per_count": 300.0,
+        "pa_per_count": 1000.0,
+        "reference": "reset",
     }
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
@@ -137,8 +146,14 @@ class NuskinTransduction(Effect):
         filtered = front_end(pressure, self.scalar("bandwidth_hz", 1.0), time.rate_hz)
         time_major = np.ascontiguousarray(filtered.reshape(-1, n_samples).T)
         refractory = max(1, math.ceil(self.scalar("refractory_s", 0.0) * time.rate_hz - 1e-9))
+        mode = self.params["reference"]
+        if mode not in ("reset", "step"):
+            raise SceneError(
+                f"Effect '{self.name}': parameter 'reference' must be 'reset' or 'step'. "
+                f"Got {mode!r} instead."
+            )
         k, channel, polarity = level_crossing(
-            time_major, self.scalar("threshold_pa", 1e-9), refractory
+            time_major, self.scalar("threshold_pa", 1e-9), refractory, reset=mode == "reset"
         )
         value = self.scalar("offset_counts", 0, 1023) + time_major[k, channel] / self.scalar(
             "pa_per_count", 1e-9

@@ -1,0 +1,172 @@
+"""Do simulated rod taps reproduce the paper's qualitative findings?
+
+Simulates taps per rod with the scene simulator, turns each trial's NUSkin events into the
+paper's features (signed spike counts in 5 ms bins from 50 ms before to 250 ms after the true
+onset, |FFT| per taxel with the public code's scaling) and prints the 4-fold cross-validated
+MAE of standardised features into an RBF SVR (C = 10, as the perception package's
+pipeline) for 80 taxels (two fingers), 40 (left finger) and one taxel, and for
+the paper's sampling-rate reduction (per taxel, drop any spike closer than ``1/rate`` to the
+last kept one).
+
+    python bench/sim_findings.py                 # 400 taps per rod, all three rods
+    python bench/sim_findings.py --quick         # 150 taps, 30 cm rod only
+    python bench/sim_findings.py --set grasp_transfer.grip_force_n=20   # what-if
+
+The learning here is deliberately plain (the perception package owns the real protocol): it
+measures the simulator, not the models.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+
+import numpy as np
+import yaml
+from sklearn.model_selection import KFold, cross_val_predict
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+from sklearn.svm import SVR
+
+from ext_sense_sim.engine import Simulator
+from ext_sense_sim.scene import load_scene
+
+MS = 1_000_000
+PRE_NS, POST_NS, BIN_NS = 50 * MS, 250 * MS, 5 * MS
+N_BINS = (PRE_NS + POST_NS) // BIN_NS
+RATES = (5.0, 20.0, 50.0, 200.0, 500.0, 1000.0, 2000.0, 4000.0)
+SELECTIONS = {"80 taxels": np.arange(80), "40 (left)": np.arange(40), "40 (right)": np.arange(40, 80)}
+
+
+def override(scene, sets: list[str]):
+    """Scene with ``effect.param=value`` overrides (value parsed as YAML)."""
+    effects = [(name, dict(params)) for name, params in scene.effects]
+    for item in sets:
+        key, value = item.split("=", 1)
+        effect, param = key.split(".", 1)
+        for name, params in effects:
+            if name == effect:
+                params[param] = yaml.safe_load(value)
+                break
+        else:
+            raise SystemExit(f"--set: the scene lists no effect {effect!r}")
+    return dataclasses.replace(scene, effects=tuple(effects))
+
+
+def simulate(scene_name: str, taps: int, seed: int, sets: list[str]):
+    """Events ``(trial, t_ns rel. onset, taxel 0-based, polarity)`` and labels (cm)."""
+    scene = override(load_scene(scene_name), sets)
+    sim = Simulator(scene)
+    parts, ys = [], []
+    for tb, sig in sim.batches(taps, seed):
+        ev, lab = sig["events"], sig["labels"]
+        trial = ev.trial.astype(np.int64) + tb.first_trial
+        rel = ev.t_ns - lab.onset_ns[ev.trial]
+        keep = (rel >= -PRE_NS) & (rel < POST_NS)
+        parts.append(
+            (trial[keep], rel[keep], ev.taxel[keep].astype(np.int64) - 1, ev.polarity[keep])
+        )
+        ys.append(lab.y_m * 100.0)
+    cat = [np.concatenate([p[i] for p in parts]) for i in range(4)]
+    return cat, np.concatenate(ys)
+
+
+def refractory_keep(trial, t_ns, taxel, rate_hz: float) -> np.ndarray:
+    """The paper's per-taxel refractory drop (vectorised over channels, loop over events)."""
+    tau = round(1e9 / rate_hz)
+    chan = trial * 80 + taxel
+    order = np.lexsort((t_ns, chan))
+    c, t = chan[order], t_ns[order]
+    keep_sorted = np.zeros(len(t), dtype=bool)
+    start = np.r_[0, np.flatnonzero(np.diff(c)) + 1]
+    # per channel: walk its events; channels are short, so iterate event index in lock-step
+    last = np.full(len(start), np.iinfo(np.int64).min // 2)
+    ends = np.r_[start[1:], len(t)]
+    pos = start.copy()
+    active = pos < ends
+    while active.any():
+        idx = pos[active]
+        ok = t[idx] - last[active] >= tau
+        keep_sorted[idx[ok]] = True
+        la = last[active]
+        la[ok] = t[idx[ok]]
+        last[active] = la
+        pos[active] += 1
+        active = pos < ends
+    keep = np.zeros(len(t), dtype=bool)
+    keep[order] = keep_sorted
+    return keep
+
+
+def features(ev, n_trials: int, rate_hz: float | None) -> np.ndarray:
+    """|FFT| of signed 5 ms counts per taxel, ``(n_trials, 80, N_BINS // 2 + 1)``."""
+    trial, rel, taxel, pol = ev
+    if rate_hz is not None:
+        k = refractory_keep(trial, rel, taxel, rate_hz)
+        trial, rel, taxel, pol = trial[k], rel[k], taxel[k], pol[k]
+    counts = np.zeros((n_trials, 80, N_BINS))
+    b = (rel + PRE_NS) // BIN_NS
+    np.add.at(counts, (trial, taxel, b), pol.astype(np.float64))
+    return np.abs(np.fft.rfft(counts / 1000.0, axis=-1)) / 10.0
+
+
+def mae(x: np.ndarray, y: np.ndarray, seed: int = 0) -> float:
+    """4-fold cross-validated MAE of an RBF SVR, same units as ``y``."""
+    model = make_pipeline(StandardScaler(), SVR(kernel="rbf", C=10.0, gamma="scale", epsilon=0.1))
+    pred = cross_val_predict(model, x, y, cv=KFold(4, shuffle=True, random_state=seed))
+    return float(np.mean(np.abs(pred - y)))
+
+
+def single_taxel(f: np.ndarray, y: np.ndarray, ev) -> tuple[float, int]:
+    """MAE of the most active taxel alone (the best single taxel is near it)."""
+    activity = np.bincount(ev[2], minlength=80)
+    best = int(np.argmax(activity))
+    return mae(f[:, best, :], y), best + 1
+
+
+def run_rod(scene: str, taps: int, seed: int, rates, sets) -> None:
+    start = time.perf_counter()
+    ev, y = simulate(scene, taps, seed, sets)
+    sim_s = time.perf_counter() - start
+    n = len(y)
+    f = features(ev, n, None)
+    spread = float(np.mean(np.abs(y - y.mean())))
+    line = [f"{scene}: {taps} taps, {len(ev[0]) / n:.0f} events/tap in window, sim {sim_s:.1f} s"]
+    line.append(f"  spread of y (mean abs dev) {spread:.2f} cm")
+    for label, sel in SELECTIONS.items():
+        line.append(f"  {label:>10}: MAE {mae(f[:, sel].reshape(n, -1), y):.2f} cm")
+    st, tax = single_taxel(f, y, ev)
+    line.append(f"  {'1 taxel':>10}: MAE {st:.2f} cm (taxel {tax}, the most active)")
+    print("\n".join(line), flush=True)
+    if rates:
+        out = []
+        for rate in rates:
+            fr = features(ev, n, rate)
+            out.append(f"{rate:g} Hz {mae(fr.reshape(n, -1), y):.2f}")
+        print("  rate (80 taxels): " + ", ".join(out), flush=True)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--taps", type=int, default=400)
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--rods", default="20,30,50")
+    parser.add_argument("--rates", default=",".join(f"{r:g}" for r in RATES))
+    parser.add_argument("--no-rates-except", default="30", help="rods whose rate study runs")
+    parser.add_argument("--set", action="append", default=[], help="effect.param=value")
+    parser.add_argument("--quick", action="store_true", help="150 taps, 30 cm rod only")
+    args = parser.parse_args()
+    if args.quick:
+        args.taps, args.rods = 150, "30"
+    rates = [float(r) for r in args.rates.split(",") if r]
+    with_rates = set(args.no_rates_except.split(","))
+    for rod in args.rods.split(","):
+        run_rod(
+            f"tap_rod{rod}_nuskin", args.taps, args.seed, rates if rod in with_rates else [], args.set
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,110 @@
+"""The link settings every driver shares: which transport, and the serial, CAN and file details.
+
+The NUSkin and BioTac driver configs derive from :class:`LinkConfig`, so the choice and the
+construction of the byte source live here once; each config keeps its own defaults, its own
+exception type (:attr:`LinkConfig.error`) and its sensor-specific settings. Plain Python: no
+rclpy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import ClassVar
+
+from ext_sense_drivers.transports.base import Transport
+from ext_sense_drivers.transports.errors import TransportError
+
+
+class TransportKind(IntEnum):
+    """Where the bytes come from."""
+
+    SERIAL = 0
+    CAN = 1
+    FILE = 2
+
+
+@dataclass(frozen=True)
+class LinkConfig:
+    """Transport settings shared by the driver nodes (units in the names).
+
+    Subclasses override the defaults (``baud``, ``can_arbitration_id``) and :attr:`error`, and
+    may override :meth:`file_rate` (the NUSkin driver paces files from their markers).
+    """
+
+    error: ClassVar[type[Exception]] = TransportError
+    """Raised for a bad transport choice or a file transport without a file."""
+
+    transport: str = "serial"
+    port: str = "/dev/ttyACM0"
+    baud: int = 1_000_000
+    can_interface: str = "socketcan"
+    can_channel: str = "can0"
+    can_arbitration_id: int = 0x100
+    can_extended_id: bool = False
+    file_path: str = ""
+    file_bytes_per_s: float = 0.0
+    file_loop: bool = False
+
+    @property
+    def transport_kind(self) -> TransportKind:
+        """The transport as an enum (case-insensitive).
+
+        Raises:
+            error: Not serial, can or file.
+        """
+        kinds = [k.name.lower() for k in TransportKind]
+        if self.transport.lower() not in kinds:
+            raise self.error(
+                f"The 'transport' parameter must be one of {kinds}. Got {self.transport!r} instead."
+            )
+        return TransportKind[self.transport.upper()]
+
+    @property
+    def hardware_id(self) -> str:
+        """What diagnostics show as the hardware id: port, ``interface:channel#id`` or path."""
+        kind = self.transport_kind
+        if kind == TransportKind.SERIAL:
+            return self.port
+        if kind == TransportKind.CAN:
+            return f"{self.can_interface}:{self.can_channel}#{self.can_arbitration_id:#x}"
+        return self.file_path
+
+    def check_link(self) -> None:
+        """Check the transport choice, and that a file transport names its file.
+
+        Raises:
+            error: Not serial, can or file; or ``transport`` is file and ``file_path`` is empty.
+        """
+        if self.transport_kind == TransportKind.FILE and not self.file_path:
+            raise self.error("The 'file_path' parameter must name a capture. Got '' instead.")
+
+    def file_rate(self) -> float | None:
+        """Replay rate of a file in bytes/s: ``file_bytes_per_s`` if > 0, else ``None`` (flat)."""
+        return float(self.file_bytes_per_s) if self.file_bytes_per_s > 0 else None
+
+    def make_transport(self) -> Transport:
+        """The configured byte source (not opened yet).
+
+        Raises:
+            error: Bad transport choice, or a file transport without a file.
+            TransportError: Bad port, baud, CAN id or file rate.
+        """
+        kind = self.transport_kind
+        if kind == TransportKind.SERIAL:
+            from ext_sense_drivers.transports.serial_port import SerialTransport
+
+            return SerialTransport(self.port, self.baud)
+        if kind == TransportKind.CAN:
+            from ext_sense_drivers.transports.can_bus import CanTransport
+
+            return CanTransport(
+                self.can_interface,
+                self.can_channel,
+                self.can_arbitration_id,
+                extended=self.can_extended_id,
+            )
+        self.check_link()
+        from ext_sense_drivers.transports.file_source import FileTransport
+
+        return FileTransport(self.file_path, self.file_rate(), loop=self.file_loop)
