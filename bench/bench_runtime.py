@@ -253,7 +253,8 @@ def bench_worst_case(seconds: float) -> dict:
         _stop(procs)
         os.close(master)
         os.close(slave)
-    win = next((v for k, v in diag.items() if k.startswith("contact_window")), {})
+    win = diag.get("contact_window: windows", {})
+    inputs = diag.get("contact_window: input", {})
     drv = {k: v for k, v in diag.items() if k.startswith("nuskin_driver")}
     received = int(win.get("events_total", -1))
     return {
@@ -262,6 +263,10 @@ def bench_worst_case(seconds: float) -> dict:
         "events_sent": sent,
         "events_at_window_node": received,
         "dropped": sent - received if received >= 0 else None,
+        "batches_published_by_driver": int(
+            diag.get("nuskin_driver: link", {}).get("batches_published", -1)
+        ),
+        "batches_at_window_node": int(inputs.get("events_total", -1)),
         "window_node": win,
         "driver_status": drv,
     }
@@ -370,7 +375,9 @@ def main() -> int:
             print(
                 f"[worst] 80 taxels x 4 kHz for {worst_s:g} s over a pty: sent "
                 f"{r['events_sent']} events, window node counted "
-                f"{r['events_at_window_node']}, dropped {r['dropped']}",
+                f"{r['events_at_window_node']}, dropped {r['dropped']}; batches: driver "
+                f"published {r['batches_published_by_driver']}, window node got "
+                f"{r['batches_at_window_node']}",
                 flush=True,
             )
         if args.only in (None, "replay"):

@@ -45,6 +45,11 @@ AMPLITUDE_MEMORY = 16
 ``n / (n + m)`` of the way to the mean of its ``n`` detections, where ``m`` is the number of
 detections so far, at most this (a running mean at first, then an exponential one)."""
 
+AMPLITUDE_SLEW = 0.05
+"""Most relative change of the amplitude estimate per pass: a pass of burst residue cannot drag
+it far (a real gain error is picked up at once by decoding the pass again, see
+:meth:`LineDecoder._pass`, or within a few tens of passes)."""
+
 AMPLITUDE_RANGE = (0.25, 4.0)
 """The tracked amplitude stays within these multiples of the nominal one."""
 
@@ -237,6 +242,7 @@ class LineDecoder:
         if self.track_amplitude and n:
             step = n / (n + memory)
             new = self._amp + step * (strength / n - self._amp)
+            new = min(max(new, (1 - AMPLITUDE_SLEW) * self._amp), (1 + AMPLITUDE_SLEW) * self._amp)
             lo, hi = AMPLITUDE_RANGE
             new = min(max(new, lo * self.amplitude), hi * self.amplitude)
             if abs(new - self._amp) > _AMPLITUDE_STEP * self._amp:
@@ -348,7 +354,9 @@ class LineDecoder:
         A pass whose residual test withheld detections while they measured an amplitude more
         than :data:`_REDO_GAIN` away from the one in use is decoded once more with the measured
         amplitude (a gain error leaves residue at every cancellation until it is tracked); the
-        second result and its amplitude are kept only if fewer detections are withheld.
+        second result and its amplitude are kept only if it explains the whole window (nothing
+        withheld, nothing overloaded, something detected): a burst's residue must not pull the
+        estimate.
         """
         buf = self._buf
         commit = self._commit if limit is None else min(self._commit, limit - self._base)
@@ -370,7 +378,7 @@ class LineDecoder:
                 self._c, self._unresolved = dict(before[1]), before[2]
                 self._set_amplitude(measured)
                 found, strength, n = self._decode_window(buf, commit)
-                if self._c["rejected"] - before[1]["rejected"] >= rejected:
+                if not n or self._c["rejected"] > before[1]["rejected"]:
                     buf[: self.window] = first[0]
                     self._c, self._unresolved, found = first[1], first[2], first[3]
                     self._set_amplitude(old)
@@ -410,12 +418,14 @@ class LineDecoder:
             strength, n = found.strength, int(found.code.size)
         else:
             found, strength, n = self._onset_pass(buf, commit, refresh=trusted)
+        undone = self._c["undone"]
         found = self._annihilate(found)
         found = self._reject(buf, found, commit, blanked)
+        trusted = trusted and undone == self._c["undone"]
         if not trusted or (self.mode is DecodeMode.ONSET and self._onset.exhausted):
-            # Detections around overloaded stretches, or on a window so full of onsets that
-            # the test budget ran out (noise, garbage), measure residue rather than the
-            # line's amplitude: such a pass does not move the estimate.
+            # Detections around overloaded stretches, where decisions were undone, or on a
+            # window so full of onsets that the test budget ran out (noise, garbage) measure
+            # residue rather than the line's amplitude: such a pass does not move the estimate.
             return found, 0.0, 0
         return found, strength, n
 
@@ -433,14 +443,14 @@ class LineDecoder:
         window could not explain.
 
         Returns:
-            The committed detections, and the summed strength and number of all detections
-            (tentative ones included) for the amplitude estimate.
+            The committed detections, and their summed strength and number for the amplitude
+            estimate.
         """
         length = self._length
         scan = min(commit + length - 2, self.window - length + 1) if refresh else commit
-        found = self._onset.decode(buf, scan)
+        found = self._onset.decode(buf, scan, settle=commit)
         self._count(found)
-        strength, n = found.strength, int(found.code.size)
+        strength, n = found.strength, int(np.count_nonzero(found.start < commit))
         missed = self._missed_energy(buf[: max(scan - 1, 0)])
         later = found.start >= commit
         if later.any():
@@ -522,9 +532,7 @@ class LineDecoder:
         cum = np.concatenate(([0.0], np.cumsum(r * r)))
         return cum[span:] - cum[:-span]
 
-    def _overload(
-        self, buf: npt.NDArray[np.float64], commit: int
-    ) -> npt.NDArray[np.int64] | None:
+    def _overload(self, buf: npt.NDArray[np.float64], commit: int) -> npt.NDArray[np.int64] | None:
         """Blank (and count) the samples before ``commit`` the line cannot separate.
 
         Every stretch of one signature length that starts before ``commit`` and carries more

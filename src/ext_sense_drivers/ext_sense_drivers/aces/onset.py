@@ -87,13 +87,17 @@ class OnsetDecoder:
         self._onset = ONSET_RATIO * amplitude
         self._gate = GATE_RATIO * GATE_SPAN * amplitude**2
 
-    def decode(self, r: npt.NDArray[np.float64], commit: int) -> Detections:
+    def decode(
+        self, r: npt.NDArray[np.float64], commit: int, settle: int | None = None
+    ) -> Detections:
         """Detect and cancel, in place, every signature with an onset before ``commit``.
 
         Args:
             r: Residual line, at least ``commit + L - 1`` samples; accepted signatures are
                 subtracted from it.
             commit: Onsets are looked for in ``[0, commit)``.
+            settle: Only detections starting before this sample (default ``commit``) add to
+                the returned ``strength``: later ones are tentative, often cut short.
 
         Returns:
             The detections in the order found (by start, up to ``back`` samples).
@@ -104,7 +108,7 @@ class OnsetDecoder:
         starts: list[int] = []
         signs: list[int] = []
         tested = 0
-        strength = 0.0
+        mags: list[float] = []
         # Onsets of the untouched line; a cancellation makes [s, s + L) stale, rescanned below.
         static = self._onsets(r, 0, commit).tolist()
         cursor, dirty, repeats, last, onsets = 0, 0, 0, -1, 0
@@ -142,7 +146,7 @@ class OnsetDecoder:
                 r[s : s + length] -= chips[k]
             else:
                 r[s : s + length] += chips[k]
-            strength += abs(v)
+            mags.append(abs(v))
             codes.append(k)
             starts.append(s)
             signs.append(1 if v > 0 else -1)
@@ -151,13 +155,14 @@ class OnsetDecoder:
             cursor = s if repeats < MAX_REPEATS else s + 1
             dirty = max(dirty, s + length)
         self.exhausted = onsets >= MAX_TESTS
+        settle = commit if settle is None else settle
         return Detections(
             np.asarray(codes, np.int64),
             np.asarray(starts, np.int64),
             np.asarray(signs, np.int64),
             tested,
             len(codes),
-            strength / length,
+            float(np.asarray(mags)[np.asarray(starts) < settle].sum()) / length if mags else 0.0,
         )
 
     def _onsets(self, r: npt.NDArray[np.float64], lo: int, hi: int) -> npt.NDArray[np.int64]:

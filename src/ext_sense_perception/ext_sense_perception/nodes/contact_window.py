@@ -121,7 +121,7 @@ class ContactWindowNode(Node):
             declare(
                 self,
                 "advance_slack_ms",
-                1.0,
+                0.5,
                 "Allowance for events still in flight when the timer closes a window, ms.",
                 low=0.0,
                 high=1000.0,
@@ -143,7 +143,7 @@ class ContactWindowNode(Node):
             declare(
                 self,
                 "advance_period_ms",
-                2.0,
+                1.0,
                 "Period of the stream-clock timer, ms.",
                 low=0.1,
                 high=1000.0,

@@ -57,8 +57,8 @@ class GraspTransfer(Effect):
     defaults: ClassVar[dict[str, Any]] = {
         "pitch_m": 0.003,
         "grip_force_n": [15.0, 25.0],
-        "strip_sigma_m": 0.0025,
-        "lateral_offset_m": [-0.0015, 0.0015],
+        "strip_sigma_m": 0.0015,
+        "lateral_offset_m": [-0.003, 0.003],
         "tangential_coupling": 0.3,
         "axial_coupling": 0.2,
         "gain_spread": 0.1,

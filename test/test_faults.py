@@ -1,0 +1,114 @@
+"""Device faults through driver and window nodes: garbage bytes, port closed and reopened.
+
+The nodes keep running, diagnostics say what happened, and a recording made meanwhile holds
+every batch the driver published.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+import tty
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import contextlib
+
+from rosutil import spinning, wait_for
+
+pytestmark = pytest.mark.ros
+
+EVENTS = "/extsense/nuskin/events"
+
+
+def _params(**kw):
+    from rclpy.parameter import Parameter
+
+    return [Parameter(k, value=v) for k, v in kw.items()]
+
+
+def _open_pty(link: Path) -> tuple[int, int]:
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    tmp = link.with_suffix(".new")
+    if tmp.exists() or tmp.is_symlink():
+        tmp.unlink()
+    tmp.symlink_to(os.ttyname(slave))
+    tmp.replace(link)
+    return master, slave
+
+
+def _burst(n_ms: int = 50) -> bytes:
+    from ext_sense_drivers.nuskin.wire import encode_words
+
+    taxel = np.tile(np.arange(1, 81), n_ms)
+    return encode_words(taxel, np.full(taxel.size, 300))
+
+
+def test_garbage_and_port_reopen_keep_nodes_alive_and_recording_complete(tmp_path):
+    from ext_sense.nodes.recorder import RecorderNode
+    from ext_sense_bags import BagReader
+    from ext_sense_drivers.nodes.nuskin_driver import NuskinDriverNode
+    from ext_sense_perception.nodes.contact_window import ContactWindowNode
+
+    link = tmp_path / "nuskin.pty"
+    master, slave = _open_pty(link)
+    bag = tmp_path / "bag"
+    remap = ["--ros-args", "-r", f"events:={EVENTS}"]
+    try:
+        with spinning(
+            lambda context: NuskinDriverNode(
+                context=context,
+                parameter_overrides=_params(transport="serial", port=str(link)),
+                cli_args=remap,
+            ),
+            lambda context: ContactWindowNode(context=context, cli_args=remap),
+            lambda context: RecorderNode(
+                context=context, parameter_overrides=_params(bag=str(bag), topics=[EVENTS])
+            ),
+        ) as (driver, window, recorder):
+            time.sleep(1.5)
+            os.write(master, _burst())
+            assert wait_for(lambda: window.stage.counters.events >= 4000, 5.0)
+            # garbage between words: the decoder resynchronises, counts, goes on
+            os.write(master, b"\xff\x00\x13garbage\x88" * 20 + _burst())
+            assert wait_for(lambda: window.stage.counters.events >= 8000, 5.0)
+            # the device vanishes, then comes back on the same path
+            os.close(master)
+            os.close(slave)
+            time.sleep(1.0)
+            master, slave = _open_pty(link)
+            for _ in range(100):
+                time.sleep(0.1)
+                os.write(master, _burst(5))
+                if window.stage.counters.events >= 12000:
+                    break
+            assert window.stage.counters.events >= 12000
+            time.sleep(0.5)
+            reports = {r.name: r for r in driver.updater.update(force=True)}
+            published = driver_batches = None
+            for _name, report in reports.items():
+                values = dict(report.values)
+                if "batches_published" in values:
+                    driver_batches = int(values["batches_published"])
+                    link_values = values
+            assert driver_batches is not None
+            assert int(link_values.get("disconnects", 0)) >= 1, link_values
+            assert int(link_values.get("connects", 0)) >= 2, link_values
+            decode = [dict(r.values) for r in reports.values() if "skipped_bytes" in dict(r.values)]
+            assert decode
+            assert int(decode[0]["skipped_bytes"]) > 0
+            assert wait_for(lambda: recorder.received.get(EVENTS, 0) >= driver_batches, 5.0)
+            published = driver_batches
+            windows = {r.name: dict(r.values) for r in window.updater.update(force=True)}
+            assert windows
+    finally:
+        for fd in (master, slave):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+    with BagReader(bag) as reader:
+        assert reader.topics[EVENTS].count == published
