@@ -4,9 +4,9 @@ Simulates taps per rod with the scene simulator, turns each trial's NUSkin event
 paper's features (signed spike counts in 5 ms bins from 50 ms before to 250 ms after the true
 onset, |FFT| per taxel with the public code's scaling) and prints the 4-fold cross-validated
 MAE of standardised features into an RBF SVR (C from 1, 10, 100 by an inner 3-fold grid
-search, as the perception package's pipeline) for 80 taxels (two fingers), 40 (left finger) and one taxel, and for
-the paper's sampling-rate reduction (per taxel, drop any spike closer than ``1/rate`` to the
-last kept one).
+search, as the perception package's pipeline) for 80 taxels (two fingers), 40 (one finger)
+and one taxel, and for the paper's sampling-rate reduction (per taxel, drop any spike closer
+than ``1/rate`` to the last kept one).
 
     python bench/sim_findings.py                 # 400 taps per rod, all three rods
     python bench/sim_findings.py --quick         # 150 taps, 30 cm rod only
@@ -24,6 +24,7 @@ import time
 
 import numpy as np
 import yaml
+from sklearn.linear_model import RidgeCV
 from sklearn.model_selection import GridSearchCV, KFold, cross_val_predict
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
@@ -37,7 +38,11 @@ PRE_NS, POST_NS, BIN_NS = 50 * MS, 250 * MS, 5 * MS
 N_BINS = (PRE_NS + POST_NS) // BIN_NS
 C_GRID = (1.0, 10.0, 100.0)
 RATES = (5.0, 20.0, 50.0, 200.0, 500.0, 1000.0, 2000.0, 4000.0)
-SELECTIONS = {"80 taxels": np.arange(80), "40 (left)": np.arange(40), "40 (right)": np.arange(40, 80)}
+SELECTIONS = {
+    "80 taxels": np.arange(80),
+    "40 (left)": np.arange(40),
+    "40 (right)": np.arange(40, 80),
+}
 
 
 def override(scene, sets: list[str]):
@@ -120,11 +125,23 @@ def mae(x: np.ndarray, y: np.ndarray, seed: int = 0) -> float:
     return float(np.mean(np.abs(pred - y)))
 
 
-def single_taxel(f: np.ndarray, y: np.ndarray, ev) -> tuple[float, int]:
-    """MAE of the most active taxel alone (the best single taxel is near it)."""
+def ridge_mae(x: np.ndarray, y: np.ndarray, seed: int = 0) -> float:
+    """4-fold cross-validated MAE of ridge regression on log1p features (alpha by inner CV).
+
+    A linear model weighs each feature; the RBF kernel on standardised features weighs all
+    equally, so uninformative taxels dilute its distances. Both are printed side by side.
+    """
+    model = make_pipeline(StandardScaler(), RidgeCV(alphas=np.logspace(-1, 4, 11)))
+    x = np.log1p(x * 1000.0)
+    pred = cross_val_predict(model, x, y, cv=KFold(4, shuffle=True, random_state=seed))
+    return float(np.mean(np.abs(pred - y)))
+
+
+def single_taxel(f: np.ndarray, y: np.ndarray, ev) -> tuple[float, float, int]:
+    """SVR and ridge MAE of the most active taxel alone (the best single taxel is near it)."""
     activity = np.bincount(ev[2], minlength=80)
     best = int(np.argmax(activity))
-    return mae(f[:, best, :], y), best + 1
+    return mae(f[:, best, :], y), ridge_mae(f[:, best, :], y), best + 1
 
 
 def run_rod(scene: str, taps: int, seed: int, rates, sets) -> None:
@@ -136,17 +153,18 @@ def run_rod(scene: str, taps: int, seed: int, rates, sets) -> None:
     spread = float(np.mean(np.abs(y - y.mean())))
     line = [f"{scene}: {taps} taps, {len(ev[0]) / n:.0f} events/tap in window, sim {sim_s:.1f} s"]
     line.append(f"  spread of y (mean abs dev) {spread:.2f} cm")
+    line.append(f"  {'':>10}  MAE SVR (RBF)  MAE ridge")
     for label, sel in SELECTIONS.items():
-        line.append(f"  {label:>10}: MAE {mae(f[:, sel].reshape(n, -1), y):.2f} cm")
-    st, tax = single_taxel(f, y, ev)
-    line.append(f"  {'1 taxel':>10}: MAE {st:.2f} cm (taxel {tax}, the most active)")
+        x = f[:, sel].reshape(n, -1)
+        line.append(f"  {label:>10}: {mae(x, y):9.2f} cm {ridge_mae(x, y):8.2f} cm")
+    st, sr, tax = single_taxel(f, y, ev)
+    line.append(f"  {'1 taxel':>10}: {st:9.2f} cm {sr:8.2f} cm (taxel {tax}, the most active)")
     print("\n".join(line), flush=True)
     if rates:
-        out = []
+        print("  rate (80 taxels), MAE SVR / ridge, cm:", flush=True)
         for rate in rates:
-            fr = features(ev, n, rate)
-            out.append(f"{rate:g} Hz {mae(fr.reshape(n, -1), y):.2f}")
-        print("  rate (80 taxels): " + ", ".join(out), flush=True)
+            fr = features(ev, n, rate).reshape(n, -1)
+            print(f"  {rate:>8g} Hz {mae(fr, y):6.2f} {ridge_mae(fr, y):6.2f}", flush=True)
 
 
 def main() -> int:
@@ -164,9 +182,8 @@ def main() -> int:
     rates = [float(r) for r in args.rates.split(",") if r]
     with_rates = set(args.no_rates_except.split(","))
     for rod in args.rods.split(","):
-        run_rod(
-            f"tap_rod{rod}_nuskin", args.taps, args.seed, rates if rod in with_rates else [], args.set
-        )
+        rod_rates = rates if rod in with_rates else []
+        run_rod(f"tap_rod{rod}_nuskin", args.taps, args.seed, rod_rates, args.set)
     return 0
 
 

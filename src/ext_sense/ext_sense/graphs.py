@@ -106,7 +106,9 @@ def _source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                 executable="bag_player",
                 name="bag_player",
                 plugin="ext_sense.nodes.bag_player:BagPlayerNode",
-                parameters={"bag": args["bag"], "rate": 1.0},
+                # start_delay_s: after its own subscribers appear, let the nodes downstream
+                # (inference loading its model) come up before the first trial
+                parameters={"bag": args["bag"], "rate": 1.0, "start_delay_s": 4.0},
                 remappings=((rel, topic), ("ground_truth", TOPIC_GROUND_TRUTH)),
             ),
         )

@@ -71,7 +71,9 @@ def test_burst_of_eight_within_a_tenth_of_a_millisecond_decodes_exactly(seed):
     samples, truth = _burst(np.random.default_rng(seed), 8)
     got, c = _decode(samples)
     assert got == truth
-    assert c.rejected == 0 and c.overload_samples == 0 and c.unresolved == 0
+    assert c.rejected == 0
+    assert c.overload_samples == 0
+    assert c.unresolved == 0
 
 
 @pytest.mark.parametrize(("n", "seed"), [(16, 0), (24, 1), (40, 2), (80, 3)])

@@ -135,12 +135,18 @@ def _load(args: argparse.Namespace):
 
 
 def _choice(args: argparse.Namespace, ws) -> tuple[str, str, dict[str, Any], dict[str, list[Any]]]:
-    from ext_sense_perception.models import default_choice, default_feature_grid
+    from ext_sense_perception.models import (
+        default_choice,
+        default_feature_grid,
+        default_feature_params,
+    )
 
     features, model = default_choice(ws.task, ws.sensor)
     features = args.features or features
     model = args.model or model
-    params: dict[str, Any] = {}
+    params: dict[str, Any] = (
+        dict(default_feature_params(ws.task, ws.sensor)) if not args.features else {}
+    )
     if args.channels:
         params["channels"] = args.channels
     if args.bin_ms is not None:

@@ -121,7 +121,11 @@ def _plot(
         )
         ax.legend(fontsize=7)
     if logx:
+        from matplotlib.ticker import NullFormatter, ScalarFormatter
+
         ax.set_xscale("log")
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=9)
@@ -219,7 +223,7 @@ def report_dataset(
             "ONNX inference p50 (ms)",
             "MAE (cm)" if lower else "accuracy",
             f"{ws.task} {ws.sensor}: score vs inference latency",
-            logx=True,
+            logx=False,
             labels=inf_lab,
             pareto_lower=lower,
         )

@@ -184,3 +184,23 @@ def test_protocol_classification_probabilities_are_calibrated_per_split(handover
     r = evaluate(ws, features_for(ws, "fft"), "svm_rbf", k=2, progress=False)
     assert r.proba.shape == (len(r.y_true), 2)
     np.testing.assert_allclose(r.proba.sum(axis=1), 1.0, atol=1e-9)
+
+
+def test_cli_handover_default_uses_2ms_bins_and_stability_probability(handover_npz, tmp_path):
+    out = tmp_path / "handover"
+    args = [
+        "train",
+        "--task",
+        "handover_stability",
+        "--sensor",
+        "nuskin",
+        "--data",
+        str(handover_npz),
+    ]
+    assert ext_sense([*args, "--out", str(out), "--anytime-ms", "none"]) == 0
+    model = load_model(out)
+    assert model.card["feature_params"]["bin_ns"] == 2_000_000
+    assert model.anytime == ()
+    est = model.predict(from_sim_dataset(handover_npz).X[0])
+    assert est.class_names == ("stable", "unstable")
+    assert 0.0 <= est.stability_probability <= 1.0

@@ -44,6 +44,32 @@ def test_level_crossing_refractory_limits_rate():
     assert (pol == -1).sum() == 50
 
 
+def test_level_crossing_reset_gives_one_event_per_change_whatever_its_size():
+    # The real captures report one event per change of the reading (|dv| = 1 count for slow
+    # changes, larger jumps in one event): a step of 100 thresholds is one event each way.
+    step = np.concatenate([np.zeros(10), np.full(200, 100.0), np.zeros(200)])[:, None]
+    k, _, pol = level_crossing(step, 1.0, refractory=4, reset=True)
+    assert pol.tolist() == [1, -1]
+    assert k.tolist() == [10, 210]
+    ramp = np.linspace(0, 10.0, 1001)[:, None]  # slow: still one event per threshold
+    k, _, pol = level_crossing(ramp, 1.0, refractory=4, reset=True)
+    assert k.size == 10
+    assert np.all(pol == 1)
+
+
+def test_level_crossing_reset_rate_follows_a_fast_oscillation_up_to_the_refractory_cap():
+    # A 1 kHz sine of 20 thresholds at 16 kHz: the encoder fires on nearly every refractory
+    # period (the event rate, not the count per event, codes the amplitude); a sine below one
+    # threshold gives no events at all.
+    t = np.arange(1600) / 16000
+    big = (20.0 * np.sin(2 * np.pi * 1000 * t))[:, None]
+    k, _, _ = level_crossing(big, 1.0, refractory=4, reset=True)
+    assert 300 < k.size <= 400
+    assert np.diff(k).min() >= 4
+    small = (0.4 * np.sin(2 * np.pi * 1000 * t))[:, None]
+    assert level_crossing(small, 1.0, refractory=4, reset=True)[0].size == 0
+
+
 def test_front_end_passes_dc_and_cuts_high_frequencies():
     t = np.arange(16000) / 16000
     x = 5.0 + np.sin(2 * np.pi * 6000 * t)

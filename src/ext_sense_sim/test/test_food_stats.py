@@ -41,3 +41,24 @@ def test_sim_stats_per_trial():
     s = sim_stats(arrays, trial_s=2.0)
     assert [x.events_per_s for x in s] == [1.0, 0.5]
     assert [x.active_taxels for x in s] == [1, 1]
+
+
+@pytest.mark.real_data
+def test_simulated_food_event_statistics_are_near_the_real_captures(food_poking_dir):
+    # Calibration check of the shipped food scene (docs/simulator.md): events per second
+    # within a factor of two of the real captures per class, hard foods above soft ones, and
+    # not every taxel active in every trial.
+    from ext_sense_sim.dataset import DatasetCollector
+    from ext_sense_sim.engine import Simulator
+    from ext_sense_sim.scene import load_scene
+
+    scene = load_scene("food_fork_nuskin")
+    collector = DatasetCollector(scene, scene.seed)
+    for tb, signals in Simulator(scene).batches(7, scene.seed):
+        collector.add(tb, signals)
+    sim = table(sim_stats(collector.arrays(), scene.trial_s))
+    real = table(real_stats(food_poking_dir))
+    for label in real:
+        assert 0.5 < sim[label][0] / real[label][0] < 2.0, (label, sim[label], real[label])
+    assert min(sim["apple"][0], sim["watermelon"][0]) > max(sim["water"][0], sim["empty"][0])
+    assert np.mean([row[1] for row in sim.values()]) < 80

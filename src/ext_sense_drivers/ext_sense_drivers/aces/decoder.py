@@ -45,11 +45,6 @@ AMPLITUDE_MEMORY = 16
 ``n / (n + m)`` of the way to the mean of its ``n`` detections, where ``m`` is the number of
 detections so far, at most this (a running mean at first, then an exponential one)."""
 
-AMPLITUDE_SLEW = 0.05
-"""Most relative change of the amplitude estimate per pass: a pass of burst residue cannot drag
-it far (a real gain error is picked up at once by decoding the pass again, see
-:meth:`LineDecoder._pass`, or within a few tens of passes)."""
-
 AMPLITUDE_RANGE = (0.25, 4.0)
 """The tracked amplitude stays within these multiples of the nominal one."""
 
@@ -69,6 +64,18 @@ chip RMS), its correlations are not evidence, and all its detections are withhel
 _REDO_GAIN = 0.1
 """Relative amplitude error above which a pass with rejected detections is decoded again."""
 
+_REDO_SETTLED = 64
+"""Passes are decoded again only until this many detections have measured the amplitude: later
+on, a pass with residue is a burst far more often than a gain change (which the tracking
+follows), and decoding bursts twice halved the speed."""
+
+_FEED_SLICE = 1 << 20
+"""A chunk larger than this many bytes (or half as many samples) is decoded in slices of it, so
+that the decoder's own buffers stay bounded however much arrives at once."""
+
+_REFRESH_LIMIT = 8.0
+"""Above this many signatures' energy in one decided stretch the matched filter is not run."""
+
 MAX_DEPTH = 16.0
 """Overload gate: a stretch of one signature length whose energy says it carries more than this
 many signatures per sample on average (energy per sample / amplitude squared; signatures add
@@ -87,7 +94,7 @@ at 95 % busy carries 3, and reaching 7 over four signature lengths is a 1e-4 eve
 a burst of 12 signatures is 3 over such a stretch). Decoding a saturated line only costs time
 (the onset decoder's test budget and a matched filter per pass) and produces residue."""
 
-REJECT_RATIO = 0.5
+REJECT_RATIO = 0.25
 """Residual test after decoding: a decided stretch one signature long whose residual energy
 still exceeds the noise floor by this fraction of one signature's energy was not explained by
 the detections around it (a burst too dense to separate: the cancellations left residue that
@@ -223,6 +230,8 @@ class LineDecoder:
         self._c["residual_energy"] = 0.0
         self._unresolved = 0.0
         self._noisy = False
+        self._pending = Detections.none()
+        self._pending_kept = self._pending
         self._strength = 0.0
         self._strength_n = 0
         self._set_amplitude(self.amplitude)
@@ -242,7 +251,6 @@ class LineDecoder:
         if self.track_amplitude and n:
             step = n / (n + memory)
             new = self._amp + step * (strength / n - self._amp)
-            new = min(max(new, (1 - AMPLITUDE_SLEW) * self._amp), (1 + AMPLITUDE_SLEW) * self._amp)
             lo, hi = AMPLITUDE_RANGE
             new = min(max(new, lo * self.amplitude), hi * self.amplitude)
             if abs(new - self._amp) > _AMPLITUDE_STEP * self._amp:
@@ -263,8 +271,12 @@ class LineDecoder:
 
     @property
     def latency_samples(self) -> int:
-        """Most samples a signature waits between arriving and being emitted."""
-        return self.window
+        """Most samples a signature waits between arriving and being emitted.
+
+        One window, plus one pass more for a signature whose tail runs into the next pass (its
+        residual is checked there before it is emitted).
+        """
+        return self.window + self._commit
 
     def feed(self, chunk: bytes | bytearray | memoryview | npt.NDArray[np.floating]) -> EventBlock:
         """Take the next piece of the line and return the events decided so far.
@@ -284,6 +296,17 @@ class LineDecoder:
         """
         if self._ended:
             raise AcesError("This stream was flushed; call reset() before feeding a new one.")
+        if isinstance(chunk, bytes | bytearray | memoryview) and len(chunk) > _FEED_SLICE:
+            view = memoryview(chunk).cast("B")
+            step = _FEED_SLICE
+            return EventBlock.concat(
+                [self.feed(view[i : i + step]) for i in range(0, len(view), step)]
+            )
+        if isinstance(chunk, np.ndarray) and chunk.ndim == 1 and chunk.size > _FEED_SLICE // 2:
+            step = _FEED_SLICE // 2
+            return EventBlock.concat(
+                [self.feed(chunk[i : i + step]) for i in range(0, chunk.size, step)]
+            )
         samples = self._to_samples(chunk)
         bad = ~np.isfinite(samples)
         if bad.any():
@@ -313,6 +336,9 @@ class LineDecoder:
             if pad > 0:
                 self._buf = np.concatenate((self._buf, np.zeros(pad)))
             blocks.append(self._pass(limit=end))
+        if self._pending.code.size:  # nothing follows to test their tails against
+            blocks.append(self._emit(self._pending))
+            self._pending = self._pending_kept = Detections.none()
         self._ended = True
         return EventBlock.concat(blocks)
 
@@ -352,16 +378,18 @@ class LineDecoder:
         """Decode one window, commit its first part, slide on (``limit``: end of real samples).
 
         A pass whose residual test withheld detections while they measured an amplitude more
-        than :data:`_REDO_GAIN` away from the one in use is decoded once more with the measured
+        than :data:`_REDO_GAIN` away from the one in use (before the estimate has settled,
+        :data:`_REDO_SETTLED`) is decoded once more with the measured
         amplitude (a gain error leaves residue at every cancellation until it is tracked); the
-        second result and its amplitude are kept only if it explains the whole window (nothing
-        withheld, nothing overloaded, something detected): a burst's residue must not pull the
-        estimate.
+        second result and its amplitude are kept only if it explains the window clearly better
+        (at most half as many withheld, nothing overloaded, something detected): a burst's
+        residue must not pull the estimate.
         """
         buf = self._buf
         commit = self._commit if limit is None else min(self._commit, limit - self._base)
         self._c["passes"] += 1
-        before = (buf[: self.window].copy(), dict(self._c), self._unresolved)
+        may_redo = self.track_amplitude and self._strength_n < _REDO_SETTLED
+        before = (buf[: self.window].copy() if may_redo else buf, dict(self._c), self._unresolved)
         found, strength, n = self._decode_window(buf, commit)
         rejected = self._c["rejected"] - before[1]["rejected"]
         if rejected and n and not self._noisy:
@@ -370,7 +398,7 @@ class LineDecoder:
             # first result stands and the pass does not move the estimate).
             lo, hi = AMPLITUDE_RANGE
             measured = min(max(strength / n, lo * self.amplitude), hi * self.amplitude)
-            redo = self.track_amplitude and abs(measured - self._amp) > _REDO_GAIN * self._amp
+            redo = may_redo and abs(measured - self._amp) > _REDO_GAIN * self._amp
             if redo:
                 first = (buf[: self.window].copy(), dict(self._c), self._unresolved, found)
                 old = self._amp
@@ -378,7 +406,7 @@ class LineDecoder:
                 self._c, self._unresolved = dict(before[1]), before[2]
                 self._set_amplitude(measured)
                 found, strength, n = self._decode_window(buf, commit)
-                if not n or self._c["rejected"] > before[1]["rejected"]:
+                if not n or 2 * (self._c["rejected"] - before[1]["rejected"]) > rejected:
                     buf[: self.window] = first[0]
                     self._c, self._unresolved, found = first[1], first[2], first[3]
                     self._set_amplitude(old)
@@ -387,18 +415,37 @@ class LineDecoder:
                 strength, n = 0.0, 0
         decided = buf[: max(commit, 0)]
         self._c["residual_energy"] += float(np.dot(decided, decided))
+        # Detections whose signature runs past the decided samples wait for the next pass's
+        # residual test over their tail; the ones held by the previous pass that passed it go.
+        hold = found.start + self._length > commit
+        held = self._pending_kept
+        emit = Detections(
+            np.concatenate((held.code, found.code[~hold])),
+            np.concatenate((held.start, found.start[~hold])),
+            np.concatenate((held.sign, found.sign[~hold])),
+        )
+        self._pending = Detections(
+            found.code[hold], found.start[hold] - self._commit, found.sign[hold]
+        )
+        self._pending_kept = self._pending
+        block = self._emit(emit)
+        self._buf = buf[self._commit :]
+        self._base += self._commit
+        self._track(strength, n)
+        return block
+
+    def _emit(self, found: Detections) -> EventBlock:
+        """Detections (starts relative to the current pass) as events in time order."""
+        if found.code.size == 0:
+            return EventBlock.empty()
         self._c["detections"] += int(found.code.size)
         order = np.lexsort((found.code, found.start))
-        block = EventBlock(
+        return EventBlock(
             self.t0_ns + sample_to_ns(self._base + found.start[order], self.bank.sample_rate_hz),
             (found.code[order] + 1).astype(np.uint16),
             found.sign[order].astype(np.int8),
             np.zeros(found.code.size, np.uint16),
         )
-        self._buf = buf[self._commit :]
-        self._base += self._commit
-        self._track(strength, n)
-        return block
 
     def _decode_window(
         self, buf: npt.NDArray[np.float64], commit: int
@@ -418,14 +465,12 @@ class LineDecoder:
             strength, n = found.strength, int(found.code.size)
         else:
             found, strength, n = self._onset_pass(buf, commit, refresh=trusted)
-        undone = self._c["undone"]
         found = self._annihilate(found)
         found = self._reject(buf, found, commit, blanked)
-        trusted = trusted and undone == self._c["undone"]
         if not trusted or (self.mode is DecodeMode.ONSET and self._onset.exhausted):
-            # Detections around overloaded stretches, where decisions were undone, or on a
-            # window so full of onsets that the test budget ran out (noise, garbage) measure
-            # residue rather than the line's amplitude: such a pass does not move the estimate.
+            # Detections around overloaded stretches, or on a window so full of onsets that
+            # the test budget ran out (noise, garbage), measure residue rather than the
+            # line's amplitude: such a pass does not move the estimate.
             return found, 0.0, 0
         return found, strength, n
 
@@ -547,13 +592,16 @@ class LineDecoder:
         length = self._length
         if commit <= 0:
             return None
-        mark = np.zeros(buf.size + 1, np.int64)
         hit = False
+        seg = buf[: min(commit + SUSTAINED_SPAN * length - 1, buf.size)]
+        if float(np.dot(seg, seg)) <= MAX_DEPTH * self._amp**2 * length:
+            return None  # no stretch can hold more than the whole segment
+        mark = np.zeros(seg.size + 1, np.int64)
+        cum = np.concatenate(([0.0], np.cumsum(seg * seg)))
         for span, depth in ((length, MAX_DEPTH), (SUSTAINED_SPAN * length, MAX_SUSTAINED_DEPTH)):
-            seg = buf[: min(commit + span - 1, buf.size)]
             if seg.size < span:
                 continue
-            energy = self._stretch_energy(seg, span)[:commit]
+            energy = (cum[span:] - cum[:-span])[:commit]
             starts = np.flatnonzero(energy > depth * self._amp**2 * span)
             if starts.size:
                 hit = True
@@ -589,11 +637,17 @@ class LineDecoder:
         length = self._length
         decided = buf[: max(commit, 0)]
         self._noisy = False
-        if decided.size < length:
+        self._pending_kept = self._pending
+        unit = self._amp**2 * length
+        if decided.size < length or (
+            blanked is None and float(np.dot(decided, decided)) <= REJECT_RATIO * unit
+        ):
             return found
         energy = self._stretch_energy(decided)
+        if blanked is None and float(energy.max()) <= REJECT_RATIO * unit:
+            return found  # nothing above the level, whatever the floor (floor <= max)
         floor = float(np.partition(energy, energy.size // 10)[energy.size // 10])
-        self._noisy = floor > MAX_NOISE**2 * self._amp**2 * length
+        self._noisy = floor > MAX_NOISE**2 * unit
         if self._noisy:
             bad = np.ones(energy.size, dtype=bool)
         else:
@@ -607,10 +661,20 @@ class LineDecoder:
         covered = np.cumsum(mark)[: decided.size] > 0
         if blanked is not None:
             covered[blanked[blanked < decided.size]] = True
+        cum = np.concatenate(([0], np.cumsum(covered)))
+        pending = self._pending
+        if pending.code.size:
+            hi = np.clip(pending.start + length, 0, decided.size)
+            late = cum[hi] > 0  # their tails start this pass, at sample 0
+            if late.any():
+                self._c["rejected"] += int(late.sum())
+                self._unresolved += float(late.sum())
+                self._pending_kept = Detections(
+                    pending.code[~late], pending.start[~late], pending.sign[~late]
+                )
         if found.code.size == 0:
             return found
         # A detection [t, t + L) touches a bad sample if any sample of it (before commit) is.
-        cum = np.concatenate(([0], np.cumsum(covered)))
         lo = np.clip(found.start, 0, decided.size)
         hi = np.clip(found.start + length, 0, decided.size)
         drop = cum[hi] - cum[lo] > 0
@@ -624,6 +688,10 @@ class LineDecoder:
     def _missed_energy(self, decided: npt.NDArray[np.float64]) -> bool:
         """Whether the decided residual still holds a signature's worth of energy somewhere.
 
+        Not when it holds more than :data:`_REFRESH_LIMIT` signatures' worth in one stretch:
+        that is a burst the matched filter does not resolve either (the residual test
+        withholds it), and running it there cost most of the time on bursty lines.
+
         Compares the most energetic stretch of one signature length with the quietest tenth
         of the stretches (the noise floor: missed signatures raise it far less than the mean,
         so even a window full of weak missed signatures stands out).
@@ -631,10 +699,15 @@ class LineDecoder:
         length = self._length
         if decided.size < length:
             return False
-        cum = np.cumsum(decided * decided)
-        energy = cum[length - 1 :] - np.concatenate(([0.0], cum[:-length]))
+        if float(np.dot(decided, decided)) <= _REFRESH_RATIO * self.amplitude**2 * length:
+            return False  # no stretch can hold more than the whole residual
+        energy = self._stretch_energy(decided)
+        top = float(energy.max()) / (self.amplitude**2 * length)
+        if top <= _REFRESH_RATIO:
+            return False
         floor = float(np.partition(energy, energy.size // 10)[energy.size // 10])
-        return float(energy.max()) - floor > _REFRESH_RATIO * self.amplitude**2 * length
+        excess = top - floor / (self.amplitude**2 * length)
+        return _REFRESH_RATIO < excess <= _REFRESH_LIMIT
 
 
 def decode_line(

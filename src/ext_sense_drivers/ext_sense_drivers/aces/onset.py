@@ -44,7 +44,7 @@ it leaves the matched filter (threshold 0.5, strongest first) picks up."""
 MAX_REPEATS = 4
 """Most signatures accepted at one start before moving on (guards against a loop)."""
 
-MAX_TESTS = 160
+MAX_TESTS = 64
 """Most onsets tested per call (each one or two mat-vecs against the codes, about 25 us). A pass
 of the default window at 60 % occupancy tests about 30, at 95 % busy about 100; a line of noise
 or garbage that passes every gate stops here (:attr:`OnsetDecoder.exhausted`), so the work per

@@ -7,7 +7,11 @@ across it. The pads press on opposite sides of the object (left pad normal +n, r
 
 Model (a rigid object on a thin elastic pad, the Winkler foundation): the object touches each
 pad along a strip whose lateral profile is ``w(c) = exp(-(c - c0)^2 / (2 s^2))`` with ``c0``
-the object's lateral offset on that pad (randomised per trial: grasps are never identical).
+the object's lateral offset on that pad (randomised per trial, independently per pad: the
+object is never seated twice at the same place across the pads). ``s`` (1.5 mm) is the
+half-width scale of a line contact: Hertz's half-width ``b = sqrt(4 F R / (pi L E*))`` of a
+10 mm rod on a 24 mm pad of about 1 MPa at 20 N is about 2.3 mm, a Gaussian of ``s = 1.5 mm``
+has a half width at half maximum of 1.8 mm.
 With ``A = sum w a`` and ``I = sum w u^2 a`` (``a`` the taxel area, ``u`` the axial position
 from the pad centre), a finger of side ``s = +1`` (left) / ``-1`` (right) feels
 

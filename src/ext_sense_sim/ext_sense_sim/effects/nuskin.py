@@ -1,15 +1,28 @@
 """NUSkin transduction: taxel pressure to positive and negative events.
 
 Model. The graphene piezoresistive layer and its amplifier pass pressure up to about
-``bandwidth_hz`` (1500 Hz, a second-order Butterworth low-pass). Each taxel is a level-crossing
-(send-on-delta) encoder: it emits a positive event when its pressure has risen by
-``threshold_pa`` since its reference, a negative one when it has fallen by as much, and moves
-its reference one threshold toward the pressure. After an event the taxel is refractory for
-``refractory_s`` (0.25 ms: the ACES pulse signature length, hence at most 4 kHz per taxel);
-a change larger than one threshold is therefore spread over several events, one per
-refractory period, as a rate-limited real taxel would. The 10-bit value field is the taxel's
-absolute pressure reading at the event, ``value = offset_counts + p / pa_per_count``, clipped
-to 0..1023. Event times fall uniformly inside their simulation sample.
+``bandwidth_hz`` (1500 Hz, a second-order Butterworth low-pass). The taxel's reading is
+``offset_counts + p / pa_per_count`` (10 bits); each taxel is a level-crossing (send-on-delta)
+encoder on that reading: it emits a positive event when the reading has risen by
+``threshold_pa`` (one count by default) since its reference, a negative one when it has fallen
+by as much. With ``reference: reset`` (default) the reference then jumps to the reading, so one
+event reports one detected change whatever its size, and the value field carries the size;
+with ``reference: step`` it moves one threshold toward the reading (a change of ``n``
+thresholds gives ``n`` events). After an event the taxel is refractory for ``refractory_s``
+(0.25 ms: the ACES pulse signature length, hence at most 4 kHz per taxel). The value field is
+the reading at the event, clipped to 0..1023. Event times fall uniformly inside their
+simulation sample, never closer than the refractory period.
+
+Why ``reset`` and one count: in the real captures (``../shared/data/nuskin_food_poking``) two
+consecutive events of a taxel differ by exactly one count of the value field in most cases
+(median and 75th percentile 1, never 0), by several counts only when the load changes fast,
+which is what a send-on-change encoder with a one-count threshold does; a stepping reference
+would give equal steps. With this coding a large fast change saturates the taxel's event rate
+(one event per refractory period) instead of multiplying events, so the *rate* of events codes
+how much the pressure moves, and a per-taxel rate limit (the paper's refractory drop) removes
+that information. ``pa_per_count`` (1000 Pa) is calibrated so that the food scene's value-field
+spans per taxel match the real captures within a factor of about 2 (apple about 20 counts
+simulated, 40-49 real; water 1-2 both).
 """
 
 from __future__ import annotations
@@ -125,7 +138,11 @@ def refractory_safe_jitter(
 
 
 class NuskinTransduction(Effect):
-    """Pressure to NUSkin events (see module docstring). Gives ``events``."""
+    """Pressure to NUSkin events (see module docstring). Gives ``events``.
+
+    ``reference`` must be ``"reset"`` or ``"step"``; ``threshold_pa`` is usually equal to
+    ``pa_per_count`` (one count of the reading).
+    """
 
     name = "nuskin_transduction"
     needs = ("taxel_pressure",)
