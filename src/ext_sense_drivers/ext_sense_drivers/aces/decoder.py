@@ -413,6 +413,10 @@ class LineDecoder:
                     redo = False
             if not redo:
                 strength, n = 0.0, 0
+        elif self.mode is DecodeMode.ONSET and self._onset.exhausted:
+            # A window so full of onsets that the test budget ran out is residue or noise more
+            # often than a gain error: it may trigger the repeat above, not move the estimate.
+            strength, n = 0.0, 0
         decided = buf[: max(commit, 0)]
         self._c["residual_energy"] += float(np.dot(decided, decided))
         # Detections whose signature runs past the decided samples wait for the next pass's
@@ -467,10 +471,10 @@ class LineDecoder:
             found, strength, n = self._onset_pass(buf, commit, refresh=trusted)
         found = self._annihilate(found)
         found = self._reject(buf, found, commit, blanked)
-        if not trusted or (self.mode is DecodeMode.ONSET and self._onset.exhausted):
-            # Detections around overloaded stretches, or on a window so full of onsets that
-            # the test budget ran out (noise, garbage), measure residue rather than the
-            # line's amplitude: such a pass does not move the estimate.
+        if not trusted or self._noisy:
+            # Detections around overloaded stretches, or in a window whose residual floor is
+            # noise beyond specification, measure residue rather than the line's amplitude:
+            # such a pass does not move the estimate.
             return found, 0.0, 0
         return found, strength, n
 
