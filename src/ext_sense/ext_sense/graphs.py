@@ -14,9 +14,9 @@ The functions here only describe; :mod:`ext_sense.launch_support` turns a descri
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
-from ext_sense.graph import ArgumentSpec, GraphSpec, NodeSpec, as_bool
+from ext_sense.graph import ArgumentSpec, GraphSpec, NodeSpec, ParameterValue, as_bool
 
 NS = "/extsense"
 TOPIC_EVENTS = f"{NS}/nuskin/events"
@@ -212,78 +212,60 @@ def _monitor_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     )
 
 
-def _build_tap(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
-    task = "tap_localization"
-    behaviours: tuple[NodeSpec, ...] = ()
-    if as_bool(args["behaviours"]):
-        behaviours = (
-            NodeSpec(
-                package="ext_sense_behaviours",
-                executable="tap_marker",
-                name="tap_marker",
-                plugin="ext_sense_behaviours.nodes.tap_marker:TapMarkerNode",
-                parameters={},
-                remappings=(("contact_estimate", TOPIC_ESTIMATE), ("marker", TOPIC_TAP_MARKER)),
-            ),
-        )
-    return (
-        _source_nodes(task, args)
-        + _perception_nodes(task, args)
-        + behaviours
-        + _monitor_nodes(task, args)
+def _behaviour(
+    executable: str,
+    plugin_class: str,
+    parameters: Mapping[str, ParameterValue] | None = None,
+    remappings: tuple[tuple[str, str], ...] = (("contact_estimate", TOPIC_ESTIMATE),),
+) -> NodeSpec:
+    """A node of ``ext_sense_behaviours`` named after its executable."""
+    return NodeSpec(
+        package="ext_sense_behaviours",
+        executable=executable,
+        name=executable,
+        plugin=f"ext_sense_behaviours.nodes.{executable}:{plugin_class}",
+        parameters=dict(parameters or {}),
+        remappings=remappings,
     )
 
 
-def _build_handover(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
-    task = "handover_stability"
-    behaviours: tuple[NodeSpec, ...] = ()
-    if as_bool(args["behaviours"]):
-        behaviours = (
-            NodeSpec(
-                package="ext_sense_behaviours",
-                executable="robotiq_gripper",
-                name="robotiq_gripper",
-                plugin="ext_sense_behaviours.nodes.robotiq_gripper:RobotiqGripperNode",
-                parameters={"port": args["gripper_port"]},
-                remappings=(),
-            ),
-            NodeSpec(
-                package="ext_sense_behaviours",
-                executable="handover_behaviour",
-                name="handover_behaviour",
-                plugin="ext_sense_behaviours.nodes.handover_behaviour:HandoverBehaviourNode",
-                parameters={},
-                remappings=(("contact_estimate", TOPIC_ESTIMATE),),
-            ),
-        )
+def _tap_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     return (
-        _source_nodes(task, args)
-        + _perception_nodes(task, args)
-        + behaviours
-        + _monitor_nodes(task, args)
+        _behaviour(
+            "tap_marker",
+            "TapMarkerNode",
+            remappings=(("contact_estimate", TOPIC_ESTIMATE), ("marker", TOPIC_TAP_MARKER)),
+        ),
     )
 
 
-def _build_food(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
-    task = "food_identification"
-    behaviours: tuple[NodeSpec, ...] = ()
-    if as_bool(args["behaviours"]):
-        behaviours = (
-            NodeSpec(
-                package="ext_sense_behaviours",
-                executable="food_behaviour",
-                name="food_behaviour",
-                plugin="ext_sense_behaviours.nodes.food_behaviour:FoodBehaviourNode",
-                parameters={},
-                remappings=(("contact_estimate", TOPIC_ESTIMATE),),
-            ),
-        )
+def _handover_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     return (
-        _source_nodes(task, args)
-        + _perception_nodes(task, args)
-        + behaviours
-        + _monitor_nodes(task, args)
+        _behaviour(
+            "robotiq_gripper", "RobotiqGripperNode", {"port": args["gripper_port"]}, remappings=()
+        ),
+        _behaviour("handover_behaviour", "HandoverBehaviourNode"),
     )
+
+
+def _food_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
+    return (_behaviour("food_behaviour", "FoodBehaviourNode"),)
+
+
+def _chain(
+    task: str, behaviours: Callable[[Mapping[str, str]], tuple[NodeSpec, ...]]
+) -> Callable[[Mapping[str, str]], tuple[NodeSpec, ...]]:
+    """The build function of a task's graph: source, driver, perception, behaviours, monitor."""
+
+    def build(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
+        return (
+            _source_nodes(task, args)
+            + _perception_nodes(task, args)
+            + (behaviours(args) if as_bool(args["behaviours"]) else ())
+            + _monitor_nodes(task, args)
+        )
+
+    return build
 
 
 GRAPHS: dict[str, GraphSpec] = {
@@ -291,7 +273,7 @@ GRAPHS: dict[str, GraphSpec] = {
         name="tap_localization",
         description="Where was the held rod tapped? Tap position on /extsense/contact_estimate.",
         arguments=_common_arguments("30"),
-        build=_build_tap,
+        build=_chain("tap_localization", _tap_behaviours),
     ),
     "handover": GraphSpec(
         name="handover",
@@ -300,12 +282,12 @@ GRAPHS: dict[str, GraphSpec] = {
             *_common_arguments("10"),
             ArgumentSpec("gripper_port", "", "Serial device of the Robotiq 2F gripper."),
         ),
-        build=_build_handover,
+        build=_chain("handover_stability", _handover_behaviours),
     ),
     "food_identification": GraphSpec(
         name="food_identification",
         description="Which food did the fork touch?",
         arguments=_common_arguments("7"),
-        build=_build_food,
+        build=_chain("food_identification", _food_behaviours),
     ),
 }
