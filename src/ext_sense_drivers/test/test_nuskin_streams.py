@@ -65,6 +65,23 @@ def test_aces_line_stream_decodes_and_restarts():
     np.testing.assert_allclose(gaps, np.diff(t), atol=2000)  # one line sample is ~1969 ns
     assert stream.batch_counters.words_total == 4
     assert stream.restart().size == 0
+    diagnostics = stream.diagnostics()
+    assert diagnostics["detections"] == 4
+    assert diagnostics["overload_samples"] == diagnostics["rejected"] == 0
+    assert diagnostics["unresolved"] == 0
+
+
+def test_aces_line_stream_counts_what_it_cannot_resolve():
+    from ext_sense_drivers.aces.wire import samples_to_bytes
+
+    # A line held at full scale carries no decodable signature: the decoder must say so in the
+    # diagnostics instead of inventing events.
+    data = samples_to_bytes(np.full(20_000, 6.0)).data
+    stream = AcesLineStream()
+    blocks = [stream.feed(Chunk(data[i : i + 4000], 10**9 + i)) for i in range(0, len(data), 4000)]
+    blocks.append(stream.restart())
+    assert EventBlock.concat(blocks).size == 0
+    assert stream.diagnostics()["overload_samples"] > 0
 
 
 def test_config_choices_and_errors(tmp_path):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from ext_sense_sim.effects.beam import BeamModel, clamped_free_roots, mode_shapes
+from ext_sense_sim.effects.beam import BeamModel, TorsionModel, clamped_free_roots, mode_shapes
 
 ACRYLIC = dict(
     youngs_pa=3.2e9,
@@ -173,3 +173,24 @@ def test_extreme_stiffness_stays_finite(youngs):
         s2, m2 = model.root_loads(push, np.array([0.2]), 1 / 16000)
         assert s2[0, -1] == pytest.approx(1.0, rel=1e-3)
         assert m2[0, -1] == pytest.approx(0.2, rel=1e-3)
+
+
+def test_torsion_frequencies_and_static_torque_are_the_shaft_answers():
+    g, j, rho, length = 3.2e9 / 2.7, math.pi * 0.01**4 / 32, 1190.0, 0.27
+    shaft = TorsionModel(length, g, j, rho, zeta=0.05, max_freq_hz=6000)
+    c = math.sqrt(g / rho)
+    expected = np.array([1, 3, 5]) * c / (4 * length)  # clamped-free: (2n - 1) c / (4 L)
+    np.testing.assert_allclose(shaft.freqs_hz, expected, rtol=1e-12)
+    # a slowly applied torque reaches the grasp exactly, wherever it acts
+    t = np.linspace(0, 1, 16000)
+    torque = np.tile(0.02 * np.minimum(t / 0.5, 1.0), (3, 1))
+    root = shaft.root_torque(torque, np.array([0.03, 0.15, 0.26]), 1 / 16000)
+    np.testing.assert_allclose(root[:, -1], 0.02, rtol=1e-3)
+    # a short twist excites the first mode, which rings at its frequency
+    kick = np.zeros((1, 16000))
+    kick[0, 10] = 1.0
+    ring = shaft.root_torque(kick, np.array([0.2]), 1 / 16000)[0, 100:]
+    spectrum = np.abs(np.fft.rfft(ring))
+    peak_hz = np.argmax(spectrum) * 16000 / ring.size
+    assert abs(peak_hz - expected[0]) < 5
+    assert np.all(np.isfinite(ring))

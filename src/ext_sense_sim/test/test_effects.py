@@ -158,3 +158,16 @@ def test_jitter_never_breaks_the_refractory_period():
     for c in range(3):
         t = k[channel == c] + u[channel == c]
         assert np.diff(t).min() >= 4 - 1e-12
+
+
+def test_torque_loads_the_two_pads_with_opposite_sign_and_shear_with_the_same():
+    from ext_sense_sim.effects.grasp import GraspTransfer
+    from ext_sense_sim.scene import load_scene
+
+    grasp = GraspTransfer({"gain_spread": 0.0}, load_scene("tap_rod30_nuskin"))
+    w = grasp.weights(np.full((1, 2), 0.001), np.random.default_rng(0), 1)[0]
+    left, right = w[:40], w[40:]
+    np.testing.assert_allclose(left[:, 6], -right[:, 6])  # torque: opposite
+    np.testing.assert_allclose(left[:, 3], right[:, 3])  # shear along the pads: same
+    np.testing.assert_allclose(left[:, 1], -right[:, 1])  # load toward the pads: opposite
+    assert np.abs(left[:, 6]).max() > 0

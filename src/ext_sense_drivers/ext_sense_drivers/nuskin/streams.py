@@ -111,7 +111,20 @@ class AcesLineStream:
         self._kwargs = decoder_kwargs
         self._decoder = None
         self._probe = LineDecoder(**decoder_kwargs)  # validates the arguments now
-        self._done = {"detections": 0, "samples": 0, "nonfinite_samples": 0, "bytes_dropped": 0}
+        # Totals over every connection; the last three say what the decoder withheld or could
+        # not separate (overloaded stretches, detections the residual test rejected, bursts).
+        self._done = dict.fromkeys(
+            (
+                "detections",
+                "samples",
+                "nonfinite_samples",
+                "bytes_dropped",
+                "overload_samples",
+                "rejected",
+                "unresolved",
+            ),
+            0,
+        )
 
     def feed(self, chunk: Chunk) -> EventBlock:
         """Decode the samples; events come out up to the decoder's latency later."""

@@ -219,12 +219,72 @@ class BeamModel:
         return 0.5 * np.sum(v**2 + (self.omega[None, :, None] * q) ** 2, axis=1)
 
 
+class TorsionModel:
+    """Torsion modes of a clamped-free uniform shaft of circular section.
+
+    ``theta_n(x) = sin((2n - 1) pi x / (2 L))``, ``omega_n = (2n - 1) pi / (2 L) sqrt(G / rho)``
+    (``G J / (rho J)`` with equal polar and torsion constants), mass-normalised with
+    ``rho J``. A torque ``T(t)`` at ``a`` drives mode n by ``theta_n(a)``; the root torque is
+    ``G J theta'(0)``, with the truncated modes added back quasi-statically, so a slow torque
+    reaches the grasp exactly.
+
+    Args:
+        length_m: Free span, metres.
+        shear_modulus_pa: ``G``, Pa.
+        polar_m4: Polar second moment ``J``, m^4.
+        density: kg/m^3.
+        zeta: Modal damping ratio.
+        max_freq_hz: Keep the modes below this frequency (at least one).
+    """
+
+    def __init__(
+        self,
+        length_m: float,
+        shear_modulus_pa: float,
+        polar_m4: float,
+        density: float,
+        zeta: float,
+        max_freq_hz: float,
+    ) -> None:
+        self.length = float(length_m)
+        self.gj = shear_modulus_pa * polar_m4
+        k = (2 * np.arange(1, 200) - 1) * math.pi / (2 * self.length)
+        omega = k * math.sqrt(shear_modulus_pa / density)
+        keep = max(1, int(np.searchsorted(omega, 2 * math.pi * max_freq_hz)))
+        self.k, self.omega = k[:keep], omega[:keep]
+        self.zeta = np.full(keep, float(zeta))
+        self.norm = math.sqrt(2.0 / (density * polar_m4 * self.length))
+        self.torque_coef = self.gj * self.k * self.norm  # root torque per modal coordinate
+
+    @property
+    def freqs_hz(self) -> np.ndarray:
+        """Natural frequencies of the kept modes, Hz."""
+        return self.omega / (2 * math.pi)
+
+    def root_torque(self, torque: np.ndarray, position_m: np.ndarray, dt: float) -> np.ndarray:
+        """Root torque ``(n_trials, n_samples)`` N m for torques applied at positions."""
+        b_q, _, a, _, _ = zoh_filters(self.omega, self.zeta, dt)
+        shape = np.sin(np.asarray(position_m)[:, None] * self.k) * self.norm  # (n, modes)
+        out = np.zeros_like(torque)
+        for i in range(len(self.omega)):
+            g = lfilter(b_q[i], a[i], torque, axis=-1)
+            out += (self.torque_coef[i] * shape[:, i])[:, None] * g
+        residual = 1.0 - shape @ (self.torque_coef / self.omega**2)
+        return out + residual[:, None] * torque
+
+
 class BeamModes(Effect):
     """Clamped-free Euler-Bernoulli modes of the held object (see module docstring).
 
-    Gives ``clamp_load``: ``(n_trials, 5, n_samples)`` float64, channels shear toward the
+    Gives ``clamp_load``: ``(n_trials, 6, n_samples)`` float64, channels shear toward the
     pads (N), moment toward the pads (N m), shear along the pads (N), moment along the
-    pads (N m), axial force (N).
+    pads (N m), axial force (N), torque about the object's axis (N m; zero unless
+    ``torsion`` is on).
+
+    ``torsion: true`` (round rods struck on their surface) adds the twist: the tap's component
+    along the pads acts at the surface, a lever of one radius ``r = sqrt(A / pi)`` about the
+    axis, so ``T = F sin(angle) r`` drives the :class:`TorsionModel` (``G = E / (2 (1 + nu))``
+    with ``poisson_ratio``).
     """
 
     name = "beam_modes"
@@ -235,6 +295,8 @@ class BeamModes(Effect):
         "max_modes": 40,
         "damping_ratio": None,
         "grasp_damping_ratio": 0.03,
+        "torsion": False,
+        "poisson_ratio": 0.35,
     }
 
     def setup(self) -> None:
@@ -254,6 +316,16 @@ class BeamModes(Effect):
         rest = (g.material.density, g.area_m2)
         self.normal = BeamModel(*common, g.inertia_normal_m4, *rest, zeta, max_freq, max_modes)
         self.tangent = BeamModel(*common, g.inertia_tangent_m4, *rest, zeta, max_freq, max_modes)
+        self.torsion: TorsionModel | None = None
+        if bool(self.params["torsion"]):
+            nu = self.scalar("poisson_ratio", 0.0, 0.5)
+            shear = g.material.youngs_pa / (2.0 * (1.0 + nu))
+            polar = g.inertia_normal_m4 + g.inertia_tangent_m4
+            zeta_t = float(np.atleast_1d(zeta)[0])
+            self.torsion = TorsionModel(
+                g.free_length_m, shear, polar, g.material.density, zeta_t, max_freq
+            )
+            self.radius = math.sqrt(g.area_m2 / math.pi)
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Give ``clamp_load`` from ``contact``."""
@@ -261,11 +333,13 @@ class BeamModes(Effect):
         x = np.clip(contact.position_m, 0.0, self.normal.length)
         f_n = contact.force_n * np.cos(contact.angle_rad)[:, None]
         f_t = contact.force_n * np.sin(contact.angle_rad)[:, None]
-        load = np.empty((time.n_trials, 5, time.n_samples))
+        load = np.zeros((time.n_trials, 6, time.n_samples))
         load[:, 0], load[:, 1] = self.normal.root_loads(f_n, x, time.dt)
         if np.any(f_t != 0):
             load[:, 2], load[:, 3] = self.tangent.root_loads(f_t, x, time.dt)
         else:
             load[:, 2:4] = 0.0
         load[:, 4] = contact.force_axial
+        if self.torsion is not None and np.any(f_t != 0):
+            load[:, 5] = self.torsion.root_torque(f_t * self.radius, x, time.dt)
         signals["clamp_load"] = load

@@ -22,7 +22,10 @@ times a fixed per-taxel gain (manufacturing spread), and never below zero: where
 dynamic load would pull, that part of the pad loses contact (unilateral contact). Loads
 toward the pads (``V_n``, ``M_n``) load one pad and unload the other; loads along the pads
 shear the pad and reach the piezoresistive layer only through the coupling ``k_t``; the axial
-force likewise with ``k_a``.
+force likewise with ``k_a``. A torque ``T`` about the object's axis (``clamp_load`` channel 5,
+when the beam effect computes torsion) is held by friction on the two pads, ``T / (2 r)`` on
+each in opposite directions; it reaches the taxels through the same coupling ``k_t``, with
+opposite sign on the two pads: the one load that the two fingers see differently.
 """
 
 from __future__ import annotations
@@ -77,13 +80,14 @@ class GraspTransfer(Effect):
         self.gain = np.clip(1.0 + spread * sensor_rng.standard_normal(N_TAXELS), 0.1, None)
 
     def weights(self, offsets: np.ndarray, rng: np.random.Generator, n: int) -> np.ndarray:
-        """Per-trial taxel weights ``(n, 80, 6)`` for ``[grip, V_n, M_n, V_t, M_t, F_ax]``."""
+        """Per-trial weights ``(n, 80, 7)`` for ``[grip, V_n, M_n, V_t, M_t, F_ax, T]``."""
         sigma = self.scalar("strip_sigma_m", 1e-5, 0.1)
         k_t = self.scalar("tangential_coupling", 0.0, 10.0)
         k_a = self.scalar("axial_coupling", 0.0, 10.0)
         grip = self.draw("grip_force_n", rng, n, 0.0)
         u = self.u[None, :]
-        w_out = np.empty((n, N_TAXELS, 6))
+        w_out = np.empty((n, N_TAXELS, 7))
+        half_gap = self.context.geometry.width_m / 2.0  # pad to axis (round rods: the radius)
         for finger, side in ((0, 1.0), (1, -1.0)):
             lateral = self.c[None, :] - offsets[:, finger : finger + 1]  # (n, 40)
             w = np.exp(-0.5 * (lateral / sigma) ** 2)
@@ -96,6 +100,9 @@ class GraspTransfer(Effect):
             w_out[:, sl, 3] = k_t * w * (lateral / sigma) / area
             w_out[:, sl, 4] = k_t * w * (lateral / sigma) * u / inertia
             w_out[:, sl, 5] = k_a * w * (u / np.abs(self.u).max()) / area
+            # a torque is held by friction on the two pads, T / (2 r) each, in opposite
+            # directions: the pads shear (and roll the object) opposite ways
+            w_out[:, sl, 6] = side * k_t * w * (lateral / sigma) / area / (2.0 * half_gap)
         return w_out * self.gain[None, :, None]
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
@@ -104,6 +111,8 @@ class GraspTransfer(Effect):
         n = time.n_trials
         offsets = np.stack([self.draw("lateral_offset_m", rng, n) for _ in range(2)], axis=1)
         w = self.weights(offsets, rng, n).astype(np.float32)
+        if load.shape[1] == 5:  # loads without the torque channel
+            load = np.concatenate([load, np.zeros_like(load[:, :1])], axis=1)
         pressure = np.matmul(w[:, :, 1:], load.astype(np.float32))
         pressure += w[:, :, 0:1]
         np.maximum(pressure, 0.0, out=pressure)  # a pad can push but not pull

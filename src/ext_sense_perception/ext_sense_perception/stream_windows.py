@@ -1,0 +1,194 @@
+# ruff: noqa: N806  (X for the window matrix, as in scikit-learn)
+"""Training windows cut from a raw NUSkin device stream by the live graph's own code (no ROS).
+
+A model trained on windows cut offline at the true onset (``dataset.npz``) meets different
+windows live: there the driver stamps words on arrival, the windower detects the onset from
+the stamped events, and the window is cut around that detected onset. This module removes that
+train/serve skew by construction: the receiver bytes, as written to the link, go through the
+driver's decoding path (:meth:`ext_sense_drivers.nuskin.driver_config.DriverConfig.make_stream`:
+``WordDecoder`` and the arrival clock), are packed into ``TaxelEventBatch``-shaped messages and
+fed to :class:`ext_sense_perception.nodes.pipeline.WindowStage`, the core of the
+``contact_window`` node. Each final window is labelled by the ground truth whose stamp is
+nearest its detected onset (within ``match_tolerance_ns``, as the estimate monitor scores).
+
+Each write is read at its own time (a driver reading as soon as bytes wait, as measured live:
+most reads carry under 100 bytes), so windows here equal those the live graph cuts when no
+byte is lost.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Iterable, Sequence
+from types import SimpleNamespace
+from typing import NamedTuple
+
+import numpy as np
+
+from ext_sense_perception.dataset import WindowSet
+from ext_sense_perception.enums import Sensor, Task
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.features import Geometry
+from ext_sense_perception.nodes.pipeline import WindowStage
+from ext_sense_perception.windows import MS, ContactWindow, WindowConfig
+
+NS_PER_S = 1_000_000_000
+DEFAULT_BAUD = 4_000_000
+"""The graph's NUSkin link rate (sets the arrival clock's spread cap)."""
+
+
+class StreamTruth(NamedTuple):
+    """Ground truth of one streamed trial, on the stream's clock.
+
+    Attributes:
+        trial: Trial index.
+        stamp_ns: When the trial's onset bytes were written, ns (stream clock).
+        label: Tap position, m (regression) or class label.
+        rod_length_m: Rod length, m (NaN when none).
+    """
+
+    trial: int
+    stamp_ns: int
+    label: float | str
+    rod_length_m: float = float("nan")
+
+
+class StreamCounts(NamedTuple):
+    """What became of the stream's trials and windows."""
+
+    words: int
+    windows: int
+    labelled: int
+    unmatched_windows: int
+    missed_trials: int
+    skipped_bytes: int
+
+
+def _batch(t_ns: np.ndarray, taxel: np.ndarray, polarity: np.ndarray) -> SimpleNamespace:
+    """A ``TaxelEventBatch``-shaped message (the stage reads these fields only)."""
+    first = int(t_ns[0])
+    stamp = SimpleNamespace(sec=first // NS_PER_S, nanosec=first % NS_PER_S)
+    return SimpleNamespace(
+        header=SimpleNamespace(stamp=stamp),
+        offset_ns=t_ns - np.int64(first),
+        taxel=taxel,
+        polarity=polarity,
+    )
+
+
+def stream_windows(
+    writes: Iterable[tuple[int, bytes]],
+    config: WindowConfig | None = None,
+    *,
+    baud: int = DEFAULT_BAUD,
+) -> tuple[list[ContactWindow], int, int]:
+    """Final windows the live graph cuts from a NUSkin receiver byte stream.
+
+    Args:
+        writes: ``(t_ns, bytes)`` per write to the link, in time order (any clock).
+        config: Window configuration (default: the ``contact_window`` node's for tap
+            localisation).
+        baud: Link rate the driver's arrival clock assumes, bit/s.
+
+    Returns:
+        The final (non-provisional) windows, the decoded word count and the skipped bytes.
+    """
+    from ext_sense_drivers.nuskin.driver_config import DriverConfig
+    from ext_sense_drivers.transports.base import Chunk
+
+    config = config or WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.NUSKIN)
+    if config.sensor is not Sensor.NUSKIN:
+        raise PerceptionError(
+            f"The 'config.sensor' parameter must be nuskin. Got {config.sensor.label!r} instead."
+        )
+    decode = DriverConfig(baud=int(baud)).make_stream()
+    stage = WindowStage(config)
+    out: list[ContactWindow] = []
+    words = 0
+    for t_ns, data in writes:
+        block = decode.feed(Chunk(bytes(data), int(t_ns)))
+        if block.t_ns.size:
+            words += int(block.t_ns.size)
+            out.extend(stage.on_events(_batch(block.t_ns, block.taxel, block.polarity)))
+        out.extend(stage.advance(int(t_ns)))  # the node's timer: data up to now is complete
+    out.extend(stage.flush())
+    skipped = int(decode.batch_counters.skipped_bytes)
+    return [w for w in out if not w.provisional], words, skipped
+
+
+def window_set_from_stream(
+    writes: Iterable[tuple[int, bytes]],
+    truths: Sequence[StreamTruth],
+    config: WindowConfig | None = None,
+    *,
+    baud: int = DEFAULT_BAUD,
+    match_tolerance_ns: int = 300 * MS,
+    source: str = "stream",
+) -> tuple[WindowSet, StreamCounts]:
+    """A labelled training set cut from a raw stream exactly as the live graph cuts it.
+
+    Args:
+        writes: ``(t_ns, bytes)`` per write to the link, in time order.
+        truths: Ground truth per trial, stamps on the same clock as ``writes``.
+        config: Window configuration (default: the ``contact_window`` node's, tap).
+        baud: Link rate the driver's arrival clock assumes, bit/s.
+        match_tolerance_ns: Largest distance from a window's onset to its truth's stamp, ns.
+        source: Description stored in the set (file names, scene).
+
+    Returns:
+        The window set (one window per matched trial, ``groups`` the trial) and counts.
+
+    Raises:
+        PerceptionError: No window matched any truth, or bad arguments.
+    """
+    config = config or WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.NUSKIN)
+    h = hashlib.sha256()
+
+    def hashed(items: Iterable[tuple[int, bytes]]) -> Iterable[tuple[int, bytes]]:
+        for t, b in items:
+            h.update(b)
+            yield t, b
+
+    windows, words, skipped = stream_windows(hashed(writes), config, baud=baud)
+    stamps = np.array([int(g.stamp_ns) for g in truths], dtype=np.int64)
+    order = np.argsort(stamps, kind="stable")
+    stamps = stamps[order]
+    taken = np.zeros(stamps.size, dtype=bool)
+    picked: list[tuple[ContactWindow, StreamTruth]] = []
+    unmatched = 0
+    for win in windows:
+        if not stamps.size:
+            unmatched += 1
+            continue
+        j = int(np.searchsorted(stamps, win.onset_ns))
+        near = [k for k in (j - 1, j) if 0 <= k < stamps.size and not taken[k]]
+        best = min(near, key=lambda k: abs(int(stamps[k]) - win.onset_ns), default=None)
+        if best is None or abs(int(stamps[best]) - win.onset_ns) > match_tolerance_ns:
+            unmatched += 1
+            continue
+        taken[best] = True
+        picked.append((win, truths[int(order[best])]))
+    if not picked:
+        raise PerceptionError(
+            f"The stream gave {len(windows)} windows and {len(truths)} truths but none matched "
+            f"within {match_tolerance_ns / MS:g} ms; expected truths stamped on the writes' clock."
+        )
+    X = np.stack([w.data for w, _ in picked]).astype(np.float32, copy=False)
+    labels = [g.label for _, g in picked]
+    regression = config.task.is_regression
+    if regression:
+        y = np.asarray(labels, dtype=np.float64)
+        names: tuple[str, ...] = ()
+    else:
+        y = np.asarray([str(v) for v in labels])
+        names = tuple(sorted(set(y.tolist())))
+    geometry = Geometry(X.shape[1], X.shape[2], config.period_ns, config.pre_ns, "nuskin")
+    groups = np.asarray([g.trial for _, g in picked])
+    rod = np.asarray([g.rod_length_m for _, g in picked], dtype=np.float64)
+    ws = WindowSet(
+        config.task.label, "nuskin", X, y, geometry, names, groups, rod, source, h.hexdigest()[:16]
+    )
+    counts = StreamCounts(
+        words, len(windows), len(picked), unmatched, int((~taken).sum()), skipped
+    )
+    return ws, counts
