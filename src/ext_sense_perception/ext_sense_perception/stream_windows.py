@@ -11,9 +11,10 @@ fed to :class:`ext_sense_perception.nodes.pipeline.WindowStage`, the core of the
 ``contact_window`` node. Each final window is labelled by the ground truth whose stamp is
 nearest its detected onset (within ``match_tolerance_ns``, as the estimate monitor scores).
 
-Each write is read at its own time (a driver reading as soon as bytes wait, as measured live:
-most reads carry under 100 bytes), so windows here equal those the live graph cuts when no
-byte is lost.
+Reads are modelled as the live link delivers them: the streamer wakes at least every
+millisecond and writes everything due (``ext_sense_sim.streaming.stream``) and the driver reads
+as soon as bytes wait, so the writes of each ``read_period_ns`` tick are read together at the
+tick's end. Windows here then match the live graph's when no byte is lost.
 """
 
 from __future__ import annotations
@@ -35,6 +36,8 @@ from ext_sense_perception.windows import MS, ContactWindow, WindowConfig
 NS_PER_S = 1_000_000_000
 DEFAULT_BAUD = 4_000_000
 """The graph's NUSkin link rate (sets the arrival clock's spread cap)."""
+READ_PERIOD_NS = MS
+"""The live streamer's wake-up period: writes within one are read together."""
 
 
 class StreamTruth(NamedTuple):
@@ -81,6 +84,7 @@ def stream_windows(
     config: WindowConfig | None = None,
     *,
     baud: int = DEFAULT_BAUD,
+    read_period_ns: int = READ_PERIOD_NS,
 ) -> tuple[list[ContactWindow], int, int]:
     """Final windows the live graph cuts from a NUSkin receiver byte stream.
 
@@ -89,6 +93,7 @@ def stream_windows(
         config: Window configuration (default: the ``contact_window`` node's for tap
             localisation).
         baud: Link rate the driver's arrival clock assumes, bit/s.
+        read_period_ns: Writes within one tick of this length are read together, ns.
 
     Returns:
         The final (non-provisional) windows, the decoded word count and the skipped bytes.
@@ -105,12 +110,33 @@ def stream_windows(
     stage = WindowStage(config)
     out: list[ContactWindow] = []
     words = 0
-    for t_ns, data in writes:
-        block = decode.feed(Chunk(bytes(data), int(t_ns)))
+    if int(read_period_ns) <= 0:
+        raise PerceptionError(
+            f"The 'read_period_ns' parameter must be > 0. Got {read_period_ns} instead."
+        )
+    period = int(read_period_ns)
+
+    def read(data: bytes, read_ns: int) -> None:
+        nonlocal words
+        block = decode.feed(Chunk(data, read_ns))
         if block.t_ns.size:
             words += int(block.t_ns.size)
             out.extend(stage.on_events(_batch(block.t_ns, block.taxel, block.polarity)))
-        out.extend(stage.advance(int(t_ns)))  # the node's timer: data up to now is complete
+        out.extend(stage.advance(read_ns))  # the node's timer: data up to now is complete
+
+    pending: list[bytes] = []
+    tick_end: int | None = None
+    for t_ns, data in writes:
+        t = int(t_ns)
+        if tick_end is not None and t > tick_end:
+            read(b"".join(pending), tick_end)
+            pending = []
+            tick_end = None
+        if tick_end is None:
+            tick_end = -(-t // period) * period
+        pending.append(bytes(data))
+    if tick_end is not None:
+        read(b"".join(pending), tick_end)
     out.extend(stage.flush())
     skipped = int(decode.batch_counters.skipped_bytes)
     return [w for w in out if not w.provisional], words, skipped
@@ -122,6 +148,7 @@ def window_set_from_stream(
     config: WindowConfig | None = None,
     *,
     baud: int = DEFAULT_BAUD,
+    read_period_ns: int = READ_PERIOD_NS,
     match_tolerance_ns: int = 300 * MS,
     source: str = "stream",
 ) -> tuple[WindowSet, StreamCounts]:
@@ -132,6 +159,7 @@ def window_set_from_stream(
         truths: Ground truth per trial, stamps on the same clock as ``writes``.
         config: Window configuration (default: the ``contact_window`` node's, tap).
         baud: Link rate the driver's arrival clock assumes, bit/s.
+        read_period_ns: Writes within one tick of this length are read together, ns.
         match_tolerance_ns: Largest distance from a window's onset to its truth's stamp, ns.
         source: Description stored in the set (file names, scene).
 
@@ -149,7 +177,9 @@ def window_set_from_stream(
             h.update(b)
             yield t, b
 
-    windows, words, skipped = stream_windows(hashed(writes), config, baud=baud)
+    windows, words, skipped = stream_windows(
+        hashed(writes), config, baud=baud, read_period_ns=read_period_ns
+    )
     stamps = np.array([int(g.stamp_ns) for g in truths], dtype=np.int64)
     order = np.argsort(stamps, kind="stable")
     stamps = stamps[order]
@@ -188,7 +218,50 @@ def window_set_from_stream(
     ws = WindowSet(
         config.task.label, "nuskin", X, y, geometry, names, groups, rod, source, h.hexdigest()[:16]
     )
-    counts = StreamCounts(
-        words, len(windows), len(picked), unmatched, int((~taken).sum()), skipped
-    )
+    counts = StreamCounts(words, len(windows), len(picked), unmatched, int((~taken).sum()), skipped)
     return ws, counts
+
+
+def train_bundle(
+    ws: WindowSet,
+    out: str,
+    *,
+    anytime_post_ns: tuple[int, ...] = (25 * MS, 50 * MS, 100 * MS, 150 * MS),
+    seed: int = 0,
+) -> dict:
+    """Train and save the task's default model (and anytime models) on a window set.
+
+    The same choices ``ext-sense train`` makes with no options (default features, model and
+    grids), so a stream-trained bundle differs from a dataset-trained one only in its windows.
+
+    Args:
+        ws: Labelled windows (e.g. from :func:`window_set_from_stream`).
+        out: Bundle directory.
+        anytime_post_ns: Shorter post-contact windows to train anytime models for, ns.
+        seed: Seed.
+
+    Returns:
+        The model card.
+    """
+    from ext_sense_perception import bundle
+    from ext_sense_perception.models import (
+        default_choice,
+        default_feature_grid,
+        default_feature_params,
+    )
+
+    features, model = default_choice(ws.task, ws.sensor)
+    params = dict(default_feature_params(ws.task, ws.sensor))
+    grid = default_feature_grid(ws.task, ws.sensor, features)
+    trained = bundle.train(ws, features, model, params, grid, seed=seed)
+    anytime = bundle.train_anytime(
+        ws,
+        features,
+        model,
+        tuple(anytime_post_ns),
+        feature_params=params,
+        feature_grid=grid,
+        seed=seed,
+    )
+    bundle.save(trained, out, anytime)
+    return trained.card

@@ -1,8 +1,10 @@
 """``ext-sense demo``: the main job, end to end, in one command.
 
 1. Makes sure a tap-localisation model exists: when ``MODEL_DIR/model_card.json`` is missing it
-   simulates a training set (``ext-sense sim run``) and trains one (``ext-sense train``) into
-   ``build/models/tap_localization_<sensor>`` (the default the inference node looks in).
+   trains one into ``build/models/tap_localization_<sensor>`` (the default the inference node
+   looks in). NUSkin: on windows cut from the emulated device's own byte stream by the driver's
+   decoder and the window node's core (no train/serve skew); BioTac: ``ext-sense sim run`` then
+   ``ext-sense train``.
 2. Runs the ``tap_localization`` graph with ``source:=sim``: the emulated NUSkin streams over a
    pty, the driver decodes it, ``contact_window`` cuts windows, ``contact_inference`` publishes
    ``/extsense/contact_estimate``, and ``estimate_monitor`` prints each estimate beside the
@@ -19,6 +21,10 @@ from pathlib import Path
 from typing import TextIO
 
 TASK = "tap_localization"
+TRAIN_SEED = 1000
+"""Seed of the training taps (the demo's own taps use ``--seed``, default 1)."""
+TRIAL_PERIOD_S = 1.0
+"""Trial spacing of the training stream: ``sim_device``'s default ``trial_period_s``."""
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -64,18 +70,73 @@ def ensure_model(
     scene: str = "",
     log: TextIO = sys.stderr,
 ) -> int:
-    """Simulate a training set and train into ``model_dir`` unless a bundle is there.
+    """Train a model into ``model_dir`` unless a bundle is there.
+
+    NUSkin: trained on the live path itself (no train/serve skew): the scene's trials are laid
+    out as the emulated device streams them (``ext_sense_sim.streaming.lay_out_stream``: the
+    receiver bytes, 1 s apart), decoded by the driver's decoder and arrival clock and cut by
+    the ``contact_window`` node's core (``ext_sense_perception.stream_windows``), each window
+    labelled by its trial's ground truth. BioTac: ``ext-sense sim run`` then ``ext-sense train``
+    on the dataset.
 
     Returns:
         0 on success, else the failing step's exit code.
     """
-    from ext_sense.cli import main as cli_main
     from ext_sense.graphs import DEFAULT_SCENES
 
     if (model_dir / "model_card.json").is_file() and not retrain:
         print(f"[demo] using model {model_dir}", file=log)
         return 0
     scene = scene or DEFAULT_SCENES[(TASK, sensor)]
+    if sensor == "nuskin":
+        return train_on_stream(model_dir, scene, trials, log)
+    return _train_on_dataset(model_dir, sensor, scene, trials, retrain, log)
+
+
+def train_on_stream(model_dir: Path, scene_name: str, trials: int, log: TextIO) -> int:
+    """Train the NUSkin model on windows cut from the device's own byte stream (see above)."""
+    from ext_sense_perception.errors import PerceptionError
+    from ext_sense_perception.stream_windows import (
+        StreamTruth,
+        train_bundle,
+        window_set_from_stream,
+    )
+    from ext_sense_sim.errors import SceneError
+    from ext_sense_sim.scene import load_scene
+    from ext_sense_sim.streaming import lay_out_stream
+
+    t0 = time.monotonic()
+    print(f"[demo] streaming {trials} training taps ({scene_name}) offline", file=log)
+    try:
+        laid = lay_out_stream(load_scene(scene_name), TRAIN_SEED, trials, TRIAL_PERIOD_S)
+        truths = [
+            StreamTruth(g.trial, g.stamp_ns, g.tap_position_m, g.rod_length_m) for g in laid.truths
+        ]
+        ws, counts = window_set_from_stream(laid.writes, truths, source=f"stream:{scene_name}")
+        print(
+            f"[demo] {counts.labelled} labelled windows from {counts.words} words "
+            f"({counts.unmatched_windows} unmatched windows, {counts.missed_trials} trials "
+            f"without a window) in {time.monotonic() - t0:.1f} s",
+            file=log,
+        )
+        t1 = time.monotonic()
+        card = train_bundle(ws, str(model_dir))
+    except (SceneError, PerceptionError) as err:
+        print(f"ext-sense demo: error: {err}", file=sys.stderr)
+        return 2
+    print(
+        f"[demo] trained {card['id']} into {model_dir} in {time.monotonic() - t1:.1f} s; "
+        f"metrics {card['metrics']}",
+        file=log,
+    )
+    return 0
+
+
+def _train_on_dataset(
+    model_dir: Path, sensor: str, scene: str, trials: int, retrain: bool, log: TextIO
+) -> int:
+    from ext_sense.cli import main as cli_main
+
     data_dir = model_dir.parent.parent / "datasets" / f"{TASK}_{sensor}_train"
     if not (data_dir / "dataset.npz").is_file() or retrain:
         t0 = time.monotonic()
@@ -85,18 +146,35 @@ def ensure_model(
 
             shutil.rmtree(data_dir)
         rc = cli_main(
-            ["sim", "run", scene, "--out", str(data_dir), "--trials", str(trials), "--seed", "1000"]
+            [
+                "sim",
+                "run",
+                scene,
+                "--out",
+                str(data_dir),
+                "--trials",
+                str(trials),
+                "--seed",
+                str(TRAIN_SEED),
+            ]
         )
         if rc:
             return rc
         print(f"[demo] simulated in {time.monotonic() - t0:.1f} s", file=log)
-    data = data_dir / "dataset.npz"
-    if sensor == "nuskin":
-        data = as_delivered(data, data_dir / "dataset_as_delivered.npz")
     t0 = time.monotonic()
     print(f"[demo] training {TASK}/{sensor} into {model_dir}", file=log)
     rc = cli_main(
-        ["train", "--task", TASK, "--sensor", sensor, "--data", str(data), "--out", str(model_dir)]
+        [
+            "train",
+            "--task",
+            TASK,
+            "--sensor",
+            sensor,
+            "--data",
+            str(data_dir / "dataset.npz"),
+            "--out",
+            str(model_dir),
+        ]
     )
     if rc:
         return rc
@@ -108,8 +186,8 @@ def as_delivered(dataset: Path, out: Path) -> Path:
     """The dataset as the NUSkin driver delivers it live: every polarity 0.
 
     The receiver's words carry no polarity (real receivers leave the flag bit 0, and the
-    emulated one does the same), so a model meant for the live graph is trained on events
-    without it; windows then count every event +1, exactly as the live windows do.
+    emulated one does the same), so a model meant for the live graph and trained on a dataset
+    must see events without it (the stream-trained demo model gets this by construction).
     """
     import numpy as np
 
