@@ -85,6 +85,8 @@ def stream_windows(
     *,
     baud: int = DEFAULT_BAUD,
     read_period_ns: int = READ_PERIOD_NS,
+    read_jitter: float = 0.0,
+    seed: int = 0,
 ) -> tuple[list[ContactWindow], int, int]:
     """Final windows the live graph cuts from a NUSkin receiver byte stream.
 
@@ -94,6 +96,9 @@ def stream_windows(
             localisation).
         baud: Link rate the driver's arrival clock assumes, bit/s.
         read_period_ns: Writes within one tick of this length are read together, ns.
+        read_jitter: Each tick lasts ``read_period_ns * U(1 - j, 1 + j)`` (live reads come at
+            irregular times; training on several read patterns makes a model robust to them).
+        seed: Seed of the jitter.
 
     Returns:
         The final (non-provisional) windows, the decoded word count and the skipped bytes.
@@ -114,7 +119,10 @@ def stream_windows(
         raise PerceptionError(
             f"The 'read_period_ns' parameter must be > 0. Got {read_period_ns} instead."
         )
+    if not 0.0 <= read_jitter < 1.0:
+        raise PerceptionError(f"The 'read_jitter' parameter must be in [0, 1). Got {read_jitter}.")
     period = int(read_period_ns)
+    rng = np.random.default_rng(seed)
 
     def read(data: bytes, read_ns: int) -> None:
         nonlocal words
@@ -133,7 +141,11 @@ def stream_windows(
             pending = []
             tick_end = None
         if tick_end is None:
-            tick_end = -(-t // period) * period
+            if read_jitter:
+                step = max(1, round(period * rng.uniform(1 - read_jitter, 1 + read_jitter)))
+                tick_end = t + int(rng.integers(0, step))
+            else:
+                tick_end = -(-t // period) * period
         pending.append(bytes(data))
     if tick_end is not None:
         read(b"".join(pending), tick_end)
@@ -149,6 +161,8 @@ def window_set_from_stream(
     *,
     baud: int = DEFAULT_BAUD,
     read_period_ns: int = READ_PERIOD_NS,
+    read_jitter: float = 0.0,
+    seed: int = 0,
     match_tolerance_ns: int = 300 * MS,
     source: str = "stream",
 ) -> tuple[WindowSet, StreamCounts]:
@@ -160,6 +174,8 @@ def window_set_from_stream(
         config: Window configuration (default: the ``contact_window`` node's, tap).
         baud: Link rate the driver's arrival clock assumes, bit/s.
         read_period_ns: Writes within one tick of this length are read together, ns.
+        read_jitter: Relative jitter of the read ticks (see :func:`stream_windows`).
+        seed: Seed of the jitter.
         match_tolerance_ns: Largest distance from a window's onset to its truth's stamp, ns.
         source: Description stored in the set (file names, scene).
 
@@ -178,7 +194,12 @@ def window_set_from_stream(
             yield t, b
 
     windows, words, skipped = stream_windows(
-        hashed(writes), config, baud=baud, read_period_ns=read_period_ns
+        hashed(writes),
+        config,
+        baud=baud,
+        read_period_ns=read_period_ns,
+        read_jitter=read_jitter,
+        seed=seed,
     )
     stamps = np.array([int(g.stamp_ns) for g in truths], dtype=np.int64)
     order = np.argsort(stamps, kind="stable")

@@ -1,6 +1,8 @@
 """Streaming a scene's device bytes in real time: the core shared by ``sim serve`` and the node.
 
-Trials are simulated one at a time, each just before it is due; trial ``k`` starts
+Trials are simulated one at a time, each in the idle time after the previous one (never on
+its own clock: a trial simulated at its start would be sent late, its first bytes in one
+burst); trial ``k`` starts
 ``k * period_s`` after the stream starts, and each of its wire chunks is written when the
 host clock reaches the trial start plus the chunk's time. When the first chunk at or after the
 true contact onset is written, ``on_onset`` gets the ground truth stamped with the host time
@@ -187,7 +189,10 @@ def stream(
     stats = StreamStats()
     start: int | None = None
     rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
-    for plan in plan_trials(scene, seed):
+    plans = plan_trials(scene, seed)
+    upcoming: PlannedTrial | None = next(plans)
+    while upcoming is not None:
+        plan = upcoming
         if stop.is_set() or (trials and plan.trial >= trials):
             break
         if start is None:  # the first trial is simulated before the clock starts
@@ -221,12 +226,13 @@ def stream(
                 )
             i = j
         stats.trials += 1
-        while (
-            not stop.is_set()
-            and clock() < t0 + period_ns
-            and not (trials and plan.trial + 1 >= trials)
-        ):
-            sleep(min(0.01, (t0 + period_ns - clock()) / 1e9))
+        last = bool(trials) and plan.trial + 1 >= trials
+        # Simulate the next trial now, in the idle time before it is due: simulating it at
+        # its start made it ~0.1 s late, so its first ~0.1 s of bytes (the tap itself) went
+        # out in one burst, squeezing the tap's events into a few ms on the driver's clock.
+        upcoming = None if last or stop.is_set() else next(plans)
+        while not stop.is_set() and clock() < t0 + period_ns and not last:
+            sleep(min(0.01, max(0.0, (t0 + period_ns - clock()) / 1e9)))
     return stats
 
 

@@ -59,6 +59,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="stream over this python-can virtual channel instead of a pty",
     )
     parser.add_argument("--scene", default="", help="simulator scene (default: the graph's)")
+    parser.add_argument(
+        "--port", default="", help="pty symlink the device and driver share (default: the graph's)"
+    )
     parser.set_defaults(func=_demo)
 
 
@@ -221,6 +224,8 @@ def _demo(args: argparse.Namespace) -> int:
         overrides["can_channel"] = args.can
     if args.scene:
         overrides["scene"] = args.scene
+    if args.port:
+        overrides["port"] = args.port
     print(f"[demo] running the tap_localization graph for {args.taps} taps", file=sys.stderr)
     # python-can's virtual bus joins buses of one process only, so over CAN the graph runs
     # in one process; over the pty each node has its own.
