@@ -402,7 +402,42 @@ class SequenceTracker:
         return gap, reset
 
 
-class BridgeDecoder:
+class CounterState:
+    """The counters every bridge decoder keeps, and their snapshot.
+
+    Shared by :class:`BridgeDecoder` and the per-byte ``ReferenceDecoder`` so both report
+    through the same code, which the tests compare field by field.
+    """
+
+    _seq: SequenceTracker
+    _bytes_total: int
+    _skipped: int
+    _crc_failures: int
+    _truncated: int
+    _other: int
+    _bad_sensor: int
+
+    @property
+    def counters(self) -> BridgeCounters:
+        """A snapshot of the counters."""
+        s = self._seq
+        return BridgeCounters(
+            bytes_total=self._bytes_total,
+            frames=sum(s.frames),
+            skipped_bytes=self._skipped,
+            crc_failures=self._crc_failures,
+            truncated=self._truncated,
+            other_frames=self._other,
+            bad_sensor_frames=self._bad_sensor,
+            sensor_frames=tuple(s.frames),
+            dropped_frames=tuple(s.dropped),
+            parity_errors=tuple(s.parity),
+            error_replies=tuple(s.errors),
+            seq_resets=tuple(s.resets),
+        )
+
+
+class BridgeDecoder(CounterState):
     """Streaming decoder of the bridge byte stream into standard frames (vectorised).
 
     Feed it chunks as they arrive; each call returns the frames the chunk completed. Chunk
@@ -432,25 +467,6 @@ class BridgeDecoder:
     def pending_bytes(self) -> int:
         """Bytes held back waiting for the rest of a frame."""
         return len(self._pending)
-
-    @property
-    def counters(self) -> BridgeCounters:
-        """A snapshot of the counters."""
-        s = self._seq
-        return BridgeCounters(
-            bytes_total=self._bytes_total,
-            frames=sum(s.frames),
-            skipped_bytes=self._skipped,
-            crc_failures=self._crc_failures,
-            truncated=self._truncated,
-            other_frames=self._other,
-            bad_sensor_frames=self._bad_sensor,
-            sensor_frames=tuple(s.frames),
-            dropped_frames=tuple(s.dropped),
-            parity_errors=tuple(s.parity),
-            error_replies=tuple(s.errors),
-            seq_resets=tuple(s.resets),
-        )
 
     def feed(self, chunk: bytes | bytearray | memoryview) -> BridgeFrames:
         """Decode the frames completed by ``chunk``.

@@ -12,7 +12,7 @@ from ext_sense_drivers.biotac.bridge import (
     FRAME_OVERHEAD,
     HEADER_SIZE,
     MAX_SENSORS,
-    BridgeCounters,
+    CounterState,
     Frame,
     SequenceTracker,
 )
@@ -31,7 +31,7 @@ _PAC = [int(p) for p in PAC_POSITIONS]
 _ELECTRODES = [int(p) for p in ELECTRODE_POSITIONS]
 
 
-class ReferenceDecoder:
+class ReferenceDecoder(CounterState):
     """Per-byte streaming decoder with the semantics of ``BridgeDecoder`` (slow, obvious)."""
 
     def __init__(self) -> None:
@@ -44,25 +44,6 @@ class ReferenceDecoder:
         self._truncated = 0
         self._other = 0
         self._bad_sensor = 0
-
-    @property
-    def counters(self) -> BridgeCounters:
-        """A snapshot of the counters."""
-        s = self._seq
-        return BridgeCounters(
-            bytes_total=self._bytes_total,
-            frames=sum(s.frames),
-            skipped_bytes=self._skipped,
-            crc_failures=self._crc_failures,
-            truncated=self._truncated,
-            other_frames=self._other,
-            bad_sensor_frames=self._bad_sensor,
-            sensor_frames=tuple(s.frames),
-            dropped_frames=tuple(s.dropped),
-            parity_errors=tuple(s.parity),
-            error_replies=tuple(s.errors),
-            seq_resets=tuple(s.resets),
-        )
 
     def feed(self, chunk: bytes) -> list[Frame]:
         """Decode the frames completed by ``chunk``."""
