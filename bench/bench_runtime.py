@@ -27,6 +27,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 
@@ -106,6 +107,26 @@ def _pct(values: list[float]) -> tuple[float, float]:
     return float(np.percentile(a, 50)), float(np.percentile(a, 99))
 
 
+def _spin_in_background(node: object) -> Callable[[], None]:
+    """Spin ``node`` on its own executor thread; returns the function that stops and joins it."""
+    from ext_sense_runtime.executor import make_executor
+
+    executor = make_executor()
+    executor.add_node(node)
+    stop = threading.Event()
+    thread = threading.Thread(
+        target=lambda: [executor.spin_once(timeout_sec=0.01) for _ in iter(stop.is_set, True)],
+        daemon=True,
+    )
+    thread.start()
+
+    def halt() -> None:
+        stop.set()
+        thread.join(timeout=2)
+
+    return halt
+
+
 # ---------------------------------------------------------------- 1. latency
 def bench_latency(taps: int, model: str) -> dict:
     import rclpy
@@ -114,7 +135,6 @@ def bench_latency(taps: int, model: str) -> dict:
 
     from ext_sense_msgs.msg import ContactEstimate, TaxelEventBatch
     from ext_sense_perception.nodes.pipeline import default_model_dir
-    from ext_sense_runtime.executor import make_executor
     from ext_sense_runtime.qos import ESTIMATE_QOS, SENSOR_STREAM_QOS
     from ext_sense_runtime.stamps import fill_stamp, stamp_to_ns
 
@@ -129,14 +149,7 @@ def bench_latency(taps: int, model: str) -> dict:
     node.create_subscription(
         ContactEstimate, "/bench/estimate", lambda m: got.append((time.time_ns(), m)), ESTIMATE_QOS
     )
-    executor = make_executor()
-    executor.add_node(node)
-    stop = threading.Event()
-    spin = threading.Thread(
-        target=lambda: [executor.spin_once(timeout_sec=0.01) for _ in iter(stop.is_set, True)],
-        daemon=True,
-    )
-    spin.start()
+    halt = _spin_in_background(node)
     try:
         deadline = time.monotonic() + 20
         while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
@@ -159,8 +172,7 @@ def bench_latency(taps: int, model: str) -> dict:
             pub.publish(msg)
         time.sleep(1.0)
     finally:
-        stop.set()
-        spin.join(timeout=2)
+        halt()
         node.destroy_node()
         rclpy.try_shutdown()
         _stop(procs)
@@ -198,7 +210,6 @@ def bench_worst_case(seconds: float) -> dict:
 
     from ext_sense.graph import NodeSpec
     from ext_sense_drivers.nuskin.wire import encode_words
-    from ext_sense_runtime.executor import make_executor
     from ext_sense_runtime.qos import DIAGNOSTICS_QOS
 
     master, slave = os.openpty()
@@ -225,14 +236,7 @@ def bench_worst_case(seconds: float) -> dict:
             diag[st.name] = {kv.key: kv.value for kv in st.values}
 
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, DIAGNOSTICS_QOS)
-    executor = make_executor()
-    executor.add_node(node)
-    stop = threading.Event()
-    spin = threading.Thread(
-        target=lambda: [executor.spin_once(timeout_sec=0.01) for _ in iter(stop.is_set, True)],
-        daemon=True,
-    )
-    spin.start()
+    halt = _spin_in_background(node)
     sent = 0
     try:
         time.sleep(4.0)  # nodes up, port open
@@ -250,8 +254,7 @@ def bench_worst_case(seconds: float) -> dict:
         wall = time.monotonic() - t0
         time.sleep(3.0)  # drain, then two diagnostics periods
     finally:
-        stop.set()
-        spin.join(timeout=2)
+        halt()
         node.destroy_node()
         rclpy.try_shutdown()
         _stop(procs)
@@ -283,7 +286,6 @@ def bench_replay(seconds: float, tmp: Path) -> dict:
 
     from ext_sense_bags import BagWriter, taxel_event_batch
     from ext_sense_msgs.msg import TaxelEventBatch
-    from ext_sense_runtime.executor import make_executor
     from ext_sense_runtime.qos import SENSOR_STREAM_QOS
 
     bag = tmp / "worst_case_bag"
@@ -305,14 +307,7 @@ def bench_replay(seconds: float, tmp: Path) -> dict:
         lambda m: count.__setitem__(0, count[0] + 1),
         SENSOR_STREAM_QOS,
     )
-    executor = make_executor()
-    executor.add_node(node)
-    stop = threading.Event()
-    spin = threading.Thread(
-        target=lambda: [executor.spin_once(timeout_sec=0.01) for _ in iter(stop.is_set, True)],
-        daemon=True,
-    )
-    spin.start()
+    halt = _spin_in_background(node)
     try:
         out = subprocess.run(
             [sys.executable, "-m", "ext_sense.cli", "replay", str(bag), "--flat-out"],
@@ -322,8 +317,7 @@ def bench_replay(seconds: float, tmp: Path) -> dict:
         )
         time.sleep(0.5)
     finally:
-        stop.set()
-        spin.join(timeout=2)
+        halt()
         node.destroy_node()
         rclpy.try_shutdown()
     line = next((x for x in out.stdout.splitlines() if x.startswith("published")), out.stderr)
