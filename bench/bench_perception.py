@@ -6,6 +6,9 @@ Prints, side by side in one run:
 - features + model for one window, p50/p99 over many windows, ONNX Runtime against the
   scikit-learn pipeline (target ONNX p99 <= 2 ms), from a 0.25 ms online window (rebinned) and
   from a model-geometry row;
+- the GRU (16) + MLP on binned counts (the paper's RNN): one window through ONNX Runtime
+  against the native torch path (trained on the first 200 taps when torch is installed, else
+  ONNX only, with random weights: latency does not depend on the weights);
 - the online windower's throughput on a dense event stream.
 
     python bench/bench_perception.py            # 1000 taps
@@ -71,6 +74,89 @@ def time_predict(model: bundle.ModelBundle, windows: list, repeat: int) -> tuple
     return percentiles(out)
 
 
+def gru_model(ws: WindowSet, quick: bool) -> tuple[bundle.TrainedModel, str]:
+    """A GRU bundle: trained with torch when it is installed, else random weights."""
+    from sklearn.pipeline import Pipeline
+    from sklearn.preprocessing import StandardScaler
+
+    from ext_sense_perception.gru import GRUEstimator, torch_available
+    from ext_sense_perception.gru_onnx import GRUNet
+    from ext_sense_perception.protocol import features_for
+
+    sub = ws.subset(np.arange(min(len(ws.y), 200)))
+    if torch_available():
+        t0 = time.perf_counter()
+        params = {"max_epochs": 10} if quick else None  # else the default 60 epochs
+        trained = bundle.train(sub, "baseline", "gru", model_params=params)
+        return trained, f"trained on {len(sub.y)} taps in {time.perf_counter() - t0:.1f} s"
+    feats = features_for(sub, "baseline")
+    x = sub.X.reshape(len(sub.y), -1)
+    f = feats.fit(x[:1]).transform(x)
+    scale = StandardScaler(with_mean=False, with_std=False).fit(f)  # as make_pipeline's
+    c = sub.geometry.n_channels
+    rng = np.random.default_rng(0)
+    net = GRUNet(
+        *(rng.uniform(-0.25, 0.25, s).astype(np.float32) for s in ((48, c), (48, 16), 48, 48)),
+        layers=tuple(
+            (rng.uniform(-0.25, 0.25, (o, i)).astype(np.float32), np.zeros(o, np.float32))
+            for o, i in ((16, 16), (8, 16), (1, 8))
+        ),
+        n_channels=c,
+        n_steps=f.shape[1] // c,
+    )
+    pipe = Pipeline([("features", feats), ("scale", scale), ("model", GRUEstimator.from_net(net))])
+    card = {
+        "task": sub.task,
+        "sensor": sub.sensor,
+        "features": "baseline",
+        "model": "gru",
+        "window": {
+            "n_channels": sub.geometry.n_channels,
+            "n_samples": sub.geometry.n_samples,
+            "sample_period_ns": sub.geometry.period_ns,
+            "pre_onset_ns": sub.geometry.pre_ns,
+            "post_onset_ns": sub.geometry.n_samples * sub.geometry.period_ns - sub.geometry.pre_ns,
+        },
+        "class_names": [],
+        "metrics": {},
+    }
+    return bundle.TrainedModel(pipe, card), "random weights (torch not installed)"
+
+
+def bench_gru(ws: WindowSet, rows: list, fine: list, repeat: int, quick: bool) -> None:
+    """GRU one-window latency: ONNX Runtime against torch (when installed)."""
+    from ext_sense_perception.gru import torch_available
+
+    trained, how = gru_model(ws, quick)
+    backends = ("sklearn", "onnx") if torch_available() else ("onnx",)
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        bundle.save(trained, tmp)
+        for backend in backends:
+            m = bundle.load_model(tmp, backend)
+            results[backend, "row"] = time_predict(m, rows, repeat)
+            results[backend, "online"] = time_predict(m, fine, repeat)
+            if backend == "sklearn":
+                # torch's OpenMP pool and threaded BLAS (the NumPy features) contend on 2 cores
+                from threadpoolctl import threadpool_limits
+
+                with threadpool_limits(limits=1):
+                    results[backend, "row, BLAS 1 thread"] = time_predict(m, rows, repeat)
+    print(f"GRU (16) + MLP, baseline 5 ms bins, {how}")
+    print(f"{'one window, features + GRU':34s} {'p50 ms':>8s} {'p99 ms':>8s}")
+    for (backend, kind), (p50, p99) in results.items():
+        name = "torch" if backend == "sklearn" else backend
+        print(f"  {name:8s} {kind:24s} {p50:8.3f} {p99:8.3f}")
+    if "sklearn" in backends:
+        ratio = results["sklearn", "online"][1] / results["onnx", "online"][1]
+        print(
+            f"gru onnx online p99 {results['onnx', 'online'][1]:.3f} ms; "
+            f"torch/onnx p99 ratio {ratio:.1f}x"
+        )
+    else:
+        print("gru torch path: skipped (torch, the optional training extra, is not installed)")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -116,6 +202,8 @@ def main() -> int:
         f"onnx online p99 {results['onnx', 'online'][1]:.3f} ms (target <= 2 ms); "
         f"sklearn/onnx p99 ratio {ratio:.1f}x"
     )
+
+    bench_gru(ws, rows, fine, repeat, quick=args.quick)
 
     # windower throughput: 80 taxels, ~100k events/s, 1 ms batches
     w = EventWindower()

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Idempotent set-up of a Python venv holding ROS 2 (from the PyPI wheels), the ext_sense_msgs
-# interface package built into it, and every Python package of src/ installed editable.
+# interface package built into it, every Python package of src/ installed editable, and (kilted,
+# when a CPU-only wheel is reachable) torch for training the GRU model.
 #
 # Usage: scripts/setup.sh [kilted|jazzy]      (default kilted -> .venv, jazzy -> .venv-jazzy)
 #
-# Each of the three steps keeps a stamp (a hash of its inputs) in the venv and is skipped when
+# Each step keeps a stamp (a hash of its inputs) in the venv and is skipped when
 # nothing it depends on changed, so a second run takes well under a second.
 # The Dockerfile does not run this script: on a real ROS install colcon builds the workspace and
 # only requirements/python.txt is pip-installed.
@@ -82,4 +83,27 @@ if [ ${#PKGS[@]} -gt 0 ] && ! fresh editable "$s"; then
   "$VPY" -m pip install "${PIP_FLAGS[@]}" --no-deps --no-build-isolation "${args[@]}" \
     >"$ROOT/build/editable-$DISTRO.log" 2>&1 || { cat "$ROOT/build/editable-$DISTRO.log" >&2; exit 1; }
   mark editable "$s"
+fi
+
+# 4. Optional training extra (torch, for the GRU model), only as a CPU-only build: the explicit
+#    local version (torch==X+cpu) cannot pull the gigabytes of CUDA that plain `torch` does.
+#    Found through pip's own configuration (here find-links /opt/wheels; elsewhere e.g.
+#    PIP_EXTRA_INDEX_URL=https://download.pytorch.org/whl/cpu). Default on for kilted, off for
+#    the jazzy venv (node tests only); EXT_SENSE_TRAIN=0 or 1 overrides.
+#    When no such wheel exists the GRU tests skip; `rm $VENV/.stamp-train` to try again.
+TRAIN_REQ="$ROOT/requirements/train.txt"
+s=$(stamp_of "$TRAIN_REQ" "$0")
+TRAIN_DEFAULT=$([ "$DISTRO" = kilted ] && echo 1 || echo 0)
+if [ "${EXT_SENSE_TRAIN:-$TRAIN_DEFAULT}" != 0 ] && [ -f "$TRAIN_REQ" ] && ! fresh train "$s"; then
+  TORCH=$(sed -n 's/^\(torch==[0-9][0-9.]*\).*/\1/p' "$TRAIN_REQ" | head -1)
+  mkdir -p "$ROOT/build"
+  if [ -n "$TORCH" ] && "$VPY" -c "import torch, sys; sys.exit(torch.__version__ != '${TORCH#torch==}+cpu')" 2>/dev/null; then
+    :  # already installed
+  elif [ -n "$TORCH" ] && "$VPY" -m pip install "${PIP_FLAGS[@]}" --only-binary=:all: \
+      "$TORCH+cpu" >"$ROOT/build/train-$DISTRO.log" 2>&1; then
+    echo "setup: installed $TORCH+cpu (optional training extra, GRU model)" >&2
+  else
+    echo "setup: no CPU-only wheel of ${TORCH:-torch} (+cpu) found, training extra skipped: the GRU tests will skip (details: build/train-$DISTRO.log)" >&2
+  fi
+  mark train "$s"
 fi

@@ -26,6 +26,7 @@ TOPIC_ESTIMATE = f"{NS}/contact_estimate"
 TOPIC_GROUND_TRUTH = f"{NS}/ground_truth"
 TOPIC_TAP_MARKER = f"{NS}/tap_marker"
 TOPIC_MOTION_START = f"{NS}/motion_start"
+TOPIC_HANDOVER_OFFER = f"{NS}/handover/offer"
 
 SENSORS = ("nuskin", "biotac")
 STARTUP_SPARE_TRIALS = 3
@@ -78,7 +79,22 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
             "Print estimates beside ground truth and stop after the last trial.",
             ("true", "false"),
         ),
-        ArgumentSpec("behaviours", "false", "Start the task's behaviour nodes.", ("true", "false")),
+        ArgumentSpec(
+            "behaviours",
+            "false",
+            "Start the task's behaviour nodes. With source sim the simulated device then "
+            "follows them: it plays a trial when the food probe starts moving (its motion start "
+            "put at the probe's) or a grasp of grasp_trials trials when the handover offers the "
+            "object, silent in between.",
+            ("true", "false"),
+        ),
+        ArgumentSpec(
+            "sim_labels",
+            "",
+            "behaviours:=true with source sim: classes of the simulated trials of successive "
+            "probes or grasps, comma separated, cycled (e.g. 'stable,unstable' or "
+            "'apple,water'); empty: as the scene draws them.",
+        ),
         ArgumentSpec(
             "use_sim_time", "false", "Use /clock (bag replay with clock).", ("true", "false")
         ),
@@ -114,6 +130,24 @@ def _source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
         )
     over_can = source == "can" or (source == "sim" and bool(args["can_channel"]))
     if source == "sim":
+        trials = int(args["trials"])
+        # the device streams from start-up, like a real one: trials sent before the driver has
+        # the port are lost, so spare ones keep N scored trials
+        stream: dict[str, ParameterValue] = {
+            "trials": trials + STARTUP_SPARE_TRIALS if trials > 0 else 0
+        }
+        remaps: tuple[tuple[str, str], ...] = (("ground_truth", TOPIC_GROUND_TRUTH),)
+        if as_bool(args["behaviours"]) and task in SIM_TRIGGERS:
+            # the behaviour drives the scene: nothing streams before it asks, nothing is lost
+            trigger_topic, align = SIM_TRIGGERS[task]
+            stream = {
+                "trials": trials,
+                "mode": "trigger",
+                "align": align,
+                "labels": args["sim_labels"],
+                "trials_per_trigger": int(args.get("grasp_trials", "1")),
+            }
+            remaps = (*remaps, ("trigger", trigger_topic))
         nodes.append(
             NodeSpec(
                 package="ext_sense_sim",
@@ -126,14 +160,10 @@ def _source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                     "link": "can" if over_can else "pty",
                     "port_link": _port(task, args),
                     "can_channel": args["can_channel"],
-                    # the device streams from start-up, like a real one: trials sent before
-                    # the driver has the port are lost, so spare ones keep N scored trials
-                    "trials": int(args["trials"]) + STARTUP_SPARE_TRIALS
-                    if int(args["trials"]) > 0
-                    else 0,
+                    **stream,
                     "seed": int(args["seed"]),
                 },
-                remappings=(("ground_truth", TOPIC_GROUND_TRUTH),),
+                remappings=remaps,
             )
         )
     driver = "nuskin_driver" if sensor == "nuskin" else "biotac_driver"
@@ -166,7 +196,12 @@ def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...
     # Food windows start at the arm's motion start (contact_window's ``motion_start``): the
     # simulator and bags carry it as the ground truth's stamp; on the robot the food behaviour
     # publishes it on /extsense/motion_start.
-    motion = TOPIC_GROUND_TRUTH if args["source"] in ("sim", "bag") else TOPIC_MOTION_START
+    # With behaviours:=true the probe's own motion start cuts the window, whatever the source.
+    motion = (
+        TOPIC_GROUND_TRUTH
+        if args["source"] in ("sim", "bag") and not as_bool(args["behaviours"])
+        else TOPIC_MOTION_START
+    )
     return (
         NodeSpec(
             package="ext_sense_perception",
@@ -254,17 +289,59 @@ def _tap_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     )
 
 
+SIM_TRIGGERS = {
+    "handover_stability": (TOPIC_HANDOVER_OFFER, "start"),
+    "food_identification": (TOPIC_MOTION_START, "onset"),
+}
+"""behaviours:=true with source sim: the topic on which each task's behaviour drives the
+simulated device, and how a trial is aligned to it (a grasp starts when the object is offered;
+a food trial's motion start is put at the probe's)."""
+
+SIM_FOOD_ARM = {"sim_start_z_m": 0.16, "sim_surface_z_m": 0.152, "stop_height_m": 0.125}
+"""The food probe's simulated arm against the food scene (``food_fork_nuskin``): the tines
+touch the food 8 mm below the start (the scene draws 4..12 mm) and the preset stop is the
+scene's 35 mm travel; its force is a 1000 N/m spring, not the scene's per-food profile."""
+
+
 def _handover_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
+    handover: dict[str, ParameterValue] = {"timeout_s": float(args["handover_timeout_s"])}
+    if args["source"] == "sim":
+        # the next simulated person's grasp after each handover, offered once the simulated
+        # device listens, and not before the inference node has had time to load its model (as
+        # the bag player's start delay)
+        handover |= {"regrasp_s": 1.0, "start_subscribers": 1, "start_delay_s": 4.0}
     return (
         _behaviour(
             "robotiq_gripper", "RobotiqGripperNode", {"port": args["gripper_port"]}, remappings=()
         ),
-        _behaviour("handover_behaviour", "HandoverBehaviourNode"),
+        _behaviour(
+            "handover_behaviour",
+            "HandoverBehaviourNode",
+            handover,
+            remappings=(
+                ("contact_estimate", TOPIC_ESTIMATE),
+                ("handover/offer", TOPIC_HANDOVER_OFFER),
+            ),
+        ),
     )
 
 
 def _food_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
-    return (_behaviour("food_behaviour", "FoodBehaviourNode"),)
+    food: dict[str, ParameterValue] = {}
+    if args["source"] == "sim":
+        # probe by itself, once the window node and the simulated device hear the motion start
+        food = {**SIM_FOOD_ARM, "auto_start": True, "repeat_s": 2.0, "start_subscribers": 2}
+    return (
+        _behaviour(
+            "food_behaviour",
+            "FoodBehaviourNode",
+            food,
+            remappings=(
+                ("contact_estimate", TOPIC_ESTIMATE),
+                ("motion_start", TOPIC_MOTION_START),
+            ),
+        ),
+    )
 
 
 def _chain(
@@ -296,6 +373,17 @@ GRAPHS: dict[str, GraphSpec] = {
         arguments=(
             *_common_arguments("10"),
             ArgumentSpec("gripper_port", "", "Serial device of the Robotiq 2F gripper."),
+            ArgumentSpec(
+                "grasp_trials",
+                "4",
+                "behaviours:=true with source sim: simulated trials (contact windows) per "
+                "person's grasp; trials:=N then makes N / grasp_trials handovers.",
+            ),
+            ArgumentSpec(
+                "handover_timeout_s",
+                "30",
+                "Handover safety timeout, s: no stable grasp by then, keep holding.",
+            ),
         ),
         build=_chain("handover_stability", _handover_behaviours),
     ),

@@ -14,7 +14,7 @@ import numpy as np
 
 from ext_sense_bags.errors import BagError
 from ext_sense_bags.messages import biotac_frame, ground_truth, taxel_event_batch
-from ext_sense_bags.writer import BagWriter
+from ext_sense_bags.writer import BagWriter, Storage
 
 EVENTS = "/extsense/nuskin/events"
 FRAMES = "/extsense/biotac/frames"
@@ -32,6 +32,7 @@ def dataset_to_bag(
     trial_period_ns: int = 1_000_000_000,
     batch_ns: int = 1_000_000,
     trials: int | None = None,
+    storage: Storage | str = Storage.MCAP,
 ) -> int:
     """Write a bag holding a dataset's sensor stream and ground truth.
 
@@ -42,6 +43,7 @@ def dataset_to_bag(
         trial_period_ns: Time between trial origins, ns (longer than a trial).
         batch_ns: NUSkin batch length, ns.
         trials: Only the first ``trials`` trials (all when None).
+        storage: :class:`~ext_sense_bags.writer.Storage` or ``"mcap"``/``"sqlite3"``.
 
     Returns:
         Messages written.
@@ -62,7 +64,7 @@ def dataset_to_bag(
     regression = str(d.get("label_kind", "")) == "regression"
     rod = d.get("rod_length_m", np.full(len(d["y"]), np.nan))
     written = 0
-    with BagWriter(out) as bag:
+    with BagWriter(out, storage) as bag:
         bag.set_custom_data("task", task)
         bag.set_custom_data("sensor", sensor)
         for i in range(n):

@@ -14,9 +14,9 @@ from collections.abc import Callable
 from ext_sense_behaviours.arm import ArmAdapter
 from ext_sense_behaviours.decisions import Decision
 from ext_sense_behaviours.food import FoodAction, FoodMachine, FoodResult
-from ext_sense_behaviours.gripper import GripperPort
+from ext_sense_behaviours.gripper import GripperPort, describe_position, is_open, settled
 from ext_sense_behaviours.handover import HandoverAction, HandoverMachine, HandoverState
-from ext_sense_behaviours.records import Estimate
+from ext_sense_behaviours.records import ArmState, Estimate
 from ext_sense_drivers.robotiq import RobotiqError
 
 
@@ -30,6 +30,7 @@ class FoodProbe:
             publishes it for the ``contact_window`` node).
         on_request: Called with ``(window_start_ns, window_end_ns)`` when the window is complete.
         on_publish: Called with the result once retracted.
+        on_state: Called with every arm state read while probing (e.g. to publish it).
     """
 
     def __init__(
@@ -39,6 +40,7 @@ class FoodProbe:
         on_motion_start: Callable[[int], None] | None = None,
         on_request: Callable[[int, int], None] | None = None,
         on_publish: Callable[[FoodResult], None] | None = None,
+        on_state: Callable[[ArmState], None] | None = None,
     ) -> None:
         self.machine, self.arm = machine, arm
         self.on_motion_start, self.on_request, self.on_publish = (
@@ -46,6 +48,7 @@ class FoodProbe:
             on_request,
             on_publish,
         )
+        self.on_state = on_state
         self.samples = 0
 
     def start(self) -> Decision | None:
@@ -61,6 +64,8 @@ class FoodProbe:
         state = self.arm.read_state()
         if state is not None:
             self.samples += 1
+            if self.on_state is not None:
+                self.on_state(state)
             decision = self.machine.on_arm_state(state)
             if decision is not None:
                 out.append(self._act(decision))
@@ -121,7 +126,15 @@ class HandoverRun:
         return decision
 
     def tick(self, now_ns: int) -> Decision | None:
-        """Poll the gripper while releasing and check the timeouts."""
+        """Poll the gripper while releasing, re-read it after a fault, check the timeouts."""
+        if self.machine.state == HandoverState.FAULT and self.machine.awaiting_status:
+            try:
+                status = self.gripper.read()
+            except RobotiqError:
+                return None  # the link still fails: read again on the next tick
+            return self.machine.on_status_after_fault(
+                is_open(status), settled(status), describe_position(status), now_ns
+            )
         if self.machine.state == HandoverState.RELEASING:
             try:
                 opened = self.gripper.is_open()

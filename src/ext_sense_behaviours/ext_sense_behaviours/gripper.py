@@ -35,6 +35,9 @@ class GripperPort(Protocol):
     def is_open(self) -> bool:
         """Whether the fingers have finished opening."""
 
+    def read(self) -> GripperStatus:
+        """The status as it is, gripper faults included (raises only when the link fails)."""
+
 
 class RobotiqGripperPort:
     """A :class:`GripperPort` over a Robotiq client.
@@ -60,6 +63,10 @@ class RobotiqGripperPort:
         """Poll the status; True once the opening has ended near position 0."""
         return is_open(self.client.read_status(raise_on_fault=True))
 
+    def read(self) -> GripperStatus:
+        """One status read; a gripper fault is reported in the status, not raised."""
+        return self.client.read_status()
+
 
 def is_open(status: GripperStatus) -> bool:
     """The last go-to ended (gOBJ != 0) at an open position."""
@@ -68,6 +75,16 @@ def is_open(status: GripperStatus) -> bool:
         and status.position <= OPEN_TOLERANCE
         and status.position_request <= OPEN_TOLERANCE
     )
+
+
+def settled(status: GripperStatus) -> bool:
+    """The fingers are not moving: the last go-to ended, or a fault stopped them."""
+    return bool(status.fault) or status.motion_done or not status.go_to
+
+
+def describe_position(status: GripperStatus) -> str:
+    """:func:`describe` with the finger position, for decisions about where the fingers are."""
+    return f"{describe(status)}, gPO={status.position}"
 
 
 def describe(status: GripperStatus) -> str:

@@ -6,8 +6,14 @@ States::
                       |                                              |
                       +--safety timeout--> TIMED_OUT (keep holding)  +--release timeout--> FAULT
                       +--gripper fault / link lost--> FAULT (keep holding, stop commanding)
+    FAULT --status read once the link answers--> RELEASED (the open command ran)
+                                              or FAULT (fingers still closed: logged as such)
 
 The safe state is always "keep holding": dropping an object costs more than a slow handover.
+A link error after the open command is ambiguous (a corrupted reply does not mean the write
+failed: the fingers may be opening), so after any fault the machine waits for one status read
+from the link (:meth:`HandoverMachine.on_status_after_fault`) and logs where the fingers really
+are.
 A provisional (anytime) estimate never counts unless ``accept_provisional`` is set; an estimate
 below the threshold, NaN, or for another task breaks the streak or is ignored, and every one of
 those choices is logged with its reason.
@@ -98,6 +104,9 @@ class HandoverMachine:
         self.streak = 0
         self._hold_since_ns = 0
         self._release_since_ns = 0
+        self.awaiting_status = False
+        """True after a fault until one gripper status read says where the fingers are."""
+        self._open_sent = False
 
     def _decide(
         self, now_ns: int, state: HandoverState, action: HandoverAction, reason: str
@@ -113,6 +122,7 @@ class HandoverMachine:
             )
         self.streak = 0
         self._hold_since_ns = now_ns
+        self._open_sent = False
         return self._decide(
             now_ns,
             HandoverState.HOLDING,
@@ -173,6 +183,7 @@ class HandoverMachine:
                 f"P(stable)={p:.3f} >= {cfg.threshold:.2f}: streak {self.streak}/{cfg.consecutive}",
             )
         self._release_since_ns = now_ns
+        self._open_sent = True
         return self._decide(
             now_ns,
             HandoverState.RELEASING,
@@ -193,21 +204,68 @@ class HandoverMachine:
         return None
 
     def on_fault(self, reason: str, now_ns: int) -> Decision:
-        """The gripper or its link failed: keep holding and stop commanding it."""
+        """The gripper or its link failed: keep holding, stop commanding, re-read the status.
+
+        After the open command a link error leaves its outcome unknown (the write may have
+        been carried out), and the reason says so; :meth:`on_status_after_fault` then records
+        the real finger state once the link answers.
+        """
         if self.state in (HandoverState.RELEASED, HandoverState.FAULT):
             return self._decide(
                 now_ns, self.state, HandoverAction.NONE, f"fault after the end: {reason}"
             )
-        return self._decide(
-            now_ns,
-            HandoverState.FAULT,
-            HandoverAction.HOLD,
-            f"gripper fault, holding safe: {reason}",
-        )
+        self.awaiting_status = True
+        if self._open_sent:
+            text = (
+                f"gripper error after the open command, outcome unknown (the fingers may be "
+                f"opening); sending nothing more, re-reading the status: {reason}"
+            )
+        else:
+            text = f"gripper fault, holding safe; re-reading the status: {reason}"
+        return self._decide(now_ns, HandoverState.FAULT, HandoverAction.HOLD, text)
+
+    def on_status_after_fault(
+        self, opened: bool, settled: bool, description: str, now_ns: int
+    ) -> Decision | None:
+        """Record where the fingers really are after a fault, from a fresh status read.
+
+        Args:
+            opened: The fingers have finished opening (see ``gripper.is_open``).
+            settled: The fingers are not moving (motion done, or stopped by a fault).
+            description: The status in words (position, object, fault), for the log.
+            now_ns: Now, integer ns.
+
+        Returns:
+            ``None`` when no read is awaited or the fingers are still moving (read again);
+            otherwise the decision: RELEASED when the open command was carried out, else
+            FAULT (still holding; only an operator reset leaves it).
+        """
+        if self.state != HandoverState.FAULT or not self.awaiting_status:
+            return None
+        if opened and self._open_sent:
+            self.awaiting_status = False
+            return self._decide(
+                now_ns,
+                HandoverState.RELEASED,
+                HandoverAction.NONE,
+                f"link answers again: {description}; the open command was carried out: released",
+            )
+        if not settled:
+            return None
+        self.awaiting_status = False
+        if opened:
+            text = f"link answers again: {description}; fingers open without an open command"
+        else:
+            text = (
+                f"link answers again: {description}; the object is still held, holding safe "
+                "until an operator reset"
+            )
+        return self._decide(now_ns, HandoverState.FAULT, HandoverAction.HOLD, text)
 
     def reset(self, now_ns: int, reason: str = "operator reset") -> Decision:
         """Leave FAULT (or any state) for IDLE; only on an explicit request, never by itself."""
         self.streak = 0
+        self.awaiting_status = False
         return self._decide(now_ns, HandoverState.IDLE, HandoverAction.NONE, reason)
 
     def on_tick(self, now_ns: int) -> Decision | None:

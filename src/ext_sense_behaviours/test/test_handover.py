@@ -107,6 +107,35 @@ def test_fault_while_holding_is_safe():
     assert machine.on_estimate(est(1.0), 6).action == "NONE"
 
 
+def test_status_after_an_ambiguous_error_records_the_real_finger_state():
+    # the open command went out, then the link failed: outcome unknown until a status read
+    machine = HandoverMachine(HandoverConfig(consecutive=1))
+    machine.start(0)
+    assert machine.on_estimate(est(0.9), 1).action == "OPEN_GRIPPER"
+    d = machine.on_fault("Reply CRC mismatch", 2)
+    assert d.state == "FAULT"
+    assert "outcome unknown" in d.reason
+    assert machine.awaiting_status
+    assert machine.on_status_after_fault(False, False, "moving", 3) is None  # still moving
+    d = machine.on_status_after_fault(True, True, "at requested position, gPO=0", 4)
+    assert d.state == "RELEASED"
+    assert "open command was carried out" in d.reason
+    assert not machine.awaiting_status
+    assert machine.on_status_after_fault(True, True, "again", 5) is None  # read once
+
+
+def test_status_after_a_fault_with_the_object_held_stays_in_fault():
+    machine = HandoverMachine(HandoverConfig(consecutive=1))
+    machine.start(0)
+    machine.on_estimate(est(0.9), 1)
+    machine.on_fault("No answer from Robotiq slave 9", 2)
+    d = machine.on_status_after_fault(False, True, "holding an object, gPO=150", 3)
+    assert (d.state, d.action) == ("FAULT", "HOLD")
+    assert "still held" in d.reason
+    assert "gPO=150" in d.reason
+    assert machine.start(4).state == "FAULT"  # still only an operator reset leaves it
+
+
 def test_only_an_explicit_reset_leaves_fault():
     machine = HandoverMachine(HandoverConfig(consecutive=1))
     machine.start(0)

@@ -250,3 +250,43 @@ def test_handover_and_gripper_nodes_on_the_emulated_gripper(ros):
         status = emulator.status()
         assert status.position == 0
         assert status.object == ObjectStatus.AT_POSITION
+
+
+def test_a_corrupted_reply_to_the_open_command_is_resolved_by_reading_the_gripper(ros):
+    """BAD_CRC on the open command: FAULT (outcome unknown), then once the link answers the
+    node reads where the fingers are and records the release that did happen."""
+    from ext_sense_behaviours.nodes.handover_behaviour import HandoverBehaviourNode
+    from ext_sense_behaviours.nodes.robotiq_gripper import RobotiqGripperNode
+
+    add, spin_until = ros
+    emulator = RobotiqEmulator(GripperModel(activation_s=0.1, object_position=150))
+    with PtyGripper(emulator) as pty:
+        add(
+            RobotiqGripperNode,
+            parameter_overrides=[
+                Parameter("port", value=pty.path),
+                Parameter("timeout_s", value=0.2),
+                Parameter("retries", value=0),
+                Parameter("poll_rate_hz", value=20.0),
+            ],
+        )
+        add(HandoverBehaviourNode, parameter_overrides=[Parameter("consecutive", value=1)])
+        probe = add(Probe)
+        probe.listen(String, "handover/decision")
+        est_pub = probe.publisher(ContactEstimate, "contact_estimate", ESTIMATE_QOS)
+        decisions = probe.got["handover/decision"]
+        assert spin_until(lambda: any("HOLDING" in d.data for d in decisions))
+        emulator.set_fault(LinkFault.BAD_CRC)
+        est_pub.publish(ContactEstimate(task="handover_stability", stability_probability=0.95))
+        assert spin_until(lambda: any("FAULT" in d.data for d in decisions))
+        fault = next(d.data for d in decisions if "FAULT" in d.data)
+        assert "CRC" in fault
+        spin_until(lambda: False, 0.5)
+        assert "RELEASED" not in decisions[-1].data  # nothing known while the link fails
+        emulator.set_fault(LinkFault.NONE)
+        assert spin_until(lambda: "link answers again" in decisions[-1].data)
+        last = decisions[-1].data
+        status = emulator.status()
+        assert status.position <= 10  # the write ran despite the corrupted reply
+        assert "RELEASED" in last
+        assert "open command was carried out" in last

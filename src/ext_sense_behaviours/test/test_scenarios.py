@@ -89,6 +89,12 @@ def handover(stable: bool, seed: int, fault: LinkFault | None = None):
                     break
                 time.sleep(0.02)
             emulator.set_fault(LinkFault.NONE)
+            # After a fault the run re-reads the gripper once the link answers and records
+            # where the fingers really are (an open command may have run despite the error).
+            deadline = time.monotonic() + 3.0
+            while run.machine.awaiting_status and time.monotonic() < deadline:
+                run.tick(time.monotonic_ns())
+                time.sleep(0.02)
             # Let any command the gripper did receive finish moving (a full stroke takes about
             # 0.2 s at the opening speed) before reading where the fingers ended up.
             time.sleep(0.4)
@@ -146,23 +152,34 @@ def test_unstable_streams_rarely_fool_the_rule():
 
 
 @pytest.mark.parametrize("fault", [LinkFault.NO_ANSWER, LinkFault.BAD_CRC, LinkFault.GRIPPER_FAULT])
-def test_gripper_faults_end_in_the_safe_state(fault):
+def test_gripper_faults_end_in_the_safe_state_and_the_real_finger_state_is_logged(fault):
     run, final = handover(stable=True, seed=1, fault=fault)
-    assert run.machine.state == HandoverState.FAULT
-    last = run.machine.log.entries[-1]
-    assert last.action == "HOLD"
-    assert "holding safe" in last.reason
+    entries = run.machine.log.entries
+    faults = [d for d in entries if d.state == "FAULT" and d.action == "HOLD"]
+    assert faults, entries
+    first = faults[0]
+    # the open command went out before the error, so its outcome is unknown at that point
+    assert "outcome unknown" in first.reason
     expected = {"NO_ANSWER": "No answer", "BAD_CRC": "CRC mismatch", "GRIPPER_FAULT": "gFLT=0x0e"}
-    assert expected[fault.name] in last.reason
+    assert expected[fault.name] in first.reason
+    assert not run.machine.awaiting_status  # the status was read once the link answered
+    last = entries[-1]
+    assert last.reason.startswith("link answers again: ")
+    assert f"gPO={final.position}" in last.reason  # what was logged is where the fingers are
     if fault == LinkFault.BAD_CRC:
-        # The open command reached the gripper and ran; only its reply was corrupted. A bad
-        # reply says nothing about whether a write was carried out, so the machine stops in
-        # FAULT (outcome unknown, nothing more sent) rather than retrying: here the fingers did
-        # open.
+        # The open command reached the gripper and ran; only its reply was corrupted: the
+        # re-read finds the fingers open and the handover is recorded as released.
         assert final.position <= 10
+        assert run.machine.state == HandoverState.RELEASED
+        assert "open command was carried out" in last.reason
     else:
         # No answer, or a gripper fault: the command never ran and the object was not dropped.
         assert final.position == 150
+        assert run.machine.state == HandoverState.FAULT
+        assert last.action == "HOLD"
+        assert "the object is still held" in last.reason
+    if fault == LinkFault.GRIPPER_FAULT:
+        assert "fault gFLT=" in last.reason
 
 
 @pytest.mark.parametrize("obj", list(ObjectStatus))

@@ -101,6 +101,7 @@ def _train(
     seed: int = 0,
     n_jobs: int = 1,
     rate_hz: float | None = None,
+    model_params: dict[str, Any] | None = None,
 ) -> TrainedModel:
     """Fit a deployable model on all windows (grid search with 4-fold CV, then refit).
 
@@ -113,6 +114,7 @@ def _train(
         seed: Seed.
         n_jobs: Grid-search jobs.
         rate_hz: Sampling rate the windows were reduced to (for the card), Hz.
+        model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
 
     Returns:
         The fitted pipeline and its model card.
@@ -126,6 +128,7 @@ def _train(
     X = ws.X.reshape(n, -1)
     feats = features_for(ws, features, **(feature_params or {}))
     pipe, grid = make_pipeline(feats, model, ws.is_regression, seed)
+    pipe.set_params(**{f"model__{k}": v for k, v in (model_params or {}).items()})
     grid.update(feature_grid or {})
     precompute = FeatureKind.parse(features) is not FeatureKind.AUTOENCODER and not feature_grid
     cv = _inner_cv(ws, ws.y, seed)
@@ -191,6 +194,11 @@ def _train(
             k: v for k, v in fp.items() if isinstance(v, (int, float, str, type(None)))
         },
         "model": model,
+        **(
+            {"model_params": {k: _jsonable(v) for k, v in model_params.items()}}
+            if model_params
+            else {}
+        ),
         "best_params": {k: _jsonable(v) for k, v in search.best_params_.items()},
         "rate_hz": rate_hz if rate_hz is not None else (4000.0 if g.sensor == "nuskin" else 2200.0),
         "window": {

@@ -20,15 +20,31 @@ def _common(p: argparse.ArgumentParser, *, need_task: bool = True) -> None:
     p.add_argument(
         "--task",
         required=need_task,
-        help="tap_localization, handover_stability or food_identification",
+        help="tap_localization, handover_stability or food_identification (a bag or a "
+        "simulator dataset names its own)",
     )
     p.add_argument("--sensor", required=need_task, help="nuskin or biotac")
     p.add_argument(
         "--data",
         required=True,
         help="simulator dataset.npz, the paper's preprocessed .npz, a food-poking capture "
-        "directory, "
+        "directory, a rosbag2 bag (directory, .mcap or .db3), "
         "or (features only) one recording (.tact / BioTac .csv)",
+    )
+    bag = p.add_argument_group("bags (--data a rosbag2 bag)")
+    bag.add_argument(
+        "--onsets",
+        choices=("auto", "truth", "detected"),
+        default="auto",
+        help="window onsets: the ground-truth stamps, or detected from the signal as live and "
+        "labelled by the nearest ground truth (default: truth when the bag has any)",
+    )
+    bag.add_argument(
+        "--events-topic", default="/extsense/nuskin/events", help="TaxelEventBatch topic"
+    )
+    bag.add_argument("--frames-topic", default="/extsense/biotac/frames", help="BioTacFrame topic")
+    bag.add_argument(
+        "--truth-topic", default="/extsense/ground_truth", help="ContactGroundTruth topic"
     )
     p.add_argument(
         "--features",
@@ -63,7 +79,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "features", help="compute a feature set from a recording or dataset into an .npy"
     )
-    _common(p)
+    _common(p, need_task=False)
     p.add_argument(
         "--essentials",
         default=None,
@@ -79,7 +95,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "train", help="train a deployable model bundle (model.onnx, model.joblib, model_card.json)"
     )
-    _common(p)
+    _common(p, need_task=False)
     p.add_argument("--out", required=True, help="bundle directory")
     p.add_argument(
         "--anytime-ms",
@@ -92,7 +108,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "evaluate", help="the paper's protocol (K random 90/10 splits, 4-fold grid search)"
     )
-    _common(p)
+    _common(p, need_task=False)
     p.add_argument(
         "--k", type=int, default=None, help="splits (default: 5 for tap and RNNs, else 20)"
     )
@@ -116,14 +132,36 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_report)
 
 
-def _load(args: argparse.Namespace):
+def _load(args: argparse.Namespace, *, need_labels: bool = True):
+    from ext_sense_perception.bag_windows import BagTopics, is_bag, window_set_from_bag
     from ext_sense_perception.dataset import from_recording, load_window_set
+    from ext_sense_perception.errors import PerceptionError
 
     path = Path(args.data)
     kwargs: dict[str, Any] = {}
-    if args.rate_hz is not None and args.sensor == "nuskin":
-        kwargs["rate_hz"] = args.rate_hz
-    if path.suffix in (".tact", ".csv"):
+    if args.rate_hz is not None and args.sensor != "biotac":
+        kwargs["rate_hz"] = args.rate_hz  # NUSkin refractory drop; BioTac decimates in features
+    if is_bag(path):
+        topics = BagTopics(args.events_topic, args.frames_topic, args.truth_topic)
+        ws, counts = window_set_from_bag(
+            path,
+            args.task,
+            args.sensor,
+            topics=topics,
+            onsets=args.onsets,
+            rate_hz=args.rate_hz,
+            require_labels=need_labels,
+        )
+        print(
+            f"{path}: " + ", ".join(f"{k} {v}" for k, v in counts._asdict().items()),
+            file=sys.stderr,
+        )
+    elif path.suffix in (".tact", ".csv"):
+        if not (args.task and args.sensor):
+            raise PerceptionError(
+                f"The '--task' and '--sensor' options are needed for a recording ({path.name}). "
+                "Got none."
+            )
         ws = from_recording(
             path, args.task, args.sensor, essentials=getattr(args, "essentials", None)
         )
@@ -168,7 +206,7 @@ def _cmd_features(args: argparse.Namespace) -> int:
     from ext_sense_perception.protocol import features_for
 
     try:
-        ws = _load(args)
+        ws = _load(args, need_labels=False)
         features, _, params, _ = _choice(args, ws)
         tf = features_for(ws, features, **params)
         X = ws.X.reshape(len(ws.X), -1)

@@ -15,7 +15,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ext_sense_perception.enums import Sensor, Task
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features import Geometry, refractory_mask
 from ext_sense_perception.importers import (
@@ -24,6 +23,7 @@ from ext_sense_perception.importers import (
     load_sim_dataset,
 )
 from ext_sense_perception.windows import MS, PAC_PERIOD_NS, WindowConfig, window_from_recording
+from ext_sense_runtime.enums import Sensor, Task
 
 DEFAULT_DATASET_BIN_NS = 1 * MS  # offline NUSkin bin: 4x coarser than online, 4x less memory
 FOOD_CAPTURE_POST_NS = 3000 * MS  # the real captures end about 3.1 s after the arm starts moving
@@ -98,6 +98,28 @@ def _labels(y: np.ndarray, regression: bool) -> tuple[np.ndarray, tuple[str, ...
     return labels, tuple(sorted(set(labels.tolist())))
 
 
+def offline_window_config(
+    task: str | Task, sensor: str | Sensor, bin_ns: int = DEFAULT_DATASET_BIN_NS
+) -> WindowConfig:
+    """The paper's windows for a task as training sets cut them: ``bin_ns`` NUSkin bins.
+
+    Food windows are 6 s long, so their bins are at least ``FOOD_CAPTURE_BIN_NS`` to keep the
+    sets small.
+
+    Args:
+        task: Task name or enum.
+        sensor: Sensor name or enum.
+        bin_ns: NUSkin bin, ns.
+
+    Returns:
+        The configuration.
+    """
+    task = Task.parse(task, PerceptionError)
+    if task is Task.FOOD_IDENTIFICATION:
+        bin_ns = max(bin_ns, FOOD_CAPTURE_BIN_NS)
+    return WindowConfig.for_task(task, sensor, bin_ns=bin_ns)
+
+
 def from_sim_dataset(
     path: str | Path,
     config: WindowConfig | None = None,
@@ -119,11 +141,11 @@ def from_sim_dataset(
         PerceptionError: when the file is malformed.
     """
     d = load_sim_dataset(path)
-    task, sensor = Task.parse(d["task"]), Sensor.parse(d["sensor"])
-    if config is None:
-        if task is Task.FOOD_IDENTIFICATION:
-            bin_ns = max(bin_ns, FOOD_CAPTURE_BIN_NS)  # 6 s windows: 10 ms bins keep them small
-        config = WindowConfig.for_task(task, sensor, bin_ns=bin_ns)
+    task, sensor = (
+        Task.parse(d["task"], PerceptionError),
+        Sensor.parse(d["sensor"], PerceptionError),
+    )
+    config = config or offline_window_config(task, sensor, bin_ns)
     onsets = np.asarray(d["onset_ns"], dtype=np.int64)
     n = len(onsets)
     windows = []
@@ -241,7 +263,11 @@ def from_food_poking(
 
 
 def from_preprocessed_npz(
-    path: str | Path, task: str, sensor: str, frequency_hz: float | None = None
+    path: str | Path,
+    task: str,
+    sensor: str,
+    frequency_hz: float | None = None,
+    rate_hz: float | None = None,
 ) -> WindowSet:
     """The paper's preprocessed ``.npz`` as a window set.
 
@@ -253,11 +279,22 @@ def from_preprocessed_npz(
         task: Task name.
         sensor: Sensor name.
         frequency_hz: BioTac sample rate of the file (None: 2200 Hz).
+        rate_hz: NUSkin refractory drop; refused, because the file holds binned counts and the
+            drop needs the events themselves (BioTac decimation happens in the features).
 
     Returns:
         The window set; handover labels are the first label column (``isPos``) as stable/unstable.
+
+    Raises:
+        PerceptionError: a NUSkin ``rate_hz``, or a malformed file.
     """
-    task_e, sensor_e = Task.parse(task), Sensor.parse(sensor)
+    task_e, sensor_e = Task.parse(task, PerceptionError), Sensor.parse(sensor, PerceptionError)
+    if rate_hz is not None and sensor_e is Sensor.NUSKIN:
+        raise PerceptionError(
+            f"The 'rate_hz' parameter ({rate_hz} Hz) needs NUSkin events, but {str(path)!r} is "
+            "the paper's preprocessed file of 5 ms bin counts. Use the .tact recordings "
+            "(ext-sense features --data FILE.tact) for the sampling-rate study."
+        )
     signals, labels = load_preprocessed_npz(path)
     labels = np.asarray(labels)
     if labels.ndim == 2:
@@ -295,7 +332,9 @@ def load_window_set(
     """Any supported source as a window set, chosen by what ``data`` is.
 
     Args:
-        data: A food-poking directory, a simulator ``dataset.npz`` or a preprocessed ``.npz``.
+        data: A rosbag2 bag (directory, ``.mcap`` or ``.db3``; see
+            :func:`ext_sense_perception.bag_windows.window_set_from_bag`), a food-poking
+            directory, a simulator ``dataset.npz`` or a preprocessed ``.npz``.
         task: Task (needed for preprocessed files).
         sensor: Sensor (needed for preprocessed files).
         **kwargs: Passed to the source's loader.
@@ -306,7 +345,11 @@ def load_window_set(
     Raises:
         PerceptionError: when the source is not recognised.
     """
+    from ext_sense_perception.bag_windows import from_bag, is_bag
+
     path = Path(data)
+    if is_bag(path):
+        return from_bag(path, task, sensor, **kwargs)  # type: ignore[arg-type]
     if path.is_dir():
         return from_food_poking(path, **kwargs)  # type: ignore[arg-type]
     if path.suffix == ".npz":
@@ -323,18 +366,18 @@ def load_window_set(
                 )
             return from_preprocessed_npz(path, task, sensor, **kwargs)  # type: ignore[arg-type]
         ws = from_sim_dataset(path, **kwargs)  # type: ignore[arg-type]
-        if task is not None and Task.parse(task).label != ws.task:
+        if task is not None and Task.parse(task, PerceptionError).label != ws.task:
             raise PerceptionError(
                 f"The 'task' parameter must match the dataset's {ws.task!r}. Got {task!r} instead."
             )
-        if sensor is not None and Sensor.parse(sensor).label != ws.sensor:
+        if sensor is not None and Sensor.parse(sensor, PerceptionError).label != ws.sensor:
             raise PerceptionError(
                 f"The 'sensor' parameter must match the dataset's {ws.sensor!r}. Got {sensor!r} "
                 "instead."
             )
         return ws
     raise PerceptionError(
-        "The 'data' parameter must be a food-poking directory or an .npz dataset. Got "
+        "The 'data' parameter must be a bag, a food-poking directory or an .npz dataset. Got "
         f"{str(path)!r} instead."
     )
 
@@ -375,7 +418,7 @@ def from_recording(
     )
 
     path = Path(path)
-    task_e, sensor_e = Task.parse(task), Sensor.parse(sensor)
+    task_e, sensor_e = Task.parse(task, PerceptionError), Sensor.parse(sensor, PerceptionError)
     labels: np.ndarray
     if essentials is not None:
         cols = read_csv_columns(essentials)

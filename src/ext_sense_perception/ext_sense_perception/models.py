@@ -5,8 +5,11 @@ window) -> ``scale`` (``StandardScaler``) -> ``model``. Grids follow the public 
 (1, 3, 10, 30, 100 on labels in cm; regression labels here are metres, so C and epsilon are
 divided by 100, which is the same problem).
 
-The GRU (16 cells) + MLP model needs torch, which is an optional extra: it is imported lazily
-and its absence gives a clear :class:`PerceptionError`.
+The GRU (16 cells) + MLP model needs torch for training, which is an optional extra: it is
+imported lazily and its absence gives a clear :class:`PerceptionError`. Its pipeline's scaler is
+the identity (the GRU scales its inputs per channel itself, see
+:class:`~ext_sense_perception.gru.GRUEstimator`); it exports to ONNX from its NumPy weights
+without torch (:mod:`ext_sense_perception.gru_onnx`).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC, SVR
 
 from ext_sense_perception.errors import PerceptionError
-from ext_sense_perception.features import WindowFeatures
+from ext_sense_perception.features import WindowFeatures, select_channels
 
 MODEL_NAMES = ("svm_linear", "svm_rbf", "svm", "mlp", "gru", "random_forest")
 C_GRID = (1.0, 3.0, 10.0, 30.0, 100.0)
@@ -100,7 +103,13 @@ def make_pipeline(
         ``(pipeline, grid)``.
     """
     est, grid = make_estimator(name, regression, seed)
-    pipe = Pipeline([("features", features), ("scale", StandardScaler()), ("model", est)])
+    scaler = StandardScaler()
+    if name == "gru":
+        # the GRU steps over time with one input per selected channel of the features and
+        # scales its inputs per channel itself (a per-(channel, step) scaler measured worse)
+        est.set_params(n_channels=len(select_channels(features.channels, features.n_channels)))
+        scaler = StandardScaler(with_mean=False, with_std=False)
+    pipe = Pipeline([("features", features), ("scale", scaler), ("model", est)])
     return pipe, {f"model__{k}": v for k, v in grid.items()}
 
 

@@ -4,8 +4,10 @@
 maps are constant matrices along the time axis, so the ONNX graph is ``Reshape`` ->
 ``Gather`` (channel selection) -> ``MatMul`` (rebin / decimate / DFT / EST kernel) ->
 element-wise ops (magnitude, ``log1p``, encoder layers). The scaler and the estimator use
-skl2onnx's own converters. The exported graph takes ``window``: ``(n, n_channels * n_samples)``
-float32, exactly what :func:`~ext_sense_perception.features.as_model_input` produces.
+skl2onnx's own converters, except the SVR (MatMul/Exp, faster) and the GRU
+(:mod:`ext_sense_perception.gru_onnx`, ONNX ``GRU`` from the NumPy weights, no torch). The
+exported graph takes ``window``: ``(n, n_channels * n_samples)`` float32, exactly what
+:func:`~ext_sense_perception.features.as_model_input` produces.
 """
 
 from __future__ import annotations
@@ -169,18 +171,87 @@ def _svr_converter(scope, operator, container) -> None:
     y.add_to(scope, container)
 
 
+def _gru_parser(scope, model, inputs, custom_parsers=None):
+    """Outputs of the GRU: ``variable`` (regression) or ``label`` + ``probabilities``."""
+    from skl2onnx.common.data_types import FloatTensorType, Int64TensorType, StringTensorType
+
+    op = scope.declare_local_operator("ExtSenseGRU", model)
+    op.inputs = inputs
+    if model.net_.classes is None:
+        op.outputs.append(scope.declare_local_variable("variable", FloatTensorType([None, 1])))
+        return op.outputs
+    kind = np.asarray(model.net_.classes).dtype.kind
+    label = StringTensorType([None]) if kind in "US" else Int64TensorType([None])
+    n_classes = len(model.net_.classes)
+    op.outputs.append(scope.declare_local_variable("label", label))
+    op.outputs.append(
+        scope.declare_local_variable("probabilities", FloatTensorType([None, n_classes]))
+    )
+    return op.outputs
+
+
+def _gru_shape_calculator(operator) -> None:
+    """Output types are fixed by :func:`_gru_parser`."""
+
+
+def _gru_converter(scope, operator, container) -> None:
+    """GRU + MLP from the estimator's NumPy weights (:mod:`ext_sense_perception.gru_onnx`)."""
+    from onnx import TensorProto, numpy_helper
+
+    from ext_sense_perception.gru_onnx import emit_gru_net
+
+    def emit(op_type: str, ins: list[str], outs: list[str], attrs: dict) -> None:
+        container.add_node(
+            op_type,
+            ins,
+            outs,
+            name=scope.get_unique_operator_name(op_type),
+            op_version=container.target_opset,
+            **attrs,
+        )
+
+    def const(hint: str, arr: np.ndarray) -> str:
+        name = scope.get_unique_variable_name(f"gru_{hint}")
+        if arr.dtype.kind in "US":
+            container.add_initializer(
+                name, TensorProto.STRING, list(arr.shape), [str(v) for v in arr.ravel()]
+            )
+        else:
+            container.add_initializer(name, None, None, numpy_helper.from_array(arr, name))
+        return name
+
+    emit_gru_net(
+        operator.raw_operator.net_,
+        operator.inputs[0].full_name,
+        [o.full_name for o in operator.outputs],
+        emit,
+        const,
+        fresh=lambda hint: scope.get_unique_variable_name(f"gru_{hint}"),
+    )
+
+
 def register_converters() -> None:
-    """Teach skl2onnx :class:`WindowFeatures` and a faster SVR (idempotent)."""
+    """Teach skl2onnx :class:`WindowFeatures`, a faster SVR and the GRU (idempotent)."""
     global _registered
     if _registered:
         return
     from skl2onnx import update_registered_converter
     from sklearn.svm import SVR
 
+    from ext_sense_perception.gru import GRUEstimator
+
     update_registered_converter(
         WindowFeatures, "ExtSenseWindowFeatures", _shape_calculator, _converter
     )
     update_registered_converter(SVR, "ExtSenseSVR", _svr_shape_calculator, _svr_converter)
+    update_registered_converter(
+        GRUEstimator,
+        "ExtSenseGRU",
+        _gru_shape_calculator,
+        _gru_converter,
+        parser=_gru_parser,
+        options={"zipmap": [False]},  # probabilities stay a tensor, as for the other models
+    )
     _registered = True
 
 
@@ -196,7 +267,7 @@ def to_onnx_bytes(pipeline: Pipeline, n_inputs: int) -> bytes:
         regressors output ``variable``.
 
     Raises:
-        PerceptionError: when skl2onnx cannot convert the model (e.g. the torch GRU).
+        PerceptionError: when skl2onnx cannot convert the model.
     """
     register_converters()
     from skl2onnx import convert_sklearn

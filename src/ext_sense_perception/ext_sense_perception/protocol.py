@@ -135,6 +135,7 @@ def _evaluate(
     progress: bool = True,
     n_jobs: int = 1,
     feature_grid: dict[str, list[Any]] | None = None,
+    model_params: dict[str, Any] | None = None,
 ) -> EvalResult:
     """Run the protocol.
 
@@ -149,6 +150,7 @@ def _evaluate(
         n_jobs: Parallel grid-search jobs.
         feature_grid: Feature parameters to search too (keys ``features__<param>``); the
             features are then recomputed inside every fold.
+        model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
 
     Returns:
         Scores per split and the pooled test predictions.
@@ -166,6 +168,7 @@ def _evaluate(
     k = default_k(ws, model) if k is None else int(k)
     X = ws.X.reshape(n, -1)
     pipe, grid = make_pipeline(features, model, ws.is_regression, seed)
+    pipe.set_params(**{f"model__{k}": v for k, v in (model_params or {}).items()})
     grid.update(feature_grid or {})
     precompute = (
         FeatureKind.parse(features.kind) is not FeatureKind.AUTOENCODER and not feature_grid

@@ -1,6 +1,7 @@
 """``ext-sense report``: paper-style tables (markdown) and plots (PNG) of accuracy against time.
 
-Per dataset (task): a features x models table (score, training time, ONNX inference time),
+Per dataset (task): a features x models table (score, training time, ONNX inference time;
+NUSkin taps add the GRU (16) + MLP on binned counts when torch is installed),
 the score against the post-contact window (decision latency 25 to 250 ms), against inference
 latency, against sampling rate, one finger / one taxel against two fingers, and the anytime
 estimator's calibration (95% prediction-interval coverage for position; expected calibration
@@ -46,13 +47,18 @@ def _metric_label(res: EvalResult) -> str:
 
 
 def _infer_ms(
-    ws: WindowSet, features: str, model: str, params: dict[str, Any], grid: dict
+    ws: WindowSet,
+    features: str,
+    model: str,
+    params: dict[str, Any],
+    grid: dict,
+    model_params: dict[str, Any] | None = None,
 ) -> tuple[float, float]:
     """ONNX single-window p50 and p99 latency of a model trained on everything, ms."""
     from ext_sense_perception import bundle
     from ext_sense_perception.cli import measure_inference
 
-    trained = bundle.train(ws, features, model, params, grid)
+    trained = bundle.train(ws, features, model, params, grid, model_params=model_params)
     t = measure_inference(trained, ws, n=100)
     return t["infer_p50_ms_onnx"], t["infer_p99_ms_onnx"]
 
@@ -135,6 +141,16 @@ def _plot(
     plt.close(fig)
 
 
+def gru_row(ws: WindowSet, gru: bool | None = None) -> bool:
+    """Whether the features x models table gets the GRU (baseline features) row.
+
+    NUSkin tap localisation (the paper's best NUSkin tap model is the RNN on binned counts),
+    unless ``gru`` is False; the row says "skipped" when torch is not installed. BioTac is left
+    out: its raw PAC gives 660-step sequences, about 10x the training time.
+    """
+    return gru is not False and ws.task == "tap_localization" and ws.sensor == "nuskin"
+
+
 def report_dataset(
     ws: WindowSet,
     path: Path,
@@ -144,10 +160,14 @@ def report_dataset(
     seed: int,
     records: list[dict[str, Any]],
     base_params: dict[str, Any] | None = None,
+    gru: bool | None = None,
+    gru_params: dict[str, Any] | None = None,
 ) -> list[str]:
     """Markdown lines (and PNGs in ``out``) for one window set.
 
-    ``base_params`` (e.g. ``{"bin_ns": 2_000_000}``) apply to every NUSkin evaluation.
+    ``base_params`` (e.g. ``{"bin_ns": 2_000_000}``) apply to every NUSkin evaluation;
+    ``gru=False`` leaves out the GRU row (see :func:`gru_row`); ``gru_params`` are fixed
+    :class:`~ext_sense_perception.gru.GRUEstimator` parameters (e.g. fewer epochs for a smoke run).
     """
     src = Path(str(path))
     name = f"{ws.task}_{ws.sensor}_{src.parent.name if src.is_file() else src.name}"
@@ -158,7 +178,13 @@ def report_dataset(
     if ws.excluded:
         lines += [f"Excluded: {', '.join(ws.excluded)} (single trial of its class).", ""]
 
-    def run(wset: WindowSet, features: str, model: str, **params: Any) -> EvalResult:
+    def run(
+        wset: WindowSet,
+        features: str,
+        model: str,
+        model_params: dict[str, Any] | None = None,
+        **params: Any,
+    ) -> EvalResult:
         if wset.sensor == "nuskin" and features in ("baseline", "fft", "autoencoder"):
             params = {**(base_params or {}), **params}
         grid = default_feature_grid(wset.task, wset.sensor, features)
@@ -171,6 +197,7 @@ def report_dataset(
             seed=seed,
             progress=False,
             feature_grid=grid,
+            model_params=model_params,
         )
         records.append(
             {
@@ -214,6 +241,29 @@ def report_dataset(
             inf_x.append(p50)
             inf_y.append(_score(res))
             inf_lab.append(f"{f}+{m}")
+    if gru_row(ws, gru):
+        # the paper's best NUSkin tap model: GRU (16) + MLP on the binned counts
+        from ext_sense_perception.gru import torch_available
+
+        if not torch_available():
+            lines.append(
+                "| baseline | gru | skipped: torch (optional extra, requirements/train.txt) is "
+                "not installed | | |"
+            )
+        else:
+            try:
+                res = run(ws, "baseline", "gru", model_params=gru_params)
+                p50, p99 = _infer_ms(ws, "baseline", "gru", {}, {}, gru_params)
+            except PerceptionError as err:
+                lines.append(f"| baseline | gru | failed: {err} | | |")
+            else:
+                lines.append(
+                    f"| baseline | gru | {_fmt(res)} | {np.mean(res.train_s):.2f} "
+                    f"| {p50:.3f} / {p99:.3f} |"
+                )
+                inf_x.append(p50)
+                inf_y.append(_score(res))
+                inf_lab.append("baseline+gru")
     if inf_x:
         png = out / f"{name}_vs_inference.png"
         _plot(
@@ -338,6 +388,8 @@ def build_report(
     quick: bool = False,
     seed: int = 0,
     base_params: dict[str, Any] | None = None,
+    gru: bool | None = None,
+    gru_params: dict[str, Any] | None = None,
 ) -> Path:
     """Evaluate every dataset and write ``out/report.md``, PNGs and ``out/report.json``.
 
@@ -348,6 +400,9 @@ def build_report(
         quick: Fewer features, models, rates and taxels.
         seed: Seed.
         base_params: Feature parameters for every NUSkin evaluation (e.g. ``bin_ns``).
+        gru: False leaves out the GRU row of NUSkin tap datasets (default: included, or
+            marked skipped when torch is missing).
+        gru_params: Fixed GRU parameters (e.g. ``{"max_epochs": 5}`` for a smoke run).
 
     Returns:
         The markdown file.
@@ -368,7 +423,9 @@ def build_report(
     with threadpool_limits(limits=1):
         for path in datasets:
             ws = load_window_set(path)
-            lines += report_dataset(ws, path, out, k, quick, seed, records, base_params)
+            lines += report_dataset(
+                ws, path, out, k, quick, seed, records, base_params, gru, gru_params
+            )
             if ws.task == "tap_localization" and np.isfinite(ws.rod_length_m).any():
                 feat0, model0 = default_choice(ws.task, ws.sensor)
                 params = base_params if ws.sensor == "nuskin" else None

@@ -27,11 +27,11 @@ from typing import NamedTuple
 import numpy as np
 
 from ext_sense_perception.dataset import WindowSet
-from ext_sense_perception.enums import Sensor, Task
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features import Geometry
 from ext_sense_perception.nodes.pipeline import WindowStage
 from ext_sense_perception.windows import MS, ContactWindow, WindowConfig
+from ext_sense_runtime.enums import Sensor, Task
 
 NS_PER_S = 1_000_000_000
 DEFAULT_BAUD = 4_000_000
@@ -154,6 +154,43 @@ def stream_windows(
     return [w for w in out if not w.provisional], words, skipped
 
 
+def match_truths(
+    windows: Sequence[ContactWindow], truths: Sequence[StreamTruth], tolerance_ns: int
+) -> tuple[list[tuple[ContactWindow, StreamTruth]], int, int]:
+    """Label windows by the ground truth stamped nearest their onset, each truth used once.
+
+    This is how the estimate monitor scores live estimates, so a set labelled here trains on
+    the windows the graph really cuts.
+
+    Args:
+        windows: Final windows, oldest first.
+        truths: Ground truth, any order, stamps on the windows' clock.
+        tolerance_ns: Largest distance from a window's onset to its truth's stamp, ns.
+
+    Returns:
+        ``(pairs of window and truth, windows left unmatched, truths left unmatched)``.
+    """
+    stamps = np.array([int(g.stamp_ns) for g in truths], dtype=np.int64)
+    order = np.argsort(stamps, kind="stable")
+    stamps = stamps[order]
+    taken = np.zeros(stamps.size, dtype=bool)
+    picked: list[tuple[ContactWindow, StreamTruth]] = []
+    unmatched = 0
+    for win in windows:
+        if not stamps.size:
+            unmatched += 1
+            continue
+        j = int(np.searchsorted(stamps, win.onset_ns))
+        near = [k for k in (j - 1, j) if 0 <= k < stamps.size and not taken[k]]
+        best = min(near, key=lambda k: abs(int(stamps[k]) - win.onset_ns), default=None)
+        if best is None or abs(int(stamps[best]) - win.onset_ns) > tolerance_ns:
+            unmatched += 1
+            continue
+        taken[best] = True
+        picked.append((win, truths[int(order[best])]))
+    return picked, unmatched, int((~taken).sum())
+
+
 def window_set_from_stream(
     writes: Iterable[tuple[int, bytes]],
     truths: Sequence[StreamTruth],
@@ -201,24 +238,7 @@ def window_set_from_stream(
         read_jitter=read_jitter,
         seed=seed,
     )
-    stamps = np.array([int(g.stamp_ns) for g in truths], dtype=np.int64)
-    order = np.argsort(stamps, kind="stable")
-    stamps = stamps[order]
-    taken = np.zeros(stamps.size, dtype=bool)
-    picked: list[tuple[ContactWindow, StreamTruth]] = []
-    unmatched = 0
-    for win in windows:
-        if not stamps.size:
-            unmatched += 1
-            continue
-        j = int(np.searchsorted(stamps, win.onset_ns))
-        near = [k for k in (j - 1, j) if 0 <= k < stamps.size and not taken[k]]
-        best = min(near, key=lambda k: abs(int(stamps[k]) - win.onset_ns), default=None)
-        if best is None or abs(int(stamps[best]) - win.onset_ns) > match_tolerance_ns:
-            unmatched += 1
-            continue
-        taken[best] = True
-        picked.append((win, truths[int(order[best])]))
+    picked, unmatched, missed = match_truths(windows, truths, match_tolerance_ns)
     if not picked:
         raise PerceptionError(
             f"The stream gave {len(windows)} windows and {len(truths)} truths but none matched "
@@ -239,7 +259,7 @@ def window_set_from_stream(
     ws = WindowSet(
         config.task.label, "nuskin", X, y, geometry, names, groups, rod, source, h.hexdigest()[:16]
     )
-    counts = StreamCounts(words, len(windows), len(picked), unmatched, int((~taken).sum()), skipped)
+    counts = StreamCounts(words, len(windows), len(picked), unmatched, missed, skipped)
     return ws, counts
 
 

@@ -21,8 +21,8 @@ from typing import NamedTuple
 import numpy as np
 from scipy.signal import lfilter
 
-from ext_sense_perception.enums import Sensor, Task
 from ext_sense_perception.errors import PerceptionError
+from ext_sense_runtime.enums import Sensor, Task
 
 MS = 1_000_000
 NUSKIN_TAXELS = 80
@@ -116,8 +116,8 @@ class WindowConfig:
     history_ns: int = 100 * MS
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "task", Task.parse(self.task))
-        object.__setattr__(self, "sensor", Sensor.parse(self.sensor))
+        object.__setattr__(self, "task", Task.parse(self.task, PerceptionError))
+        object.__setattr__(self, "sensor", Sensor.parse(self.sensor, PerceptionError))
         object.__setattr__(
             self, "provisional_post_ns", tuple(sorted(int(p) for p in self.provisional_post_ns))
         )
@@ -169,7 +169,7 @@ class WindowConfig:
         Returns:
             The configuration.
         """
-        task, sensor = Task.parse(task), Sensor.parse(sensor)
+        task, sensor = Task.parse(task, PerceptionError), Sensor.parse(sensor, PerceptionError)
         base = cls(task=task, sensor=sensor)
         if task is Task.FOOD_IDENTIFICATION:
             base = replace(

@@ -211,16 +211,3 @@ def test_other_feature_sets_export_and_agree(handover_npz, tmp_path, features, m
     assert est.stability_probability == pytest.approx(
         est.class_probabilities[est.class_names.index("stable")]
     )
-
-
-def test_gru_without_torch_is_a_clear_error(handover_npz):
-    pytest.importorskip("sklearn")
-    try:
-        import torch  # noqa: F401
-    except ImportError:
-        pass
-    else:
-        pytest.skip("torch is installed: the missing-torch path cannot be shown")
-    ws = from_sim_dataset(handover_npz)
-    with pytest.raises(PerceptionError, match="needs torch"):
-        bundle.train(ws, "baseline", "gru")

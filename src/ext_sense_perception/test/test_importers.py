@@ -8,6 +8,7 @@ from ext_sense_perception.dataset import (
     from_preprocessed_npz,
     from_recording,
     from_sim_dataset,
+    load_window_set,
 )
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.importers import (
@@ -106,6 +107,8 @@ def test_preprocessed_npz(tmp_path):
     assert ws.X.shape == (5, 80, 61)
     assert ws.geometry.period_ns == 5 * MS
     np.testing.assert_allclose(ws.y, [0.02, 0.04, 0.06, 0.08, 0.10])
+    with pytest.raises(PerceptionError, match=r"'rate_hz'.*needs NUSkin events"):
+        load_window_set(p, "tap", "nuskin", rate_hz=1000.0)
     p2 = tmp_path / "biotac_handover_rod.npz"
     np.savez(
         p2, signals=np.ones((4, 600)), labels=np.array([[1, 0.1], [0, 0.2], [1, 0.3], [0, 0.1]])

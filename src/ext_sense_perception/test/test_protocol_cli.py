@@ -168,11 +168,18 @@ def test_report_quick_writes_tables_and_plots(tmp_path, make_tap_dataset):
     from ext_sense_perception.report import build_report
 
     small = make_tap_dataset(tmp_path / "small.npz", n=20, seed=3)
-    md = build_report([small], tmp_path / "rep", k=2, quick=True)
+    md = build_report([small], tmp_path / "rep", k=2, quick=True, gru_params={"max_epochs": 3})
     text = md.read_text()
     for heading in ("Features and models", "Decision latency", "Sampling rate", "Two fingers"):
         assert heading in text
     assert "95% PI coverage" in text
+    gru_line = next(line for line in text.splitlines() if line.startswith("| baseline | gru |"))
+    from ext_sense_perception.gru import torch_available
+
+    if not torch_available():
+        assert "skipped: torch" in gru_line
+    else:
+        assert " cm |" in gru_line
     pngs = sorted(p.name for p in (tmp_path / "rep").glob("*.png"))
     assert len(pngs) == 3
     records = json.loads((tmp_path / "rep" / "report.json").read_text())

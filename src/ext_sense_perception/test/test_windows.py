@@ -5,7 +5,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ext_sense_perception.enums import Sensor, Task
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.windows import (
     MS,
@@ -16,6 +15,7 @@ from ext_sense_perception.windows import (
     bin_events,
     window_from_recording,
 )
+from ext_sense_runtime.enums import Sensor, Task
 
 EPOCH = 1_700_000_000_000_000_000  # epoch nanoseconds: must not lose precision anywhere
 

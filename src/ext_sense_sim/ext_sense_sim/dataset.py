@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_sim.effects.base import Signals, TimeBase
-from ext_sense_sim.enums import Sensor, Task
 from ext_sense_sim.events import EventBatch
 from ext_sense_sim.scene import Scene
 

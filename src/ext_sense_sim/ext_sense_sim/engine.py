@@ -14,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ext_sense_runtime.enums import Sensor
 from ext_sense_sim.effects import REGISTRY
 from ext_sense_sim.effects.base import Effect, Signals, TimeBase
-from ext_sense_sim.enums import Sensor
 from ext_sense_sim.errors import SceneError
 from ext_sense_sim.scene import Scene
 

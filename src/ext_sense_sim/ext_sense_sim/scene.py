@@ -14,7 +14,7 @@ from typing import Any
 
 import yaml
 
-from ext_sense_sim.enums import Sensor, Task
+from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_sim.errors import SceneError
 from ext_sense_sim.geometry import Geometry, geometry_from
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
+import queue
 import select
 import threading
 import time
@@ -26,8 +27,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ext_sense_runtime.enums import Sensor
 from ext_sense_sim.engine import Simulator
-from ext_sense_sim.enums import Sensor
 from ext_sense_sim.errors import SceneError
 from ext_sense_sim.scene import Scene
 
@@ -170,6 +171,7 @@ def stream(
     stop: threading.Event | None = None,
     clock: Callable[[], int] = time.time_ns,
     sleep: Callable[[float], None] = time.sleep,
+    stats: StreamStats | None = None,
 ) -> StreamStats:
     """Write the scene's device bytes in real time until ``trials`` are done or ``stop`` is set.
 
@@ -183,10 +185,11 @@ def stream(
         stop: Set it to end the stream.
         clock: Epoch integer nanoseconds (injectable for tests).
         sleep: Sleeps seconds (injectable for tests).
+        stats: Counters to fill as it goes (e.g. read by a node's diagnostics); new if None.
     """
     period_ns = round(max(period_s, scene.trial_s) * 1e9)
     stop = stop or threading.Event()
-    stats = StreamStats()
+    stats = StreamStats() if stats is None else stats
     start: int | None = None
     rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
     plans = plan_trials(scene, seed)
@@ -200,31 +203,7 @@ def stream(
         t0 = start + plan.trial * period_ns
         if clock() > t0:
             stats.late_trials += 1
-        times = np.array([c[0] for c in plan.chunks], dtype=np.int64)
-        onset_index = int(np.searchsorted(times, plan.onset_ns))
-        i = 0
-        while i < times.size and not stop.is_set():
-            now = clock()
-            j = int(np.searchsorted(times, now - t0, side="right"))
-            if j <= i:
-                sleep(min(0.001, max(0.0, (t0 + int(times[i]) - now) / 1e9)))
-                continue
-            data = b"".join(c[1] for c in plan.chunks[i:j])
-            write(data)
-            stats.bytes += len(data)
-            stats.writes += 1
-            if i <= onset_index < j and on_onset is not None:
-                on_onset(
-                    GroundTruth(
-                        plan.trial,
-                        clock(),
-                        scene.task.label,
-                        plan.tap_position_m,
-                        rod,
-                        plan.class_label,
-                    )
-                )
-            i = j
+        _play(plan, t0, write, stats, scene, rod, on_onset, stop, clock, sleep)
         stats.trials += 1
         last = bool(trials) and plan.trial + 1 >= trials
         # Simulate the next trial now, in the idle time before it is due: simulating it at
@@ -234,6 +213,206 @@ def stream(
         while not stop.is_set() and clock() < t0 + period_ns and not last:
             sleep(min(0.01, max(0.0, (t0 + period_ns - clock()) / 1e9)))
     return stats
+
+
+LATE_WRITE_NS = 2_000_000
+"""A write whose oldest chunk is due more than this long ago counts in ``late_writes``."""
+
+
+class Trigger(NamedTuple):
+    """A request to play the next trial(s) now: ``stamp_ns`` on the host epoch clock."""
+
+    stamp_ns: int
+
+
+ALIGNS = ("start", "onset")
+
+
+def _next_like(plans: Iterator[PlannedTrial], label: str, scene: Scene) -> PlannedTrial:
+    """The next planned trial of class ``label`` ("" = the next one)."""
+    for _ in range(1000):
+        plan = next(plans)
+        if not label or plan.class_label == label:
+            return plan
+    raise SceneError(
+        f"Scene '{scene.name}' gave no trial labelled {label!r} in 1000 trials; the 'labels' "
+        f"parameter must name the scene's classes."
+    )
+
+
+def _wait_trigger(triggers: queue.Queue[Trigger], stop: threading.Event) -> Trigger | None:
+    """The next trigger, or ``None`` once ``stop`` is set."""
+    while not stop.is_set():
+        try:
+            return triggers.get(timeout=0.05)
+        except queue.Empty:
+            continue
+    return None
+
+
+def stream_on_trigger(
+    scene: Scene,
+    write: Callable[[bytes], object],
+    triggers: queue.Queue[Trigger],
+    *,
+    seed: int,
+    trials: int = 0,
+    per_trigger: int = 1,
+    period_s: float = 1.0,
+    labels: list[str] | None = None,
+    align: str = "start",
+    on_onset: Callable[[GroundTruth], None] | None = None,
+    on_ready: Callable[[], None] | None = None,
+    stop: threading.Event | None = None,
+    clock: Callable[[], int] = time.time_ns,
+    sleep: Callable[[float], None] = time.sleep,
+    stats: StreamStats | None = None,
+) -> StreamStats:
+    """Play ``per_trigger`` trials per trigger, silent in between: a behaviour drives the scene.
+
+    The triggers are a food probe's motion start or a handover's offer.
+
+    The trials of one trigger are ``period_s`` apart and, with ``labels``, all of the class
+    ``labels[k % len(labels)]`` for the k-th trigger (trials of other classes are skipped, so
+    the seed still fixes everything). ``align="start"``: the first trial starts when the
+    trigger is taken. ``align="onset"``: its onset (the motion start for food) is put at the
+    trigger's stamp; the trial's bytes before its onset are then in the past and are skipped
+    (counted in ``extra["skipped_bytes"]``), those from the onset to now go out at once, and
+    the ground truth is stamped with the trigger's stamp (the true onset by construction). The
+    next trial is simulated while waiting for its trigger.
+
+    Args:
+        scene: A scene listing its sensor's wire effect.
+        write: Sends bytes to the link.
+        triggers: Triggers arrive here (e.g. from a ROS subscription).
+        seed: Seed of the stream.
+        trials: Trials to play in all; 0 = until stopped.
+        per_trigger: Trials per trigger (>= 1).
+        period_s: Time between the starts of one trigger's trials (at least the trial length).
+        labels: Class schedule of successive triggers (empty: trials as the scene draws them).
+        align: ``"start"`` or ``"onset"`` (see above).
+        on_onset: Called with the ground truth of each trial at its onset.
+        on_ready: Called each time the next trigger's trial is simulated and waits for it (a
+            trigger that comes earlier is played late, its first bytes in a burst; the node
+            listens for triggers only after the first call).
+        stop: Set it to end the stream.
+        clock: Epoch integer nanoseconds (injectable for tests).
+        sleep: Sleeps seconds (injectable for tests).
+        stats: Counters to fill as it goes; new if None.
+
+    Raises:
+        SceneError: Bad ``align`` or ``per_trigger``, the scene lacks the wire effect, or no
+            trial of a scheduled label.
+    """
+    if align not in ALIGNS:
+        raise SceneError(f"The 'align' parameter must be one of {ALIGNS}. Got {align!r} instead.")
+    if per_trigger < 1:
+        raise SceneError(f"The 'per_trigger' parameter must be >= 1. Got {per_trigger!r} instead.")
+    period_ns = round(max(period_s, scene.trial_s) * 1e9)
+    stop = stop or threading.Event()
+    stats = StreamStats() if stats is None else stats
+    stats.extra.update(skipped_bytes=0, triggers=0)
+    rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
+    plans = plan_trials(scene, seed)
+    labels = list(labels or [])
+    played = 0
+    while not stop.is_set() and not (trials and played >= trials):
+        # simulated before the trigger comes, so it can start at once
+        label = labels[stats.extra["triggers"] % len(labels)] if labels else ""
+        plan = _next_like(plans, label, scene)
+        if on_ready is not None:
+            on_ready()
+        trigger = _wait_trigger(triggers, stop)
+        if trigger is None:
+            break
+        stats.extra["triggers"] += 1
+        t0 = trigger.stamp_ns - plan.onset_ns if align == "onset" else clock()
+        for j in range(per_trigger):
+            start = t0 + j * period_ns
+            onset_only = align == "onset" and j == 0
+            _play(
+                plan,
+                start,
+                write,
+                stats,
+                scene,
+                rod,
+                on_onset,
+                stop,
+                clock,
+                sleep,
+                skip_before_onset=onset_only,
+                truth_stamp_ns=trigger.stamp_ns if onset_only else None,
+            )
+            played += 1
+            stats.trials += 1
+            if stop.is_set() or (trials and played >= trials):
+                break
+            if j + 1 < per_trigger:
+                # one grasp's trials share their class; simulated now, in the idle time before
+                # the next one is due (simulating it when due would send it late, in a burst)
+                plan = _next_like(plans, plan.class_label if labels else "", scene)
+                while not stop.is_set() and clock() < start + period_ns:
+                    sleep(min(0.01, max(0.0, (start + period_ns - clock()) / 1e9)))
+    return stats
+
+
+def _play(
+    plan: PlannedTrial,
+    t0: int,
+    write: Callable[[bytes], object],
+    stats: StreamStats,
+    scene: Scene,
+    rod: float,
+    on_onset: Callable[[GroundTruth], None] | None,
+    stop: threading.Event,
+    clock: Callable[[], int],
+    sleep: Callable[[float], None],
+    *,
+    skip_before_onset: bool = False,
+    truth_stamp_ns: int | None = None,
+) -> None:
+    """Write one trial's chunks when the clock reaches ``t0`` plus each chunk's time."""
+    times = np.array([c[0] for c in plan.chunks], dtype=np.int64)
+    onset_index = int(np.searchsorted(times, plan.onset_ns))
+    i = 0
+    if skip_before_onset and clock() > t0 + plan.onset_ns:
+        i = onset_index
+        stats.extra["skipped_bytes"] = stats.extra.get("skipped_bytes", 0) + sum(
+            len(c[1]) for c in plan.chunks[:i]
+        )
+    sent_onset = False
+    while i < times.size and not stop.is_set():
+        now = clock()
+        j = int(np.searchsorted(times, now - t0, side="right"))
+        if j <= i:
+            sleep(min(0.001, max(0.0, (t0 + int(times[i]) - now) / 1e9)))
+            continue
+        data = b"".join(c[1] for c in plan.chunks[i:j])
+        write(data)
+        stats.bytes += len(data)
+        stats.writes += 1
+        # how late the oldest chunk of this write is (a late device sends bursts the driver's
+        # arrival clock spreads); the first write of an onset-aligned trial is late by design
+        if sent_onset or not skip_before_onset:
+            late = now - (t0 + int(times[i]))
+            if late > LATE_WRITE_NS:
+                stats.extra["late_writes"] = stats.extra.get("late_writes", 0) + 1
+            stats.extra["max_late_ns"] = max(stats.extra.get("max_late_ns", 0), late)
+        if not sent_onset and j > onset_index:
+            sent_onset = True
+            if on_onset is not None:
+                on_onset(
+                    GroundTruth(
+                        plan.trial,
+                        clock() if truth_stamp_ns is None else truth_stamp_ns,
+                        scene.task.label,
+                        plan.tap_position_m,
+                        rod,
+                        plan.class_label,
+                    )
+                )
+        i = j
 
 
 class PtyLink:

@@ -171,3 +171,33 @@ def test_torque_loads_the_two_pads_with_opposite_sign_and_shear_with_the_same():
     np.testing.assert_allclose(left[:, 3], right[:, 3])  # shear along the pads: same
     np.testing.assert_allclose(left[:, 1], -right[:, 1])  # load toward the pads: opposite
     assert np.abs(left[:, 6]).max() > 0
+
+
+def _transduce(params: dict, pressure: np.ndarray) -> EventBatch:
+    from ext_sense_sim.effects.base import Signals, TimeBase
+    from ext_sense_sim.effects.nuskin import NuskinTransduction
+
+    effect = NuskinTransduction({"bandwidth_hz": 7000.0, **params})
+    signals = Signals(taxel_pressure=pressure.astype(np.float32))
+    effect.run(signals, TimeBase(16000.0, pressure.shape[-1], 1), np.random.default_rng(0))
+    return signals["events"]
+
+
+def test_clipped_reading_stops_firing_past_full_scale():
+    # a ramp from 0 to 2 MPa: 1000 Pa per count puts full scale (1023) at 953 kPa
+    ramp = np.zeros((1, 1, 8000))
+    ramp[0, 0, 100:7900] = np.linspace(0.0, 2e6, 7800)
+    ramp[0, 0, 7900:] = 2e6
+    free = _transduce({}, ramp)
+    clipped = _transduce({"clip_reading": True}, ramp)
+    assert free.value.max() == 1023  # values are clipped either way ...
+    assert np.count_nonzero(free.polarity > 0) > 1500  # ... but the unbounded encoder fires on
+    assert 900 <= np.count_nonzero(clipped.polarity > 0) <= 960  # one per count up to 1023
+    assert clipped.value.max() >= 1020  # the last event lands within a count of full scale
+
+
+def test_clip_reading_must_be_a_boolean():
+    from ext_sense_sim.errors import SceneError
+
+    with pytest.raises(SceneError, match="'clip_reading' must be true or false"):
+        _transduce({"clip_reading": "yes"}, np.zeros((1, 1, 100)))

@@ -6,8 +6,12 @@ simulated arm inside the node; ``franka``: franka_ros2, needs franka_msgs) from 
 ``food_identification``, stamp = motion start) so the ``contact_window`` node cuts the food
 window, takes the final food ``ContactEstimate`` for that motion start from ``contact_estimate``,
 and republishes it on ``food/result`` once retracted; every decision goes to
-``food/decision`` (``std_msgs/String``) and the log. A probe starts on ``food/start``
-(``std_msgs/Bool`` true) or at start-up with ``auto_start``.
+``food/decision`` (``std_msgs/String``) and the log; every arm state sample read while
+probing goes to ``arm/state`` (``sensor_msgs/JointState``, joint ``ee_z``: position = height z
+in m, velocity = vertical velocity in m/s, effort = external force norm in N). A probe starts on
+``food/start`` (``std_msgs/Bool`` true) or at start-up with ``auto_start`` (once
+``motion_start`` has ``start_subscribers`` subscribers), and again ``repeat_s`` after each one
+ends.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import math
 from typing import Any
 
 from rclpy.node import Node
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 
 from ext_sense_behaviours.arm import SimulatedArm
@@ -24,6 +29,7 @@ from ext_sense_behaviours.execution import FoodProbe
 from ext_sense_behaviours.food import FOOD_TASK, FoodConfig, FoodMachine, FoodResult, FoodState
 from ext_sense_behaviours.franka import FrankaNames
 from ext_sense_behaviours.nodes.conversions import estimate_from_msg
+from ext_sense_behaviours.records import ArmState
 from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
@@ -69,6 +75,25 @@ class FoodBehaviourNode(Node):
         )
         rate_hz = d("control_rate_hz", 100.0, "Control loop rate, Hz.", 1.0, 1000.0)
         self.auto_start = d("auto_start", False, "Start one probe at start-up.")
+        self.start_subscribers = d(
+            "start_subscribers",
+            0,
+            "auto_start waits until motion_start has this many subscribers (the window node, "
+            "a simulated sensor), so none misses the motion start.",
+            0,
+            100,
+        )
+        self.repeat_ns = round(
+            d(
+                "repeat_s",
+                0.0,
+                "Start the next probe this long after one ends, s (0: no).",
+                0.0,
+                3600.0,
+            )
+            * S
+        )
+        self._done_ns: int | None = None
         if arm_kind == "sim":
             surface = d(
                 "sim_surface_z_m", 0.12, "Simulated food surface height, m (< 0: none).", -1.0, 2.0
@@ -117,10 +142,18 @@ class FoodBehaviourNode(Node):
             )
         self.arm = arm
         self.machine = FoodMachine(config, sink=self._on_decision)
-        self.probe = FoodProbe(self.machine, arm, self._on_motion_start, None, self._on_publish)
+        self.probe = FoodProbe(
+            self.machine,
+            arm,
+            self._on_motion_start,
+            None,
+            self._on_publish,
+            on_state=self._publish_arm,
+        )
         self.motion_pub = self.create_publisher(ContactGroundTruth, "motion_start", COMMAND_QOS)
         self.result_pub = self.create_publisher(ContactEstimate, "food/result", ESTIMATE_QOS)
         self.decision_pub = self.create_publisher(String, "food/decision", COMMAND_QOS)
+        self.arm_pub = self.create_publisher(JointState, "arm/state", COMMAND_QOS)
         self.create_subscription(
             ContactEstimate, "contact_estimate", self._on_estimate, ESTIMATE_QOS
         )
@@ -132,7 +165,20 @@ class FoodBehaviourNode(Node):
         self.updater.add_check("food", self._check)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
 
+    def _publish_arm(self, state: ArmState) -> None:
+        msg = JointState(
+            name=["ee_z"],
+            position=[state.z_m],
+            velocity=[state.velocity_z_mps],
+            effort=[state.force_norm_n],
+        )
+        fill_stamp(msg.header.stamp, state.stamp_ns)
+        msg.header.frame_id = "base"
+        self.arm_pub.publish(msg)
+
     def _on_decision(self, decision: Decision) -> None:
+        if decision.state == "DONE":
+            self._done_ns = decision.stamp_ns
         self.get_logger().info(f"{decision.state}: {decision.action} - {decision.reason}")
         self.decision_pub.publish(String(data=str(decision)))
 
@@ -160,9 +206,21 @@ class FoodBehaviourNode(Node):
         self.probe.deliver(estimate_from_msg(msg), self.get_clock().now().nanoseconds)
 
     def _on_timer(self) -> None:
+        now = self.get_clock().now().nanoseconds
         if self.auto_start and self.machine.state == FoodState.IDLE:
+            if self.motion_pub.get_subscription_count() < self.start_subscribers:
+                return
             if self.probe.start() is not None:
                 self.auto_start = False
+            return
+        if (
+            self.machine.state == FoodState.DONE
+            and self.repeat_ns > 0
+            and self._done_ns is not None
+            and now - self._done_ns >= self.repeat_ns
+        ):
+            self._done_ns = None
+            self.probe.start()
             return
         if self.machine.state not in (FoodState.IDLE, FoodState.DONE, FoodState.FAULT):
             self.probe.step(self.get_clock().now().nanoseconds)

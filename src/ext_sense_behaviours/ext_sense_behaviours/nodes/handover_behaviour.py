@@ -1,18 +1,23 @@
 """``handover_behaviour`` node: open the gripper once the person's grasp is stable.
 
 Subscribes ``contact_estimate`` (``ContactEstimate``, task ``handover_stability``) and
-``gripper/status`` (from ``robotiq_gripper``); publishes ``gripper/command`` (open) and every
-decision with its reason on ``handover/decision`` (``std_msgs/String``) and in the log. The
+``gripper/status`` (from ``robotiq_gripper``); publishes ``gripper/command`` (open), every
+decision with its reason on ``handover/decision`` (``std_msgs/String``) and in the log, and
+``handover/offer`` (``ContactGroundTruth``, task ``handover_stability``, stamped when a handover
+starts: the object is offered; the simulated sensor plays the person's grasp on it). The
 node first closes the ready gripper on the object (``grasp_on_start``); the handover starts
 when the gripper reports it holds an object (``auto_start``) or on ``handover/start``
 (``std_msgs/Bool`` true; after a fault this is the only way out); with ``regrasp_s`` > 0 it
 grasps again after each release or timeout for the next handover (demos with many trials).
 The decisions are those of :class:`~ext_sense_behaviours.handover.HandoverMachine`; any gripper
-error keeps the object held.
+error keeps the object held, and the first status read after it (``link`` = ``ok``) is logged
+with the real finger position (RELEASED when the open command ran despite the error).
 """
 
 from __future__ import annotations
 
+import contextlib
+import math
 from dataclasses import replace
 from typing import Any
 
@@ -24,20 +29,22 @@ from std_msgs.msg import Bool, String
 
 from ext_sense_behaviours.decisions import Decision
 from ext_sense_behaviours.errors import BehaviourError
-from ext_sense_behaviours.gripper import is_open, status_from_values
+from ext_sense_behaviours.gripper import describe_position, is_open, settled, status_from_values
 from ext_sense_behaviours.handover import (
+    HANDOVER_TASK,
     HandoverAction,
     HandoverConfig,
     HandoverMachine,
     HandoverState,
 )
 from ext_sense_behaviours.nodes.conversions import estimate_from_msg
-from ext_sense_msgs.msg import ContactEstimate
+from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
+from ext_sense_runtime.stamps import fill_stamp
 
 S = 1_000_000_000
 _CONFIG_PARAMS = {
@@ -104,6 +111,27 @@ class HandoverBehaviourNode(Node):
         self.auto_start = declare(
             self, "auto_start", True, "Start when the gripper reports it holds an object."
         )
+        self.start_subscribers = declare(
+            self,
+            "start_subscribers",
+            0,
+            "auto_start waits until handover/offer has this many subscribers (a simulated "
+            "person), so none misses the offer.",
+            low=0,
+            high=100,
+        )
+        self.start_delay_ns = round(
+            declare(
+                self,
+                "start_delay_s",
+                0.0,
+                "auto_start no sooner than this after start-up, seconds (lets the perception "
+                "nodes load their model before the first offer).",
+                low=0.0,
+                high=600.0,
+            )
+            * S
+        )
         tick_hz = declare(
             self,
             "tick_rate_hz",
@@ -113,6 +141,7 @@ class HandoverBehaviourNode(Node):
             high=200.0,
             read_only=True,
         )
+        self._started_ns = self._now()
         self.machine = HandoverMachine(
             HandoverConfig(
                 threshold, consecutive, provisional, round(timeout_s * S), round(release_s * S)
@@ -125,6 +154,7 @@ class HandoverBehaviourNode(Node):
         self.estimates = 0
         self.command_pub = self.create_publisher(JointState, "gripper/command", COMMAND_QOS)
         self.decision_pub = self.create_publisher(String, "handover/decision", COMMAND_QOS)
+        self.offer_pub = self.create_publisher(ContactGroundTruth, "handover/offer", COMMAND_QOS)
         self.create_subscription(
             ContactEstimate, "contact_estimate", self._on_estimate, ESTIMATE_QOS
         )
@@ -158,6 +188,12 @@ class HandoverBehaviourNode(Node):
         return SetParametersResult(successful=True)
 
     def _on_decision(self, decision: Decision) -> None:
+        if decision.state == "HOLDING" and decision.action == "HOLD":  # a handover starts
+            offer = ContactGroundTruth(
+                task=HANDOVER_TASK, tap_position_m=math.nan, rod_length_m=math.nan
+            )
+            fill_stamp(offer.header.stamp, decision.stamp_ns)
+            self.offer_pub.publish(offer)
         if decision.state in ("RELEASED", "TIMED_OUT"):
             self._ended_ns = decision.stamp_ns
         elif decision.state == "HOLDING":
@@ -192,12 +228,23 @@ class HandoverBehaviourNode(Node):
         self.gripper_level, self.gripper_message = level, msg.message
         now = self._now()
         state = self.machine.state
+        values = {kv.key: kv.value for kv in msg.values}
+        if state == HandoverState.FAULT and self.machine.awaiting_status:
+            # after a fault: the first status read from a working link says where the
+            # fingers really are (an open command may have run despite the error)
+            if values.get("link") == "ok":
+                with contextlib.suppress(BehaviourError):
+                    status = status_from_values(values)
+                    self.machine.on_status_after_fault(
+                        is_open(status), settled(status), describe_position(status), now
+                    )
+            return
         if level == Level.ERROR:
             if state in (HandoverState.HOLDING, HandoverState.RELEASING):
                 self._act(self.machine.on_fault(msg.message, now))
             return
         try:
-            status = status_from_values([(kv.key, kv.value) for kv in msg.values])
+            status = status_from_values(values)
         except BehaviourError:
             return  # no register values yet (e.g. "no status yet")
         if state == HandoverState.RELEASING:
@@ -212,7 +259,11 @@ class HandoverBehaviourNode(Node):
         if not ready_for_next:
             return
         if status.object_held:
-            if self.auto_start:
+            if (
+                self.auto_start
+                and self.offer_pub.get_subscription_count() >= self.start_subscribers
+                and now - self._started_ns >= self.start_delay_ns
+            ):
                 self._act(self.machine.start(now))
         elif self.grasp_on_start and status.ready and not self._grasp_pending:
             self._grasp_pending = True

@@ -10,7 +10,8 @@ interface is topics:
   false resets (rACT = 0).
 - ``gripper/status`` (``diagnostic_msgs/DiagnosticStatus``, out, every poll): level OK / WARN
   (not ready) / ERROR (fault or link error), a readable message, and the register fields as
-  key-values ``gACT gGTO gSTA gOBJ gFLT gPR gPO gCU``.
+  key-values ``gACT gGTO gSTA gOBJ gFLT gPR gPO gCU``, plus ``link`` = ``ok`` when they were
+  read just now or ``error`` when they are the last values read before a link error.
 - ``gripper/joint_states`` (``sensor_msgs/JointState``, out): ``position[0]`` = gPO / 255
   (normalised closure, not the URDF joint angle), ``effort[0]`` = gCU x 0.01 A.
 
@@ -164,7 +165,11 @@ class RobotiqGripperNode(Node):
             level, text = (Level.OK if status.ready else Level.WARN), describe(status)
         msg.level, msg.message = bytes([int(level)]), text
         if status is not None:
+            # ``link``: "ok" when these values were read just now, "error" when they are the
+            # last ones read before a link error (so a reader knows whether they are current)
+            fresh = error is None and not self.error
             msg.values = [KeyValue(key=k, value=v) for k, v in status_to_values(status)]
+            msg.values.append(KeyValue(key="link", value="ok" if fresh else "error"))
             joints = JointState(
                 name=[self.joint_name],
                 position=[status.position / 255.0],

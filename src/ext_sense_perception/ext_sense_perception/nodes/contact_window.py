@@ -20,12 +20,12 @@ from typing import Any
 from rclpy.node import Node
 
 from ext_sense_msgs.msg import BioTacFrame, ContactGroundTruth, ContactWindow, TaxelEventBatch
-from ext_sense_perception.enums import Sensor, Task
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.nodes.pipeline import WindowStage, window_fields
 from ext_sense_perception.windows import WindowConfig
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
+from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import COMMAND_QOS, SENSOR_STREAM_QOS, WINDOW_QOS

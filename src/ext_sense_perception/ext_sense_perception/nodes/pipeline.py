@@ -20,9 +20,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ext_sense_perception.enums import Sensor
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.windows import ContactWindow, WindowConfig, make_windower
+from ext_sense_runtime.enums import Sensor
 
 NS_PER_S = 1_000_000_000
 JOIN_DEPTH = 64

@@ -23,6 +23,13 @@ how much the pressure moves, and a per-taxel rate limit (the paper's refractory 
 that information. ``pa_per_count`` (1000 Pa) is calibrated so that the food scene's value-field
 spans per taxel match the real captures within a factor of about 2 (apple about 20 counts
 simulated, 40-49 real; water 1-2 both).
+
+Bounded reading. With ``clip_reading: true`` the filtered reading is clipped to the ADC's
+0..1023 counts before the encoder, so a taxel pressed past full scale stops firing instead of
+reporting pressure the 10-bit reading cannot hold (the real captures do reach 1022 on heavily
+pressed taxels). The tap scenes set it; the default (off) keeps the food and handover scenes
+exactly as calibrated (at 1000 Pa per count the bound is about 950 kPa above the offset, which
+the grasp reaches only on the hardest fork contacts).
 """
 
 from __future__ import annotations
@@ -154,13 +161,19 @@ class NuskinTransduction(Effect):
         "offset_counts": 70.0,
         "pa_per_count": 1000.0,
         "reference": "reset",
+        "clip_reading": False,
     }
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Give ``events`` (an :class:`EventBatch`, batch-local trial indices)."""
         pressure = signals.need("taxel_pressure", self.name)
         _n_trials, n_taxels, n_samples = pressure.shape
+        per_count = self.scalar("pa_per_count", 1e-9)
+        offset = self.scalar("offset_counts", 0, 1023)
         filtered = front_end(pressure, self.scalar("bandwidth_hz", 1.0), time.rate_hz)
+        if _flag(self.name, "clip_reading", self.params["clip_reading"]):
+            # the 10-bit reading bounds what the encoder sees (pressure-equivalent units)
+            np.clip(filtered, -offset * per_count, (1023 - offset) * per_count, out=filtered)
         time_major = np.ascontiguousarray(filtered.reshape(-1, n_samples).T)
         refractory = max(1, math.ceil(self.scalar("refractory_s", 0.0) * time.rate_hz - 1e-9))
         mode = self.params["reference"]
@@ -172,9 +185,7 @@ class NuskinTransduction(Effect):
         k, channel, polarity = level_crossing(
             time_major, self.scalar("threshold_pa", 1e-9), refractory, reset=mode == "reset"
         )
-        value = self.scalar("offset_counts", 0, 1023) + time_major[k, channel] / self.scalar(
-            "pa_per_count", 1e-9
-        )
+        value = offset + time_major[k, channel] / per_count
         jitter = refractory_safe_jitter(k, channel, refractory, rng)
         t_ns = np.round((k + jitter) * (1e9 / time.rate_hz)).astype(np.int64)
         events = EventBatch(
@@ -185,3 +196,12 @@ class NuskinTransduction(Effect):
             np.clip(np.round(value), 0, 1023).astype(np.uint16),
         )
         signals["events"] = events.sorted()
+
+
+def _flag(effect: str, key: str, value: object) -> bool:
+    """A boolean parameter, or a :class:`SceneError` naming it."""
+    if not isinstance(value, bool):
+        raise SceneError(
+            f"Effect '{effect}': parameter '{key}' must be true or false. Got {value!r} instead."
+        )
+    return value

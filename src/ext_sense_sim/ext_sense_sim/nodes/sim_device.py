@@ -4,10 +4,18 @@ Streams over a pty (with a symlink at ``port_link`` so a driver's ``port`` can n
 it exists) or a python-can virtual channel, from a thread, and publishes ``ground_truth``
 (``ext_sense_msgs/ContactGroundTruth``) stamped with the host time at which each trial's
 true onset bytes were written.
+
+With ``mode`` = ``trigger`` the device is silent until a message on ``trigger``
+(``ContactGroundTruth``; only its stamp is used) asks for the next ``trials_per_trigger``
+trials (:func:`ext_sense_sim.streaming.stream_on_trigger`): a behaviour drives the scene, e.g.
+the food probe's ``motion_start`` (``align`` = ``onset``: the trial's motion start is put at
+the probe's) or the handover's ``handover/offer`` (``align`` = ``start``: the person grasps when
+the object is offered). ``labels`` schedules the classes of successive triggers.
 """
 
 from __future__ import annotations
 
+import queue
 import threading
 
 from rclpy.node import Node
@@ -17,10 +25,20 @@ from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
-from ext_sense_runtime.qos import GROUND_TRUTH_QOS
-from ext_sense_runtime.stamps import fill_stamp
+from ext_sense_runtime.qos import COMMAND_QOS, GROUND_TRUTH_QOS
+from ext_sense_runtime.stamps import fill_stamp, stamp_to_ns
 from ext_sense_sim.scene import load_scene
-from ext_sense_sim.streaming import GroundTruth, StreamStats, open_link, stream
+from ext_sense_sim.streaming import (
+    ALIGNS,
+    GroundTruth,
+    StreamStats,
+    Trigger,
+    open_link,
+    stream,
+    stream_on_trigger,
+)
+
+MODES = ("free", "trigger")
 
 
 class SimDeviceNode(Node):
@@ -70,6 +88,43 @@ class SimDeviceNode(Node):
             high=3600.0,
             read_only=True,
         )
+        mode = declare(
+            self,
+            "mode",
+            "free",
+            "free: trials every trial_period_s from start-up; trigger: trials_per_trigger "
+            "trials per message on 'trigger'.",
+            read_only=True,
+        )
+        per_trigger = declare(
+            self,
+            "trials_per_trigger",
+            1,
+            "Trials played per trigger (mode trigger), their starts trial_period_s apart.",
+            low=1,
+            high=1000,
+            read_only=True,
+        )
+        labels = declare(
+            self,
+            "labels",
+            "",
+            "Class of the trials of successive triggers, comma separated, cycled (mode "
+            "trigger; e.g. 'stable,unstable'; empty: as the scene draws them).",
+            read_only=True,
+        )
+        align = declare(
+            self,
+            "align",
+            "start",
+            "Mode trigger: start (the trial starts on the trigger) or onset (its onset, e.g. "
+            "the food motion start, is put at the trigger's stamp).",
+            read_only=True,
+        )
+        if mode not in MODES:
+            raise ValueError(f"The 'mode' parameter must be one of {MODES}. Got {mode!r}.")
+        if align not in ALIGNS:
+            raise ValueError(f"The 'align' parameter must be one of {ALIGNS}. Got {align!r}.")
         default = {"nuskin": "tap_rod30_nuskin", "biotac": "tap_rod30_biotac"}
         if device not in default:
             raise ValueError(f"The 'device' parameter must be nuskin or biotac. Got {device!r}.")
@@ -88,15 +143,44 @@ class SimDeviceNode(Node):
         updater = Updater(self.port)
         updater.add_check("stream", self._check)
         self.diagnostics = DiagnosticsPublisher(self, updater)
+        self.triggers: queue.Queue[Trigger] = queue.Queue()
+        self.played = 0
+        self._ready = threading.Event()
+        if mode == "trigger":
+            target, run_args = (
+                self._run_triggered,
+                (
+                    seed,
+                    trials,
+                    period,
+                    per_trigger,
+                    [x.strip() for x in labels.split(",") if x.strip()],
+                    align,
+                ),
+            )
+        else:
+            target, run_args = self._run, (seed, trials, period)
         self._thread = threading.Thread(
-            target=self._run, args=(seed, trials, period), name="sim_device", daemon=True
+            target=target, args=run_args, name="sim_device", daemon=True
         )
         self._thread.start()
+        if mode == "trigger":
+            # Listen only once the first trial is simulated (a food trial takes about 0.4 s,
+            # more when labels skip some): a trigger before that would be played late, the
+            # start of its trial in one burst. Whoever triggers waits for this subscription.
+            if not self._ready.wait(timeout=120.0) and not self.error:
+                raise RuntimeError("sim_device: the first trial was not simulated within 120 s")
+            self.create_subscription(
+                ContactGroundTruth,
+                "trigger",
+                lambda m: self.triggers.put(Trigger(stamp_to_ns(m.header.stamp))),
+                COMMAND_QOS,
+            )
         self.get_logger().info(f"streaming scene {self.scene.name} on {self.port}")
 
     def _run(self, seed: int, trials: int, period: float) -> None:
         try:
-            self.stats = stream(
+            stream(
                 self.scene,
                 self.sink.write,
                 seed=seed,
@@ -104,10 +188,42 @@ class SimDeviceNode(Node):
                 period_s=period,
                 on_onset=self._publish,
                 stop=self._stop,
+                stats=self.stats,
             )
         except Exception as err:
             self.error = repr(err)
             self.get_logger().error(f"stream stopped: {err!r}")
+
+    def _run_triggered(
+        self,
+        seed: int,
+        trials: int,
+        period: float,
+        per_trigger: int,
+        labels: list[str],
+        align: str,
+    ) -> None:
+        try:
+            stream_on_trigger(
+                self.scene,
+                self.sink.write,
+                self.triggers,
+                seed=seed,
+                trials=trials,
+                per_trigger=per_trigger,
+                period_s=period,
+                labels=labels,
+                align=align,
+                on_onset=self._publish,
+                on_ready=self._ready.set,
+                stop=self._stop,
+                stats=self.stats,
+            )
+        except Exception as err:
+            self.error = repr(err)
+            self.get_logger().error(f"stream stopped: {err!r}")
+        finally:
+            self._ready.set()
 
     def _publish(self, gt: GroundTruth) -> None:
         msg = ContactGroundTruth(
@@ -120,7 +236,13 @@ class SimDeviceNode(Node):
         fill_stamp(msg.header.stamp, gt.stamp_ns)
         msg.header.frame_id = self.scene.sensor.label
         self.pub.publish(msg)
-        self.stats.trials = gt.trial + 1
+        self.played += 1
+        self.get_logger().info(
+            f"trial {gt.trial} ({gt.class_label or f'{gt.tap_position_m:.3f} m'}) onset at "
+            f"{gt.stamp_ns} ns (so far: {getattr(self.sink, 'dropped_bytes', 0)} bytes dropped, "
+            f"{self.stats.extra.get('late_writes', 0)} of {self.stats.writes} writes > 2 ms late, "
+            f"max {self.stats.extra.get('max_late_ns', 0) / 1e6:.1f} ms)"
+        )
 
     def _check(self) -> tuple[Level, str, dict[str, object]]:
         if self.error:
@@ -128,7 +250,13 @@ class SimDeviceNode(Node):
         return (
             Level.OK,
             "streaming",
-            {"trials": self.stats.trials, "dropped_bytes": getattr(self.sink, "dropped_bytes", 0)},
+            {
+                "trials": self.played,
+                "dropped_bytes": getattr(self.sink, "dropped_bytes", 0),
+                "skipped_bytes": self.stats.extra.get("skipped_bytes", 0),
+                "late_writes": self.stats.extra.get("late_writes", 0),
+                "max_late_ms": round(self.stats.extra.get("max_late_ns", 0) / 1e6, 2),
+            },
         )
 
     def destroy_node(self) -> None:

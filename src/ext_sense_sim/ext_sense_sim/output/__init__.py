@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ext_sense_runtime.enums import Sensor
 from ext_sense_sim.dataset import DatasetCollector
-from ext_sense_sim.enums import Sensor
 from ext_sense_sim.scene import Scene
 
 
