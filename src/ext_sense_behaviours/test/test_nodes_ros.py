@@ -218,26 +218,34 @@ def test_food_node_on_the_simulated_arm(ros):
     assert states == ["LOWERING", "COLLECTING", "CLASSIFYING", "RETRACTING", "DONE"]
 
 
-def test_handover_and_gripper_nodes_on_the_emulated_gripper(ros):
+def _handover_on_the_gripper(add, port: str, consecutive: int, gripper: list[Parameter]):
+    """Start ``robotiq_gripper`` on ``port`` and ``handover_behaviour``; returns the estimate
+    publisher and the list the decisions arrive in."""
     from ext_sense_behaviours.nodes.handover_behaviour import HandoverBehaviourNode
     from ext_sense_behaviours.nodes.robotiq_gripper import RobotiqGripperNode
 
+    add(
+        RobotiqGripperNode,
+        parameter_overrides=[
+            Parameter("port", value=port),
+            Parameter("poll_rate_hz", value=20.0),
+            *gripper,
+        ],
+    )
+    add(HandoverBehaviourNode, parameter_overrides=[Parameter("consecutive", value=consecutive)])
+    probe = add(Probe)
+    probe.listen(String, "handover/decision")
+    est_pub = probe.publisher(ContactEstimate, "contact_estimate", ESTIMATE_QOS)
+    return est_pub, probe.got["handover/decision"]
+
+
+def test_handover_and_gripper_nodes_on_the_emulated_gripper(ros):
     add, spin_until = ros
     emulator = RobotiqEmulator(GripperModel(activation_s=0.1, object_position=150))
     with PtyGripper(emulator) as pty:
-        add(
-            RobotiqGripperNode,
-            parameter_overrides=[
-                Parameter("port", value=pty.path),
-                Parameter("timeout_s", value=0.5),
-                Parameter("poll_rate_hz", value=20.0),
-            ],
+        est_pub, decisions = _handover_on_the_gripper(
+            add, pty.path, consecutive=2, gripper=[Parameter("timeout_s", value=0.5)]
         )
-        add(HandoverBehaviourNode, parameter_overrides=[Parameter("consecutive", value=2)])
-        probe = add(Probe)
-        probe.listen(String, "handover/decision")
-        est_pub = probe.publisher(ContactEstimate, "contact_estimate", ESTIMATE_QOS)
-        decisions = probe.got["handover/decision"]
         # the behaviour grasps the object by itself, then waits for stable estimates
         assert spin_until(lambda: any("HOLDING" in d.data for d in decisions))
         assert emulator.status().object_held
@@ -255,26 +263,15 @@ def test_handover_and_gripper_nodes_on_the_emulated_gripper(ros):
 def test_a_corrupted_reply_to_the_open_command_is_resolved_by_reading_the_gripper(ros):
     """BAD_CRC on the open command: FAULT (outcome unknown), then once the link answers the
     node reads where the fingers are and records the release that did happen."""
-    from ext_sense_behaviours.nodes.handover_behaviour import HandoverBehaviourNode
-    from ext_sense_behaviours.nodes.robotiq_gripper import RobotiqGripperNode
-
     add, spin_until = ros
     emulator = RobotiqEmulator(GripperModel(activation_s=0.1, object_position=150))
     with PtyGripper(emulator) as pty:
-        add(
-            RobotiqGripperNode,
-            parameter_overrides=[
-                Parameter("port", value=pty.path),
-                Parameter("timeout_s", value=0.2),
-                Parameter("retries", value=0),
-                Parameter("poll_rate_hz", value=20.0),
-            ],
+        est_pub, decisions = _handover_on_the_gripper(
+            add,
+            pty.path,
+            consecutive=1,
+            gripper=[Parameter("timeout_s", value=0.2), Parameter("retries", value=0)],
         )
-        add(HandoverBehaviourNode, parameter_overrides=[Parameter("consecutive", value=1)])
-        probe = add(Probe)
-        probe.listen(String, "handover/decision")
-        est_pub = probe.publisher(ContactEstimate, "contact_estimate", ESTIMATE_QOS)
-        decisions = probe.got["handover/decision"]
         assert spin_until(lambda: any("HOLDING" in d.data for d in decisions))
         emulator.set_fault(LinkFault.BAD_CRC)
         est_pub.publish(ContactEstimate(task="handover_stability", stability_probability=0.95))

@@ -5,6 +5,7 @@ a trained model through ONNX Runtime against torch and through a saved bundle.""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -193,9 +194,8 @@ def test_net_shape_errors_are_clear():
         GRUEstimator().predict(np.zeros((1, 80)))
 
 
-def test_gru_without_torch_is_a_clear_error(tap_npz):
-    if HAVE_TORCH:
-        pytest.skip("torch is installed: the missing-torch path cannot be shown")
+def test_gru_without_torch_is_a_clear_error(tap_npz, monkeypatch):
+    monkeypatch.setitem(sys.modules, "torch", None)  # `import torch` now fails, installed or not
     ws = from_sim_dataset(tap_npz)
     with pytest.raises(PerceptionError, match="needs torch"):
         bundle.train(ws, "baseline", "gru")
