@@ -32,10 +32,10 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from rosutil import spinning, wait_for
+from sim_models import EXE, train_sim_model
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(300)]
 
-EXE = [sys.executable, "-m", "ext_sense.cli"]
 DECISION = re.compile(r"^\[(\d+)\] ([A-Z_]+): ([A-Z_]+) - (.+)$")
 THRESHOLD, CONSECUTIVE = 0.8, 3
 OBJECT_POSITION = 128
@@ -127,38 +127,9 @@ def handover_model(tmp_path_factory):
 @pytest.fixture(scope="module")
 def food_model(tmp_path_factory):
     """A food model trained on a small simulated set (as test_end_to_end does)."""
-    from ext_sense.commands.demo import as_delivered
-
-    root = tmp_path_factory.mktemp("scenario_food")
-    data, model = root / "data", root / "model"
-    run = lambda *a: subprocess.run([*EXE, *a], capture_output=True, text=True, timeout=240)  # noqa: E731
-    out = run(
-        "sim",
-        "run",
-        "food_fork_nuskin",
-        "--out",
-        str(data),
-        "--trials",
-        "14",
-        "--seed",
-        "11",
-        "--formats",
-        "npz",
+    model, _ = train_sim_model(
+        tmp_path_factory.mktemp("scenario_food"), "food_fork_nuskin", "food_identification", 14
     )
-    assert out.returncode == 0, out.stderr
-    npz = as_delivered(data / "dataset.npz", data / "delivered.npz")
-    out = run(
-        "train",
-        "--task",
-        "food_identification",
-        "--sensor",
-        "nuskin",
-        "--data",
-        str(npz),
-        "--out",
-        str(model),
-    )
-    assert out.returncode == 0, out.stderr
     return model
 
 

@@ -17,9 +17,13 @@ from pathlib import Path
 
 import pytest
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from sim_models import EXE, train_sim_model
+from sim_models import cli as _cli
+
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(400)]
 
-EXE = [sys.executable, "-m", "ext_sense.cli"]
 SUMMARY_TAP = re.compile(
     r"^summary: taps=(\d+) mae_cm=([\d.]+|nan) compute_p50_ms=([\d.]+) compute_p99_ms=([\d.]+)$"
 )
@@ -34,51 +38,16 @@ TRAIN = {
 }
 
 
-def _cli(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=timeout)
-
-
 @pytest.fixture(scope="session")
 def models(tmp_path_factory):
     """Train each task's model once: {task: (model_dir, dataset.npz as delivered)}."""
-    from ext_sense.commands.demo import as_delivered
-
     root = tmp_path_factory.mktemp("e2e_models")
     cache: dict[str, tuple[Path, Path]] = {}
 
     def get(task: str) -> tuple[Path, Path]:
         if task not in cache:
             scene, trials, _ = TRAIN[task]
-            data = root / f"{task}_data"
-            out = _cli(
-                "sim",
-                "run",
-                scene,
-                "--out",
-                str(data),
-                "--trials",
-                str(trials),
-                "--seed",
-                "11",
-                "--formats",
-                "npz",
-            )
-            assert out.returncode == 0, out.stderr
-            npz = as_delivered(data / "dataset.npz", data / "delivered.npz")
-            model = root / f"{task}_model"
-            out = _cli(
-                "train",
-                "--task",
-                task,
-                "--sensor",
-                "nuskin",
-                "--data",
-                str(npz),
-                "--out",
-                str(model),
-            )
-            assert out.returncode == 0, out.stderr
-            cache[task] = (model, npz)
+            cache[task] = train_sim_model(root, scene, task, trials)
         return cache[task]
 
     return get
