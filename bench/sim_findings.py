@@ -5,12 +5,14 @@ paper's features (signed spike counts in 5 ms bins from 50 ms before to 250 ms a
 onset, |FFT| per taxel with the public code's scaling) and prints the 4-fold cross-validated
 MAE of standardised features into an RBF SVR (C from 1, 10, 100 by an inner 3-fold grid
 search, as the perception package's pipeline) and of ridge regression on ``log1p`` features
-(a model that weighs each feature, the fair one for comparing taxel selections) for 80 taxels
-(two fingers), 40 (one finger) and the best single taxel chosen on each training fold, and
-for the paper's sampling-rate reduction (per taxel, drop any spike closer than ``1/rate`` to
+(a model that weighs each feature) for 80 taxels (two fingers), 40 (one finger) and the best
+single taxel chosen on each training fold; for the selections also stacked per-taxel RBF SVRs
+(a nonlinear model that weighs taxels: the fair one for comparing selections, since the single
+RBF SVR's kernel is diluted by off-strip taxels); and the MAE for the paper's sampling-rate
+reduction (per taxel, drop any spike closer than ``1/rate`` to
 the last kept one). Figures and what they mean: docs/simulator.md, "Tap calibration".
 
-    python bench/sim_findings.py                 # 400 taps per rod, all three rods (~6 min)
+    python bench/sim_findings.py                 # 1000 taps per rod (the paper's), 3 rods (~10 min)
     python bench/sim_findings.py --quick         # 150 taps, 30 cm rod only
     python bench/sim_findings.py --set grasp_transfer.grip_force_n=20   # what-if
 
@@ -39,7 +41,7 @@ MS = 1_000_000
 PRE_NS, POST_NS, BIN_NS = 50 * MS, 250 * MS, 5 * MS
 N_BINS = (PRE_NS + POST_NS) // BIN_NS
 C_GRID = (1.0, 10.0, 100.0)
-RATES = (5.0, 20.0, 50.0, 200.0, 500.0, 1000.0, 2000.0, 4000.0)
+RATES = (5.0, 20.0, 50.0, 200.0, 500.0, 1000.0, 2000.0, 3000.0, 4000.0)
 SELECTIONS = {
     "80 taxels": np.arange(80),
     "40 (left)": np.arange(40),
@@ -127,16 +129,32 @@ def mae(x: np.ndarray, y: np.ndarray, seed: int = 0) -> float:
     return float(np.mean(np.abs(pred - y)))
 
 
-def ridge_mae(x: np.ndarray, y: np.ndarray, seed: int = 0) -> float:
-    """4-fold cross-validated MAE of ridge regression on log1p features (alpha by inner CV).
+def ridge_errors(x: np.ndarray, y: np.ndarray, seed: int = 0) -> np.ndarray:
+    """Per-tap absolute errors of 4-fold cross-validated ridge on log1p features.
 
     A linear model weighs each feature; the RBF kernel on standardised features weighs all
     equally, so uninformative taxels dilute its distances. Both are printed side by side.
+    Per-tap errors (not only their mean) let two selections be compared tap by tap.
     """
     model = make_pipeline(StandardScaler(), RidgeCV(alphas=np.logspace(-1, 4, 11)))
     x = np.log1p(x * 1000.0)
     pred = cross_val_predict(model, x, y, cv=KFold(4, shuffle=True, random_state=seed))
-    return float(np.mean(np.abs(pred - y)))
+    return np.abs(pred - y)
+
+
+def ridge_mae(x: np.ndarray, y: np.ndarray, seed: int = 0) -> float:
+    """4-fold cross-validated MAE of ridge regression on log1p features (alpha by inner CV)."""
+    return float(np.mean(ridge_errors(x, y, seed)))
+
+
+def paired(worse: np.ndarray, better: np.ndarray) -> str:
+    """Mean per-tap error difference and its standard error, e.g. ``+0.10 +- 0.02``.
+
+    The same taps are scored by both selections, so the paired difference removes the
+    tap-to-tap spread that dominates either MAE's own uncertainty.
+    """
+    d = worse - better
+    return f"{d.mean():+.2f} +- {d.std(ddof=1) / np.sqrt(len(d)):.2f}"
 
 
 def _fold_mae(make, x: np.ndarray, y: np.ndarray, train: np.ndarray, test: np.ndarray) -> float:
@@ -153,7 +171,9 @@ def _svr() -> object:
     return GridSearchCV(pipe, {"svr__C": C_GRID}, cv=3, scoring="neg_mean_absolute_error")
 
 
-def single_taxel(f: np.ndarray, y: np.ndarray, seed: int = 0) -> tuple[float, float, list[int]]:
+def single_taxel(
+    f: np.ndarray, y: np.ndarray, seed: int = 0
+) -> tuple[float, np.ndarray, list[int]]:
     """SVR and ridge MAE of the best single taxel, chosen on each training fold.
 
     In each outer fold every taxel's ridge model (log1p features) is scored by an inner 3-fold
@@ -161,7 +181,7 @@ def single_taxel(f: np.ndarray, y: np.ndarray, seed: int = 0) -> tuple[float, fl
     choice never sees the test taps.
 
     Returns:
-        ``(mae_svr, mae_ridge, chosen taxel ids per fold)``.
+        ``(mae_svr, per-tap ridge errors, chosen taxel ids per fold)``.
     """
     n = len(y)
     logf = np.log1p(f * 1000.0)
@@ -180,7 +200,44 @@ def single_taxel(f: np.ndarray, y: np.ndarray, seed: int = 0) -> tuple[float, fl
         errs_r[test] = np.abs(ridge.predict(logf[test, best]) - y[test])
         svr = _svr().fit(f[train, best], y[train])
         errs_s[test] = np.abs(svr.predict(f[test, best]) - y[test])
-    return float(errs_s.mean()), float(errs_r.mean()), chosen
+    return float(errs_s.mean()), errs_r, chosen
+
+
+def taxel_stack_errors(
+    f: np.ndarray, y: np.ndarray, selections: dict[str, np.ndarray], seed: int = 0
+) -> dict[str, np.ndarray]:
+    """Per-tap errors of a nonlinear model that weighs taxels: stacked per-taxel RBF SVRs.
+
+    One RBF SVR per taxel (its |FFT| row, standardised, C 100) predicts the position; a ridge
+    regression combines the selected taxels' predictions, trained on their out-of-fold
+    predictions (inner 3-fold on the training part) and scored on the outer test fold. "1
+    taxel" is the taxel whose out-of-fold error on the training part is lowest. The single
+    RBF SVR over all features weighs every feature alike; this one lets the data weigh each
+    taxel, so comparing 80, 40 and 1 taxels is not skewed by dilution.
+
+    Returns:
+        Per-tap absolute errors for each selection, plus ``"1 taxel"``.
+    """
+
+    def svr() -> object:
+        return make_pipeline(StandardScaler(), SVR(kernel="rbf", gamma="scale", C=100.0))
+
+    n, n_taxels = f.shape[0], f.shape[1]
+    errs = {label: np.zeros(n) for label in [*selections, "1 taxel"]}
+    for train, test in KFold(4, shuffle=True, random_state=seed).split(f):
+        oof = np.zeros((len(train), n_taxels))
+        held = np.zeros((len(test), n_taxels))
+        for tx in range(n_taxels):
+            x = f[:, tx]
+            for a, b in KFold(3, shuffle=True, random_state=seed + 1).split(train):
+                oof[b, tx] = svr().fit(x[train[a]], y[train[a]]).predict(x[train[b]])
+            held[:, tx] = svr().fit(x[train], y[train]).predict(x[test])
+        for label, sel in selections.items():
+            stack = RidgeCV(alphas=np.logspace(-3, 3, 13)).fit(oof[:, sel], y[train])
+            errs[label][test] = np.abs(stack.predict(held[:, sel]) - y[test])
+        best = int(np.argmin(np.abs(oof - y[train][:, None]).mean(axis=0)))
+        errs["1 taxel"][test] = np.abs(held[:, best] - y[test])
+    return errs
 
 
 def run_rod(scene: str, taps: int, seed: int, rates, sets) -> None:
@@ -192,13 +249,35 @@ def run_rod(scene: str, taps: int, seed: int, rates, sets) -> None:
     spread = float(np.mean(np.abs(y - y.mean())))
     line = [f"{scene}: {taps} taps, {len(ev[0]) / n:.0f} events/tap in window, sim {sim_s:.1f} s"]
     line.append(f"  spread of y (mean abs dev) {spread:.2f} cm")
-    line.append(f"  {'':>10}  MAE SVR (RBF)  MAE ridge")
+    line.append(f"  {'':>10}  MAE SVR (RBF)  MAE ridge  ridge, paired per tap (cm, +- SE)")
+    errs = {}
     for label, sel in SELECTIONS.items():
         x = f[:, sel].reshape(n, -1)
-        line.append(f"  {label:>10}: {mae(x, y):9.2f} cm {ridge_mae(x, y):8.2f} cm")
+        errs[label] = ridge_errors(x, y)
+        vs = (
+            ""
+            if label == "80 taxels"
+            else f"  minus 80 taxels {paired(errs[label], errs['80 taxels'])}"
+        )
+        line.append(f"  {label:>10}: {mae(x, y):9.2f} cm {errs[label].mean():8.2f} cm{vs}")
     st, sr, tax = single_taxel(f, y)
+    better = min(("40 (left)", "40 (right)"), key=lambda k: errs[k].mean())
     line.append(
-        f"  {'1 taxel':>10}: {st:9.2f} cm {sr:8.2f} cm (best on each training fold: taxels {tax})"
+        f"  {'1 taxel':>10}: {st:9.2f} cm {sr.mean():8.2f} cm  minus better finger "
+        f"{paired(sr, errs[better])} (best on each training fold: taxels {tax})"
+    )
+    stack = taxel_stack_errors(f, y, SELECTIONS)
+    line.append("  stacked per-taxel RBF SVRs (MAE, then paired per tap, cm +- SE):")
+    line.append(f"  {'80 taxels':>10}: {stack['80 taxels'].mean():.2f} cm")
+    for label in ("40 (left)", "40 (right)"):
+        line.append(
+            f"  {label:>10}: {stack[label].mean():.2f} cm  minus 80 taxels "
+            f"{paired(stack[label], stack['80 taxels'])}"
+        )
+    better = min(("40 (left)", "40 (right)"), key=lambda k: stack[k].mean())
+    line.append(
+        f"  {'1 taxel':>10}: {stack['1 taxel'].mean():.2f} cm  minus better finger "
+        f"{paired(stack['1 taxel'], stack[better])}"
     )
     print("\n".join(line), flush=True)
     if rates:
@@ -210,11 +289,11 @@ def run_rod(scene: str, taps: int, seed: int, rates, sets) -> None:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--taps", type=int, default=400)
+    parser.add_argument("--taps", type=int, default=1000, help="taps per rod (paper: 1000)")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--rods", default="20,30,50")
     parser.add_argument("--rates", default=",".join(f"{r:g}" for r in RATES))
-    parser.add_argument("--no-rates-except", default="30", help="rods whose rate study runs")
+    parser.add_argument("--no-rates-except", default="20,30,50", help="rods whose rate study runs")
     parser.add_argument("--set", action="append", default=[], help="effect.param=value")
     parser.add_argument("--quick", action="store_true", help="150 taps, 30 cm rod only")
     args = parser.parse_args()

@@ -7,12 +7,13 @@ a direction ``angle_deg`` from the pad normal. Its impulse is ``2 F tau / pi``.
 The contact time is set by the tapper. Hertz's impact time ``t = 2.87 (m^2 / (R E*^2 v))^(1/5)``
 gives about 0.1 ms for a rigid plastic stick on acrylic (20 g, R 5 mm, E* ~ 3 GPa, 0.3 m/s) and
 5-15 ms for a fingertip (10-30 g effective, R 8 mm, pulp E* 0.2-1 MPa, 0.2-0.5 m/s). The
-defaults (1-5 N, 0.5-3 ms) are a hand-held tapper with a compliant tip; the NUSkin and BioTac
-tap scenes declare a gentle fingertip tap, 0.3-1.5 N for 4-12 ms: an impulse of 0.8-11 mN s
-against 0.3-10 for the defaults, so the event streams keep about their density. The contact
-time decides how hard the rod's upper modes ring (a pulse of length ``tau`` drives little above
-``1 / tau``), and with it how often the in-contact taxels fire at their refractory limit:
-docs/simulator.md measures what it does to the paper's findings.
+defaults (1-5 N, 0.5-3 ms) are a hand-held tapper with a compliant tip. The NUSkin rod scenes
+declare a light fingertip tap, 0.05-0.25 N for 4-12 ms (impulse 0.13-1.9 mN s); the BioTac rod
+scene a firmer one, 0.3-1.5 N for 4-12 ms. The contact time decides how hard the rod's upper
+modes ring (a pulse of length ``tau`` drives little above ``1 / tau``) and the force how many
+counts the pads see; together they set how often the in-contact taxels fire at their 4 kHz
+refractory limit, which is what the paper's rate finding constrains: docs/simulator.md ("Tap
+calibration") measures what each choice does to the paper's findings.
 """
 
 from __future__ import annotations
