@@ -10,6 +10,10 @@ imported lazily and its absence gives a clear :class:`PerceptionError`. Its pipe
 the identity (the GRU scales its inputs per channel itself, see
 :class:`~ext_sense_perception.gru.GRUEstimator`); it exports to ONNX from its NumPy weights
 without torch (:mod:`ext_sense_perception.gru_onnx`).
+
+``taxel_svr`` (tap localisation only) is :class:`~ext_sense_perception.taxel_stack.TaxelStackSVR`:
+one RBF SVR per selected channel on its block of the scaled features, combined by ridge
+regression trained on out-of-fold predictions.
 """
 
 from __future__ import annotations
@@ -25,11 +29,15 @@ from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC, SVR
 
 from ext_sense_perception.errors import PerceptionError
-from ext_sense_perception.features import WindowFeatures, select_channels
+from ext_sense_perception.features import FeatureKind, WindowFeatures, select_channels
 
-MODEL_NAMES = ("svm_linear", "svm_rbf", "svm", "mlp", "gru", "random_forest")
+MODEL_NAMES = ("svm_linear", "svm_rbf", "svm", "mlp", "gru", "random_forest", "taxel_svr")
 C_GRID = (1.0, 3.0, 10.0, 30.0, 100.0)
 REGRESSION_EPSILON_M = 0.001  # 0.1 cm, scikit-learn's default epsilon on the paper's cm labels
+# the taxel stack's grid has one point (C 100 on cm): its 4-fold search on 1000 taps takes about
+# a minute on the shared machine already (80 channels x (3 inner + 1) SVR fits per fit)
+TAXEL_SVR_C = 100.0
+PER_CHANNEL_FEATURES = ("fft", "baseline", "est")  # features laid out in per-channel blocks
 
 
 def make_estimator(
@@ -46,7 +54,8 @@ def make_estimator(
         ``(estimator, grid)``.
 
     Raises:
-        PerceptionError: on an unknown name, or ``gru`` without torch.
+        PerceptionError: on an unknown name, ``gru`` without torch, ``random_forest`` for
+            regression or ``taxel_svr`` for classification.
     """
     c_scale = 0.01 if regression else 1.0
     c_grid = [c * c_scale for c in C_GRID]
@@ -77,6 +86,18 @@ def make_estimator(
         return RandomForestClassifier(n_estimators=200, random_state=seed), {
             "max_features": ["sqrt"]
         }
+    if name == "taxel_svr":
+        if not regression:
+            raise PerceptionError(
+                "The 'model' parameter 'taxel_svr' is for tap localisation (regression) only. "
+                "Got a classification task instead."
+            )
+        from ext_sense_perception.taxel_stack import TaxelStackSVR
+
+        est = TaxelStackSVR(
+            C=TAXEL_SVR_C * c_scale, epsilon=REGRESSION_EPSILON_M, random_state=seed
+        )
+        return est, {"C": [TAXEL_SVR_C * c_scale]}
     if name == "gru":
         from ext_sense_perception.gru import GRUEstimator, _torch
 
@@ -101,6 +122,10 @@ def make_pipeline(
 
     Returns:
         ``(pipeline, grid)``.
+
+    Raises:
+        PerceptionError: as :func:`make_estimator`, or ``taxel_svr`` on features that are not
+            laid out in per-channel blocks.
     """
     est, grid = make_estimator(name, regression, seed)
     scaler = StandardScaler()
@@ -109,6 +134,16 @@ def make_pipeline(
         # scales its inputs per channel itself (a per-(channel, step) scaler measured worse)
         est.set_params(n_channels=len(select_channels(features.channels, features.n_channels)))
         scaler = StandardScaler(with_mean=False, with_std=False)
+    if name == "taxel_svr":
+        # one SVR per selected channel's block; the pipeline's per-feature scaler is exactly
+        # per-block standardisation
+        kind = str(FeatureKind.parse(features.kind).name.lower())
+        if kind not in PER_CHANNEL_FEATURES:
+            raise PerceptionError(
+                "The 'model' parameter 'taxel_svr' needs features in per-channel blocks "
+                f"({', '.join(PER_CHANNEL_FEATURES)}). Got {kind!r} instead."
+            )
+        est.set_params(n_channels=len(select_channels(features.channels, features.n_channels)))
     pipe = Pipeline([("features", features), ("scale", scaler), ("model", est)])
     return pipe, {f"model__{k}": v for k, v in grid.items()}
 

@@ -4,8 +4,9 @@
 maps are constant matrices along the time axis, so the ONNX graph is ``Reshape`` ->
 ``Gather`` (channel selection) -> ``MatMul`` (rebin / decimate / DFT / EST kernel) ->
 element-wise ops (magnitude, ``log1p``, encoder layers). The scaler and the estimator use
-skl2onnx's own converters, except the SVR (MatMul/Exp, faster) and the GRU
-(:mod:`ext_sense_perception.gru_onnx`, ONNX ``GRU`` from the NumPy weights, no torch). The
+skl2onnx's own converters, except the SVR (MatMul/Exp, faster), the taxel-wise stacked SVR
+(:mod:`ext_sense_perception.taxel_stack`, all channels' kernels in one batched MatMul) and the
+GRU (:mod:`ext_sense_perception.gru_onnx`, ONNX ``GRU`` from the NumPy weights, no torch). The
 exported graph takes ``window``: ``(n, n_channels * n_samples)`` float32, exactly what
 :func:`~ext_sense_perception.features.as_model_input` produces.
 """
@@ -171,6 +172,54 @@ def _svr_converter(scope, operator, container) -> None:
     y.add_to(scope, container)
 
 
+def _taxel_stack_converter(scope, operator, container) -> None:
+    """Per-channel RBF SVRs and their ridge combination as one batched graph.
+
+    Every block's support vectors are padded to one count (zero coefficients) and the ridge
+    weights folded into the dual coefficients (:meth:`TaxelStackSVR.onnx_arrays`), so all
+    channels run in one ``MatMul``: ``(n_channels, n, d) @ (n_channels, d, n_sv)``, with the
+    squared distance expanded on inputs centred per block, as in :func:`_svr_converter`; the
+    weighted kernel rows are summed over channels.
+    """
+    from skl2onnx.algebra.onnx_ops import (
+        OnnxAdd,
+        OnnxExp,
+        OnnxMatMul,
+        OnnxMax,
+        OnnxMul,
+        OnnxReduceSum,
+        OnnxReshape,
+        OnnxSub,
+        OnnxTranspose,
+    )
+
+    op = operator.raw_operator
+    v = container.target_opset
+    f32 = np.float32
+    arr = op.onnx_arrays()
+    n_ch, _, d = arr["sv"].shape
+    x = OnnxReshape(operator.inputs[0], np.array([-1, n_ch, d], np.int64), op_version=v)
+    xc = OnnxSub(x, arr["centre"].astype(f32)[None, :, :], op_version=v)
+    xc = OnnxTranspose(xc, perm=[1, 0, 2], op_version=v)  # (n_ch, n, d)
+    xx = OnnxReduceSum(
+        OnnxMul(xc, xc, op_version=v), np.array([2], np.int64), keepdims=1, op_version=v
+    )
+    cross = OnnxMatMul(xc, (-2.0 * arr["sv"].transpose(0, 2, 1)).astype(f32), op_version=v)
+    ss = (arr["sv"] ** 2).sum(axis=2)[:, None, :].astype(f32)  # (n_ch, 1, n_sv)
+    d2 = OnnxAdd(OnnxAdd(cross, xx, op_version=v), ss, op_version=v)
+    d2 = OnnxMax(d2, np.array([0.0], f32), op_version=v)
+    k = OnnxExp(OnnxMul(d2, (-arr["gamma"]).astype(f32)[:, None, None], op_version=v), op_version=v)
+    per_channel = OnnxMatMul(k, arr["coef"].astype(f32)[:, :, None], op_version=v)  # (n_ch, n, 1)
+    total = OnnxReduceSum(per_channel, np.array([0], np.int64), keepdims=0, op_version=v)
+    y = OnnxAdd(
+        total,
+        np.array([[arr["intercept"]]], f32),
+        op_version=v,
+        output_names=operator.outputs[:1],
+    )
+    y.add_to(scope, container)
+
+
 def _gru_parser(scope, model, inputs, custom_parsers=None):
     """Outputs of the GRU: ``variable`` (regression) or ``label`` + ``probabilities``."""
     from skl2onnx.common.data_types import FloatTensorType, Int64TensorType, StringTensorType
@@ -231,7 +280,10 @@ def _gru_converter(scope, operator, container) -> None:
 
 
 def register_converters() -> None:
-    """Teach skl2onnx :class:`WindowFeatures`, a faster SVR and the GRU (idempotent)."""
+    """Teach skl2onnx :class:`WindowFeatures`, a faster SVR, the taxel stack and the GRU.
+
+    Idempotent.
+    """
     global _registered
     if _registered:
         return
@@ -239,11 +291,15 @@ def register_converters() -> None:
     from sklearn.svm import SVR
 
     from ext_sense_perception.gru import GRUEstimator
+    from ext_sense_perception.taxel_stack import TaxelStackSVR
 
     update_registered_converter(
         WindowFeatures, "ExtSenseWindowFeatures", _shape_calculator, _converter
     )
     update_registered_converter(SVR, "ExtSenseSVR", _svr_shape_calculator, _svr_converter)
+    update_registered_converter(
+        TaxelStackSVR, "ExtSenseTaxelStackSVR", _svr_shape_calculator, _taxel_stack_converter
+    )
     update_registered_converter(
         GRUEstimator,
         "ExtSenseGRU",

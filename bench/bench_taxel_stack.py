@@ -1,0 +1,96 @@
+"""Taxel-wise stacked SVR against the default FFT + SVR (RBF): training time and latency.
+
+Prints, side by side in one run, for ``fft + svm_rbf`` (the tap default) and
+``fft + taxel_svr`` trained with ``bundle.train`` on the same windows:
+- training seconds (grid search with 4-fold CV + refit; the stack's grid has one point);
+- support vectors (per-window cost is channels x support vectors x bins) and bundle file sizes;
+- one window through the saved bundle, p50/p99 over many windows, ONNX Runtime (target p99
+  <= 2 ms) and scikit-learn, with the two models' windows interleaved so load hits both alike.
+
+    python bench/bench_taxel_stack.py                      # 1000 synthetic taps
+    python bench/bench_taxel_stack.py --quick              # 100 synthetic taps, about 10 s
+    python bench/bench_taxel_stack.py --data DATASET.npz   # simulator dataset (real SV counts)
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ext_sense_perception import bundle
+from ext_sense_perception.dataset import from_sim_dataset
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_perception import synthetic_taps  # bench scripts are not a package
+
+MODELS = ("svm_rbf", "taxel_svr")
+
+
+def support_vectors(trained: bundle.TrainedModel) -> int:
+    """Support vectors summed over the model's SVRs."""
+    model = trained.pipeline.steps[-1][1]
+    if hasattr(model, "svrs_"):
+        return sum(len(s.support_) for s in model.svrs_)
+    return len(model.support_)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--quick", action="store_true", help="100 synthetic taps, fewer repeats")
+    ap.add_argument("--data", default=None, help="a simulator tap dataset.npz (default synthetic)")
+    ap.add_argument("--repeat", type=int, default=None, help="windows timed per model")
+    args = ap.parse_args()
+    ws = from_sim_dataset(args.data) if args.data else synthetic_taps(100 if args.quick else 1000)
+    repeat = args.repeat or (100 if args.quick else 1000)
+    print(f"{len(ws.y)} taps, windows {ws.X.shape[1:]} ({ws.source})")
+    loaded = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in MODELS:
+            t0 = time.perf_counter()
+            trained = bundle.train(ws, "fft", name)
+            train_s = time.perf_counter() - t0
+            out = bundle.save(trained, Path(tmp) / name)
+            loaded[name] = {b: bundle.load_model(out, b) for b in ("onnx", "sklearn")}
+            mae = trained.card["metrics"]["cv_mae_m"] * 100
+            mb = {
+                f: (out / f).stat().st_size / 1e6 for f in (bundle.ONNX_FILE, bundle.SKLEARN_FILE)
+            }
+            print(
+                f"{name:10s} train {train_s:6.1f} s, CV MAE {mae:.2f} cm, "
+                f"{support_vectors(trained)} support vectors, "
+                f"{mb[bundle.ONNX_FILE]:.1f} MB ONNX, {mb[bundle.SKLEARN_FILE]:.1f} MB joblib"
+            )
+        windows = [ws.X[i % len(ws.X)] for i in range(repeat)]
+        for backend in ("onnx", "sklearn"):
+            times: dict[str, list[float]] = {m: [] for m in MODELS}
+            for m in MODELS:
+                loaded[m][backend].predict(windows[0])
+            n = repeat if backend == "onnx" else max(repeat // 5, 20)
+            for w in windows[:n]:
+                for m in MODELS:
+                    t0 = time.perf_counter_ns()
+                    loaded[m][backend].predict(w)
+                    times[m].append((time.perf_counter_ns() - t0) / 1e6)
+            p = {m: (np.percentile(times[m], 50), np.percentile(times[m], 99)) for m in MODELS}
+            for m in MODELS:
+                target = " (target p99 <= 2 ms)" if backend == "onnx" else ""
+                print(
+                    f"{m:10s} {backend:7s} one window p50 / p99: "
+                    f"{p[m][0]:.3f} / {p[m][1]:.3f} ms{target}"
+                )
+            print(
+                f"taxel_svr / svm_rbf {backend}: p50 x{p['taxel_svr'][0] / p['svm_rbf'][0]:.1f}, "
+                f"p99 x{p['taxel_svr'][1] / p['svm_rbf'][1]:.1f}"
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
