@@ -54,7 +54,7 @@ def _common(p: argparse.ArgumentParser, *, need_task: bool = True) -> None:
     p.add_argument(
         "--model",
         default=None,
-        help="svm_linear, svm_rbf, svm, mlp, gru, random_forest (default: best)",
+        help="svm_linear, svm_rbf, svm, mlp, gru, random_forest, taxel_svr (default: best)",
     )
     p.add_argument(
         "--post-ms", type=float, default=None, help="post-contact window used, ms (default: all)"
@@ -128,6 +128,34 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
         "--bin-ms", type=float, default=None, help="NUSkin FFT/baseline bin, ms (default 5)"
+    )
+    p.add_argument(
+        "--features",
+        default=None,
+        help="comma-separated feature sets of the features x models tables, e.g. fft,baseline "
+        "(default fft,baseline,est,autoencoder; quick fft,baseline)",
+    )
+    p.add_argument(
+        "--models",
+        default=None,
+        help="comma-separated models of those tables, e.g. svm_linear,svm_rbf "
+        "(default svm_linear,svm_rbf,mlp; quick svm_rbf)",
+    )
+    p.add_argument(
+        "--no-gru", action="store_true", help="leave out the GRU row of NUSkin tap datasets"
+    )
+    p.add_argument(
+        "--no-latency",
+        action="store_true",
+        help="leave out the decision-latency / anytime-calibration sections",
+    )
+    p.add_argument(
+        "--no-taxels",
+        action="store_true",
+        help="leave out the two fingers / one finger / one taxel sections",
+    )
+    p.add_argument(
+        "--jobs", type=int, default=1, help="parallel grid-search jobs per evaluation (default 1)"
     )
     p.set_defaults(func=_cmd_report)
 
@@ -415,7 +443,12 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from ext_sense_perception.errors import PerceptionError
     from ext_sense_perception.report import build_report
 
+    def names(value: str | None) -> list[str] | None:
+        return None if value is None else [v.strip() for v in value.split(",") if v.strip()]
+
     try:
+        if args.jobs < 1:
+            raise PerceptionError(f"The '--jobs' option must be >= 1. Got {args.jobs} instead.")
         params = {"bin_ns": round(args.bin_ms * MS)} if args.bin_ms else None
         path = build_report(
             [Path(d) for d in args.data],
@@ -424,6 +457,12 @@ def _cmd_report(args: argparse.Namespace) -> int:
             quick=args.quick,
             seed=args.seed,
             base_params=params,
+            gru=False if args.no_gru else None,
+            features=names(args.features),
+            models=names(args.models),
+            n_jobs=args.jobs,
+            latency=not args.no_latency,
+            taxels=not args.no_taxels,
         )
     except PerceptionError as err:
         return _fail(err)
