@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import os
 import re
-import signal
 import subprocess
 import sys
 import threading
@@ -32,7 +31,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from rosutil import spinning, wait_for
-from sim_models import EXE, train_sim_model
+from sim_models import EXE, stop_graph, train_sim_model
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(300)]
 
@@ -58,14 +57,7 @@ def _start_graph(graph: str, *args: str) -> subprocess.Popen:
 
 def _stop_graph(proc: subprocess.Popen) -> str:
     """Stop the runner and every node (its process group); returns its stderr (the logs)."""
-    if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGINT)
-    try:
-        _, stderr = proc.communicate(timeout=20)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        _, stderr = proc.communicate()
-    return stderr
+    return stop_graph(proc)[1]
 
 
 class Recorder:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import os
 import re
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -19,7 +18,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from sim_models import EXE, train_sim_model
+from sim_models import EXE, stop_graph, train_sim_model
 from sim_models import cli as _cli
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(400)]
@@ -74,12 +73,7 @@ def _run_graph(graph: str, model: Path, trials: int, *extra: str, timeout: float
     try:
         stdout, stderr = proc.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGINT)
-        try:
-            stdout, stderr = proc.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            stdout, stderr = proc.communicate()
+        stdout, stderr = stop_graph(proc, timeout=10)
         pytest.fail(f"{graph} did not finish in {timeout} s:\n{stdout}\n{stderr[-3000:]}")
     out = subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
     lines = [x for x in stdout.splitlines() if x.strip()]
