@@ -5,7 +5,7 @@ VENV        ?= .venv
 JAZZY_VENV  ?= .venv-jazzy
 PY          := $(VENV)/bin/python
 
-.PHONY: setup demo test lint format bench bench-quick test-jazzy setup-jazzy colcon clean
+.PHONY: setup demo test test-fast lint format bench bench-quick test-jazzy setup-jazzy colcon clean
 
 setup:
 	@scripts/setup.sh kilted
@@ -17,6 +17,11 @@ demo: setup
 ## Lint and every test (unit, node, system). CI runs exactly this.
 test: setup lint
 	@$(VENV)/bin/pytest
+
+## The everyday lane: lint and the tests not marked slow (no graph subprocesses, no training on
+## hundreds of taps). Run `make test` before you push.
+test-fast: setup lint
+	@$(VENV)/bin/pytest -m "not slow"
 
 lint: setup
 	@$(VENV)/bin/ruff check .

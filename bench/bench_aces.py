@@ -39,7 +39,7 @@ from ext_sense_drivers.aces import (
     ns_to_sample,
     samples_to_bytes,
 )
-from ext_sense_drivers.nuskin.events import EventBlock
+from ext_sense_runtime.records import EventBlock
 
 OCCUPANCIES = (0.10, 0.30, 0.60)
 BURST_SIZES = (8, 12, 16, 24)

@@ -16,7 +16,8 @@ import time
 
 import numpy as np
 
-from ext_sense_drivers.biotac.bridge import BridgeDecoder, encode_frames
+from ext_sense_drivers.biotac.decoder import BridgeDecoder
+from ext_sense_drivers.biotac.encoder import encode_frames
 from ext_sense_drivers.biotac.reference import ReferenceDecoder
 from ext_sense_drivers.biotac.words import encode_values
 

@@ -24,10 +24,15 @@ import time
 
 import numpy as np
 
-from ext_sense_perception import bundle
-from ext_sense_perception.dataset import WindowSet
-from ext_sense_perception.features import Geometry
-from ext_sense_perception.windows import MS, ContactWindow, EventWindower
+from ext_sense_perception.data.window_set import WindowSet
+from ext_sense_perception.online.model_input import Geometry
+from ext_sense_perception.online.predictor import ModelBundle, load_model
+from ext_sense_perception.online.window import ContactWindow
+from ext_sense_perception.online.windowers import EventWindower
+from ext_sense_perception.training.bundle_io import save_bundle
+from ext_sense_perception.training.fit import TrainedModel, fit_model
+from ext_sense_runtime.records import EventBlock
+from ext_sense_runtime.stamps import MS
 
 
 def synthetic_taps(n: int, seed: int = 0) -> WindowSet:
@@ -64,7 +69,7 @@ def percentiles(times_ms: list[float]) -> tuple[float, float]:
     return float(np.percentile(times_ms, 50)), float(np.percentile(times_ms, 99))
 
 
-def time_predict(model: bundle.ModelBundle, windows: list, repeat: int) -> tuple[float, float]:
+def time_predict(model: ModelBundle, windows: list, repeat: int) -> tuple[float, float]:
     model.predict(windows[0])
     out = []
     for i in range(repeat):
@@ -74,20 +79,22 @@ def time_predict(model: bundle.ModelBundle, windows: list, repeat: int) -> tuple
     return percentiles(out)
 
 
-def gru_model(ws: WindowSet, quick: bool) -> tuple[bundle.TrainedModel, str]:
+def gru_model(ws: WindowSet, quick: bool) -> tuple[TrainedModel, str]:
     """A GRU bundle: trained with torch when it is installed, else random weights."""
     from sklearn.pipeline import Pipeline
     from sklearn.preprocessing import StandardScaler
 
-    from ext_sense_perception.gru import GRUEstimator, torch_available
-    from ext_sense_perception.gru_onnx import GRUNet
-    from ext_sense_perception.protocol import features_for
+    from ext_sense_perception.online.model_card import ModelCard
+    from ext_sense_perception.training.fit import nominal_rate_hz
+    from ext_sense_perception.training.gru import GRUEstimator, torch_available
+    from ext_sense_perception.training.gru_onnx import GRUNet
+    from ext_sense_perception.training.protocol import features_for
 
     sub = ws.subset(np.arange(min(len(ws.y), 200)))
     if torch_available():
         t0 = time.perf_counter()
         params = {"max_epochs": 10} if quick else None  # else the default 60 epochs
-        trained = bundle.train(sub, "baseline", "gru", model_params=params)
+        trained = fit_model(sub, "baseline", "gru", model_params=params)
         return trained, f"trained on {len(sub.y)} taps in {time.perf_counter() - t0:.1f} s"
     feats = features_for(sub, "baseline")
     x = sub.X.reshape(len(sub.y), -1)
@@ -105,35 +112,36 @@ def gru_model(ws: WindowSet, quick: bool) -> tuple[bundle.TrainedModel, str]:
         n_steps=f.shape[1] // c,
     )
     pipe = Pipeline([("features", feats), ("scale", scale), ("model", GRUEstimator.from_net(net))])
-    card = {
-        "task": sub.task,
-        "sensor": sub.sensor,
-        "features": "baseline",
-        "model": "gru",
-        "window": {
-            "n_channels": sub.geometry.n_channels,
-            "n_samples": sub.geometry.n_samples,
-            "sample_period_ns": sub.geometry.period_ns,
-            "pre_onset_ns": sub.geometry.pre_ns,
-            "post_onset_ns": sub.geometry.n_samples * sub.geometry.period_ns - sub.geometry.pre_ns,
-        },
-        "class_names": [],
-        "metrics": {},
-    }
-    return bundle.TrainedModel(pipe, card), "random weights (torch not installed)"
+    card = ModelCard(
+        task=sub.task,
+        sensor=sub.sensor,
+        profile=sub.task_profile,
+        window=sub.geometry,
+        features="baseline",
+        feature_params={},
+        model="gru",
+        best_params={},
+        rate_hz=nominal_rate_hz(sub.sensor),
+        class_names=(),
+        metrics={},
+        n_train=len(sub.y),
+        data=sub.source,
+        data_hash=sub.data_hash,
+    )
+    return TrainedModel(pipe, card), "random weights (torch not installed)"
 
 
 def bench_gru(ws: WindowSet, rows: list, fine: list, repeat: int, quick: bool) -> None:
     """GRU one-window latency: ONNX Runtime against torch (when installed)."""
-    from ext_sense_perception.gru import torch_available
+    from ext_sense_perception.training.gru import torch_available
 
     trained, how = gru_model(ws, quick)
     backends = ("sklearn", "onnx") if torch_available() else ("onnx",)
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
-        bundle.save(trained, tmp)
+        save_bundle(trained, tmp)
         for backend in backends:
-            m = bundle.load_model(tmp, backend)
+            m = load_model(tmp, backend)
             results[backend, "row"] = time_predict(m, rows, repeat)
             results[backend, "online"] = time_predict(m, fine, repeat)
             if backend == "sklearn":
@@ -169,11 +177,11 @@ def main() -> int:
 
     ws = synthetic_taps(n)
     t0 = time.perf_counter()
-    trained = bundle.train(ws, "fft", "svm_rbf")
+    trained = fit_model(ws, "fft", "svm_rbf")
     train_s = time.perf_counter() - t0
     print(
         f"train FFT + SVR (RBF) on {n} taps: {train_s:.2f} s (target <= 30 s for 1000)  "
-        f"cv MAE {trained.card['metrics']['cv_mae_m'] * 100:.2f} cm"
+        f"cv MAE {trained.card.metrics['cv_mae_m'] * 100:.2f} cm"
     )
 
     fine = []
@@ -188,10 +196,10 @@ def main() -> int:
         )
     rows = [ws.X[i] for i in range(64)]
     with tempfile.TemporaryDirectory() as tmp:
-        bundle.save(trained, tmp)
+        save_bundle(trained, tmp)
         results = {}
         for backend in ("sklearn", "onnx"):
-            m = bundle.load_model(tmp, backend)
+            m = load_model(tmp, backend)
             results[backend, "row"] = time_predict(m, rows, repeat)
             results[backend, "online"] = time_predict(m, fine, repeat)
     print(f"{'one window, features + model':34s} {'p50 ms':>8s} {'p99 ms':>8s}")
@@ -212,11 +220,13 @@ def main() -> int:
     t = np.sort(rng.integers(0, int(seconds * 1e9), n_ev)).astype(np.int64)
     tax = rng.integers(1, 81, n_ev).astype(np.uint16)
     pol = rng.choice(np.array([-1, 1], np.int8), n_ev)
+    events = EventBlock.of(t, tax, pol)
     edges = np.searchsorted(t, np.arange(0, int(seconds * 1e9), MS))
+    blocks = [events.select(slice(a, b)) for a, b in itertools.pairwise(edges)]
     t0 = time.perf_counter()
     windows = 0
-    for a, b in itertools.pairwise(edges):
-        windows += len(w.feed(t[a:b], tax[a:b], pol[a:b]))
+    for block in blocks:
+        windows += len(w.feed(block))
     el = time.perf_counter() - t0
     print(
         f"windower: {n_ev / el / 1e6:.2f} M events/s ({len(edges) - 1} batches of 1 ms, "

@@ -1,7 +1,7 @@
 """Taxel-wise stacked SVR against the default FFT + SVR (RBF): training time and latency.
 
 Prints, side by side in one run, for ``fft + svm_rbf`` (the tap default) and
-``fft + taxel_svr`` trained with ``bundle.train`` on the same windows:
+``fft + taxel_svr`` trained with ``training.fit.fit_model`` on the same windows:
 - training seconds (grid search with 4-fold CV + refit; the stack's grid has one point);
 - support vectors (per-window cost is channels x support vectors x bins) and bundle file sizes;
 - one window through the saved bundle, p50/p99 over many windows, ONNX Runtime (target p99
@@ -15,23 +15,25 @@ Prints, side by side in one run, for ``fft + svm_rbf`` (the tap default) and
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from ext_sense_perception import bundle
-from ext_sense_perception.dataset import from_sim_dataset
+# a sibling script: ``python bench/bench_taxel_stack.py`` puts bench/ first on sys.path
+from bench_perception import synthetic_taps
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_perception import synthetic_taps  # bench scripts are not a package
+from ext_sense_perception.data.sources import from_sim_dataset
+from ext_sense_perception.online.model_card import ONNX_FILE, SKLEARN_FILE
+from ext_sense_perception.online.predictor import load_model
+from ext_sense_perception.training.bundle_io import save_bundle
+from ext_sense_perception.training.fit import TrainedModel, fit_model
 
 MODELS = ("svm_rbf", "taxel_svr")
 
 
-def support_vectors(trained: bundle.TrainedModel) -> int:
+def support_vectors(trained: TrainedModel) -> int:
     """Support vectors summed over the model's SVRs."""
     model = trained.pipeline.steps[-1][1]
     if hasattr(model, "svrs_"):
@@ -54,18 +56,16 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for name in MODELS:
             t0 = time.perf_counter()
-            trained = bundle.train(ws, "fft", name)
+            trained = fit_model(ws, "fft", name)
             train_s = time.perf_counter() - t0
-            out = bundle.save(trained, Path(tmp) / name)
-            loaded[name] = {b: bundle.load_model(out, b) for b in ("onnx", "sklearn")}
-            mae = trained.card["metrics"]["cv_mae_m"] * 100
-            mb = {
-                f: (out / f).stat().st_size / 1e6 for f in (bundle.ONNX_FILE, bundle.SKLEARN_FILE)
-            }
+            out = save_bundle(trained, Path(tmp) / name)
+            loaded[name] = {b: load_model(out, b) for b in ("onnx", "sklearn")}
+            mae = trained.card.metrics["cv_mae_m"] * 100
+            mb = {f: (out / f).stat().st_size / 1e6 for f in (ONNX_FILE, SKLEARN_FILE)}
             print(
                 f"{name:10s} train {train_s:6.1f} s, CV MAE {mae:.2f} cm, "
                 f"{support_vectors(trained)} support vectors, "
-                f"{mb[bundle.ONNX_FILE]:.1f} MB ONNX, {mb[bundle.SKLEARN_FILE]:.1f} MB joblib"
+                f"{mb[ONNX_FILE]:.1f} MB ONNX, {mb[SKLEARN_FILE]:.1f} MB joblib"
             )
         windows = [ws.X[i % len(ws.X)] for i in range(repeat)]
         for backend in ("onnx", "sklearn"):

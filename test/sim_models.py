@@ -1,5 +1,5 @@
-"""Models for system tests, trained through the CLI on a small simulated set, and the graph
-processes those tests start and stop.
+"""Models for system tests, trained by the one training recipe on a small simulated set, and
+the graph processes those tests start and stop.
 
 The set is the scene's trials as the driver delivers them (``demo.as_delivered``), as the demo
 trains, so a model sees the same windows in a test as in use.
@@ -14,11 +14,7 @@ import sys
 from pathlib import Path
 
 EXE = [sys.executable, "-m", "ext_sense.cli"]
-
-
-def cli(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
-    """Run ``ext-sense ARGS`` in a child process, capturing its output."""
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=timeout)
+"""The ``ext-sense`` command of this interpreter, for the graphs the system tests start."""
 
 
 def stop_graph(proc: subprocess.Popen, timeout: float = 20) -> tuple[str, str]:
@@ -46,16 +42,15 @@ def train_sim_model(
         ``(model_dir, dataset.npz as delivered)``.
     """
     from ext_sense.commands.demo import as_delivered
+    from ext_sense_perception.data.sources import from_sim_dataset
+    from ext_sense_perception.training.recipe import train_bundle
+    from ext_sense_sim.run import run_scene
+    from ext_sense_sim.scene import load_scene
 
     data, model = root / f"{task}_data", root / f"{task}_model"
-    out = cli(
-        "sim", "run", scene, "--out", str(data), "--trials", str(trials), "--seed", str(seed),
-        "--formats", "npz",
-    )  # fmt: skip
-    assert out.returncode == 0, out.stderr
+    run_scene(load_scene(scene), data, trials, seed, formats=("npz",))
     npz = as_delivered(data / "dataset.npz", data / "delivered.npz")
-    out = cli(
-        "train", "--task", task, "--sensor", "nuskin", "--data", str(npz), "--out", str(model)
-    )  # fmt: skip
-    assert out.returncode == 0, out.stderr
+    ws = from_sim_dataset(npz)
+    assert ws.task == task, (ws.task, task)
+    train_bundle(ws, model)
     return model, npz

@@ -6,7 +6,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-MS = 1_000_000
+from ext_sense_runtime.stamps import MS
+
 T0 = 1_700_000_000_000_000_000
 
 
@@ -62,14 +63,36 @@ def tap_stream(
 
 
 class CountingModel:
-    """Stand-in for a model bundle: position = events in the window / 1e6 m; NaN data rejected."""
+    """Stand-in for a tap model bundle: position = events in the window / 1e6 m; NaN rejected.
+
+    It has the bundle's interface (``task``, ``card.sensor``, ``card.profile``, ``model_id``,
+    ``predict``), so the nodes and the offline replay take it as they take a loaded bundle.
+    """
 
     model_id = "counting-test-model"
+    task = "tap_localization"
+
+    def __init__(self) -> None:
+        from types import SimpleNamespace
+
+        from ext_sense_perception.profiles import profile_for
+
+        self.card = SimpleNamespace(sensor="nuskin", profile=profile_for(self.task))
 
     def predict(self, window):
         from ext_sense_perception.errors import PerceptionError
+        from ext_sense_runtime.records import Estimate
 
         data = np.asarray(window.data)
         if not np.isfinite(data).all():
             raise PerceptionError("The window holds NaN or inf.")
-        return {"tap_position_m": float(np.abs(data).sum()) / 1e6, "tap_position_std_m": 0.01}
+        return Estimate(
+            task=window.task,
+            onset_ns=window.onset_ns,
+            sensor=window.sensor,
+            model_id=self.model_id,
+            provisional=window.provisional,
+            post_contact_used_ns=window.post_onset_ns,
+            tap_position_m=float(np.abs(data).sum()) / 1e6,
+            tap_position_std_m=0.01,
+        )

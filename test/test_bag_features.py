@@ -3,13 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from rosutil import spinning, wait_for
 
 EVENTS = "/extsense/nuskin/events"
@@ -23,8 +19,8 @@ def test_recorded_bag_windows_equal_the_dataset_windows(tmp_path):
     from ext_sense.nodes.bag_player import BagPlayerNode
     from ext_sense.nodes.recorder import RecorderNode
     from ext_sense_bags import BagReader
-    from ext_sense_perception.bag_windows import window_set_from_bag
-    from ext_sense_perception.dataset import from_sim_dataset
+    from ext_sense_perception.data.bags import window_set_from_bag
+    from ext_sense_perception.data.sources import from_sim_dataset
     from ext_sense_sim.run import run_scene
     from ext_sense_sim.scene import load_scene
 

@@ -21,28 +21,25 @@ from __future__ import annotations
 import os
 import re
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 
 import pytest
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 from rosutil import spinning, wait_for
 from sim_models import EXE, stop_graph, train_sim_model
+
+from ext_sense_runtime.stamps import MS, stamp_to_ns
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(300)]
 
 DECISION = re.compile(r"^\[(\d+)\] ([A-Z_]+): ([A-Z_]+) - (.+)$")
 THRESHOLD, CONSECUTIVE = 0.8, 3
 OBJECT_POSITION = 128
-MS = 1_000_000
 
 
 def _stamp(msg) -> int:
-    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+    return stamp_to_ns(msg.header.stamp)
 
 
 def _start_graph(graph: str, *args: str) -> subprocess.Popen:
@@ -94,22 +91,18 @@ class Recorder:
 @pytest.fixture(scope="module")
 def handover_model(tmp_path_factory):
     """A handover model trained on the simulator's own stream (as ``ext-sense demo`` does)."""
-    from ext_sense_perception.stream_windows import (
-        StreamTruth,
-        train_bundle,
-        window_set_from_stream,
-    )
-    from ext_sense_perception.windows import WindowConfig
+    from ext_sense_perception.data.device_stream import window_set_from_stream
+    from ext_sense_perception.online.window import WindowConfig
+    from ext_sense_perception.training.recipe import train_bundle
     from ext_sense_sim.scene import load_scene
-    from ext_sense_sim.streaming import lay_out_stream
+    from ext_sense_sim.trial_plan import lay_out_stream
 
     out = tmp_path_factory.mktemp("scenario_models") / "handover"
     if os.environ.get("EXT_SENSE_SCENARIO_HANDOVER_MODEL"):  # reuse a model between runs
         return Path(os.environ["EXT_SENSE_SCENARIO_HANDOVER_MODEL"])
     laid = lay_out_stream(load_scene("handover_rod_nuskin"), 1000, 80, 1.0)
-    truths = [StreamTruth(g.trial, g.stamp_ns, g.class_label, g.rod_length_m) for g in laid.truths]
     ws, counts = window_set_from_stream(
-        laid.writes, truths, WindowConfig.for_task("handover_stability", "nuskin")
+        laid.writes, laid.truths, WindowConfig.for_task("handover_stability", "nuskin")
     )
     assert counts.labelled >= 75, counts
     train_bundle(ws, str(out))

@@ -11,13 +11,9 @@ from __future__ import annotations
 import os
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 from sim_models import EXE, stop_graph, train_sim_model
 from sim_models import cli as _cli
 

@@ -6,18 +6,14 @@ every batch the driver published.
 
 from __future__ import annotations
 
+import contextlib
 import os
-import sys
 import time
 import tty
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import contextlib
-
 from rosutil import spinning, wait_for
 
 pytestmark = pytest.mark.ros

@@ -3,6 +3,7 @@ receive here), which proves the interface package built and its type support loa
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
@@ -15,8 +16,7 @@ pytestmark = pytest.mark.ros
 HERE = Path(__file__).resolve().parent
 
 PUBLISHER = """
-import sys, time
-sys.path.insert(0, {here!r})
+import time
 import rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from msg_samples import samples
@@ -24,7 +24,7 @@ rclpy.init()
 node = rclpy.create_node("sample_publisher")
 qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 msgs = samples()
-pubs = {{n: node.create_publisher(type(m), "/extsense_test/" + n, qos) for n, m in msgs.items()}}
+pubs = {n: node.create_publisher(type(m), "/extsense_test/" + n, qos) for n, m in msgs.items()}
 deadline = time.monotonic() + 20.0
 try:
     while time.monotonic() < deadline:
@@ -39,16 +39,18 @@ finally:
 
 def test_each_message_type_crosses_processes():
     import rclpy
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-
-    sys.path.insert(0, str(HERE))
     from msg_samples import assert_same, samples
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
 
     expected = samples()
     received: dict[str, object] = {}
     context = rclpy.Context()
     rclpy.init(context=context)
-    child = subprocess.Popen([sys.executable, "-c", PUBLISHER.format(here=str(HERE))])
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")]),
+    }
+    child = subprocess.Popen([sys.executable, "-c", PUBLISHER], env=env)
     node = rclpy.create_node("sample_subscriber", context=context)
     try:
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)

@@ -8,8 +8,6 @@ import time
 from pathlib import Path
 
 import pytest
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from rosutil import spinning, wait_for
 from synthetic import MS, T0, CountingModel, tap_stream
 
@@ -34,22 +32,22 @@ def write_tap_bag(path: Path, onsets_ms=(100.0, 800.0, 1500.0), t0_ns=T0) -> Non
 
 def test_offline_replay_is_deterministic(tmp_path):
     from ext_sense.commands.bags import offline_estimates
+    from ext_sense_perception.online.window import WindowConfig
 
     write_tap_bag(tmp_path / "bag")
+    config = WindowConfig.for_task("tap_localization", "nuskin")
 
     def run():
         out = []
-        for kind, item in offline_estimates(
-            tmp_path / "bag", "tap_localization", "nuskin", CountingModel(), "m"
-        ):
+        for kind, item in offline_estimates(tmp_path / "bag", config, CountingModel()):
             if kind == "estimate":
-                out.append({k: v for k, v in item.items() if k != "compute_latency_ns"})
+                out.append({k: v for k, v in item._asdict().items() if k != "compute_latency_ns"})
         return out
 
     first, second = run(), run()
     finals = [e for e in first if not e["provisional"]]
     assert len(finals) == 3
-    assert [round((e["stamp_ns"] - T0) / MS) for e in finals] == [100, 800, 1500]
+    assert [round((e["onset_ns"] - T0) / MS) for e in finals] == [100, 800, 1500]
     assert len(first) == len(second)
     for a, b in zip(first, second, strict=True):
         assert a.keys() == b.keys()
@@ -62,10 +60,10 @@ def test_offline_replay_is_deterministic(tmp_path):
 
 def test_offline_cli_prints_summary_last(tmp_path, monkeypatch):
     from ext_sense import cli
-    from ext_sense_perception.nodes import pipeline
+    from ext_sense_perception.online import predictor
 
     write_tap_bag(tmp_path / "bag")
-    monkeypatch.setattr(pipeline, "load_bundle", lambda path, backend: CountingModel())
+    monkeypatch.setattr(predictor, "load_model", lambda path, backend: CountingModel())
     out_json = tmp_path / "est.json"
     import contextlib
     import io

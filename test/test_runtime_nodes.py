@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from rosutil import spinning, wait_for
 from synthetic import MS, CountingModel, tap_stream
 
@@ -105,7 +102,7 @@ def test_window_and_inference_nodes_give_provisional_then_final(monkeypatch, tmp
     from ext_sense_perception.nodes.contact_inference import ContactInferenceNode
     from ext_sense_perception.nodes.contact_window import ContactWindowNode
 
-    monkeypatch.setattr(contact_inference, "load_bundle", lambda p, b: CountingModel())
+    monkeypatch.setattr(contact_inference, "load_model", lambda p, b: CountingModel())
     probes = []
     with spinning(
         lambda context: ContactWindowNode(context=context),
@@ -139,7 +136,7 @@ def test_inference_faults_keep_the_node_alive_and_recording_complete(monkeypatch
     from ext_sense_perception.nodes.contact_inference import ContactInferenceNode
     from ext_sense_runtime.stamps import fill_stamp
 
-    monkeypatch.setattr(contact_inference, "load_bundle", _json_loader)
+    monkeypatch.setattr(contact_inference, "load_model", _json_loader)
     model_dir = tmp_path / "model"
     model_dir.mkdir()
     bag = tmp_path / "bag"
@@ -153,6 +150,7 @@ def test_inference_faults_keep_the_node_alive_and_recording_complete(monkeypatch
         msg.shape = [2, 3]
         msg.channels = [1, 2]
         msg.data = np.asarray(values, dtype=np.float32)
+        msg.provisional = post_ms < 250  # an anytime window, as the window node marks it
         return msg
 
     with spinning(

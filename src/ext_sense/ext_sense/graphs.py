@@ -208,7 +208,8 @@ def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...
             executable="contact_window",
             name="contact_window",
             plugin="ext_sense_perception.nodes.contact_window:ContactWindowNode",
-            parameters={"task": task, "sensor": sensor},
+            # the window node cuts the windows of the model card's task profile
+            parameters={"task": task, "sensor": sensor, "model_path": args["model"]},
             remappings=((rel, topic), ("window", TOPIC_WINDOW), ("motion_start", motion)),
         ),
         NodeSpec(

@@ -14,6 +14,7 @@ from rosbags.interfaces import Nodetype
 
 from ext_sense_bags.errors import BagError
 from ext_sense_bags.typestore import make_typestore
+from ext_sense_runtime.stamps import split_ns
 
 _DTYPES: dict[str, type] = {
     "bool": np.bool_,
@@ -30,7 +31,6 @@ _DTYPES: dict[str, type] = {
     "float32": np.float32,
     "float64": np.float64,
 }
-_NS_PER_S = 1_000_000_000
 
 
 def _default(desc: tuple[Any, Any], distro: str) -> Any:
@@ -100,13 +100,13 @@ def make_message(msgtype: str, distro: str = "kilted", **fields: Any) -> Any:
 
 def stamp(ns: int, distro: str = "kilted") -> Any:
     """Build a ``builtin_interfaces/msg/Time`` of integer nanoseconds."""
-    sec, nanosec = divmod(int(ns), _NS_PER_S)
+    sec, nanosec = split_ns(ns)
     return make_message("builtin_interfaces/msg/Time", distro, sec=sec, nanosec=nanosec)
 
 
 def duration(ns: int, distro: str = "kilted") -> Any:
     """Build a ``builtin_interfaces/msg/Duration`` of integer nanoseconds."""
-    sec, nanosec = divmod(int(ns), _NS_PER_S)
+    sec, nanosec = split_ns(ns)
     return make_message("builtin_interfaces/msg/Duration", distro, sec=sec, nanosec=nanosec)
 
 

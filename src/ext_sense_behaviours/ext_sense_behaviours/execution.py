@@ -16,8 +16,9 @@ from ext_sense_behaviours.decisions import Decision
 from ext_sense_behaviours.food import FoodAction, FoodMachine, FoodResult
 from ext_sense_behaviours.gripper import GripperPort, describe_position, is_open, settled
 from ext_sense_behaviours.handover import HandoverAction, HandoverMachine, HandoverState
-from ext_sense_behaviours.records import ArmState, Estimate
+from ext_sense_behaviours.records import ArmState
 from ext_sense_drivers.robotiq import RobotiqError
+from ext_sense_runtime.records import Estimate
 
 
 class FoodProbe:

@@ -24,7 +24,8 @@ from typing import NamedTuple
 from ext_sense_behaviours.contact import ForceContactDetector
 from ext_sense_behaviours.decisions import Decision, DecisionLog
 from ext_sense_behaviours.errors import BehaviourError
-from ext_sense_behaviours.records import ArmState, Estimate
+from ext_sense_behaviours.records import ArmState
+from ext_sense_runtime.records import Estimate
 
 FOOD_TASK = "food_identification"
 
@@ -271,12 +272,12 @@ class FoodMachine:
                 FoodAction.NONE,
                 f"estimate ignored: task '{estimate.task}', expected '{FOOD_TASK}'",
             )
-        if abs(estimate.stamp_ns - self.motion_start_ns) > cfg.stamp_tolerance_ns:
+        if abs(estimate.onset_ns - self.motion_start_ns) > cfg.stamp_tolerance_ns:
             return self._decide(
                 now_ns,
                 self.state,
                 FoodAction.NONE,
-                f"estimate ignored: stamp {estimate.stamp_ns} is not this probe's motion start "
+                f"estimate ignored: stamp {estimate.onset_ns} is not this probe's motion start "
                 f"{self.motion_start_ns}",
             )
         if estimate.provisional and not cfg.accept_provisional:

@@ -23,6 +23,7 @@ from typing import Any
 
 from ext_sense_behaviours.errors import BehaviourError
 from ext_sense_behaviours.records import ArmState
+from ext_sense_runtime.stamps import stamp_to_ns
 
 
 @dataclass(frozen=True)
@@ -68,7 +69,7 @@ def arm_state_from_robot_state(msg: Any) -> ArmState:
         BehaviourError: A field is missing (another franka_msgs version).
     """
     try:
-        stamp_ns = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+        stamp_ns = stamp_to_ns(msg.header.stamp)
         f = msg.o_f_ext_hat_k.wrench.force
         z = float(msg.o_t_ee.pose.position.z)
         twist = getattr(msg, "o_dp_ee_c", None)

@@ -17,6 +17,7 @@ import numpy.typing as npt
 
 from ext_sense_behaviours.errors import BehaviourError
 from ext_sense_behaviours.records import ArmState
+from ext_sense_runtime.stamps import stamp_to_ns
 
 FRANKA_STATE_TOPIC = "franka_state_controller"
 FRANKA_STATE_TYPE = "franka_msgs/msg/FrankaState"
@@ -95,9 +96,7 @@ def read_franka_bag(path: str | Path, topic: str = FRANKA_STATE_TOPIC) -> Franka
             for conn, t_ns, raw in reader.messages(connections=connections):
                 msg = store.deserialize_ros1(raw, conn.msgtype)
                 rows["t_ns"].append(t_ns)
-                rows["stamp_ns"].append(
-                    msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-                )
+                rows["stamp_ns"].append(stamp_to_ns(msg.header.stamp))
                 rows["wrench"].append(np.asarray(msg.O_F_ext_hat_K, dtype=np.float64))
                 rows["z_m"].append(float(msg.O_T_EE[14]))
                 vel = getattr(msg, "cartesian_velocity", None)

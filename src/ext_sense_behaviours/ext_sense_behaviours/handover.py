@@ -28,7 +28,7 @@ from enum import IntEnum
 
 from ext_sense_behaviours.decisions import Decision, DecisionLog
 from ext_sense_behaviours.errors import BehaviourError
-from ext_sense_behaviours.records import Estimate
+from ext_sense_runtime.records import Estimate
 
 HANDOVER_TASK = "handover_stability"
 

@@ -1,39 +1,14 @@
 """Plain records the behaviours consume, so the state machines never see a ROS message.
 
-Nodes convert ``ext_sense_msgs/ContactEstimate`` into :class:`Estimate` and the arm adapters
-deliver :class:`ArmState`; tests build both directly.
+The arm adapters deliver :class:`ArmState`. Estimates are the shared
+:class:`ext_sense_runtime.records.Estimate`: the nodes convert ``ext_sense_msgs/ContactEstimate``
+with :func:`ext_sense_runtime.records.estimate_of`. Tests build both directly.
 """
 
 from __future__ import annotations
 
 import math
 from typing import NamedTuple
-
-
-class Estimate(NamedTuple):
-    """The fields of ``ContactEstimate`` the behaviours use.
-
-    Attributes:
-        stamp_ns: Contact onset (motion start for food), integer ns.
-        task: ``"tap_localization"``, ``"handover_stability"`` or ``"food_identification"``.
-        provisional: An anytime estimate from a shortened window.
-        stability_probability: P(stable grasp), 0..1 (NaN when not handover).
-        class_label: Food class or ``"stable"``/``"unstable"`` (empty otherwise).
-        tap_position_m: Tap distance from the held end, metres (NaN otherwise).
-        tap_position_std_m: Its standard deviation, metres (NaN when unknown).
-        model_id: The model that produced it.
-        class_probabilities: Probabilities in the order of the model's class names.
-    """
-
-    stamp_ns: int
-    task: str
-    provisional: bool = False
-    stability_probability: float = math.nan
-    class_label: str = ""
-    tap_position_m: float = math.nan
-    tap_position_std_m: float = math.nan
-    model_id: str = ""
-    class_probabilities: tuple[float, ...] = ()
 
 
 class ArmState(NamedTuple):

@@ -12,7 +12,7 @@ import math
 from typing import NamedTuple
 
 from ext_sense_behaviours.errors import BehaviourError
-from ext_sense_behaviours.records import Estimate
+from ext_sense_runtime.records import Estimate
 
 TAP_TASK = "tap_localization"
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}

@@ -12,9 +12,10 @@ from ext_sense_behaviours.contact import ForceContactDetector
 from ext_sense_behaviours.errors import BehaviourError
 from ext_sense_behaviours.execution import FoodProbe
 from ext_sense_behaviours.food import FoodConfig, FoodMachine, FoodResult, FoodState, StopReason
-from ext_sense_behaviours.records import ArmState, Estimate
+from ext_sense_behaviours.records import ArmState
+from ext_sense_runtime.records import Estimate
+from ext_sense_runtime.stamps import MS
 
-MS = 1_000_000
 STEP_NS = 10 * MS  # control period of the scenario (100 Hz)
 
 
@@ -53,9 +54,7 @@ def run_probe(surface_z_m, stiffness=1000.0, label="apple", answer=True, config=
         trace.append((clock.ns, arm.z_m, arm.contact_force_n(), machine.state))
         if events["requests"] and answer and machine.state == FoodState.CLASSIFYING:
             start, _ = events["requests"][0]
-            probe.deliver(
-                Estimate(start, "food_identification", False, class_label=label), clock.ns
-            )
+            probe.deliver(Estimate("food_identification", start, class_label=label), clock.ns)
         if machine.state in (FoodState.DONE, FoodState.FAULT):
             break
     return machine, arm, events, trace
@@ -118,15 +117,17 @@ def test_foreign_and_provisional_estimates_are_not_taken():
     machine.on_tick(clock.ns + 200 * MS)
     assert machine.state == FoodState.CLASSIFYING
     d = machine.on_estimate(
-        Estimate(clock.ns + 5_000 * MS, "food_identification", False, class_label="x"), 0
+        Estimate("food_identification", clock.ns + 5_000 * MS, class_label="x"), 0
     )
     assert "not this probe's motion start" in d.reason
-    d = machine.on_estimate(Estimate(clock.ns, "food_identification", True, class_label="x"), 0)
+    d = machine.on_estimate(
+        Estimate("food_identification", clock.ns, provisional=True, class_label="x"), 0
+    )
     assert "provisional" in d.reason
     assert machine.state == FoodState.CLASSIFYING
-    d = machine.on_estimate(Estimate(clock.ns, "tap_localization"), 0)
+    d = machine.on_estimate(Estimate("tap_localization", clock.ns), 0)
     assert "task 'tap_localization'" in d.reason
-    d = machine.on_estimate(Estimate(clock.ns, "food_identification", False, class_label="tofu"), 0)
+    d = machine.on_estimate(Estimate("food_identification", clock.ns, class_label="tofu"), 0)
     assert d.action == "RETRACT"
 
 

@@ -2,22 +2,16 @@
 
 from __future__ import annotations
 
-import contextlib
 import threading
 import time
 
-import pytest
-from hypothesis import given
-from hypothesis import strategies as st
-
 from ext_sense_behaviours.gripper_worker import GripperCommandRequest, GripperWorker
-from ext_sense_drivers.robotiq import FaultKind, RobotiqClient, RobotiqError, modbus
+from ext_sense_drivers.robotiq import FaultKind, RobotiqClient
 from ext_sense_sim.devices.robotiq_emulator import (
     GripperModel,
     LinkFault,
     PtyGripper,
     RobotiqEmulator,
-    RtuFramer,
 )
 
 
@@ -80,48 +74,3 @@ def test_worker_reports_a_missing_port_and_keeps_trying(tmp_path):
         assert worker.counters.errors >= 2
     finally:
         worker.stop()
-
-
-@given(st.lists(st.integers(0, 2), min_size=1, max_size=8), st.data())
-def test_framer_reassembles_any_split(kinds, data):
-    frames = []
-    for k in kinds:
-        if k == 0:
-            frames.append(modbus.encode_read_request(9, 0x07D0, 3))
-        elif k == 1:
-            frames.append(modbus.encode_write_request(9, 0x03E8, [0x0900, 0x00FF, 0xFF64]))
-        else:
-            frames.append(
-                modbus.encode_read_request(9, 0x03E8, 1, modbus.Function.READ_INPUT_REGISTERS)
-            )
-    stream = b"".join(frames)
-    cuts = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=10)))
-    framer, out, prev = RtuFramer(gap_s=1.0), [], 0
-    for cut in [*cuts, len(stream)]:
-        out += framer.feed(stream[prev:cut], 0.0)
-        prev = cut
-    assert out == frames
-
-
-@given(st.binary(max_size=40))
-def test_decoders_only_raise_robotiq_errors(data):
-    for decode in (
-        lambda f: modbus.decode_read_reply(f, 9, 3),
-        lambda f: modbus.decode_write_reply(f, 9, 0x03E8, 3),
-        modbus.decode_request,
-    ):
-        with contextlib.suppress(RobotiqError):
-            decode(data)
-    emulator = RobotiqEmulator()
-    reply = emulator.handle(data)
-    assert reply is None or modbus.crc_ok(reply)
-
-
-def test_emulator_answers_exceptions():
-    emulator = RobotiqEmulator()
-    reply = emulator.handle(modbus.append_crc(bytes([9, 0x2B, 0, 0, 0, 1])))
-    with pytest.raises(RobotiqError, match="ILLEGAL_FUNCTION"):
-        modbus.decode_read_reply(reply, 9, 1, 0x2B)
-    reply = emulator.handle(modbus.encode_write_request(9, 0x0100, [1]))
-    with pytest.raises(RobotiqError, match="ILLEGAL_DATA_ADDRESS"):
-        modbus.decode_write_reply(reply, 9, 0x0100, 1)

@@ -15,13 +15,12 @@ from ext_sense_behaviours.handover import (
     HandoverMachine,
     HandoverState,
 )
-from ext_sense_behaviours.records import Estimate
-
-MS = 1_000_000
+from ext_sense_runtime.records import Estimate
+from ext_sense_runtime.stamps import MS
 
 
 def est(p: float, provisional: bool = False, task: str = "handover_stability") -> Estimate:
-    return Estimate(0, task, provisional, p)
+    return Estimate(task, 0, provisional=provisional, stability_probability=p)
 
 
 def run(machine: HandoverMachine, probabilities, provisional=None):

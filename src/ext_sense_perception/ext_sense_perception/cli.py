@@ -11,9 +11,14 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
-MS = 1_000_000
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_runtime.stamps import MS
+
+if TYPE_CHECKING:  # the handlers import these lazily: ``ext-sense --help`` stays fast
+    from ext_sense_perception.data.window_set import WindowSet
+    from ext_sense_perception.training.recipe import Recipe
 
 
 def _common(p: argparse.ArgumentParser, *, need_task: bool = True) -> None:
@@ -101,7 +106,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--anytime-ms",
         default=None,
         help="comma-separated shorter post-contact windows to train anytime models for, ms "
-        "(default 25,50,100,150 for tap and handover, none for food; 'none' for none)",
+        "(default: the task profile's, 25,50,100,150 for tap and handover, none for food; "
+        "'none' for none)",
     )
     p.set_defaults(func=_cmd_train)
 
@@ -160,13 +166,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_report)
 
 
-def _load(args: argparse.Namespace, *, need_labels: bool = True):
-    from ext_sense_perception.bag_windows import BagTopics, is_bag, window_set_from_bag
-    from ext_sense_perception.dataset import from_recording, load_window_set
-    from ext_sense_perception.errors import PerceptionError
+def _load(args: argparse.Namespace, *, need_labels: bool = True) -> WindowSet:
+    from ext_sense_perception.data.bags import BagTopics, is_bag, window_set_from_bag
+    from ext_sense_perception.data.recordings import from_recording
+    from ext_sense_perception.data.sources import load_window_set
 
     path = Path(args.data)
-    kwargs: dict[str, Any] = {}
+    kwargs: dict[str, float] = {}
     if args.rate_hz is not None and args.sensor != "biotac":
         kwargs["rate_hz"] = args.rate_hz  # NUSkin refractory drop; BioTac decimates in features
     if is_bag(path):
@@ -200,26 +206,19 @@ def _load(args: argparse.Namespace, *, need_labels: bool = True):
     return ws
 
 
-def _choice(args: argparse.Namespace, ws) -> tuple[str, str, dict[str, Any], dict[str, list[Any]]]:
-    from ext_sense_perception.models import (
-        default_choice,
-        default_feature_grid,
-        default_feature_params,
-    )
+def _recipe(args: argparse.Namespace, anytime_post_ns: tuple[int, ...] | None = None) -> Recipe:
+    """The training recipe the options ask for (everything else the task's own)."""
+    from ext_sense_perception.training.recipe import Recipe
 
-    features, model = default_choice(ws.task, ws.sensor)
-    features = args.features or features
-    model = args.model or model
-    params: dict[str, Any] = (
-        dict(default_feature_params(ws.task, ws.sensor)) if not args.features else {}
+    return Recipe(
+        features=args.features,
+        model=args.model,
+        channels=args.channels,
+        feature_bin_ns=round(args.bin_ms * MS) if args.bin_ms is not None else None,
+        rate_hz=args.rate_hz,
+        anytime_post_ns=anytime_post_ns,
+        seed=args.seed,
     )
-    if args.channels:
-        params["channels"] = args.channels
-    if args.bin_ms is not None:
-        params["bin_ns"] = round(args.bin_ms * MS)
-    if args.rate_hz is not None and ws.sensor == "biotac":
-        params["rate_hz"] = args.rate_hz
-    return features, model, params, default_feature_grid(ws.task, ws.sensor, features)
 
 
 def _fail(err: Exception) -> int:
@@ -230,12 +229,12 @@ def _fail(err: Exception) -> int:
 def _cmd_features(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from ext_sense_perception.errors import PerceptionError
-    from ext_sense_perception.protocol import features_for
+    from ext_sense_perception.training.protocol import features_for
+    from ext_sense_perception.training.recipe import resolve
 
     try:
         ws = _load(args, need_labels=False)
-        features, _, params, _ = _choice(args, ws)
+        features, _, params, _ = resolve(ws, _recipe(args))
         tf = features_for(ws, features, **params)
         X = ws.X.reshape(len(ws.X), -1)
         F = tf.fit(X).transform(X)
@@ -252,47 +251,26 @@ def _cmd_features(args: argparse.Namespace) -> int:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from ext_sense_perception import bundle
-    from ext_sense_perception.errors import PerceptionError
+    from ext_sense_perception.training.recipe import train_bundle
 
     try:
         ws = _load(args)
-        features, model, params, grid = _choice(args, ws)
-        trained = bundle.train(
-            ws, features, model, params, grid, seed=args.seed, rate_hz=args.rate_hz
-        )
-        posts = _anytime_posts(args.anytime_ms, ws.task)
-        anytime = bundle.train_anytime(
-            ws,
-            features,
-            model,
-            posts,
-            feature_params=params,
-            feature_grid=grid,
-            seed=args.seed,
-            rate_hz=args.rate_hz,
-        )
-        bundle.save(trained, args.out, anytime)
+        card = train_bundle(ws, args.out, _recipe(args, _anytime_posts(args.anytime_ms)))
     except PerceptionError as err:
         return _fail(err)
-    card = trained.card
-    if anytime:
-        print(
-            f"anytime models for {[a.card['window']['post_onset_ns'] / MS for a in anytime]} ms "
-            "post-contact"
-        )
+    if card.anytime_post_ms:
+        print(f"anytime models for {list(card.anytime_post_ms)} ms post-contact")
     print(
-        f"{args.out}: {card['id']} trained on {card['n_train']} windows in {card['train_s']:.1f} "
-        f"s; metrics {card['metrics']}"
+        f"{args.out}: {card.id} trained on {card.n_train} windows in {card.train_s:.1f} s; "
+        f"metrics {card.metrics}"
     )
     return 0
 
 
-def _anytime_posts(text: str | None, task: str) -> tuple[int, ...]:
-    from ext_sense_perception.errors import PerceptionError
-
+def _anytime_posts(text: str | None) -> tuple[int, ...] | None:
+    """``--anytime-ms``: None for the task profile's times, ``()`` for none."""
     if text is None:
-        return () if task == "food_identification" else (25 * MS, 50 * MS, 100 * MS, 150 * MS)
+        return None
     if text.strip().lower() in ("", "none"):
         return ()
     try:
@@ -303,112 +281,14 @@ def _anytime_posts(text: str | None, task: str) -> tuple[int, ...]:
         ) from err
 
 
-def measure_inference(trained, ws, n: int = 200) -> dict[str, float]:
-    """Single-window inference latency (prepare + features + model) for both backends, ms."""
-    import tempfile
-    import time
-
-    import numpy as np
-
-    from ext_sense_perception import bundle
-
-    out: dict[str, float] = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        bundle.save(trained, tmp)
-        for backend, key in (("sklearn", "sklearn"), ("onnx", "onnx")):
-            m = bundle.load_model(tmp, backend)
-            windows = [ws.X[i % len(ws.X)] for i in range(n)]
-            m.predict(windows[0])
-            times = []
-            for w in windows:
-                t0 = time.perf_counter_ns()
-                m.predict(w)
-                times.append((time.perf_counter_ns() - t0) / 1e6)
-            out[f"infer_p50_ms_{key}"] = float(np.percentile(times, 50))
-            out[f"infer_p99_ms_{key}"] = float(np.percentile(times, 99))
-    return out
-
-
-def evaluation_record(
-    ws,
-    features: str,
-    model: str,
-    params: dict[str, Any],
-    grid: dict[str, list[Any]],
-    k: int | None,
-    seed: int,
-    progress: bool,
-    rate_hz: float | None,
-    timing: bool = True,
-) -> dict[str, Any]:
-    """Run the protocol and (optionally) time a model trained on everything; JSON-ready dict."""
-    import numpy as np
-
-    from ext_sense_perception import bundle
-    from ext_sense_perception.protocol import evaluate, features_for
-
-    tf = features_for(ws, features, **params)
-    res = evaluate(ws, tf, model, k=k, seed=seed, progress=progress, feature_grid=grid)
-    g = ws.geometry
-    rec: dict[str, Any] = {
-        "task": ws.task,
-        "sensor": ws.sensor,
-        "features": features,
-        "feature_params": params,
-        "model": model,
-        "rate_hz": rate_hz if rate_hz is not None else nominal_rate_hz(ws.sensor),
-        "time_resolution_ms": g.period_ns / MS,
-        "window_post_ms": res.post_ns / MS,
-        "metric": res.metric,
-        "mean": res.mean,
-        "std": res.std,
-        "k": res.k,
-        "scores": res.scores.tolist(),
-        "train_s": float(np.mean(res.train_s)),
-        "n_windows": len(ws.y),
-        "class_names": list(res.class_names),
-        "confusion": res.confusion.tolist() if res.confusion is not None else None,
-        "best_params": [{kk: bundle._jsonable(v) for kk, v in p.items()} for p in res.best_params],
-        "data": ws.source,
-        "data_hash": ws.data_hash,
-        "excluded": list(ws.excluded),
-    }
-    if timing:
-        trained = bundle.train(ws, features, model, params, grid, seed=seed, rate_hz=rate_hz)
-        t = measure_inference(trained, ws)
-        rec.update(
-            {
-                "infer_p50_ms": {
-                    "sklearn": t["infer_p50_ms_sklearn"],
-                    "onnx": t["infer_p50_ms_onnx"],
-                },
-                "infer_p99_ms": {
-                    "sklearn": t["infer_p99_ms_sklearn"],
-                    "onnx": t["infer_p99_ms_onnx"],
-                },
-                "infer_p50_ms_sklearn": t["infer_p50_ms_sklearn"],
-                "infer_p99_ms_sklearn": t["infer_p99_ms_sklearn"],
-                "infer_p50_ms_onnx": t["infer_p50_ms_onnx"],
-                "infer_p99_ms_onnx": t["infer_p99_ms_onnx"],
-                "decision_latency_ms": res.post_ns / MS + t["infer_p99_ms_onnx"],
-                "model_id": trained.card["id"],
-                "final_train_s": trained.card["train_s"],
-            }
-        )
-    return rec
-
-
-def nominal_rate_hz(sensor: str) -> float:
-    """The sensor's own sampling rate when none was reduced: NUSkin 4 kHz, BioTac PAC 2200 Hz."""
-    return 4000.0 if sensor == "nuskin" else 2200.0
-
-
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from ext_sense_perception.errors import PerceptionError
+    from ext_sense_perception.training.evaluation import evaluation_record
+    from ext_sense_perception.training.recipe import resolve
 
     try:
         ws = _load(args)
-        features, model, params, grid = _choice(args, ws)
+        recipe = _recipe(args)
+        features, model, params, grid = resolve(ws, recipe)
         rec = evaluation_record(
             ws, features, model, params, grid, args.k, args.seed, not args.no_progress, args.rate_hz
         )
@@ -440,8 +320,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from ext_sense_perception.errors import PerceptionError
-    from ext_sense_perception.report import build_report
+    from ext_sense_perception.reporting.report import build_report
 
     def names(value: str | None) -> list[str] | None:
         return None if value is None else [v.strip() for v in value.split(",") if v.strip()]

@@ -2,12 +2,19 @@
 
 Time inside ext_sense is always an ``int`` of nanoseconds (epoch or monotonic, as stated where
 it is used); floats of seconds lose sub-microsecond precision at epoch magnitudes, so they only
-appear at the edges (printing, plotting).
+appear at the edges (printing, plotting). The unit constants ``S``, ``MS`` and ``US`` (nanoseconds
+per unit) are defined here and nowhere else.
 """
 
 from __future__ import annotations
 
-NS_PER_S = 1_000_000_000
+S = 1_000_000_000
+"""Nanoseconds in a second: ``2 * S`` is two seconds as integer nanoseconds."""
+MS = 1_000_000
+"""Nanoseconds in a millisecond."""
+US = 1_000
+"""Nanoseconds in a microsecond."""
+NS_PER_S = S
 
 
 def split_ns(ns: int) -> tuple[int, int]:

@@ -26,8 +26,8 @@ import numpy as np
 
 from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_sim.effects.base import Signals, TimeBase
-from ext_sense_sim.events import EventBatch
 from ext_sense_sim.scene import Scene
+from ext_sense_sim.trial_events import TrialEvents, concat
 
 FINGER_TAXELS = np.arange(1, 81, dtype=np.uint16).reshape(2, 40)
 BIOTAC_KEYS = ("pac", "pac_t0_ns", "pdc", "tac", "tdc", "electrodes")
@@ -45,14 +45,15 @@ class DatasetCollector:
         self.scene = scene
         self.seed = int(seed)
         self._labels: list = []
-        self._events: list[EventBatch] = []
+        self._events: list[TrialEvents] = []
         self._biotac: list[dict[str, np.ndarray]] = []
 
     def add(self, tb: TimeBase, signals: Signals) -> None:
         """Take the labels and sensor signal of one batch."""
         self._labels.append(signals["labels"])
         if self.scene.sensor is Sensor.NUSKIN:
-            self._events.append(signals["events"].offset_trials(tb.first_trial))
+            trial, events = signals["events"]
+            self._events.append(((trial + tb.first_trial).astype(np.int32), events))
         else:
             self._biotac.append(signals["biotac"])
 
@@ -81,13 +82,9 @@ class DatasetCollector:
             "finger_taxels": FINGER_TAXELS,
         }
         if scene.sensor is Sensor.NUSKIN:
-            ev = (
-                EventBatch(*(np.concatenate(c) for c in zip(*self._events, strict=True)))
-                if self._events
-                else EventBatch.empty()
-            )
+            trial, ev = concat(self._events)
             out.update(
-                ev_trial=ev.trial.astype(np.int32),
+                ev_trial=trial.astype(np.int32),
                 ev_t_ns=ev.t_ns.astype(np.int64),
                 ev_taxel=ev.taxel.astype(np.uint16),
                 ev_polarity=ev.polarity.astype(np.int8),

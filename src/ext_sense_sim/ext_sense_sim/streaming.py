@@ -8,145 +8,27 @@ host clock reaches the trial start plus the chunk's time. When the first chunk a
 true contact onset is written, ``on_onset`` gets the ground truth stamped with the host time
 (``time.time_ns``, the clock drivers stamp arrival with) of that write. A trial that could not
 be simulated before its start is sent late and counted in ``late_trials``.
+
+The trials come from :mod:`~ext_sense_sim.trial_plan`; the bytes go to a link of
+:mod:`~ext_sense_sim.links` (a pty or a CAN sink).
 """
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
-import os
 import queue
-import select
 import threading
 import time
-from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
-from ext_sense_runtime.enums import Sensor
-from ext_sense_sim.engine import Simulator
+from ext_sense_runtime.records import GroundTruth
 from ext_sense_sim.errors import SceneError
+from ext_sense_sim.links import open_link
 from ext_sense_sim.scene import Scene
-
-WIRE_EFFECT = {Sensor.NUSKIN: "nuskin_wire", Sensor.BIOTAC: "biotac_wire"}
-
-
-class GroundTruth(NamedTuple):
-    """What really happened in one streamed trial."""
-
-    trial: int
-    stamp_ns: int
-    task: str
-    tap_position_m: float
-    rod_length_m: float
-    class_label: str
-
-
-class PlannedTrial(NamedTuple):
-    """One simulated trial ready to stream: its chunks and its truth (times from its start)."""
-
-    trial: int
-    chunks: list[tuple[int, bytes]]
-    onset_ns: int
-    tap_position_m: float
-    class_label: str
-
-
-def plan_trials(scene: Scene, seed: int) -> Iterator[PlannedTrial]:
-    """Simulate trials one by one, forever; the scene must list its sensor's wire effect.
-
-    Raises:
-        SceneError: The scene lacks the wire effect (named) for its sensor.
-    """
-    wire = WIRE_EFFECT[scene.sensor]
-    if wire not in scene.effect_names:
-        raise SceneError(
-            f"Scene '{scene.name}' cannot be streamed: it needs effect '{wire}', which its "
-            f"effects list lacks."
-        )
-    single = dataclasses.replace(scene, batch_size=1)
-    sim = Simulator(single)
-    seeds = np.random.SeedSequence(int(seed))
-    k = 0
-    while True:
-        rng = np.random.default_rng(seeds.spawn(1)[0])
-        _, signals = sim.run_batch(k, 1, rng)
-        labels = signals["labels"]
-        yield PlannedTrial(
-            k,
-            signals["wire"][0].chunks(),
-            int(labels.onset_ns[0]),
-            float(labels.y_m[0]),
-            str(labels.class_label[0]),
-        )
-        k += 1
-
-
-class LaidOutStream(NamedTuple):
-    """A run of trials laid on one stream clock as the device would write them (no waiting).
-
-    Attributes:
-        writes: ``(t_ns, bytes)`` per write, time from the stream's start, in order.
-        truths: The ground truth of every trial, ``stamp_ns`` on the same clock: the time of the
-            write holding the trial's first bytes at or after its true onset (as :func:`stream`
-            stamps it live).
-    """
-
-    writes: list[tuple[int, bytes]]
-    truths: list[GroundTruth]
-
-
-def lay_out_stream(scene: Scene, seed: int, trials: int, period_s: float = 1.0) -> LaidOutStream:
-    """The device bytes of ``trials`` trials, ``period_s`` apart, without real-time waiting.
-
-    The same wire effect and the same trial spacing as :func:`stream` (what ``sim_device``
-    sends live), simulated in the scene's batches (much faster than one trial at a time), so
-    a model can be trained on exactly what the driver decodes live.
-
-    Args:
-        scene: A scene listing its sensor's wire effect.
-        seed: Seed of the run.
-        trials: Number of trials (>= 1).
-        period_s: Time between trial starts, s (at least the trial length).
-
-    Raises:
-        SceneError: The scene lacks the wire effect, or ``trials`` < 1.
-    """
-    wire = WIRE_EFFECT[scene.sensor]
-    if wire not in scene.effect_names:
-        raise SceneError(
-            f"Scene '{scene.name}' cannot be streamed: it needs effect '{wire}', which its "
-            f"effects list lacks."
-        )
-    period_ns = round(max(period_s, scene.trial_s) * 1e9)
-    rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
-    writes: list[tuple[int, bytes]] = []
-    truths: list[GroundTruth] = []
-    for tb, signals in Simulator(scene).batches(trials, seed):
-        labels = signals["labels"]
-        for i, wstream in enumerate(signals["wire"]):
-            k = tb.first_trial + i
-            t0 = k * period_ns
-            chunks = wstream.chunks()
-            times = np.array([c[0] for c in chunks], dtype=np.int64)
-            j = int(np.searchsorted(times, int(labels.onset_ns[i])))
-            writes.extend((t0 + int(t), b) for t, b in chunks)
-            if j < times.size:
-                truths.append(
-                    GroundTruth(
-                        k,
-                        t0 + int(times[j]),
-                        scene.task.label,
-                        float(labels.y_m[i]),
-                        rod,
-                        str(labels.class_label[i]),
-                    )
-                )
-    return LaidOutStream(writes, truths)
+from ext_sense_sim.trial_plan import PlannedTrial, plan_trials
 
 
 @dataclass
@@ -408,130 +290,11 @@ def _play(
                         clock() if truth_stamp_ns is None else truth_stamp_ns,
                         scene.task.label,
                         plan.tap_position_m,
-                        rod,
                         plan.class_label,
+                        rod,
                     )
                 )
         i = j
-
-
-class PtyLink:
-    """A pseudo-terminal in raw mode: the emulator writes the master, a driver opens the slave.
-
-    A pty buffers only about 4 KiB, less than a tap's burst of receiver words carries, so
-    writing straight into it lost up to half of a trial's words whenever the reader was a few
-    milliseconds late. Bytes therefore go through a device-side FIFO that a writer thread
-    drains into the pty as fast as the reader takes them (like a receiver's UART buffer). A
-    device does not wait forever: bytes older than ``max_backlog_s`` (nobody reading, e.g.
-    before a driver opens the port) are dropped and counted in ``dropped_bytes``.
-
-    Args:
-        link: Optional path of a symlink to create to the slave (replaced if present).
-        max_backlog_s: Oldest bytes the FIFO keeps, s.
-    """
-
-    def __init__(self, link: str | Path | None = None, max_backlog_s: float = 0.1) -> None:
-        import tty
-
-        if not max_backlog_s > 0:
-            raise SceneError(
-                f"The 'max_backlog_s' parameter must be > 0. Got {max_backlog_s!r} instead."
-            )
-        self.master, self._slave = os.openpty()
-        tty.setraw(self._slave)
-        os.set_blocking(self.master, False)
-        self.dropped_bytes = 0
-        self.max_backlog_ns = round(max_backlog_s * 1e9)
-        self.path = os.ttyname(self._slave)
-        self.link = Path(link) if link else None
-        if self.link is not None:
-            if self.link.is_symlink() or self.link.exists():
-                self.link.unlink()
-            self.link.symlink_to(self.path)
-        self._fifo: deque[tuple[int, bytes]] = deque()
-        self._backlog = 0
-        self._cond = threading.Condition()
-        self._closed = False
-        self._writer = threading.Thread(target=self._drain, name="pty_writer", daemon=True)
-        self._writer.start()
-
-    @property
-    def backlog_bytes(self) -> int:
-        """Bytes waiting in the FIFO."""
-        return self._backlog
-
-    def write(self, data: bytes) -> int:
-        """Queue ``data`` for the pty without blocking.
-
-        Returns:
-            Bytes accepted (all of them; stale ones are dropped later and counted).
-        """
-        if data:
-            with self._cond:
-                self._fifo.append((time.monotonic_ns(), bytes(data)))
-                self._backlog += len(data)
-                self._cond.notify()
-        return len(data)
-
-    def _drop_stale(self, now_ns: int) -> None:
-        while self._fifo and now_ns - self._fifo[0][0] > self.max_backlog_ns:
-            _, old = self._fifo.popleft()
-            self._backlog -= len(old)
-            self.dropped_bytes += len(old)
-
-    def _drain(self) -> None:
-        while True:
-            with self._cond:
-                while not self._fifo and not self._closed:
-                    self._cond.wait()
-                if self._closed:
-                    return
-                self._drop_stale(time.monotonic_ns())
-                if not self._fifo:
-                    continue
-                stamp, data = self._fifo[0]
-            try:
-                select.select([], [self.master], [], 0.002)
-                n = os.write(self.master, data)
-            except BlockingIOError:
-                n = 0
-            except OSError:  # closed underneath us
-                return
-            with self._cond:
-                if n:
-                    self._fifo.popleft()
-                    self._backlog -= n
-                    if n < len(data):
-                        self._fifo.appendleft((stamp, data[n:]))
-            if not n:
-                time.sleep(0.0002)
-
-    def close(self) -> None:
-        """Stop the writer, close both ends and remove the symlink."""
-        with self._cond:
-            self._closed = True
-            self._cond.notify()
-        self._writer.join(timeout=1.0)
-        for fd in (self.master, self._slave):
-            with contextlib.suppress(OSError):
-                os.close(fd)
-        if self.link is not None and self.link.is_symlink():
-            self.link.unlink()
-
-
-def open_link(kind: str, *, link_path: str = "", can_channel: str = "", can_id: int = 0x100):
-    """A pty (default) or a python-can virtual channel sink, each with ``write`` and ``close``.
-
-    Raises:
-        SceneError: Unknown link kind.
-    """
-    if kind == "pty":
-        return PtyLink(link_path or None)
-    if kind == "can":
-        from ext_sense_drivers.transports.can_bus import CanSink
-
-        return CanSink("virtual", can_channel or "ext_sense", can_id)
-    raise SceneError(f"The 'link' parameter must be 'pty' or 'can'. Got {kind!r} instead.")
 
 
 def serve_device(args) -> int:
@@ -557,7 +320,7 @@ def serve_device(args) -> int:
             trials=args.trials,
             period_s=args.period,
             on_onset=lambda gt: print(
-                f"trial {gt.trial} onset at {gt.stamp_ns} ns {gt.class_label or gt.tap_position_m}",
+                f"trial {gt.trial} onset at {gt.onset_ns} ns {gt.class_label or gt.tap_position_m}",
                 flush=True,
             ),
         )

@@ -5,7 +5,7 @@
 - ``replay BAG [--rate R | --flat-out]`` publishes the bag's graph inputs (sensor streams and
   ground truth) as recorded bytes, at recorded pace or flat out, and prints the throughput.
 - ``replay BAG --offline`` drives the graph's core directly, without ROS: the same
-  :class:`~ext_sense_perception.nodes.pipeline.WindowStage` and model the nodes run, fed in
+  :class:`~ext_sense_perception.online.stage.WindowStage` and model the nodes run, fed in
   log-time order, so two runs on one bag give identical estimates (``--json`` writes them).
 """
 
@@ -17,7 +17,12 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # imported by the handlers: ``ext-sense --help`` stays fast
+    from ext_sense_perception.online.predictor import ModelBundle
+    from ext_sense_perception.online.window import WindowConfig
+    from ext_sense_runtime.records import Estimate
 
 DEFAULT_INPUTS = ("/extsense/nuskin/events", "/extsense/biotac/frames", "/extsense/ground_truth")
 
@@ -197,52 +202,45 @@ def bag_task_sensor(path: Path) -> tuple[str, str]:
 
 
 def offline_estimates(
-    bag_path: Path,
-    task: str,
-    sensor: str,
-    model: Any,
-    model_id: str = "",
-    final_post_ns: int | None = None,
+    bag_path: Path, config: WindowConfig, model: ModelBundle
 ) -> Iterator[tuple[str, Any]]:
-    """Run the graph's core on a bag: yields ``("estimate", fields)`` and ``("truth", msg)``.
+    """Run the graph's core on a bag: yields ``("estimate", Estimate)`` and ``("truth", msg)``.
 
-    Sensor messages feed :class:`~ext_sense_perception.nodes.pipeline.WindowStage` in log-time
-    order; each window goes through ``model.predict`` and
-    :func:`~ext_sense_perception.nodes.pipeline.estimate_fields`, as in the nodes. Compute
-    latency is measured per window (feature + model time, no transport) and is the only
-    field that differs between runs. For food the ground-truth stamps mark the motion start,
-    as ``motion_start`` does in the graph.
+    Sensor messages feed :class:`~ext_sense_perception.online.stage.WindowStage` in log-time
+    order, cutting the windows of ``config`` (the model card's task profile, as the window node
+    does); each window goes through ``model.predict``, as in the inference node. Compute
+    latency is measured per window (feature + model time, no transport) and is the only field
+    that differs between runs. For food the ground-truth stamps mark the motion start, as
+    ``motion_start`` does in the graph.
     """
     from ext_sense_bags import BagReader
     from ext_sense_perception.errors import PerceptionError
-    from ext_sense_perception.nodes.pipeline import WindowStage, estimate_fields
-    from ext_sense_perception.windows import WindowConfig
+    from ext_sense_perception.online.stage import WindowStage
+    from ext_sense_runtime.enums import Sensor
+    from ext_sense_runtime.stamps import stamp_to_ns
 
-    config = WindowConfig.for_task(task, sensor)
-    final_post_ns = config.post_ns if final_post_ns is None else final_post_ns
     stage = WindowStage(config)
-    stream = "/extsense/nuskin/events" if sensor == "nuskin" else "/extsense/biotac/frames"
+    nuskin = config.sensor is Sensor.NUSKIN
+    stream = "/extsense/nuskin/events" if nuskin else "/extsense/biotac/frames"
 
     def run(windows: list) -> Iterator[tuple[str, Any]]:
         for win in windows:
-            t0 = time.perf_counter_ns()
             try:
-                pred = model.predict(win)
-                fields = estimate_fields(pred, win, model_id, time.perf_counter_ns() - t0)
+                estimate = model.predict(win)
             except PerceptionError as err:
                 yield "rejected", str(err)
                 continue
-            yield "estimate", fields
+            yield "estimate", estimate
 
     with BagReader(bag_path) as bag:
         wanted = [t for t in (stream, "/extsense/ground_truth") if t in bag.topics]
         for rec, msg in bag.messages(wanted):
             if rec.topic == "/extsense/ground_truth":
-                if config.onset_source == "external":
-                    stage.on_motion_start(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec)
+                if config.external_onsets:
+                    stage.on_motion_start(stamp_to_ns(msg.header.stamp))
                 yield "truth", msg
                 continue
-            windows = stage.on_events(msg) if sensor == "nuskin" else stage.on_frame(msg)
+            windows = stage.on_events(msg) if nuskin else stage.on_frame(msg)
             yield from run(windows)
         if stage.last_data_ns is not None:
             yield from run(stage.advance(stage.last_data_ns + config.post_ns))
@@ -250,9 +248,11 @@ def offline_estimates(
 
 
 def _replay_offline_cli(args: argparse.Namespace) -> int:
-    from ext_sense.nodes.scoreboard import Scoreboard, truth_of
+    from ext_sense.nodes.scoreboard import Scoreboard
     from ext_sense_perception.errors import PerceptionError
-    from ext_sense_perception.nodes.pipeline import default_model_dir, load_bundle, model_id_of
+    from ext_sense_perception.online.predictor import default_model_dir, load_model
+    from ext_sense_perception.online.window import WindowConfig
+    from ext_sense_runtime.records import truth_of
 
     task, sensor = args.task, args.sensor
     if not (task and sensor):
@@ -260,14 +260,21 @@ def _replay_offline_cli(args: argparse.Namespace) -> int:
         task, sensor = task or guessed[0], sensor or guessed[1]
     model_dir = args.model or default_model_dir(task, sensor)
     try:
-        model = load_bundle(model_dir, args.backend)
+        model = load_model(model_dir, args.backend)
+        if (model.task, model.card.sensor) != (task, sensor):
+            raise PerceptionError(
+                f"The model in {model_dir} is for {model.task}/{model.card.sensor}; the bag is "
+                f"{task}/{sensor}."
+            )
+        config = WindowConfig(model.card.profile, sensor)  # the windows the model was made for
+        replay = list(offline_estimates(args.bag, config, model))
     except PerceptionError as err:
         print(f"ext-sense replay: {err}", file=sys.stderr)
         return 2
     board = Scoreboard(task)
-    estimates: list[dict[str, Any]] = []
+    estimates: list[Estimate] = []
     rejected = 0
-    for kind, item in offline_estimates(args.bag, task, sensor, model, model_id_of(model)):
+    for kind, item in replay:
         if kind == "truth":
             lines = board.add_truth(truth_of(item))
         elif kind == "rejected":
@@ -275,7 +282,7 @@ def _replay_offline_cli(args: argparse.Namespace) -> int:
             lines = [f"window rejected: {item}"]
         else:
             estimates.append(item)
-            lines = board.add_estimate(_estimate_of_fields(item))
+            lines = board.add_estimate(item)
         if not args.quiet:
             for line in lines:
                 print(line)
@@ -288,26 +295,14 @@ def _replay_offline_cli(args: argparse.Namespace) -> int:
     return 0
 
 
-def _estimate_of_fields(f: dict[str, Any]) -> Any:
-    from ext_sense.nodes.scoreboard import Estimate
-
-    return Estimate(
-        onset_ns=f["stamp_ns"],
-        provisional=f["provisional"],
-        tap_position_m=f["tap_position_m"],
-        tap_position_std_m=f["tap_position_std_m"],
-        class_label=f["class_label"],
-        stability_probability=f["stability_probability"],
-        compute_latency_ns=f["compute_latency_ns"],
-        post_contact_used_ns=f["post_contact_used_ns"],
-    )
-
-
-def _jsonable(f: dict[str, Any]) -> dict[str, Any]:
-    out = {}
-    for key, value in f.items():
-        if hasattr(value, "tolist"):
-            value = value.tolist()
+def _jsonable(est: Estimate) -> dict[str, Any]:
+    """An estimate as JSON values (NaN as null), with ``stamp_ns`` for its onset."""
+    out: dict[str, Any] = {"stamp_ns": est.onset_ns}
+    for key, value in est._asdict().items():
+        if key == "onset_ns":
+            continue
+        if isinstance(value, tuple):
+            value = list(value)
         if isinstance(value, float) and value != value:  # NaN is not JSON
             value = None
         out[key] = value

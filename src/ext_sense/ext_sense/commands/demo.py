@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -76,11 +77,11 @@ def ensure_model(
     """Train a model into ``model_dir`` unless a bundle is there.
 
     NUSkin: trained on the live path itself (no train/serve skew): the scene's trials are laid
-    out as the emulated device streams them (``ext_sense_sim.streaming.lay_out_stream``: the
+    out as the emulated device streams them (``ext_sense_sim.trial_plan.lay_out_stream``: the
     receiver bytes, 1 s apart), decoded by the driver's decoder and arrival clock and cut by
-    the ``contact_window`` node's core (``ext_sense_perception.stream_windows``), each window
-    labelled by its trial's ground truth. BioTac: ``ext-sense sim run`` then ``ext-sense train``
-    on the dataset.
+    the ``contact_window`` node's core (``ext_sense_perception.data.device_stream``), each
+    window labelled by its trial's ground truth. BioTac: the simulated dataset. Both train with
+    the one training recipe (``ext_sense_perception.training.recipe.train_bundle``).
 
     Returns:
         0 on success, else the failing step's exit code.
@@ -137,24 +138,18 @@ def training_fingerprint(sensor: str, scene: str, trials: int) -> str:
 
 def train_on_stream(model_dir: Path, scene_name: str, trials: int, log: TextIO) -> int:
     """Train the NUSkin model on windows cut from the device's own byte stream (see above)."""
+    from ext_sense_perception.data.device_stream import window_set_from_stream
     from ext_sense_perception.errors import PerceptionError
-    from ext_sense_perception.stream_windows import (
-        StreamTruth,
-        train_bundle,
-        window_set_from_stream,
-    )
+    from ext_sense_perception.training.recipe import train_bundle
     from ext_sense_sim.errors import SceneError
     from ext_sense_sim.scene import load_scene
-    from ext_sense_sim.streaming import lay_out_stream
+    from ext_sense_sim.trial_plan import lay_out_stream
 
     t0 = time.monotonic()
     print(f"[demo] streaming {trials} training taps ({scene_name}) offline", file=log)
     try:
         laid = lay_out_stream(load_scene(scene_name), TRAIN_SEED, trials, TRIAL_PERIOD_S)
-        truths = [
-            StreamTruth(g.trial, g.stamp_ns, g.tap_position_m, g.rod_length_m) for g in laid.truths
-        ]
-        ws, counts = window_set_from_stream(laid.writes, truths, source=f"stream:{scene_name}")
+        ws, counts = window_set_from_stream(laid.writes, laid.truths, source=f"stream:{scene_name}")
         print(
             f"[demo] {counts.labelled} labelled windows from {counts.words} words "
             f"({counts.unmatched_windows} unmatched windows, {counts.missed_trials} trials "
@@ -167,60 +162,42 @@ def train_on_stream(model_dir: Path, scene_name: str, trials: int, log: TextIO) 
         print(f"ext-sense demo: error: {err}", file=sys.stderr)
         return 2
     print(
-        f"[demo] trained {card['id']} into {model_dir} in {time.monotonic() - t1:.1f} s; "
-        f"metrics {card['metrics']}",
+        f"[demo] trained {card.id} into {model_dir} in {time.monotonic() - t1:.1f} s; "
+        f"metrics {card.metrics}",
         file=log,
     )
     return 0
 
 
 def _train_on_dataset(
-    model_dir: Path, sensor: str, scene: str, trials: int, retrain: bool, log: TextIO
+    model_dir: Path, sensor: str, scene_name: str, trials: int, retrain: bool, log: TextIO
 ) -> int:
-    from ext_sense.cli import main as cli_main
+    """Simulate a dataset (kept under build/datasets) and train the one recipe on it."""
+    from ext_sense_perception.data.sources import from_sim_dataset
+    from ext_sense_perception.errors import PerceptionError
+    from ext_sense_perception.training.recipe import train_bundle
+    from ext_sense_sim.errors import SceneError
+    from ext_sense_sim.run import run_scene
+    from ext_sense_sim.scene import load_scene
 
     data_dir = model_dir.parent.parent / "datasets" / f"{TASK}_{sensor}_train"
-    if not (data_dir / "dataset.npz").is_file() or retrain:
+    try:
+        if not (data_dir / "dataset.npz").is_file() or retrain:
+            t0 = time.monotonic()
+            print(
+                f"[demo] simulating {trials} training taps ({scene_name}) into {data_dir}", file=log
+            )
+            if data_dir.exists():
+                shutil.rmtree(data_dir)
+            run_scene(load_scene(scene_name), data_dir, trials, TRAIN_SEED, formats=("npz",))
+            print(f"[demo] simulated in {time.monotonic() - t0:.1f} s", file=log)
         t0 = time.monotonic()
-        print(f"[demo] simulating {trials} training taps ({scene}) into {data_dir}", file=log)
-        if data_dir.exists():
-            import shutil
-
-            shutil.rmtree(data_dir)
-        rc = cli_main(
-            [
-                "sim",
-                "run",
-                scene,
-                "--out",
-                str(data_dir),
-                "--trials",
-                str(trials),
-                "--seed",
-                str(TRAIN_SEED),
-            ]
-        )
-        if rc:
-            return rc
-        print(f"[demo] simulated in {time.monotonic() - t0:.1f} s", file=log)
-    t0 = time.monotonic()
-    print(f"[demo] training {TASK}/{sensor} into {model_dir}", file=log)
-    rc = cli_main(
-        [
-            "train",
-            "--task",
-            TASK,
-            "--sensor",
-            sensor,
-            "--data",
-            str(data_dir / "dataset.npz"),
-            "--out",
-            str(model_dir),
-        ]
-    )
-    if rc:
-        return rc
-    print(f"[demo] trained in {time.monotonic() - t0:.1f} s", file=log)
+        print(f"[demo] training {TASK}/{sensor} into {model_dir}", file=log)
+        card = train_bundle(from_sim_dataset(data_dir / "dataset.npz"), model_dir)
+    except (SceneError, PerceptionError) as err:
+        print(f"ext-sense demo: error: {err}", file=sys.stderr)
+        return 2
+    print(f"[demo] trained {card.id} in {time.monotonic() - t0:.1f} s", file=log)
     return 0
 
 
@@ -243,7 +220,7 @@ def as_delivered(dataset: Path, out: Path) -> Path:
 def _demo(args: argparse.Namespace) -> int:
     from ext_sense.graphs import GRAPHS
     from ext_sense.runner import run_graph
-    from ext_sense_perception.nodes.pipeline import default_model_dir
+    from ext_sense_perception.online.predictor import default_model_dir
 
     model_dir = (args.model or default_model_dir(TASK, args.sensor)).resolve()
     rc = ensure_model(model_dir, args.sensor, args.train_trials, args.retrain, args.scene)

@@ -17,13 +17,14 @@ from typing import Any
 import rclpy
 from rclpy.node import Node
 
-from ext_sense.nodes.scoreboard import Scoreboard, estimate_of, truth_of
+from ext_sense.nodes.scoreboard import Scoreboard
 from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import ESTIMATE_QOS, GROUND_TRUTH_QOS
+from ext_sense_runtime.records import estimate_of, truth_of
 
 
 class EstimateMonitorNode(Node):

@@ -1,6 +1,8 @@
 """Scoring estimates against ground truth as they arrive (no rclpy).
 
-The estimate monitor and the offline replay share it: each final estimate is matched to the
+The estimate monitor and the offline replay share it (estimates and trials as
+:class:`ext_sense_runtime.records.Estimate` and ``GroundTruth``, read from the messages with
+``estimate_of`` and ``truth_of`` there): each final estimate is matched to the
 unmatched ground-truth trial whose onset is nearest (within ``match_tolerance_ns``), a line is
 printed for it, and :meth:`Scoreboard.summary` gives the last line of the main job::
 
@@ -14,59 +16,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
 
 import numpy as np
 
-from ext_sense_runtime.stamps import stamp_to_ns
-
-MS = 1_000_000
-
-
-class Truth(NamedTuple):
-    """One ground-truth trial."""
-
-    onset_ns: int
-    trial: int
-    tap_position_m: float
-    class_label: str
-
-
-class Estimate(NamedTuple):
-    """The parts of a ``ContactEstimate`` the scoreboard needs."""
-
-    onset_ns: int
-    provisional: bool
-    tap_position_m: float
-    tap_position_std_m: float
-    class_label: str
-    stability_probability: float
-    compute_latency_ns: int
-    post_contact_used_ns: int
-
-
-def estimate_of(msg: Any) -> Estimate:
-    """The scoreboard's view of a ``ContactEstimate`` (rclpy or rosbags message)."""
-    return Estimate(
-        onset_ns=stamp_to_ns(msg.header.stamp),
-        provisional=bool(msg.provisional),
-        tap_position_m=float(msg.tap_position_m),
-        tap_position_std_m=float(msg.tap_position_std_m),
-        class_label=str(msg.class_label),
-        stability_probability=float(msg.stability_probability),
-        compute_latency_ns=stamp_to_ns(msg.compute_latency),
-        post_contact_used_ns=stamp_to_ns(msg.post_contact_used),
-    )
-
-
-def truth_of(msg: Any) -> Truth:
-    """The scoreboard's view of a ``ContactGroundTruth``."""
-    return Truth(
-        onset_ns=stamp_to_ns(msg.header.stamp),
-        trial=int(msg.trial),
-        tap_position_m=float(msg.tap_position_m),
-        class_label=str(msg.class_label),
-    )
+from ext_sense_runtime.records import Estimate, GroundTruth
+from ext_sense_runtime.stamps import MS
 
 
 @dataclass
@@ -80,7 +34,7 @@ class Scoreboard:
 
     task: str
     match_tolerance_ns: int = 300 * MS
-    truths: list[Truth] = field(default_factory=list)
+    truths: list[GroundTruth] = field(default_factory=list)
     pending: list[Estimate] = field(default_factory=list)
     errors_m: list[float] = field(default_factory=list)
     correct: list[bool] = field(default_factory=list)
@@ -98,7 +52,7 @@ class Scoreboard:
         """Final estimates matched to a trial so far."""
         return len(self.errors_m) if self.is_regression else len(self.correct)
 
-    def add_truth(self, truth: Truth) -> list[str]:
+    def add_truth(self, truth: GroundTruth) -> list[str]:
         """Record a trial; returns lines for pending estimates it now matches."""
         self.truths.append(truth)
         waiting, self.pending = self.pending, []
@@ -138,7 +92,7 @@ class Scoreboard:
             f"{'ok   ' if ok else 'WRONG'} | {lag} | {latency}"
         ]
 
-    def _match(self, onset_ns: int) -> Truth | None:
+    def _match(self, onset_ns: int) -> GroundTruth | None:
         best, best_dt = None, self.match_tolerance_ns + 1
         for truth in self.truths:
             dt = abs(onset_ns - truth.onset_ns)

@@ -1,29 +1,14 @@
-"""Between ROS messages and the plain records of the behaviours."""
+"""Between ROS messages and the plain records of the behaviours.
+
+Estimates are read with :func:`ext_sense_runtime.records.estimate_of`.
+"""
 
 from __future__ import annotations
 
 from builtin_interfaces.msg import Duration
 from visualization_msgs.msg import Marker
 
-from ext_sense_behaviours.records import Estimate
 from ext_sense_behaviours.tap import MarkerSpec
-from ext_sense_msgs.msg import ContactEstimate
-from ext_sense_runtime.stamps import stamp_to_ns
-
-
-def estimate_from_msg(msg: ContactEstimate) -> Estimate:
-    """The fields of a ``ContactEstimate`` the behaviours use."""
-    return Estimate(
-        stamp_ns=stamp_to_ns(msg.header.stamp),
-        task=msg.task,
-        provisional=bool(msg.provisional),
-        stability_probability=float(msg.stability_probability),
-        class_label=msg.class_label,
-        tap_position_m=float(msg.tap_position_m),
-        tap_position_std_m=float(msg.tap_position_std_m),
-        model_id=msg.model_id,
-        class_probabilities=tuple(float(p) for p in msg.class_probabilities),
-    )
 
 
 def marker_from_spec(

@@ -28,7 +28,6 @@ from ext_sense_behaviours.decisions import Decision
 from ext_sense_behaviours.execution import FoodProbe
 from ext_sense_behaviours.food import FOOD_TASK, FoodConfig, FoodMachine, FoodResult, FoodState
 from ext_sense_behaviours.franka import FrankaNames
-from ext_sense_behaviours.nodes.conversions import estimate_from_msg
 from ext_sense_behaviours.records import ArmState
 from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth
 from ext_sense_runtime.diagnostics import Level, Updater
@@ -36,9 +35,8 @@ from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
-from ext_sense_runtime.stamps import fill_stamp, stamp_to_ns
-
-S = 1_000_000_000
+from ext_sense_runtime.records import estimate_of
+from ext_sense_runtime.stamps import S, fill_stamp, stamp_to_ns
 
 
 class FoodBehaviourNode(Node):
@@ -190,7 +188,7 @@ class FoodBehaviourNode(Node):
     def _on_publish(self, result: FoodResult) -> None:
         if result.estimate is None:
             return
-        msg = self._estimate_msgs.get(result.estimate.stamp_ns)
+        msg = self._estimate_msgs.get(result.estimate.onset_ns)
         if msg is not None:
             self.result_pub.publish(msg)
             self.results += 1
@@ -203,7 +201,7 @@ class FoodBehaviourNode(Node):
         if msg.task != FOOD_TASK:
             return
         self._estimate_msgs = {stamp_to_ns(msg.header.stamp): msg}
-        self.probe.deliver(estimate_from_msg(msg), self.get_clock().now().nanoseconds)
+        self.probe.deliver(estimate_of(msg), self.get_clock().now().nanoseconds)
 
     def _on_timer(self) -> None:
         now = self.get_clock().now().nanoseconds

@@ -37,16 +37,15 @@ from ext_sense_behaviours.handover import (
     HandoverMachine,
     HandoverState,
 )
-from ext_sense_behaviours.nodes.conversions import estimate_from_msg
 from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
-from ext_sense_runtime.stamps import fill_stamp
+from ext_sense_runtime.records import estimate_of
+from ext_sense_runtime.stamps import S, fill_stamp
 
-S = 1_000_000_000
 _CONFIG_PARAMS = {
     "threshold": "threshold",
     "consecutive": "consecutive",
@@ -221,7 +220,7 @@ class HandoverBehaviourNode(Node):
 
     def _on_estimate(self, msg: ContactEstimate) -> None:
         self.estimates += 1
-        self._act(self.machine.on_estimate(estimate_from_msg(msg), self._now()))
+        self._act(self.machine.on_estimate(estimate_of(msg), self._now()))
 
     def _on_gripper(self, msg: DiagnosticStatus) -> None:
         level = Level(msg.level[0] if isinstance(msg.level, bytes) else int(msg.level))

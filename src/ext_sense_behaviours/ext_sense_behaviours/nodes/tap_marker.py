@@ -15,7 +15,7 @@ from rclpy.node import Node
 from visualization_msgs.msg import Marker
 
 from ext_sense_behaviours.errors import BehaviourError
-from ext_sense_behaviours.nodes.conversions import estimate_from_msg, marker_from_spec
+from ext_sense_behaviours.nodes.conversions import marker_from_spec
 from ext_sense_behaviours.tap import TAP_TASK, rod_marker, tap_marker
 from ext_sense_msgs.msg import ContactEstimate
 from ext_sense_runtime.diagnostics import Level, Updater
@@ -23,6 +23,7 @@ from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
+from ext_sense_runtime.records import estimate_of
 
 NS = "tap"
 
@@ -88,7 +89,7 @@ class TapMarkerNode(Node):
         self.pub.publish(marker_from_spec(spec, self.frame_id, stamp, NS, 0, Marker.CYLINDER))
 
     def _on_estimate(self, msg: ContactEstimate) -> None:
-        estimate = estimate_from_msg(msg)
+        estimate = estimate_of(msg)
         if estimate.task != TAP_TASK:
             return
         try:

@@ -12,10 +12,11 @@ from ext_sense_drivers.aces.bank import (
     correlation_stats,
     load_bank,
 )
-from ext_sense_drivers.aces.decoder import LineCounters, LineDecoder, decode_line
+from ext_sense_drivers.aces.decoder import LineDecoder, decode_line
 from ext_sense_drivers.aces.encoder import EncodedLine, encode_line
 from ext_sense_drivers.aces.enums import DecodeMode
 from ext_sense_drivers.aces.errors import AcesError
+from ext_sense_drivers.aces.line_counters import LineCounters
 from ext_sense_drivers.aces.sample_clock import ns_to_sample, sample_to_ns
 from ext_sense_drivers.aces.wire import COUNTS_PER_UNIT, bytes_to_samples, samples_to_bytes
 

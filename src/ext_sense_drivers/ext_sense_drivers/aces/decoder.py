@@ -17,144 +17,47 @@ them lies inside the window:
 Cancellation uses one chip amplitude for all signatures (the nominal one, or, by default, an
 estimate tracked from the detections and updated between passes), never each detection's own
 measured correlation, so the interference in a correlation does not leak into the residual.
+
+This module holds the stream and its passes (buffering, the repeat of a pass with the measured
+amplitude, detections held for the next pass's residual test, emission); the stages live beside
+it: :mod:`~ext_sense_drivers.aces.overload` (the overload gate),
+:mod:`~ext_sense_drivers.aces.residual` (the residual tests),
+:mod:`~ext_sense_drivers.aces.amplitude` (amplitude tracking),
+:mod:`~ext_sense_drivers.aces.detections` (combining the detectors' decisions) and
+:mod:`~ext_sense_drivers.aces.line_counters` (the counters record).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import numpy.typing as npt
 
+from ext_sense_drivers.aces.amplitude import (
+    REDO_GAIN,
+    REDO_SETTLED,
+    clamp_amplitude,
+    tracked_amplitude,
+)
 from ext_sense_drivers.aces.bank import SignatureBank, load_bank
-from ext_sense_drivers.aces.detections import Detections
+from ext_sense_drivers.aces.detections import Detections, annihilate, merge
 from ext_sense_drivers.aces.enums import DecodeMode
 from ext_sense_drivers.aces.errors import AcesError
+from ext_sense_drivers.aces.line_counters import LineCounters
 from ext_sense_drivers.aces.matched_filter import MatchedFilterSic
 from ext_sense_drivers.aces.onset import OnsetDecoder
+from ext_sense_drivers.aces.overload import blank_overload
+from ext_sense_drivers.aces.residual import missed_energy, unexplained
 from ext_sense_drivers.aces.sample_clock import sample_to_ns
-from ext_sense_drivers.aces.wire import BYTES_PER_SAMPLE, COUNTS_PER_UNIT, WIRE_DTYPE
-from ext_sense_drivers.nuskin.events import EventBlock
+from ext_sense_drivers.aces.wire import chunk_samples
+from ext_sense_runtime.records import EventBlock
 
 DEFAULT_WINDOW = 2048
 """Samples per pass; with 127 chips, 1796 samples (3.5 ms) are decided per pass and no event
 waits more than 2048 samples (4.0 ms) after its signature started."""
 
-AMPLITUDE_MEMORY = 16
-"""Detections of weight the amplitude estimate carries from the past: each pass moves it by
-``n / (n + m)`` of the way to the mean of its ``n`` detections, where ``m`` is the number of
-detections so far, at most this (a running mean at first, then an exponential one)."""
-
-AMPLITUDE_RANGE = (0.25, 4.0)
-"""The tracked amplitude stays within these multiples of the nominal one."""
-
-_AMPLITUDE_STEP = 0.002
-"""Smaller relative changes of the amplitude estimate are not applied (saves work per pass)."""
-
-_REFRESH_RATIO = 0.25
-"""A decided stretch one signature long whose residual energy exceeds the noise floor by this
-fraction of one signature's energy sends the window through the matched filter."""
-
-MAX_NOISE = 0.6
-"""Residual test, absolute part: when even the quietest tenth of a window's decided stretches
-keeps more residual than noise of this RMS (chip amplitudes) would leave, the window is noise
-or interference beyond what the line is specified for (exact decoding was measured up to 0.4
-chip RMS), its correlations are not evidence, and all its detections are withheld."""
-
-_REDO_GAIN = 0.1
-"""Relative amplitude error above which a pass with rejected detections is decoded again."""
-
-_REDO_SETTLED = 64
-"""Passes are decoded again only until this many detections have measured the amplitude: later
-on, a pass with residue is a burst far more often than a gain change (which the tracking
-follows), and decoding bursts twice halved the speed."""
-
 _FEED_SLICE = 1 << 20
 """A chunk larger than this many bytes (or half as many samples) is decoded in slices of it, so
 that the decoder's own buffers stay bounded however much arrives at once."""
-
-_REFRESH_LIMIT = 8.0
-"""Above this many signatures' energy in one decided stretch the matched filter is not run."""
-
-MAX_DEPTH = 16.0
-"""Overload gate: a stretch of one signature length whose energy says it carries more than this
-many signatures per sample on average (energy per sample / amplitude squared; signatures add
-incoherently) is beyond what the line can separate. Its samples are not decoded (set to 0) and
-counted. Bursts of 12 signatures started within 0.1 ms (about 9.6 per sample over the stretch,
-more where they happen to add up) still decode; 16 did not. Also stops a constant or random
-full-scale input (64 and 21)."""
-
-SUSTAINED_SPAN = 4
-"""Signature lengths of the overload gate's second, longer stretch."""
-
-MAX_SUSTAINED_DEPTH = 7.0
-"""Overload gate on stretches of :data:`SUSTAINED_SPAN` signature lengths: a line that carries
-more than this many signatures per sample on average for that long is saturated (a random line
-at 95 % busy carries 3, and reaching 7 over four signature lengths is a 1e-4 event there;
-a burst of 12 signatures is 3 over such a stretch). Decoding a saturated line only costs time
-(the onset decoder's test budget and a matched filter per pass) and produces residue."""
-
-REJECT_RATIO = 0.25
-"""Residual test after decoding: a decided stretch one signature long whose residual energy
-still exceeds the noise floor by this fraction of one signature's energy was not explained by
-the detections around it (a burst too dense to separate: the cancellations left residue that
-made more false detections). Committed detections overlapping it are withheld and counted."""
-
-
-@dataclass(frozen=True)
-class LineCounters:
-    """What a :class:`LineDecoder` has seen so far.
-
-    Attributes:
-        samples: Line samples taken in (including replaced non-finite ones).
-        nonfinite_samples: NaN/inf samples replaced by 0 (counted drop; the clock stays right).
-        bytes_dropped: Trailing odd byte discarded at :meth:`LineDecoder.flush`.
-        detections: Events emitted.
-        cancellations: Signatures cancelled, including the matched filter's look-ahead ones
-            that are found again in the next pass.
-        tested: Code correlations evaluated at single starts (onset tests, matched-filter
-            candidates).
-        passes: Decoding passes run.
-        refreshes: Passes whose residual still held a signature's energy after the onset
-            decoder, so that the matched filter ran on them.
-        undone: Detections reversed: onset decisions the matched filter found wrong, and
-            decisions cancelled by a later one of the other sign at the same taxel and start.
-        input_energy: Sum of squared samples taken in, line units squared.
-        residual_energy: Sum of squared residual of the decided samples after cancellation;
-            near zero on a clean line, so a high ratio to ``input_energy`` means missed events,
-            a wrong bank, a gain error, noise or a lost byte (wire samples out of step).
-        overload_samples: Samples not decoded because the line carried more than
-            :data:`MAX_DEPTH` signatures per sample around them (saturation, bursts beyond
-            separation, garbage input).
-        rejected: Detections withheld because the residual around them showed the decoding
-            there was wrong (see :data:`REJECT_RATIO`).
-        unresolved: Estimated signatures the decoder could not resolve: the energy of the
-            overloaded samples in units of one signature's energy (overlapping signatures add
-            incoherently), plus the rejected detections (the decoder's own count of what it
-            could not explain), rounded.
-        mean_amplitude: Mean correlation per chip of all detections at acceptance, line
-            units (0 before the first): the chip amplitude actually on the line, to compare
-            with the decoder's nominal ``amplitude``.
-        amplitude_in_use: The chip amplitude the decoder cancels with now (the nominal one, or
-            the tracked estimate when ``track_amplitude`` is on).
-    """
-
-    samples: int = 0
-    nonfinite_samples: int = 0
-    bytes_dropped: int = 0
-    detections: int = 0
-    cancellations: int = 0
-    tested: int = 0
-    passes: int = 0
-    refreshes: int = 0
-    undone: int = 0
-    input_energy: float = 0.0
-    residual_energy: float = 0.0
-    overload_samples: int = 0
-    rejected: int = 0
-    unresolved: int = 0
-    mean_amplitude: float = 0.0
-    amplitude_in_use: float = 0.0
 
 
 class LineDecoder:
@@ -245,15 +148,12 @@ class LineDecoder:
 
     def _track(self, strength: float, n: int) -> None:
         """Account a pass's detections; move the amplitude in use toward their mean."""
-        memory = min(self._strength_n, AMPLITUDE_MEMORY)
+        seen = self._strength_n
         self._strength += strength
         self._strength_n += n
         if self.track_amplitude and n:
-            step = n / (n + memory)
-            new = self._amp + step * (strength / n - self._amp)
-            lo, hi = AMPLITUDE_RANGE
-            new = min(max(new, lo * self.amplitude), hi * self.amplitude)
-            if abs(new - self._amp) > _AMPLITUDE_STEP * self._amp:
+            new = tracked_amplitude(self._amp, self.amplitude, strength, n, seen)
+            if new is not None:
                 self._set_amplitude(new)
 
     @property
@@ -307,7 +207,7 @@ class LineDecoder:
             return EventBlock.concat(
                 [self.feed(chunk[i : i + step]) for i in range(0, chunk.size, step)]
             )
-        samples = self._to_samples(chunk)
+        samples, self._odd = chunk_samples(chunk, self._odd)
         bad = ~np.isfinite(samples)
         if bad.any():
             samples = np.where(bad, 0.0, samples)
@@ -342,31 +242,6 @@ class LineDecoder:
         self._ended = True
         return EventBlock.concat(blocks)
 
-    def _to_samples(
-        self, chunk: bytes | bytearray | memoryview | npt.NDArray[np.floating]
-    ) -> npt.NDArray[np.float64]:
-        """Turn a chunk into float64 line samples, carrying an odd trailing byte."""
-        if isinstance(chunk, bytes | bytearray | memoryview):
-            data = self._odd + bytes(chunk)
-            cut = len(data) - len(data) % BYTES_PER_SAMPLE
-            self._odd = data[cut:]
-            return np.frombuffer(data, WIRE_DTYPE, cut // BYTES_PER_SAMPLE).astype(np.float64) / (
-                COUNTS_PER_UNIT
-            )
-        if not isinstance(chunk, np.ndarray):
-            raise AcesError(
-                "The 'chunk' parameter must be bytes or a float ndarray. "
-                f"Got {type(chunk).__name__} instead."
-            )
-        if chunk.ndim != 1 or not np.issubdtype(chunk.dtype, np.floating):
-            raise AcesError(
-                "The 'chunk' parameter must be a 1-D float array in line units (wire counts go "
-                f"in as bytes). Got {chunk.dtype} of shape {chunk.shape} instead."
-            )
-        if self._odd:
-            raise AcesError("The 'chunk' parameter is an array but half a wire sample is pending.")
-        return chunk.astype(np.float64)
-
     def _run(self) -> EventBlock:
         """Run every pass whose window is complete."""
         blocks = []
@@ -378,8 +253,9 @@ class LineDecoder:
         """Decode one window, commit its first part, slide on (``limit``: end of real samples).
 
         A pass whose residual test withheld detections while they measured an amplitude more
-        than :data:`_REDO_GAIN` away from the one in use (before the estimate has settled,
-        :data:`_REDO_SETTLED`) is decoded once more with the measured
+        than :data:`~ext_sense_drivers.aces.amplitude.REDO_GAIN` away from the one in use (before
+        the estimate has settled, :data:`~ext_sense_drivers.aces.amplitude.REDO_SETTLED`) is
+        decoded once more with the measured
         amplitude (a gain error leaves residue at every cancellation until it is tracked); the
         second result and its amplitude are kept only if it explains the window clearly better
         (at most half as many withheld, nothing overloaded, something detected): a burst's
@@ -388,7 +264,7 @@ class LineDecoder:
         buf = self._buf
         commit = self._commit if limit is None else min(self._commit, limit - self._base)
         self._c["passes"] += 1
-        may_redo = self.track_amplitude and self._strength_n < _REDO_SETTLED
+        may_redo = self.track_amplitude and self._strength_n < REDO_SETTLED
         before = (buf[: self.window].copy() if may_redo else buf, dict(self._c), self._unresolved)
         found, strength, n = self._decode_window(buf, commit)
         rejected = self._c["rejected"] - before[1]["rejected"]
@@ -396,9 +272,8 @@ class LineDecoder:
             # Residue left: either a gain error (decoding again with the measured amplitude
             # explains the window) or more than the line can separate (it does not; then the
             # first result stands and the pass does not move the estimate).
-            lo, hi = AMPLITUDE_RANGE
-            measured = min(max(strength / n, lo * self.amplitude), hi * self.amplitude)
-            redo = may_redo and abs(measured - self._amp) > _REDO_GAIN * self._amp
+            measured = clamp_amplitude(strength / n, self.amplitude)
+            redo = may_redo and abs(measured - self._amp) > REDO_GAIN * self._amp
             if redo:
                 first = (buf[: self.window].copy(), dict(self._c), self._unresolved, found)
                 old = self._amp
@@ -469,7 +344,8 @@ class LineDecoder:
             strength, n = found.strength, int(found.code.size)
         else:
             found, strength, n = self._onset_pass(buf, commit, refresh=trusted)
-        found = self._annihilate(found)
+        found, undone = annihilate(found)
+        self._c["undone"] += undone
         found = self._reject(buf, found, commit, blanked)
         if not trusted or self._noisy:
             # Detections around overloaded stretches, or in a window whose residual floor is
@@ -500,13 +376,13 @@ class LineDecoder:
         found = self._onset.decode(buf, scan, settle=commit)
         self._count(found)
         strength, n = found.strength, int(np.count_nonzero(found.start < commit))
-        missed = self._missed_energy(buf[: max(scan - 1, 0)])
+        missed = missed_energy(buf[: max(scan - 1, 0)], self.amplitude, length)
         later = found.start >= commit
         if later.any():
             self._subtract(
                 buf, Detections(found.code[later], found.start[later], -found.sign[later])
             )
-            found = Detections(found.code[~later], found.start[~later], found.sign[~later])
+            found = found.select(~later)
         if missed and refresh:
             self._c["refreshes"] += 1
             extra = self._matched.detect(buf[: self.window], commit)
@@ -514,57 +390,14 @@ class LineDecoder:
             self._subtract(buf, extra)
             strength += extra.strength
             n += int(extra.code.size)
-            found = self._merge(found, extra)
+            found, undone = merge(found, extra)
+            self._c["undone"] += undone
         return found, strength, n
 
     def _count(self, found: Detections) -> None:
         """Add a detector's work to the counters."""
         self._c["tested"] += found.tested
         self._c["cancellations"] += found.cancellations
-
-    def _merge(self, first: Detections, extra: Detections) -> Detections:
-        """Add the matched filter's detections; one that negates an onset decision undoes it."""
-        keys = {
-            (k, t): i
-            for i, (k, t) in enumerate(zip(first.code.tolist(), first.start.tolist(), strict=True))
-        }
-        drop = np.zeros(first.code.size, dtype=bool)
-        add = np.ones(extra.code.size, dtype=bool)
-        for j, (k, t, s) in enumerate(
-            zip(extra.code.tolist(), extra.start.tolist(), extra.sign.tolist(), strict=True)
-        ):
-            i = keys.get((k, t))
-            if i is not None and not drop[i] and first.sign[i] == -s:
-                drop[i] = True
-                add[j] = False
-        self._c["undone"] += int(drop.sum())
-        keep = ~drop
-        return Detections(
-            np.concatenate((first.code[keep], extra.code[add])),
-            np.concatenate((first.start[keep], extra.start[add])),
-            np.concatenate((first.sign[keep], extra.sign[add])),
-        )
-
-    def _annihilate(self, found: Detections) -> Detections:
-        """Collapse detections of one taxel at one start into one (or none, if signs cancel).
-
-        One taxel cannot overlap itself, so a ``+`` and a ``-`` of the same code at the same
-        start are a wrong decision and its correction: both go (counted in ``undone``).
-        """
-        if found.code.size < 2:
-            return found
-        key = found.code * (1 << 40) + found.start
-        ordered = np.sort(key)
-        if not (ordered[1:] == ordered[:-1]).any():
-            return found
-        uniq, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-        total = np.zeros(uniq.size, np.int64)
-        np.add.at(total, inverse, found.sign)
-        self._c["undone"] += int(key.size - np.count_nonzero(total))
-        keep = total != 0
-        return Detections(
-            found.code[first][keep], found.start[first][keep], np.sign(total[keep]).astype(np.int64)
-        )
 
     def _subtract(self, buf: npt.NDArray[np.float64], found: Detections) -> None:
         """Remove detected signatures from the residual line."""
@@ -573,52 +406,19 @@ class LineDecoder:
         ):
             buf[t : t + self._length] -= s * self._chips[k]
 
-    def _stretch_energy(
-        self, r: npt.NDArray[np.float64], span: int | None = None
-    ) -> npt.NDArray[np.float64]:
-        """Energy of every stretch of ``span`` samples (default one signature) in ``r``."""
-        span = span or self._length
-        cum = np.concatenate(([0.0], np.cumsum(r * r)))
-        return cum[span:] - cum[:-span]
-
     def _overload(self, buf: npt.NDArray[np.float64], commit: int) -> npt.NDArray[np.int64] | None:
-        """Blank (and count) the samples before ``commit`` the line cannot separate.
-
-        Every stretch of one signature length that starts before ``commit`` and carries more
-        than :data:`MAX_DEPTH` signatures' energy per sample, and every stretch of
-        :data:`SUSTAINED_SPAN` lengths above :data:`MAX_SUSTAINED_DEPTH`, marks its samples
-        before ``commit``; those are set to 0 so that neither detector works on them. Later samples
-        are judged again by the next pass.
+        """Blank and count the samples before ``commit`` the line cannot separate.
 
         Returns:
-            The blanked samples, or None.
+            The blanked samples (see :func:`~ext_sense_drivers.aces.overload.blank_overload`),
+            or None.
         """
-        length = self._length
-        if commit <= 0:
+        blanked = blank_overload(buf, commit, self._amp, self._length)
+        if blanked is None:
             return None
-        hit = False
-        seg = buf[: min(commit + SUSTAINED_SPAN * length - 1, buf.size)]
-        if float(np.dot(seg, seg)) <= MAX_DEPTH * self._amp**2 * length:
-            return None  # no stretch can hold more than the whole segment
-        mark = np.zeros(seg.size + 1, np.int64)
-        cum = np.concatenate(([0.0], np.cumsum(seg * seg)))
-        for span, depth in ((length, MAX_DEPTH), (SUSTAINED_SPAN * length, MAX_SUSTAINED_DEPTH)):
-            if seg.size < span:
-                continue
-            energy = (cum[span:] - cum[:-span])[:commit]
-            starts = np.flatnonzero(energy > depth * self._amp**2 * span)
-            if starts.size:
-                hit = True
-                np.add.at(mark, starts, 1)
-                np.add.at(mark, starts + span, -1)
-        if not hit:
-            return None
-        blank = np.flatnonzero(np.cumsum(mark)[:commit] > 0)
-        lost = buf[blank]
-        self._unresolved += float(np.dot(lost, lost)) / (self._amp**2 * length)
-        self._c["overload_samples"] += int(blank.size)
-        buf[blank] = 0.0
-        return blank
+        self._unresolved += blanked.signatures
+        self._c["overload_samples"] += int(blanked.samples.size)
+        return blanked.samples
 
     def _reject(
         self,
@@ -629,43 +429,19 @@ class LineDecoder:
     ) -> Detections:
         """Withhold committed detections in stretches the decoding left unexplained.
 
-        A stretch is unexplained when its residual energy exceeds the noise floor by
-        :data:`REJECT_RATIO` of a signature's energy, and every stretch is when the floor
-        itself is above :data:`MAX_NOISE`. A detection whose signature overlaps
-        samples the overload gate blanked is withheld too: its correlation was measured on
-        part of a signature, or on the residue of erased ones.
+        A detection is withheld when its signature overlaps a sample
+        :func:`~ext_sense_drivers.aces.residual.unexplained` marks (blanked samples
+        included); so is a held detection of the previous pass whose tail does.
 
         Returns:
             ``found`` itself when nothing is withheld, else the kept detections.
         """
         length = self._length
         decided = buf[: max(commit, 0)]
-        self._noisy = False
         self._pending_kept = self._pending
-        unit = self._amp**2 * length
-        if decided.size < length or (
-            blanked is None and float(np.dot(decided, decided)) <= REJECT_RATIO * unit
-        ):
+        self._noisy, cum = unexplained(decided, self._amp, length, blanked)
+        if cum is None:
             return found
-        energy = self._stretch_energy(decided)
-        if blanked is None and float(energy.max()) <= REJECT_RATIO * unit:
-            return found  # nothing above the level, whatever the floor (floor <= max)
-        floor = float(np.partition(energy, energy.size // 10)[energy.size // 10])
-        self._noisy = floor > MAX_NOISE**2 * unit
-        if self._noisy:
-            bad = np.ones(energy.size, dtype=bool)
-        else:
-            bad = energy - floor > REJECT_RATIO * self._amp**2 * length
-        if not bad.any() and blanked is None:
-            return found
-        mark = np.zeros(decided.size + 1, np.int64)
-        starts = np.flatnonzero(bad)
-        np.add.at(mark, starts, 1)
-        np.add.at(mark, starts + length, -1)
-        covered = np.cumsum(mark)[: decided.size] > 0
-        if blanked is not None:
-            covered[blanked[blanked < decided.size]] = True
-        cum = np.concatenate(([0], np.cumsum(covered)))
         pending = self._pending
         if pending.code.size:
             hi = np.clip(pending.start + length, 0, decided.size)
@@ -673,9 +449,7 @@ class LineDecoder:
             if late.any():
                 self._c["rejected"] += int(late.sum())
                 self._unresolved += float(late.sum())
-                self._pending_kept = Detections(
-                    pending.code[~late], pending.start[~late], pending.sign[~late]
-                )
+                self._pending_kept = pending.select(~late)
         if found.code.size == 0:
             return found
         # A detection [t, t + L) touches a bad sample if any sample of it (before commit) is.
@@ -686,32 +460,7 @@ class LineDecoder:
             return found
         self._c["rejected"] += int(drop.sum())
         self._unresolved += float(drop.sum())
-        keep = ~drop
-        return Detections(found.code[keep], found.start[keep], found.sign[keep])
-
-    def _missed_energy(self, decided: npt.NDArray[np.float64]) -> bool:
-        """Whether the decided residual still holds a signature's worth of energy somewhere.
-
-        Not when it holds more than :data:`_REFRESH_LIMIT` signatures' worth in one stretch:
-        that is a burst the matched filter does not resolve either (the residual test
-        withholds it), and running it there cost most of the time on bursty lines.
-
-        Compares the most energetic stretch of one signature length with the quietest tenth
-        of the stretches (the noise floor: missed signatures raise it far less than the mean,
-        so even a window full of weak missed signatures stands out).
-        """
-        length = self._length
-        if decided.size < length:
-            return False
-        if float(np.dot(decided, decided)) <= _REFRESH_RATIO * self.amplitude**2 * length:
-            return False  # no stretch can hold more than the whole residual
-        energy = self._stretch_energy(decided)
-        top = float(energy.max()) / (self.amplitude**2 * length)
-        if top <= _REFRESH_RATIO:
-            return False
-        floor = float(np.partition(energy, energy.size // 10)[energy.size // 10])
-        excess = top - floor / (self.amplitude**2 * length)
-        return _REFRESH_RATIO < excess <= _REFRESH_LIMIT
+        return found.select(~drop)
 
 
 def decode_line(

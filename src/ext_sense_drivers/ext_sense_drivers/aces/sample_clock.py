@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-_NS_PER_S = 1_000_000_000
+from ext_sense_runtime.stamps import S
 
 
 def sample_to_ns(index: npt.ArrayLike, rate_hz: int) -> npt.NDArray[np.int64]:
@@ -24,7 +24,7 @@ def sample_to_ns(index: npt.ArrayLike, rate_hz: int) -> npt.NDArray[np.int64]:
     """
     n = np.asarray(index, dtype=np.int64)
     whole, part = np.divmod(n, rate_hz)
-    return whole * _NS_PER_S + (part * _NS_PER_S) // rate_hz
+    return whole * S + (part * S) // rate_hz
 
 
 def ns_to_sample(t_ns: npt.ArrayLike, rate_hz: int) -> npt.NDArray[np.int64]:
@@ -40,5 +40,5 @@ def ns_to_sample(t_ns: npt.ArrayLike, rate_hz: int) -> npt.NDArray[np.int64]:
         int64 sample indices, same shape as ``t_ns``.
     """
     t = np.asarray(t_ns, dtype=np.int64)
-    whole, part = np.divmod(t, _NS_PER_S)
-    return whole * rate_hz + (part * rate_hz + _NS_PER_S // 2) // _NS_PER_S
+    whole, part = np.divmod(t, S)
+    return whole * rate_hz + (part * rate_hz + S // 2) // S

@@ -85,3 +85,42 @@ def bytes_to_samples(data: bytes | bytearray | memoryview) -> npt.NDArray[np.flo
             f"The 'data' parameter must hold whole int16 samples. Got {len(data)} bytes."
         )
     return np.frombuffer(data, dtype=WIRE_DTYPE).astype(np.float64) / COUNTS_PER_UNIT
+
+
+def chunk_samples(
+    chunk: bytes | bytearray | memoryview | npt.NDArray[np.floating], odd: bytes = b""
+) -> tuple[npt.NDArray[np.float64], bytes]:
+    """Line samples of the next chunk of a stream, carrying a trailing half wire sample.
+
+    Args:
+        chunk: Wire bytes (split anywhere, even mid-sample) or a 1-D float array of samples in
+            line units.
+        odd: The half sample the previous chunk left (``b""`` if none).
+
+    Returns:
+        float64 samples, and the half sample this chunk leaves for the next.
+
+    Raises:
+        AcesError: Neither bytes nor a 1-D float array (wire counts go in as bytes), or an
+            array while half a wire sample is pending.
+    """
+    if isinstance(chunk, bytes | bytearray | memoryview):
+        data = odd + bytes(chunk)
+        cut = len(data) - len(data) % BYTES_PER_SAMPLE
+        samples = np.frombuffer(data, WIRE_DTYPE, cut // BYTES_PER_SAMPLE).astype(np.float64) / (
+            COUNTS_PER_UNIT
+        )
+        return samples, data[cut:]
+    if not isinstance(chunk, np.ndarray):
+        raise AcesError(
+            "The 'chunk' parameter must be bytes or a float ndarray. "
+            f"Got {type(chunk).__name__} instead."
+        )
+    if chunk.ndim != 1 or not np.issubdtype(chunk.dtype, np.floating):
+        raise AcesError(
+            "The 'chunk' parameter must be a 1-D float array in line units (wire counts go "
+            f"in as bytes). Got {chunk.dtype} of shape {chunk.shape} instead."
+        )
+    if odd:
+        raise AcesError("The 'chunk' parameter is an array but half a wire sample is pending.")
+    return chunk.astype(np.float64), odd

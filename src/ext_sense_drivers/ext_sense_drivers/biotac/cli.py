@@ -55,7 +55,7 @@ def register_biotac(subparsers: argparse._SubParsersAction) -> argparse.Argument
 def _decode(args: argparse.Namespace) -> int:
     import json
 
-    from ext_sense_drivers.biotac.bridge import BridgeDecoder
+    from ext_sense_drivers.biotac.decoder import BridgeDecoder
     from ext_sense_drivers.biotac.jsonl import frames_to_records
 
     try:

@@ -26,13 +26,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ext_sense_drivers.biotac.errors import BioTacError
+from ext_sense_runtime.stamps import S
 
-NS_PER_S = 1_000_000_000
 WORD_RATE_HZ = 4400
 PAC_RATE_HZ = 2200
 FRAME_RATE_HZ = 100
-FRAME_PERIOD_NS = NS_PER_S // FRAME_RATE_HZ  # 10_000_000, exact
-PAC_PERIOD_NS = NS_PER_S // PAC_RATE_HZ  # 454_545: the message field (floor, 0.45 ns short)
+FRAME_PERIOD_NS = S // FRAME_RATE_HZ  # 10_000_000, exact
+PAC_PERIOD_NS = S // PAC_RATE_HZ  # 454_545: the message field (floor, 0.45 ns short)
 
 
 def pac_offset_ns(i: int, rate_hz: int = PAC_RATE_HZ) -> int:
@@ -52,7 +52,7 @@ def pac_offset_ns(i: int, rate_hz: int = PAC_RATE_HZ) -> int:
         raise BioTacError(f"The sample index 'i' must be >= 0. Got {i} instead.")
     if int(rate_hz) <= 0:
         raise BioTacError(f"The 'rate_hz' parameter must be > 0. Got {rate_hz} instead.")
-    return (2 * int(i) * NS_PER_S + int(rate_hz)) // (2 * int(rate_hz))
+    return (2 * int(i) * S + int(rate_hz)) // (2 * int(rate_hz))
 
 
 def pac_offsets_ns(n: int = 22, rate_hz: int = PAC_RATE_HZ) -> NDArray[np.int64]:
@@ -64,7 +64,7 @@ def pac_offsets_ns(n: int = 22, rate_hz: int = PAC_RATE_HZ) -> NDArray[np.int64]
     if int(rate_hz) <= 0:
         raise BioTacError(f"The 'rate_hz' parameter must be > 0. Got {rate_hz} instead.")
     i = np.arange(int(n), dtype=np.int64)
-    return (2 * i * NS_PER_S + int(rate_hz)) // (2 * int(rate_hz))
+    return (2 * i * S + int(rate_hz)) // (2 * int(rate_hz))
 
 
 def pac_times_ns(first_sample_ns: NDArray[np.int64] | int) -> NDArray[np.int64]:
@@ -154,4 +154,4 @@ def transmission_ns(n_bytes: int, baud: int, bits_per_byte: int = 10) -> int:
     """Time ``n_bytes`` take on an 8N1 serial line at ``baud`` bit/s, integer ns (rounded up)."""
     if int(baud) <= 0:
         raise BioTacError(f"The 'baud' parameter must be > 0. Got {baud} instead.")
-    return -(-int(n_bytes) * bits_per_byte * NS_PER_S // int(baud))
+    return -(-int(n_bytes) * bits_per_byte * S // int(baud))

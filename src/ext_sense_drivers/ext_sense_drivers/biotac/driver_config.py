@@ -9,9 +9,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from ext_sense_drivers.biotac.bridge import MAX_SENSORS, STANDARD_FRAME_SIZE
 from ext_sense_drivers.biotac.clock import FRAME_PERIOD_NS, FrameClock, transmission_ns
 from ext_sense_drivers.biotac.errors import BioTacError
+from ext_sense_drivers.biotac.frame_layout import MAX_SENSORS, STANDARD_FRAME_SIZE
 from ext_sense_drivers.transports.link_config import LinkConfig, TransportKind
 
 __all__ = ["BioTacDriverConfig", "TransportKind"]

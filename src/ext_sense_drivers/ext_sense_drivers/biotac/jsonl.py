@@ -14,8 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from ext_sense_drivers.biotac.bridge import MAX_SENSORS, SEQ_MODULO, BridgeFrames, encode_frame
+from ext_sense_drivers.biotac.encoder import encode_frame
 from ext_sense_drivers.biotac.errors import BioTacError
+from ext_sense_drivers.biotac.frame_layout import MAX_SENSORS, SEQ_MODULO
+from ext_sense_drivers.biotac.frames import BridgeFrames
 from ext_sense_drivers.biotac.words import (
     ELECTRODE_POSITIONS,
     MAX_VALUE,

@@ -2,21 +2,16 @@
 
 It reads the stream the way the protocol is written down (find the sync pair, read the header,
 wait for the whole frame, check the CRC byte by byte, decode each word) and keeps the same
-counters as :class:`ext_sense_drivers.biotac.bridge.BridgeDecoder`, which must give identical
+counters as :class:`ext_sense_drivers.biotac.decoder.BridgeDecoder`, which must give identical
 frames and counters for any stream cut into any chunks.
 """
 
 from __future__ import annotations
 
-from ext_sense_drivers.biotac.bridge import (
-    FRAME_OVERHEAD,
-    HEADER_SIZE,
-    MAX_SENSORS,
-    CounterState,
-    Frame,
-    SequenceTracker,
-)
+from ext_sense_drivers.biotac.counters import CounterState, SequenceTracker
 from ext_sense_drivers.biotac.crc import crc16_ccitt_false
+from ext_sense_drivers.biotac.frame_layout import FRAME_OVERHEAD, HEADER_SIZE, MAX_SENSORS
+from ext_sense_drivers.biotac.frames import Frame
 from ext_sense_drivers.biotac.words import (
     ELECTRODE_POSITIONS,
     PAC_POSITIONS,

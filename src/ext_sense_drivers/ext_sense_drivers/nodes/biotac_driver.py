@@ -2,7 +2,7 @@
 
 A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the link (serial, CAN
 or a capture file) and reconnects with exponential backoff; a timer drains what arrived, decodes
-it with :class:`~ext_sense_drivers.biotac.bridge.BridgeDecoder` and publishes every frame as it
+it with :class:`~ext_sense_drivers.biotac.decoder.BridgeDecoder` and publishes every frame as it
 came: 22 raw PAC samples per message, never averaged. Words failing parity or BioTac error
 replies are flagged in ``invalid_word_mask`` and counted; corrupt bytes are counted, never fatal.
 ``header.stamp`` is the first PAC sample's time from the per-sensor
@@ -19,14 +19,11 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from ext_sense_drivers.biotac.bridge import (
-    MAX_SENSORS,
-    STANDARD_FRAME_SIZE,
-    BridgeDecoder,
-    BridgeFrames,
-)
 from ext_sense_drivers.biotac.clock import FRAME_RATE_HZ, PAC_PERIOD_NS, FrameClock
+from ext_sense_drivers.biotac.decoder import BridgeDecoder
 from ext_sense_drivers.biotac.driver_config import BioTacDriverConfig
+from ext_sense_drivers.biotac.frame_layout import MAX_SENSORS, STANDARD_FRAME_SIZE
+from ext_sense_drivers.biotac.frames import BridgeFrames
 from ext_sense_drivers.nodes.link_node import (
     create_stream_publisher,
     declare_backoff,

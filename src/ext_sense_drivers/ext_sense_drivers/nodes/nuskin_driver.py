@@ -25,7 +25,6 @@ from ext_sense_drivers.nodes.link_node import (
     stop_reader,
 )
 from ext_sense_drivers.nuskin.driver_config import DriverConfig
-from ext_sense_drivers.nuskin.events import EventBlock
 from ext_sense_drivers.nuskin.streams import BatchCounters
 from ext_sense_drivers.transports.base import LinkState
 from ext_sense_drivers.transports.reader import StreamReader
@@ -34,6 +33,7 @@ from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.records import EventBlock
 from ext_sense_runtime.stamps import fill_stamp
 
 MAX_WORD_RATE_HZ = 320_000.0

@@ -12,9 +12,9 @@ from typing import NamedTuple, Protocol
 import numpy as np
 
 from ext_sense_drivers.nuskin.clock import ArrivalClock
-from ext_sense_drivers.nuskin.events import EventBlock
 from ext_sense_drivers.nuskin.wire import FlagPolarity, WordDecoder
 from ext_sense_drivers.transports.base import Chunk
+from ext_sense_runtime.records import EventBlock
 
 
 class BatchCounters(NamedTuple):

@@ -28,23 +28,17 @@ from rclpy.node import Node
 
 from ext_sense_msgs.msg import ContactEstimate, ContactWindow
 from ext_sense_perception.errors import PerceptionError
-from ext_sense_perception.nodes.pipeline import (
-    default_model_dir,
-    estimate_fields,
-    load_bundle,
-    model_id_of,
-    window_from_msg,
-)
-from ext_sense_perception.windows import WindowConfig
+from ext_sense_perception.online.messages import window_from_msg
+from ext_sense_perception.online.predictor import ModelBundle, default_model_dir, load_model
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import ESTIMATE_QOS, WINDOW_QOS
 from ext_sense_runtime.qos_events import QosEventCounter
-from ext_sense_runtime.stamps import fill_stamp
+from ext_sense_runtime.records import Estimate
+from ext_sense_runtime.stamps import MS, fill_stamp
 
-MS = 1_000_000
 LIVE_CLOCK_TOLERANCE_NS = 10_000 * MS
 """A window ending further than this from the host clock is not live (replayed bag)."""
 
@@ -68,16 +62,6 @@ class ContactInferenceNode(Node):
             read_only=True,
         )
         self.model_path = Path(path) if path else default_model_dir(self.task, self.sensor)
-        final_ms = declare(
-            self,
-            "final_post_ms",
-            WindowConfig.for_task(self.task, self.sensor).post_ns / MS,
-            "Post-onset time of the final window, ms; shorter windows are provisional.",
-            low=1.0,
-            high=60000.0,
-            read_only=True,
-        )
-        self.final_post_ns = round(final_ms * MS)
         self.publish_provisional = declare(
             self, "publish_provisional", True, "Publish estimates of provisional (anytime) windows."
         )
@@ -94,7 +78,7 @@ class ContactInferenceNode(Node):
             raise ValueError(
                 f"The 'backend' parameter must be 'onnx' or 'sklearn'. Got {self.backend!r}."
             )
-        self.model: Any = None
+        self.model: ModelBundle | None = None
         self.model_id = ""
         self.model_error = ""
         self.windows_in = 0
@@ -128,14 +112,14 @@ class ContactInferenceNode(Node):
 
     def _load(self) -> None:
         try:
-            self.model = load_bundle(self.model_path, self.backend)
+            self.model = load_model(self.model_path, self.backend)
         except PerceptionError as err:
             self.model = None
             if str(err) != self.model_error:
                 self.get_logger().error(f"model not loaded: {err}")
             self.model_error = str(err)
             return
-        self.model_id = model_id_of(self.model)
+        self.model_id = self.model.model_id
         self.model_error = ""
         self.get_logger().info(f"model {self.model_id or self.model_path} loaded ({self.backend})")
 
@@ -150,15 +134,15 @@ class ContactInferenceNode(Node):
             self.dropped_no_model += 1
             return
         try:
-            window = window_from_msg(msg, self.final_post_ns)
+            window = window_from_msg(msg)
             if window.provisional and not self.publish_provisional:
                 return
-            prediction = self.model.predict(window)
+            estimate = self.model.predict(window)
             now = time.time_ns()
             end = window.onset_ns + window.post_onset_ns
             live = abs(now - end) < LIVE_CLOCK_TOLERANCE_NS and now >= end
             latency = now - end if live else now - arrived
-            fields = estimate_fields(prediction, window, self.model_id, latency)
+            estimate = estimate._replace(compute_latency_ns=latency)
         except PerceptionError as err:
             self.dropped_bad_window += 1
             self.last_reject_ns = time.monotonic_ns()
@@ -166,27 +150,10 @@ class ContactInferenceNode(Node):
                 self.get_logger().warning(f"window dropped: {err}")
             self.last_window_error = str(err)
             return
-        self.pub.publish(self._to_msg(fields))
+        self.pub.publish(estimate_msg(estimate))
         self.estimates_out += 1
-        if not fields["provisional"]:
+        if not estimate.provisional:
             self.latencies_ns.append(latency)
-
-    def _to_msg(self, f: dict[str, Any]) -> ContactEstimate:
-        msg = ContactEstimate()
-        fill_stamp(msg.header.stamp, f["stamp_ns"])
-        msg.header.frame_id = f["sensor"]
-        msg.task, msg.sensor, msg.model_id = f["task"], f["sensor"], f["model_id"]
-        msg.provisional = f["provisional"]
-        fill_stamp(msg.post_contact_used, f["post_contact_used_ns"])
-        fill_stamp(msg.compute_latency, f["compute_latency_ns"])
-        msg.tap_position_m = f["tap_position_m"]
-        msg.tap_position_std_m = f["tap_position_std_m"]
-        msg.class_index = f["class_index"]
-        msg.class_label = f["class_label"]
-        msg.class_names = f["class_names"]
-        msg.class_probabilities = array.array("d", f["class_probabilities"].tobytes())
-        msg.stability_probability = f["stability_probability"]
-        return msg
 
     def _check_model(self) -> tuple[Level, str, dict[str, object]]:
         values = {
@@ -216,6 +183,25 @@ class ContactInferenceNode(Node):
         if recent:
             return Level.WARN, f"windows rejected: {self.last_window_error}", values
         return Level.OK, "ok", values
+
+
+def estimate_msg(est: Estimate) -> ContactEstimate:
+    """The ``ContactEstimate`` message of an estimate."""
+    msg = ContactEstimate()
+    fill_stamp(msg.header.stamp, est.onset_ns)
+    msg.header.frame_id = est.sensor
+    msg.task, msg.sensor, msg.model_id = est.task, est.sensor, est.model_id
+    msg.provisional = est.provisional
+    fill_stamp(msg.post_contact_used, est.post_contact_used_ns)
+    fill_stamp(msg.compute_latency, est.compute_latency_ns)
+    msg.tap_position_m = est.tap_position_m
+    msg.tap_position_std_m = est.tap_position_std_m
+    msg.class_index = est.class_index
+    msg.class_label = est.class_label
+    msg.class_names = list(est.class_names)
+    msg.class_probabilities = array.array("d", est.class_probabilities)
+    msg.stability_probability = est.stability_probability
+    return msg
 
 
 def main(args: list[str] | None = None) -> int:

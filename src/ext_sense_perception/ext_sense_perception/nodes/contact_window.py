@@ -3,7 +3,9 @@
 Subscribes ``events`` (``TaxelEventBatch``, NUSkin) or ``frames`` (``BioTacFrame``) and, for
 food, ``motion_start`` (``ContactGroundTruth``; its stamp is the arm's motion start). Publishes
 ``window`` (``ContactWindow``): provisional windows at the configured shorter post-onset times,
-then the final one. The windowing itself is :class:`~.pipeline.WindowStage`.
+then the final one. The windowing itself is
+:class:`~ext_sense_perception.online.stage.WindowStage`; the window and the anytime times come
+from the task profile (:mod:`ext_sense_perception.profiles`).
 
 A NUSkin window must close at ``onset + post`` even when no event follows it, so a timer
 advances the stream clock: stream time is the newest event's stamp plus the wall time elapsed
@@ -15,14 +17,19 @@ from __future__ import annotations
 
 import array
 import time
+from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 from rclpy.node import Node
 
 from ext_sense_msgs.msg import BioTacFrame, ContactGroundTruth, ContactWindow, TaxelEventBatch
 from ext_sense_perception.errors import PerceptionError
-from ext_sense_perception.nodes.pipeline import WindowStage, window_fields
-from ext_sense_perception.windows import WindowConfig
+from ext_sense_perception.online.messages import window_fields
+from ext_sense_perception.online.model_card import read_card
+from ext_sense_perception.online.predictor import default_model_dir
+from ext_sense_perception.online.stage import WindowStage
+from ext_sense_perception.online.window import WindowConfig
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.enums import Sensor, Task
@@ -30,9 +37,7 @@ from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import COMMAND_QOS, SENSOR_STREAM_QOS, WINDOW_QOS
 from ext_sense_runtime.qos_events import QosEventCounter
-from ext_sense_runtime.stamps import fill_stamp
-
-MS = 1_000_000
+from ext_sense_runtime.stamps import MS, US, fill_stamp, stamp_to_ns
 
 
 class ContactWindowNode(Node):
@@ -48,7 +53,15 @@ class ContactWindowNode(Node):
             read_only=True,
         )
         sensor = declare(self, "sensor", "nuskin", "Sensor: nuskin or biotac.", read_only=True)
-        base = WindowConfig.for_task(task, sensor)
+        model_path = declare(
+            self,
+            "model_path",
+            "",
+            "Model bundle whose card's task profile cuts the windows (empty: "
+            "$EXT_SENSE_MODELS/<task>_<sensor>); without a readable card, the task's own profile.",
+            read_only=True,
+        )
+        base, profile_source = self._base_config(task, sensor, model_path)
         pre_ms = declare(
             self,
             "pre_onset_ms",
@@ -67,19 +80,19 @@ class ContactWindowNode(Node):
             high=60000.0,
             read_only=True,
         )
-        bin_us = declare(
+        sample_us = declare(
             self,
-            "bin_us",
-            base.bin_ns / 1000.0,
-            "NUSkin bin width, microseconds.",
+            "sample_us",
+            base.profile.sample_ns / US,
+            "NUSkin window sample (bin of signed event counts), microseconds.",
             low=10.0,
             high=1_000_000.0,
             read_only=True,
         )
         prov = declare(
             self,
-            "provisional_post_ms",
-            [p / MS for p in base.provisional_post_ns],
+            "anytime_post_ms",
+            [p / MS for p in base.anytime_post_ns],
             "Post-onset times of the provisional (anytime) windows, ms; empty: none.",
             read_only=True,
         )
@@ -152,14 +165,14 @@ class ContactWindowNode(Node):
             / 1000.0
         )
         try:
-            config = WindowConfig.for_task(
-                task,
-                sensor,
-                pre_ns=round(pre_ms * MS),
-                post_ns=round(post_ms * MS),
-                bin_ns=round(bin_us * 1000),
-                provisional_post_ns=tuple(round(p * MS) for p in prov),
-                debounce_ns=round(debounce_ms * MS),
+            config = replace(
+                base.with_profile(
+                    pre_ns=round(pre_ms * MS),
+                    post_ns=round(post_ms * MS),
+                    sample_ns=round(sample_us * US),
+                    anytime_post_ns=tuple(round(p * MS) for p in prov),
+                    debounce_ns=round(debounce_ms * MS),
+                ),
                 activity_min_events=int(min_events),
                 activity_window_ns=round(act_ms * MS),
             )
@@ -192,7 +205,7 @@ class ContactWindowNode(Node):
                 SENSOR_STREAM_QOS,
                 event_callbacks=self.qos_events.subscription(),
             )
-        if config.onset_source == "external":
+        if config.external_onsets:
             self.create_subscription(
                 ContactGroundTruth, "motion_start", self._on_motion_start, COMMAND_QOS
             )
@@ -206,8 +219,28 @@ class ContactWindowNode(Node):
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
         self.get_logger().info(
             f"cutting {config.task.label} windows from {config.sensor.label}: "
-            f"{config.pre_ns / MS:g} ms before to {config.post_ns / MS:g} ms after onset"
+            f"{config.pre_ns / MS:g} ms before to {config.post_ns / MS:g} ms after onset "
+            f"(profile of {profile_source})"
         )
+
+    def _base_config(self, task: str, sensor: str, model_path: str) -> tuple[WindowConfig, str]:
+        """The window configuration of the model's card, else of the task; and where from."""
+        try:
+            path = Path(model_path) if model_path else default_model_dir(task, sensor)
+            config = WindowConfig.for_task(task, sensor)
+        except PerceptionError as err:
+            raise ValueError(f"contact_window: {err}") from err
+        try:
+            card = read_card(path)
+        except PerceptionError as err:
+            self.get_logger().info(f"task profile of {task} (no model card: {err})")
+            return config, "task"
+        if card.task != config.task.label or card.sensor != config.sensor.label:
+            self.get_logger().warning(
+                f"model card {path} is for {card.task}/{card.sensor}: using the task profile"
+            )
+            return config, "task"
+        return replace(config, profile=card.profile), str(path)
 
     def _publish(self, windows: list) -> None:
         for win in windows:
@@ -221,6 +254,7 @@ class ContactWindowNode(Node):
             msg.shape = f["shape"].tolist()
             msg.channels = array.array("H", f["channels"].tobytes())
             msg.data = array.array("f", f["data"].tobytes())  # ~100x faster than from NumPy
+            msg.provisional = f["provisional"]
             msg.truncated = f["truncated"]
             self.pub.publish(msg)
             self.published += 1
@@ -237,8 +271,7 @@ class ContactWindowNode(Node):
         self._publish(self.stage.on_frame(msg))
 
     def _on_motion_start(self, msg: ContactGroundTruth) -> None:
-        onset = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        if self.stage.on_motion_start(onset):
+        if self.stage.on_motion_start(stamp_to_ns(msg.header.stamp)):
             self.motion_starts += 1
 
     def _on_timer(self) -> None:

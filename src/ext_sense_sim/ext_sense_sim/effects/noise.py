@@ -14,8 +14,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ext_sense_runtime.records import EventBlock
 from ext_sense_sim.effects.base import Effect, Signals, TimeBase
-from ext_sense_sim.events import EventBatch
+from ext_sense_sim.trial_events import last_values, merge
 
 
 class SensorNoise(Effect):
@@ -44,7 +45,7 @@ class SpuriousEvents(Effect):
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Merge spurious events into ``events``."""
-        events: EventBatch = signals.need("events", self.name)
+        trial_events = signals.need("events", self.name)
         rate = self.scalar("rate_hz", 0.0, 1e5)
         duration_ns = round(time.n_samples * time.dt * 1e9)
         n_taxels = 80
@@ -57,8 +58,8 @@ class SpuriousEvents(Effect):
         t_ns = rng.integers(0, duration_ns, size=total, dtype=np.int64)
         polarity = rng.choice(np.array([-1, 1], dtype=np.int8), size=total)
         value = np.full(total, int(self.scalar("value_counts", 0, 1023)), dtype=np.uint16)
-        last = events.last_values(time.n_trials)
+        last = last_values(*trial_events, time.n_trials)
         known = last[trial, taxel - 1]
         value = np.where(known > 0, known, value).astype(np.uint16)
-        extra = EventBatch(trial.astype(np.int32), t_ns, taxel.astype(np.uint16), polarity, value)
-        signals["events"] = events.merged(extra)
+        extra = EventBlock(t_ns, taxel.astype(np.uint16), polarity, value)
+        signals["events"] = merge(trial_events, (trial.astype(np.int32), extra))

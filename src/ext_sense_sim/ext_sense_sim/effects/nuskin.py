@@ -40,9 +40,10 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy.signal import butter, lfilter, lfilter_zi
 
+from ext_sense_runtime.records import EventBlock
 from ext_sense_sim.effects.base import Effect, Signals, TimeBase
 from ext_sense_sim.errors import SceneError
-from ext_sense_sim.events import EventBatch
+from ext_sense_sim.trial_events import by_trial
 
 
 def front_end(pressure: np.ndarray, bandwidth_hz: float, rate_hz: float) -> np.ndarray:
@@ -165,7 +166,7 @@ class NuskinTransduction(Effect):
     }
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
-        """Give ``events`` (an :class:`EventBatch`, batch-local trial indices)."""
+        """Give ``events`` (``(trial, EventBlock)``, batch-local trials, see ``trial_events``)."""
         pressure = signals.need("taxel_pressure", self.name)
         _n_trials, n_taxels, n_samples = pressure.shape
         per_count = self.scalar("pa_per_count", 1e-9)
@@ -188,14 +189,13 @@ class NuskinTransduction(Effect):
         value = offset + time_major[k, channel] / per_count
         jitter = refractory_safe_jitter(k, channel, refractory, rng)
         t_ns = np.round((k + jitter) * (1e9 / time.rate_hz)).astype(np.int64)
-        events = EventBatch(
-            (channel // n_taxels).astype(np.int32),
+        events = EventBlock(
             t_ns,
             (channel % n_taxels + 1).astype(np.uint16),
             polarity,
             np.clip(np.round(value), 0, 1023).astype(np.uint16),
         )
-        signals["events"] = events.sorted()
+        signals["events"] = by_trial(channel // n_taxels, events)
 
 
 def _flag(effect: str, key: str, value: object) -> bool:

@@ -11,7 +11,7 @@ Models.
   what the receiver recovers, so collisions cost what they really cost. The line carries no
   value field: recovered events take the value of the nearest sent event of their taxel.
 - ``biotac_wire``: one bridge frame per sensor per 10 ms
-  (:func:`ext_sense_drivers.biotac.bridge.encode_frames`), written when its last PAC sample
+  (:func:`ext_sense_drivers.biotac.encoder.encode_frames`), written when its last PAC sample
   was taken; sensors interleave, sequence numbers run on across trials.
 - ``wire_faults``: each byte is lost with probability ``lost``, flipped (one random bit) with
   ``flipped``, and an extra random byte follows it with ``extra``.
@@ -27,7 +27,7 @@ import numpy as np
 
 from ext_sense_sim.effects.base import Effect, Signals, TimeBase
 from ext_sense_sim.errors import SceneError
-from ext_sense_sim.events import EventBatch
+from ext_sense_sim.trial_events import by_trial, concat, trial_bounds
 
 
 class WireStream(NamedTuple):
@@ -65,9 +65,9 @@ class NuskinWire(Effect):
         """Give one :class:`WireStream` of words per trial."""
         from ext_sense_drivers.nuskin.wire import encode_words
 
-        events: EventBatch = signals.need("events", self.name)
+        trial, events = signals.need("events", self.name)
         latency = round(self.scalar("latency_s", 0.0, 1.0) * 1e9)
-        bounds = np.searchsorted(events.trial, np.arange(time.n_trials + 1))
+        bounds = trial_bounds(trial, time.n_trials)
         streams = []
         for i in range(time.n_trials):
             sl = slice(bounds[i], bounds[i + 1])
@@ -97,8 +97,8 @@ class AcesLine(Effect):
         from ext_sense_drivers.aces.decoder import decode_line
         from ext_sense_drivers.aces.encoder import encode_line
 
-        events: EventBatch = signals.need("events", self.name)
-        bounds = np.searchsorted(events.trial, np.arange(time.n_trials + 1))
+        trial, events = signals.need("events", self.name)
+        bounds = trial_bounds(trial, time.n_trials)
         parts = []
         for i in range(time.n_trials):
             ev = events.select(np.arange(bounds[i], bounds[i + 1]))
@@ -127,19 +127,10 @@ class AcesLine(Effect):
                 if sent.size:
                     j = np.clip(np.searchsorted(ev.t_ns[sent], got.t_ns[mine]), 0, sent.size - 1)
                     value[mine] = ev.value[sent[j]]
-            parts.append(
-                EventBatch(
-                    np.full(got.size, i, np.int32),
-                    got.t_ns.astype(np.int64),
-                    got.taxel.astype(np.uint16),
-                    got.polarity.astype(np.int8),
-                    value,
-                )
-            )
+            parts.append((np.full(got.size, i, np.int32), got._replace(value=value)))
             self.sent += ev.t_ns.size
             self.recovered += got.size
-        merged = EventBatch(*(np.concatenate(c) for c in zip(*parts, strict=True)))
-        signals["events"] = merged.sorted()
+        signals["events"] = by_trial(*concat(parts))
 
 
 class BiotacWire(Effect):
@@ -156,7 +147,7 @@ class BiotacWire(Effect):
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Give one :class:`WireStream` of frames per trial."""
-        from ext_sense_drivers.biotac.bridge import encode_frames
+        from ext_sense_drivers.biotac.encoder import encode_frames
         from ext_sense_drivers.biotac.words import (
             ELECTRODE_POSITIONS,
             PAC_POSITIONS,

@@ -26,17 +26,11 @@ from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import COMMAND_QOS, GROUND_TRUTH_QOS
+from ext_sense_runtime.records import GroundTruth
 from ext_sense_runtime.stamps import fill_stamp, stamp_to_ns
+from ext_sense_sim.links import open_link
 from ext_sense_sim.scene import load_scene
-from ext_sense_sim.streaming import (
-    ALIGNS,
-    GroundTruth,
-    StreamStats,
-    Trigger,
-    open_link,
-    stream,
-    stream_on_trigger,
-)
+from ext_sense_sim.streaming import ALIGNS, StreamStats, Trigger, stream, stream_on_trigger
 
 MODES = ("free", "trigger")
 
@@ -233,13 +227,13 @@ class SimDeviceNode(Node):
             rod_length_m=gt.rod_length_m,
             class_label=gt.class_label,
         )
-        fill_stamp(msg.header.stamp, gt.stamp_ns)
+        fill_stamp(msg.header.stamp, gt.onset_ns)
         msg.header.frame_id = self.scene.sensor.label
         self.pub.publish(msg)
         self.played += 1
         self.get_logger().info(
             f"trial {gt.trial} ({gt.class_label or f'{gt.tap_position_m:.3f} m'}) onset at "
-            f"{gt.stamp_ns} ns (so far: {getattr(self.sink, 'dropped_bytes', 0)} bytes dropped, "
+            f"{gt.onset_ns} ns (so far: {getattr(self.sink, 'dropped_bytes', 0)} bytes dropped, "
             f"{self.stats.extra.get('late_writes', 0)} of {self.stats.writes} writes > 2 ms late, "
             f"max {self.stats.extra.get('max_late_ns', 0) / 1e6:.1f} ms)"
         )

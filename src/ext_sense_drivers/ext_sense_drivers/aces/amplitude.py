@@ -1,0 +1,55 @@
+"""Chip amplitude tracking of the ACES line decoder: how the amplitude it cancels with moves.
+
+The decoder cancels every signature with one chip amplitude (never each detection's own
+measured correlation); with tracking on, that amplitude follows the mean correlation per chip
+of the detections, pass by pass, within :data:`AMPLITUDE_RANGE` of the nominal one. A pass
+whose residual test withheld detections may be decoded again with the amplitude it measured
+(:data:`REDO_GAIN`, :data:`REDO_SETTLED`).
+"""
+
+from __future__ import annotations
+
+AMPLITUDE_MEMORY = 16
+"""Detections of weight the amplitude estimate carries from the past: each pass moves it by
+``n / (n + m)`` of the way to the mean of its ``n`` detections, where ``m`` is the number of
+detections so far, at most this (a running mean at first, then an exponential one)."""
+
+AMPLITUDE_RANGE = (0.25, 4.0)
+"""The tracked amplitude stays within these multiples of the nominal one."""
+
+AMPLITUDE_STEP = 0.002
+"""Smaller relative changes of the amplitude estimate are not applied (saves work per pass)."""
+
+REDO_GAIN = 0.1
+"""Relative amplitude error above which a pass with rejected detections is decoded again."""
+
+REDO_SETTLED = 64
+"""Passes are decoded again only until this many detections have measured the amplitude: later
+on, a pass with residue is a burst far more often than a gain change (which the tracking
+follows), and decoding bursts twice halved the speed."""
+
+
+def clamp_amplitude(amplitude: float, nominal: float) -> float:
+    """``amplitude`` held within :data:`AMPLITUDE_RANGE` of the ``nominal`` one."""
+    lo, hi = AMPLITUDE_RANGE
+    return min(max(amplitude, lo * nominal), hi * nominal)
+
+
+def tracked_amplitude(
+    in_use: float, nominal: float, strength: float, n: int, seen: int
+) -> float | None:
+    """The amplitude to cancel with after a pass's ``n`` (> 0) detections, or None to keep it.
+
+    Args:
+        in_use: The amplitude cancelled with now.
+        nominal: The decoder's nominal amplitude.
+        strength: Summed correlation per chip of the pass's detections.
+        n: Their number.
+        seen: Detections that measured the amplitude before this pass.
+    """
+    memory = min(seen, AMPLITUDE_MEMORY)
+    step = n / (n + memory)
+    new = clamp_amplitude(in_use + step * (strength / n - in_use), nominal)
+    if abs(new - in_use) > AMPLITUDE_STEP * in_use:
+        return new
+    return None

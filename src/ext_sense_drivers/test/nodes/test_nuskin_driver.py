@@ -1,0 +1,353 @@
+"""The NUSkin driver node over a pty: bytes in, batches out, diagnostics, port lost and back."""
+
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+
+rclpy = pytest.importorskip("rclpy")
+
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+
+from ext_sense_drivers.nodes.nuskin_driver import NuskinDriverNode  # noqa: E402
+from ext_sense_drivers.nuskin.wire import encode_words  # noqa: E402
+from ext_sense_drivers.transports.base import LinkState  # noqa: E402
+from ext_sense_msgs.msg import TaxelEventBatch  # noqa: E402
+from ext_sense_runtime.qos import DIAGNOSTICS_QOS, SENSOR_STREAM_QOS  # noqa: E402
+from ext_sense_runtime.stamps import stamp_to_ns  # noqa: E402
+
+
+class FakeDevice:
+    """A pty whose slave is reached through a stable symlink, like a udev name."""
+
+    def __init__(self, link: Path):
+        self.link = link
+        self.master = None
+
+    def plug(self):
+        master, slave = os.openpty()
+        tmp = self.link.with_suffix(".new")
+        tmp.unlink(missing_ok=True)
+        tmp.symlink_to(os.ttyname(slave))
+        os.replace(tmp, self.link)
+        os.close(slave)
+        self.master = master
+
+    def unplug(self):
+        # udev removes the name too; a dangling name could meet a reused /dev/pts number.
+        self.link.unlink(missing_ok=True)
+        os.close(self.master)
+        self.master = None
+
+    def send(self, data: bytes):
+        os.write(self.master, data)
+
+
+@pytest.fixture
+def graph(tmp_path):
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    device = FakeDevice(tmp_path / "nuskin.pty")
+    device.plug()
+    driver = NuskinDriverNode(
+        context=context,
+        parameter_overrides=[
+            Parameter("port", Parameter.Type.STRING, str(device.link)),
+            Parameter("reconnect_initial_s", Parameter.Type.DOUBLE, 0.02),
+            Parameter("reconnect_max_s", Parameter.Type.DOUBLE, 0.05),
+            Parameter("frame_id", Parameter.Type.STRING, "nuskin_test"),
+        ],
+    )
+    probe = rclpy.create_node("probe", context=context)
+    got = {"batches": [], "diag": []}
+    probe.create_subscription(TaxelEventBatch, "events", got["batches"].append, SENSOR_STREAM_QOS)
+    probe.create_subscription(DiagnosticArray, "/diagnostics", got["diag"].append, DIAGNOSTICS_QOS)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(driver)
+    executor.add_node(probe)
+    try:
+        yield device, driver, executor, got
+    finally:
+        executor.shutdown()
+        driver.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown(context=context)
+        if device.master is not None:
+            device.unplug()
+
+
+def _spin_until(executor, predicate, timeout_s=8.0):
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.01)
+        if predicate():
+            return True
+    return False
+
+
+def _events(batches):
+    taxel = [t for b in batches for t in b.taxel]
+    value = [v for b in batches for v in b.value]
+    return taxel, value
+
+
+def _diag_values(got, task):
+    for arr in reversed(got["diag"]):
+        for status in arr.status:
+            if status.name.endswith(f": {task}"):
+                return status, {kv.key: kv.value for kv in status.values}
+    return None, {}
+
+
+def test_bytes_in_batches_out_and_port_lost_and_back(graph):
+    device, driver, executor, got = graph
+    rng = np.random.default_rng(1)
+    taxel = rng.integers(1, 81, 300)
+    value = rng.integers(0, 1024, 300)
+    # A stream that starts mid-word and carries a burst of garbage between two halves.
+    raw = encode_words(taxel, value)
+    # pyserial flushes the input buffer when it opens a port: send once the driver has it open.
+    assert _spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
+    device.send(raw[2:600] + bytes([0x00, 0x13, 0xFF]) + raw[600:])
+    assert _spin_until(executor, lambda: len(_events(got["batches"])[0]) >= 299)
+    taxels, values = _events(got["batches"])
+    assert taxels == taxel[1:].tolist()
+    assert values == value[1:].tolist()
+    last = got["batches"][-1]
+    assert last.header.frame_id == "nuskin_test"
+    assert last.words_total == 299
+    assert last.resyncs == 2
+    assert last.skipped_bytes == 2 + 3
+    assert all(min(b.offset_ns) == 0 for b in got["batches"])
+    assert all(list(b.offset_ns) == sorted(b.offset_ns) for b in got["batches"])
+    stamps = [stamp_to_ns(b.header.stamp) for b in got["batches"]]
+    assert stamps == sorted(stamps)
+
+    # Diagnostics name the counters and the port state.
+    assert _spin_until(
+        executor, lambda: _diag_values(got, "decode")[1].get("words_total") == "299", 5.0
+    )
+    _, decode = _diag_values(got, "decode")
+    assert decode["resyncs"] == "2"
+    assert decode["skipped_bytes"] == "5"
+    status, link = _diag_values(got, "link")
+    assert link["port_state"] == "connected"
+    assert status.hardware_id == str(device.link)
+    assert "rate_words_per_s" in _diag_values(got, "events")[1]
+
+    # The port vanishes: the node reports it and keeps retrying.
+    device.unplug()
+    assert _spin_until(executor, lambda: driver.reader.disconnects == 1, 5.0)
+    assert _spin_until(executor, lambda: driver.reader.open_failures >= 1, 5.0)
+    got["diag"].clear()
+    assert _spin_until(executor, lambda: _diag_values(got, "link")[0] is not None, 5.0)
+    assert _diag_values(got, "link")[1]["port_state"] in ("backoff", "connecting")
+
+    # The port comes back: same node, new connection, events flow again.
+    device.plug()
+    assert _spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
+    n_before = len(_events(got["batches"])[0])
+    device.send(encode_words([5, 80, 41], [1, 2, 3]))
+    assert _spin_until(executor, lambda: len(_events(got["batches"])[0]) >= n_before + 3)
+    assert _events(got["batches"])[0][n_before:] == [5, 80, 41]
+    assert driver.reader.connects == 2
+    assert driver.reader.alive
+
+
+def test_bad_configuration_is_a_clear_error():
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        with pytest.raises(Exception, match="'transport' parameter must be one of"):
+            NuskinDriverNode(
+                context=context,
+                parameter_overrides=[Parameter("transport", Parameter.Type.STRING, "usb")],
+            )
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def _run_driver(overrides, until, timeout_s=8.0, feed=None):
+    """Spin a driver and a probe until ``until(batches, driver)``; returns (ok, batches, state)."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    driver = probe = executor = None
+    batches = []
+    try:
+        driver = NuskinDriverNode(context=context, parameter_overrides=overrides)
+        probe = rclpy.create_node("probe", context=context)
+        probe.create_subscription(TaxelEventBatch, "events", batches.append, SENSOR_STREAM_QOS)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(driver)
+        executor.add_node(probe)
+        if feed is not None:
+            assert _spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
+            feed()
+        ok = _spin_until(executor, lambda: until(batches, driver), timeout_s)
+        return ok, batches, driver.reader.state
+    finally:
+        if executor is not None:
+            executor.shutdown()
+        for node in (driver, probe):
+            if node is not None:
+                node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_can_transport_events_out():
+    from ext_sense_drivers.transports.can_bus import CanSink
+
+    def feed():
+        with CanSink("virtual", "t_node_can", 0x2A) as sink:
+            sink.write(encode_words([1, 2, 40, 41, 80], [0, 1, 2, 3, 1023]))
+
+    ok, batches, _ = _run_driver(
+        [
+            Parameter("transport", Parameter.Type.STRING, "can"),
+            Parameter("can_interface", Parameter.Type.STRING, "virtual"),
+            Parameter("can_channel", Parameter.Type.STRING, "t_node_can"),
+            Parameter("can_arbitration_id", Parameter.Type.INTEGER, 0x2A),
+        ],
+        lambda b, _: len(_events(b)[0]) >= 5,
+        feed=feed,
+    )
+    assert ok
+    assert _events(batches) == ([1, 2, 40, 41, 80], [0, 1, 2, 3, 1023])
+
+
+@pytest.mark.real_data
+def test_file_transport_replays_a_lab_capture_flat_out(food_poking_dir):
+    from ext_sense_drivers.nuskin.tact import decoded_path, read_tact
+
+    raw = food_poking_dir / "banana_zero_0_raw.tact"
+    if not raw.exists():
+        raw = sorted(food_poking_dir.glob("*_raw.tact"))[0]
+    tact = read_tact(decoded_path(raw))
+    n = tact.taxel.shape[0]
+    ok, batches, state = _run_driver(
+        [
+            Parameter("transport", Parameter.Type.STRING, "file"),
+            Parameter("file_path", Parameter.Type.STRING, str(raw)),
+            Parameter("file_pace", Parameter.Type.STRING, "flat"),
+            Parameter("max_batch_events", Parameter.Type.INTEGER, 500),
+        ],
+        lambda b, d: len(_events(b)[0]) >= n and d.reader.state == LinkState.EXHAUSTED,
+    )
+    assert ok
+    taxels, values = _events(batches)
+    assert taxels[:n] == tact.taxel.tolist()
+    assert values[:n] == tact.value.tolist()
+    assert state == LinkState.EXHAUSTED
+    assert max(len(b.taxel) for b in batches) <= 500
+
+
+def test_aces_line_mode_over_a_pty(tmp_path):
+    from ext_sense_drivers.aces.encoder import encode_line
+    from ext_sense_drivers.aces.wire import samples_to_bytes
+
+    taxel = [3, 44, 80]
+    polarity = [1, -1, 1]
+    line = encode_line([20_000, 300_000, 700_000], taxel, polarity, n_samples=20_000)
+    data = samples_to_bytes(line.samples).data
+    device = FakeDevice(tmp_path / "aces.pty")
+    device.plug()
+    try:
+        ok, batches, _ = _run_driver(
+            [
+                Parameter("port", Parameter.Type.STRING, str(device.link)),
+                Parameter("mode", Parameter.Type.STRING, "aces_line"),
+            ],
+            lambda b, _: len(_events(b)[0]) >= 3,
+            feed=lambda: device.send(data),
+        )
+    finally:
+        device.unplug()
+    assert ok
+    assert _events(batches)[0] == taxel
+    assert [p for b in batches for p in b.polarity] == polarity
+
+
+class _BrokenStream:
+    """A decoding path with a bug: raises on every chunk."""
+
+    def __init__(self, real):
+        self.real = real
+        self.batch_counters = real.batch_counters
+
+    def feed(self, chunk):
+        raise RuntimeError("decoder bug")
+
+    def restart(self):
+        return self.real.restart()
+
+    def diagnostics(self):
+        return self.real.diagnostics()
+
+
+def test_a_decoder_failure_costs_a_chunk_not_the_node():
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    driver = probe = executor = None
+    batches = []
+    try:
+        driver = NuskinDriverNode(
+            context=context,
+            parameter_overrides=[Parameter("port", Parameter.Type.STRING, "loop://")],
+        )
+        probe = rclpy.create_node("probe", context=context)
+        probe.create_subscription(TaxelEventBatch, "events", batches.append, SENSOR_STREAM_QOS)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(driver)
+        executor.add_node(probe)
+        assert _spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
+        real = driver.stream
+        driver.stream = _BrokenStream(real)
+        driver.reader.transport.write(encode_words([1], [1]))
+        assert _spin_until(executor, lambda: driver.decode_failures == 1, 5.0)
+        driver.stream = real
+        driver.reader.transport.write(encode_words([9, 10], [5, 6]))
+        assert _spin_until(executor, lambda: len(_events(batches)[0]) >= 2, 5.0)
+        assert _events(batches) == ([9, 10], [5, 6])
+        # frame_id is the one parameter that changes at run time, and never to empty.
+        empty = Parameter("frame_id", Parameter.Type.STRING, "")
+        assert not driver.set_parameters([empty])[0].successful
+        assert driver.set_parameters([Parameter("frame_id", Parameter.Type.STRING, "left")])[
+            0
+        ].successful
+        read_only = Parameter("baud", Parameter.Type.INTEGER, 9600)
+        assert not driver.set_parameters([read_only])[0].successful
+        driver.reader.transport.write(encode_words([11], [7]))
+        assert _spin_until(executor, lambda: batches[-1].taxel.tolist() == [11], 5.0)
+        assert batches[-1].header.frame_id == "left"
+    finally:
+        if executor is not None:
+            executor.shutdown()
+        for node in (driver, probe):
+            if node is not None:
+                node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_shipped_parameter_file_is_accepted():
+    config = Path(__file__).resolve().parents[2] / "config" / "nuskin_driver.yaml"
+    context = rclpy.Context()
+    rclpy.init(
+        context=context, args=["--ros-args", "--params-file", str(config), "-p", "port:=loop://"]
+    )
+    driver = None
+    try:
+        driver = NuskinDriverNode(context=context)
+        assert driver.config.baud == 4_000_000
+        assert driver.config.can_arbitration_id == 0x100
+        assert driver.max_batch_events == 20000
+        assert driver.get_parameter("batch_period_s").value == 0.001
+    finally:
+        if driver is not None:
+            driver.destroy_node()
+        rclpy.try_shutdown(context=context)

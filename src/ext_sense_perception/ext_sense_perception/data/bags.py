@@ -1,0 +1,367 @@
+"""Labelled windows from a rosbag2 bag, cut by the live graph's own windowing code (no ROS).
+
+A bag (mcap or sqlite3, as :mod:`ext_sense_bags` reads them) holds the driver stream
+(``TaxelEventBatch`` or ``BioTacFrame``) and, when recorded with the simulator or a labelled
+session, ``ContactGroundTruth``. The sensor messages go, in log-time order, through
+:class:`ext_sense_perception.online.stage.WindowStage`, the core of the ``contact_window``
+node, so the windows are the ones the graph cuts from the same messages. Onsets:
+
+- ``"truth"`` (default when the bag has ground truth): every ground-truth stamp is an onset
+  (food: the arm's motion start), as the simulator's ``dataset.npz`` is cut; labels come from
+  the same messages. Debounce is off, so trials closer than the live debounce all count.
+- ``"detected"``: the windower detects onsets from the signal, as live; each final window is
+  labelled by the ground truth stamped nearest its onset
+  (:func:`ext_sense_perception.data.device_stream.match_truths`). Without ground truth the windows
+  are unlabelled (``y`` NaN or ``""``), for inspection with ``ext-sense features``.
+
+Messages that do not decode are counted and dropped (:class:`BagCounts`), as are malformed
+batches (the stage's ``bad_messages``); a bag that cannot be read at all raises
+:class:`~ext_sense_perception.errors.PerceptionError`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ext_sense_bags import BagError, BagReader
+from ext_sense_perception.data.device_stream import match_truths
+from ext_sense_perception.data.refractory import refractory_mask
+from ext_sense_perception.data.window_set import WindowSet, file_hash, window_set_of
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.online.stage import WindowStage, events_of
+from ext_sense_perception.online.window import ContactWindow, WindowConfig
+from ext_sense_perception.profiles import OnsetSource
+from ext_sense_runtime.enums import Sensor, Task
+from ext_sense_runtime.records import EventBlock, GroundTruth, truth_of
+from ext_sense_runtime.stamps import MS, S, stamp_to_ns
+
+EVENTS_TYPE = "ext_sense_msgs/msg/TaxelEventBatch"
+FRAMES_TYPE = "ext_sense_msgs/msg/BioTacFrame"
+TRUTH_TYPE = "ext_sense_msgs/msg/ContactGroundTruth"
+ONSET_MODES = ("auto", "truth", "detected")
+MARK_AHEAD_NS = 1 * S
+"""Truth onsets are marked when a message stamped this close to their window start is read
+(longer than any sensor message, so no window's first data is fed before its onset)."""
+SENSOR_ID_PEEK = 256
+"""BioTac frames read to find the sensor ids when none are given."""
+
+
+class BagTopics(NamedTuple):
+    """Topic names to read; the defaults are the ones the recorder and the simulator write."""
+
+    events: str = "/extsense/nuskin/events"
+    frames: str = "/extsense/biotac/frames"
+    truth: str = "/extsense/ground_truth"
+
+
+class BagCounts(NamedTuple):
+    """What became of a bag's messages and windows.
+
+    Attributes:
+        sensor_messages: Sensor-stream messages read.
+        truths: Ground-truth messages read.
+        undecodable: Messages dropped because their bytes do not decode as their type.
+        bad_messages: Decoded sensor messages the window stage dropped (malformed arrays).
+        windows: Final windows cut.
+        truncated: Of those, windows the bag ended inside (zero-padded tail).
+        labelled: Windows with a ground-truth label.
+        unmatched_windows: Windows no truth was near (``"detected"`` onsets).
+        missed_truths: Truths no window was cut for.
+    """
+
+    sensor_messages: int
+    truths: int
+    undecodable: int
+    bad_messages: int
+    windows: int
+    truncated: int
+    labelled: int
+    unmatched_windows: int
+    missed_truths: int
+
+
+def _reader(path: Path) -> Any:
+    try:
+        return BagReader(path).open()
+    except BagError as err:
+        raise PerceptionError(f"The 'data' parameter must be a readable bag: {err}") from err
+
+
+def _decoded(bag: Any, topic: str, drops: list[int]) -> Iterator[Any]:
+    """Decoded messages of one topic in log-time order; undecodable ones counted in drops[0]."""
+    try:
+        for rec in bag.records([topic]):
+            try:
+                yield bag.decode(rec)
+            except BagError:
+                drops[0] += 1
+    except BagError as err:
+        raise PerceptionError(f"Cannot read topic {topic!r} of bag {bag.path}: {err}") from err
+
+
+def _check_type(topics: dict[str, Any], topic: str, expected: str) -> None:
+    got = topics[topic].msgtype
+    if got != expected:
+        raise PerceptionError(
+            f"Topic {topic!r} must hold {expected}. Got {got} instead (use --events-topic, "
+            "--frames-topic or --truth-topic to name another topic)."
+        )
+
+
+def _infer_sensor(topics: dict[str, Any], names: BagTopics, custom: dict[str, str]) -> Sensor:
+    have = [
+        s for s, t in ((Sensor.NUSKIN, names.events), (Sensor.BIOTAC, names.frames)) if t in topics
+    ]
+    if "sensor" in custom:
+        return Sensor.parse(custom["sensor"], PerceptionError)
+    if len(have) == 1:
+        return have[0]
+    if not have:
+        raise PerceptionError(
+            f"The bag has no sensor topic: expected {names.events!r} (TaxelEventBatch) or "
+            f"{names.frames!r} (BioTacFrame). Got topics {sorted(topics)} instead."
+        )
+    raise PerceptionError("The bag holds both sensors' streams: give --sensor nuskin or biotac.")
+
+
+def read_truths(bag: Any, topic: str, drops: list[int]) -> tuple[list[GroundTruth], str]:
+    """The bag's ground truth (stamp = onset) and the first task name.
+
+    Args:
+        bag: An open :class:`ext_sense_bags.BagReader`.
+        topic: The ground-truth topic.
+        drops: One-element counter of undecodable messages.
+
+    Returns:
+        ``(truths in log-time order, task name of the first one or "")``.
+    """
+    truths = [truth_of(msg) for msg in _decoded(bag, topic, drops)]
+    return truths, next((g.task for g in truths if g.task), "")
+
+
+class _Refractory:
+    """The per-taxel refractory drop of :func:`.refractory.refractory_mask`, across blocks."""
+
+    def __init__(self, rate_hz: float, n_taxels: int) -> None:
+        refractory_mask(np.zeros(0, np.int64), np.zeros(0, np.uint16), rate_hz)  # checks the rate
+        self.rate_hz = rate_hz
+        self.last = np.full(n_taxels + 2, np.iinfo(np.int64).min, dtype=np.int64)
+
+    def __call__(self, events: EventBlock) -> EventBlock:
+        if not events.size:
+            return events
+        slot = np.clip(events.taxel.astype(np.int64), 0, len(self.last) - 1)
+        # each taxel's last kept spike goes first, so the drop continues across blocks
+        prev = np.flatnonzero(self.last > np.iinfo(np.int64).min)
+        prev = prev[np.isin(prev, slot)]
+        t = np.concatenate([self.last[prev], events.t_ns])
+        keep = refractory_mask(t, np.concatenate([prev, slot]), self.rate_hz)[len(prev) :]
+        np.maximum.at(self.last, slot[keep], events.t_ns[keep])
+        return events.select(keep)
+
+
+def _sensor_ids(bag: Any, topic: str) -> tuple[int, ...]:
+    ids: set[int] = set()
+    for k, msg in enumerate(_decoded(bag, topic, [0])):
+        ids.add(int(msg.sensor_id))
+        if k >= SENSOR_ID_PEEK:
+            break
+    return tuple(sorted(ids)) or (0,)
+
+
+def window_set_from_bag(
+    path: str | Path,
+    task: str | Task | None = None,
+    sensor: str | Sensor | None = None,
+    *,
+    topics: BagTopics = BagTopics(),  # noqa: B008  (an immutable NamedTuple)
+    onsets: str = "auto",
+    config: WindowConfig | None = None,
+    rate_hz: float | None = None,
+    sensor_ids: tuple[int, ...] | None = None,
+    match_tolerance_ns: int = 300 * MS,
+    require_labels: bool = True,
+) -> tuple[WindowSet, BagCounts]:
+    """Windows of a bag's sensor stream, labelled by its ground truth.
+
+    Args:
+        path: Bag directory, or a single ``.mcap`` / ``.db3`` file.
+        task: Task (default: the bag's ``custom_data``, else its first ground truth).
+        sensor: Sensor (default: ``custom_data``, else the sensor topic present).
+        topics: Topic names.
+        onsets: ``"truth"``, ``"detected"`` or ``"auto"`` (truth when the bag has any).
+        config: Window configuration (default: the task profile's for the sensor).
+        rate_hz: NUSkin: per-taxel refractory drop to this rate before windowing (None: none);
+            ignored for BioTac, whose decimation is a feature step (``rate_hz`` feature option).
+        sensor_ids: BioTac sensors joined into one window, in channel order (default: every
+            ``sensor_id`` among the first frames).
+        match_tolerance_ns: ``"detected"``: largest onset-to-truth distance for a label, ns.
+        require_labels: Raise when no window gets a label (training needs them).
+
+    Returns:
+        ``(window set, counts)``; ``groups`` is the ground truth's trial number.
+
+    Raises:
+        PerceptionError: The bag is missing, unreadable or empty; it has no sensor topic, or a
+            topic holds another type; task or sensor cannot be told; food without ground truth
+            (its window starts at the arm's motion start); no labelled window when required.
+    """
+    path = Path(path)
+    if onsets not in ONSET_MODES:
+        raise PerceptionError(
+            f"The 'onsets' parameter must be one of {', '.join(ONSET_MODES)}. Got {onsets!r} "
+            "instead."
+        )
+    bag = _reader(path)
+    try:
+        have = bag.topics
+        if bag.message_count == 0:
+            raise PerceptionError(f"The bag {str(path)!r} holds no messages.")
+        sensor_e = (
+            Sensor.parse(sensor, PerceptionError)
+            if sensor
+            else _infer_sensor(have, topics, bag.custom_data)
+        )
+        stream = topics.events if sensor_e is Sensor.NUSKIN else topics.frames
+        if stream not in have or have[stream].count == 0:
+            raise PerceptionError(
+                f"The bag has no {sensor_e.label} messages on {stream!r}. Got topics "
+                f"{ {t: s.count for t, s in have.items()} } instead."
+            )
+        _check_type(have, stream, EVENTS_TYPE if sensor_e is Sensor.NUSKIN else FRAMES_TYPE)
+        drops = [0]
+        truths: list[GroundTruth] = []
+        truth_task = ""
+        if topics.truth in have:
+            _check_type(have, topics.truth, TRUTH_TYPE)
+            truths, truth_task = read_truths(bag, topics.truth, drops)
+        task_name = task or bag.custom_data.get("task") or truth_task
+        if not task_name:
+            raise PerceptionError(
+                "The bag names no task (no custom_data 'task', no ground truth): give --task."
+            )
+        task_e = Task.parse(task_name, PerceptionError)
+        mode = onsets if onsets != "auto" else ("truth" if truths else "detected")
+        config = config or WindowConfig.for_task(task_e, sensor_e)
+        live_profile = config.profile
+        if config.task is not task_e or config.sensor is not sensor_e:
+            raise PerceptionError(
+                f"The 'config' parameter must be for {task_e.label}/{sensor_e.label}. Got "
+                f"{config.task.label}/{config.sensor.label} instead."
+            )
+        if mode == "truth":
+            if not truths:
+                raise PerceptionError(
+                    f"Onsets 'truth' need ground truth on {topics.truth!r}; the bag has none."
+                )
+            config = config.with_profile(onset_source=OnsetSource.EXTERNAL, debounce_ns=0)
+        elif config.external_onsets:
+            raise PerceptionError(
+                f"{task_e.label} windows start at the arm's motion start, which a bag gives as "
+                f"ground truth on {topics.truth!r}: use onsets 'truth' (got {mode!r}"
+                + (", and the bag has no ground truth)." if not truths else ").")
+            )
+        config = config.with_profile(anytime_post_ns=())  # final windows only
+        if sensor_e is Sensor.BIOTAC and sensor_ids is None:
+            sensor_ids = _sensor_ids(bag, stream)
+        stage = WindowStage(config, sensor_ids or (0,))
+        # truth onsets are marked just ahead of their data: a few pending windows, not all
+        marks = np.sort([g.onset_ns - config.pre_ns for g in truths]) if mode == "truth" else []
+        next_mark = 0
+        nuskin_rate = rate_hz if sensor_e is Sensor.NUSKIN else None
+        thin = _Refractory(nuskin_rate, config.n_taxels) if nuskin_rate is not None else None
+        windows: list[ContactWindow] = []
+        n_msgs = 0
+        for msg in _decoded(bag, stream, drops):
+            n_msgs += 1
+            horizon = stamp_to_ns(msg.header.stamp) + MARK_AHEAD_NS
+            while next_mark < len(marks) and marks[next_mark] <= horizon:
+                stage.on_motion_start(int(marks[next_mark]) + config.pre_ns)
+                next_mark += 1
+            events = events_of(msg) if thin is not None else None
+            if events is not None:
+                windows.extend(stage.on_block(thin(events), stamp_to_ns(msg.header.stamp)))
+            elif sensor_e is Sensor.NUSKIN:
+                windows.extend(stage.on_events(msg))
+            else:
+                windows.extend(stage.on_frame(msg))
+        for mark in marks[next_mark:]:
+            stage.on_motion_start(int(mark) + config.pre_ns)
+        if stage.last_data_ns is not None:
+            windows.extend(stage.advance(stage.last_data_ns + config.post_ns))
+        windows.extend(stage.flush())
+        bad = int(stage.counters.bad_messages)
+    finally:
+        bag.close()
+    finals = [w for w in windows if not w.provisional]
+    if mode == "truth":
+        by_stamp: dict[int, list[GroundTruth]] = {}
+        for g in sorted(truths, key=lambda g: g.onset_ns):
+            by_stamp.setdefault(g.onset_ns, []).append(g)
+        pairs = [(w, by_stamp[w.onset_ns].pop(0)) for w in finals]
+        unmatched, missed = 0, len(truths) - len(pairs)
+    else:
+        pairs, unmatched, missed = match_truths(finals, truths, match_tolerance_ns)
+    counts = BagCounts(
+        n_msgs,
+        len(truths),
+        drops[0],
+        bad,
+        len(finals),
+        sum(w.truncated for w in finals),
+        len(pairs),
+        unmatched,
+        missed,
+    )
+    if not pairs and require_labels:
+        raise PerceptionError(
+            f"No window of bag {str(path)!r} has a label ({len(finals)} windows, "
+            f"{len(truths)} ground-truth messages, onsets {mode!r}); training needs ground truth."
+        )
+    if require_labels or truths:
+        chosen = [w for w, _ in pairs]
+        labels = [g.label for _, g in pairs]
+        groups = np.asarray([g.trial for _, g in pairs], dtype=np.int64)
+        rod = np.asarray([g.rod_length_m for _, g in pairs], dtype=np.float64)
+    else:
+        chosen = finals
+        labels = [math.nan if task_e.is_regression else ""] * len(finals)
+        groups = np.arange(len(finals), dtype=np.int64)
+        rod = np.full(len(finals), np.nan)
+    files = [path] if path.is_file() else sorted(p for p in path.iterdir() if p.is_file())
+    ws = window_set_of(
+        config,
+        chosen,
+        labels,
+        str(path),
+        file_hash(*files),
+        groups=groups,
+        rod_length_m=rod,
+        n_channels=len(sensor_ids or (0,)) if sensor_e is Sensor.BIOTAC else None,
+        profile=live_profile,
+    )
+    return ws, counts
+
+
+def from_bag(
+    path: str | Path, task: str | None = None, sensor: str | None = None, **kwargs: Any
+) -> WindowSet:
+    """Like :func:`window_set_from_bag`, the window set only (for ``load_window_set``)."""
+    return window_set_from_bag(path, task, sensor, **kwargs)[0]
+
+
+def is_bag(path: str | Path) -> bool:
+    """Whether ``path`` looks like a rosbag2 bag (``.mcap``/``.db3``, or a directory of one)."""
+    path = Path(path)
+    if path.is_file():
+        return path.suffix in (".mcap", ".db3")
+    if path.is_dir():
+        return (path / "metadata.yaml").is_file() or any(
+            p.suffix in (".mcap", ".db3") for p in path.iterdir()
+        )
+    return False

@@ -1,0 +1,226 @@
+"""Training windows cut from a raw NUSkin device stream by the live graph's own code (no ROS).
+
+A model trained on windows cut offline at the true onset (``dataset.npz``) meets different
+windows live: there the driver stamps words on arrival, the windower detects the onset from
+the stamped events, and the window is cut around that detected onset. This module removes that
+train/serve skew by construction: the receiver bytes, as written to the link, go through the
+driver's decoding path (:meth:`ext_sense_drivers.nuskin.driver_config.DriverConfig.make_stream`:
+``WordDecoder`` and the arrival clock), are fed as event blocks to
+:class:`ext_sense_perception.online.stage.WindowStage`, the core of the ``contact_window`` node.
+Each final window is labelled by the ground truth whose stamp is nearest its detected onset
+(within ``match_tolerance_ns``, as the estimate monitor scores).
+
+Reads are modelled as the live link delivers them: the streamer wakes at least every
+millisecond and writes everything due (``ext_sense_sim.streaming.stream``) and the driver reads
+as soon as bytes wait, so the writes of each ``read_period_ns`` tick are read together at the
+tick's end. Windows here then match the live graph's when no byte is lost.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Iterable, Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from ext_sense_drivers.nuskin.driver_config import DriverConfig
+from ext_sense_drivers.transports.base import Chunk
+from ext_sense_perception.data.window_set import WindowSet, window_set_of
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.online.stage import WindowStage
+from ext_sense_perception.online.window import ContactWindow, WindowConfig
+from ext_sense_runtime.enums import Sensor, Task
+from ext_sense_runtime.records import GroundTruth
+from ext_sense_runtime.stamps import MS
+
+DEFAULT_BAUD = 4_000_000
+"""The graph's NUSkin link rate (sets the arrival clock's spread cap)."""
+READ_PERIOD_NS = MS
+"""The live streamer's wake-up period: writes within one are read together."""
+
+
+class StreamCounts(NamedTuple):
+    """What became of the stream's trials and windows."""
+
+    words: int
+    windows: int
+    labelled: int
+    unmatched_windows: int
+    missed_trials: int
+    skipped_bytes: int
+
+
+def stream_windows(
+    writes: Iterable[tuple[int, bytes]],
+    config: WindowConfig | None = None,
+    *,
+    baud: int = DEFAULT_BAUD,
+    read_period_ns: int = READ_PERIOD_NS,
+    read_jitter: float = 0.0,
+    seed: int = 0,
+) -> tuple[list[ContactWindow], int, int]:
+    """Final windows the live graph cuts from a NUSkin receiver byte stream.
+
+    Args:
+        writes: ``(t_ns, bytes)`` per write to the link, in time order (any clock).
+        config: Window configuration (default: the ``contact_window`` node's for tap
+            localisation).
+        baud: Link rate the driver's arrival clock assumes, bit/s.
+        read_period_ns: Writes within one tick of this length are read together, ns.
+        read_jitter: Each tick lasts ``read_period_ns * U(1 - j, 1 + j)`` (live reads come at
+            irregular times; training on several read patterns makes a model robust to them).
+        seed: Seed of the jitter.
+
+    Returns:
+        The final (non-provisional) windows, the decoded word count and the skipped bytes.
+    """
+    config = config or WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.NUSKIN)
+    if config.sensor is not Sensor.NUSKIN:
+        raise PerceptionError(
+            f"The 'config.sensor' parameter must be nuskin. Got {config.sensor.label!r} instead."
+        )
+    decode = DriverConfig(baud=int(baud)).make_stream()
+    stage = WindowStage(config)
+    out: list[ContactWindow] = []
+    words = 0
+    if int(read_period_ns) <= 0:
+        raise PerceptionError(
+            f"The 'read_period_ns' parameter must be > 0. Got {read_period_ns} instead."
+        )
+    if not 0.0 <= read_jitter < 1.0:
+        raise PerceptionError(f"The 'read_jitter' parameter must be in [0, 1). Got {read_jitter}.")
+    period = int(read_period_ns)
+    rng = np.random.default_rng(seed)
+
+    def read(data: bytes, read_ns: int) -> None:
+        nonlocal words
+        block = decode.feed(Chunk(data, read_ns))
+        if block.t_ns.size:
+            words += int(block.t_ns.size)
+            out.extend(stage.on_block(block))
+        out.extend(stage.advance(read_ns))  # the node's timer: data up to now is complete
+
+    pending: list[bytes] = []
+    tick_end: int | None = None
+    for t_ns, data in writes:
+        t = int(t_ns)
+        if tick_end is not None and t > tick_end:
+            read(b"".join(pending), tick_end)
+            pending = []
+            tick_end = None
+        if tick_end is None:
+            if read_jitter:
+                step = max(1, round(period * rng.uniform(1 - read_jitter, 1 + read_jitter)))
+                tick_end = t + int(rng.integers(0, step))
+            else:
+                tick_end = -(-t // period) * period
+        pending.append(bytes(data))
+    if tick_end is not None:
+        read(b"".join(pending), tick_end)
+    out.extend(stage.flush())
+    skipped = int(decode.batch_counters.skipped_bytes)
+    return [w for w in out if not w.provisional], words, skipped
+
+
+def match_truths(
+    windows: Sequence[ContactWindow], truths: Sequence[GroundTruth], tolerance_ns: int
+) -> tuple[list[tuple[ContactWindow, GroundTruth]], int, int]:
+    """Label windows by the ground truth stamped nearest their onset, each truth used once.
+
+    This is how the estimate monitor scores live estimates, so a set labelled here trains on
+    the windows the graph really cuts.
+
+    Args:
+        windows: Final windows, oldest first.
+        truths: Ground truth, any order, stamps on the windows' clock.
+        tolerance_ns: Largest distance from a window's onset to its truth's stamp, ns.
+
+    Returns:
+        ``(pairs of window and truth, windows left unmatched, truths left unmatched)``.
+    """
+    stamps = np.array([int(g.onset_ns) for g in truths], dtype=np.int64)
+    order = np.argsort(stamps, kind="stable")
+    stamps = stamps[order]
+    taken = np.zeros(stamps.size, dtype=bool)
+    picked: list[tuple[ContactWindow, GroundTruth]] = []
+    unmatched = 0
+    for win in windows:
+        if not stamps.size:
+            unmatched += 1
+            continue
+        j = int(np.searchsorted(stamps, win.onset_ns))
+        near = [k for k in (j - 1, j) if 0 <= k < stamps.size and not taken[k]]
+        best = min(near, key=lambda k: abs(int(stamps[k]) - win.onset_ns), default=None)
+        if best is None or abs(int(stamps[best]) - win.onset_ns) > tolerance_ns:
+            unmatched += 1
+            continue
+        taken[best] = True
+        picked.append((win, truths[int(order[best])]))
+    return picked, unmatched, int((~taken).sum())
+
+
+def window_set_from_stream(
+    writes: Iterable[tuple[int, bytes]],
+    truths: Sequence[GroundTruth],
+    config: WindowConfig | None = None,
+    *,
+    baud: int = DEFAULT_BAUD,
+    read_period_ns: int = READ_PERIOD_NS,
+    read_jitter: float = 0.0,
+    seed: int = 0,
+    match_tolerance_ns: int = 300 * MS,
+    source: str = "stream",
+) -> tuple[WindowSet, StreamCounts]:
+    """A labelled training set cut from a raw stream exactly as the live graph cuts it.
+
+    Args:
+        writes: ``(t_ns, bytes)`` per write to the link, in time order.
+        truths: Ground truth per trial, stamps on the same clock as ``writes``.
+        config: Window configuration (default: the ``contact_window`` node's, tap).
+        baud: Link rate the driver's arrival clock assumes, bit/s.
+        read_period_ns: Writes within one tick of this length are read together, ns.
+        read_jitter: Relative jitter of the read ticks (see :func:`stream_windows`).
+        seed: Seed of the jitter.
+        match_tolerance_ns: Largest distance from a window's onset to its truth's stamp, ns.
+        source: Description stored in the set (file names, scene).
+
+    Returns:
+        The window set (one window per matched trial, ``groups`` the trial) and counts.
+
+    Raises:
+        PerceptionError: No window matched any truth, or bad arguments.
+    """
+    config = config or WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.NUSKIN)
+    h = hashlib.sha256()
+
+    def hashed(items: Iterable[tuple[int, bytes]]) -> Iterable[tuple[int, bytes]]:
+        for t, b in items:
+            h.update(b)
+            yield t, b
+
+    windows, words, skipped = stream_windows(
+        hashed(writes),
+        config,
+        baud=baud,
+        read_period_ns=read_period_ns,
+        read_jitter=read_jitter,
+        seed=seed,
+    )
+    picked, unmatched, missed = match_truths(windows, truths, match_tolerance_ns)
+    if not picked:
+        raise PerceptionError(
+            f"The stream gave {len(windows)} windows and {len(truths)} truths but none matched "
+            f"within {match_tolerance_ns / MS:g} ms; expected truths stamped on the writes' clock."
+        )
+    ws = window_set_of(
+        config,
+        [w for w, _ in picked],
+        [g.label for _, g in picked],
+        source,
+        h.hexdigest()[:16],
+        groups=np.asarray([g.trial for _, g in picked]),
+        rod_length_m=np.asarray([g.rod_length_m for _, g in picked], dtype=np.float64),
+    )
+    counts = StreamCounts(words, len(windows), len(picked), unmatched, missed, skipped)
+    return ws, counts

@@ -1,0 +1,314 @@
+"""Readers for the recordings models are trained on (no ROS).
+
+- the paper's NUSkin ``.tact`` (``isPos taxel removable t``) and its ``*_essentials.csv``;
+- the paper's BioTac ``.csv`` (columns ``pac`` and ``t``);
+- the paper's preprocessed ``.npz`` (``signals``, ``labels``);
+- the real NUSkin food-poking captures (``.tact`` as ``col0 taxel value t`` plus a ROS 1 bag of
+  ``franka_msgs/msg/FrankaState`` giving the start of the arm's motion);
+- the simulator's ``dataset.npz`` (docs/conventions.md).
+
+Times become integer nanoseconds on the way in. Each reader raises
+:class:`~ext_sense_perception.errors.PerceptionError` on a missing or malformed file.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+from rosbags.highlevel import AnyReader
+
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_runtime.records import EventBlock
+from ext_sense_runtime.stamps import stamp_to_ns
+
+
+class ArmMotion(NamedTuple):
+    """When the arm moved in one recording, from its joint velocities."""
+
+    start_ns: int
+    stop_ns: int
+    t_ns: np.ndarray  # state message times, int64
+    speed: np.ndarray  # sum of |joint velocity|, rad/s
+
+
+def _seconds_to_ns(text_seconds: np.ndarray) -> np.ndarray:
+    """Float epoch seconds to int64 ns, rounded to the microsecond (float64 carries about that)."""
+    return (np.round(np.asarray(text_seconds, dtype=np.float64) * 1e6).astype(np.int64)) * 1000
+
+
+def _load_rows(path: Path, n_cols: int) -> np.ndarray:
+    path = Path(path)
+    if not path.is_file():
+        raise PerceptionError(
+            f"The 'path' parameter must name an existing file. Got {str(path)!r} instead."
+        )
+    try:
+        rows = np.loadtxt(path, dtype=np.float64, ndmin=2)
+    except ValueError as err:
+        raise PerceptionError(f"Malformed event file {str(path)!r}: {err}") from err
+    if rows.size == 0:
+        return np.zeros((0, n_cols))
+    if rows.shape[1] != n_cols:
+        raise PerceptionError(
+            f"Event file {str(path)!r} must have {n_cols} columns per line. Got {rows.shape[1]} "
+            "instead."
+        )
+    return rows
+
+
+def read_paper_tact(path: str | Path) -> EventBlock:
+    """The paper's NUSkin ``.tact``: ``isPos taxel removable t``; first and last lines are markers.
+
+    Args:
+        path: The file.
+
+    Returns:
+        Events with polarity +1 (``isPos`` 1) or -1 (``isPos`` 0).
+
+    Raises:
+        PerceptionError: when the file is missing or malformed.
+    """
+    rows = _load_rows(Path(path), 4)[1:-1]
+    order = np.argsort(rows[:, 3], kind="stable")
+    rows = rows[order]
+    return EventBlock(
+        t_ns=_seconds_to_ns(rows[:, 3]),
+        taxel=rows[:, 1].astype(np.uint16),
+        polarity=np.where(rows[:, 0] == 1, 1, -1).astype(np.int8),
+        value=np.zeros(len(rows), np.uint16),
+    )
+
+
+def read_capture_tact(path: str | Path) -> EventBlock:
+    """A real food-poking capture ``.tact``: ``col0 taxel value t`` between marker lines.
+
+    The markers (``1 1 1 t`` first, ``2 2 2 t`` last) are dropped; ``col0`` (the receiver's
+    polarity bit, 0 in these captures) becomes polarity 0, which counts +1 in windows.
+
+    Args:
+        path: The file.
+
+    Returns:
+        Events with their 10-bit values.
+
+    Raises:
+        PerceptionError: when the file is missing or malformed.
+    """
+    rows = _load_rows(Path(path), 4)
+    if len(rows) and rows[0, 0] == 1 and rows[0, 1] == 1 and rows[0, 2] == 1:
+        rows = rows[1:]
+    if len(rows) and rows[-1, 0] == 2 and rows[-1, 1] == 2 and rows[-1, 2] == 2:
+        rows = rows[:-1]
+    rows = rows[np.argsort(rows[:, 3], kind="stable")]
+    return EventBlock(
+        t_ns=_seconds_to_ns(rows[:, 3]),
+        taxel=rows[:, 1].astype(np.uint16),
+        polarity=np.where(rows[:, 0] == 1, 1, 0).astype(np.int8),
+        value=rows[:, 2].astype(np.uint16),
+    )
+
+
+def read_csv_columns(path: str | Path) -> dict[str, np.ndarray]:
+    """A CSV with a header line as columns (numbers where every value parses, else strings).
+
+    Args:
+        path: The file (the paper's ``*_essentials.csv`` or BioTac ``.csv``).
+
+    Returns:
+        Column name to array.
+
+    Raises:
+        PerceptionError: when the file is missing or empty.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise PerceptionError(
+            f"The 'path' parameter must name an existing file. Got {str(path)!r} instead."
+        )
+    with path.open(newline="") as fh:
+        reader = csv.reader(fh)
+        try:
+            header = next(reader)
+        except StopIteration as err:
+            raise PerceptionError(f"CSV file {str(path)!r} is empty.") from err
+        cols: list[list[str]] = [[] for _ in header]
+        for row in reader:
+            for i, v in enumerate(row[: len(header)]):
+                cols[i].append(v)
+    out: dict[str, np.ndarray] = {}
+    for name, values in zip(header, cols, strict=True):
+        try:
+            out[name.strip()] = np.asarray(values, dtype=np.float64)
+        except ValueError:
+            out[name.strip()] = np.asarray(values)
+    return out
+
+
+def read_biotac_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """The paper's BioTac recording: PAC samples and their times.
+
+    Args:
+        path: CSV with columns ``pac`` and ``t`` (epoch seconds).
+
+    Returns:
+        ``(pac (n,) float64, t_ns (n,) int64)``.
+
+    Raises:
+        PerceptionError: when a column is missing.
+    """
+    cols = read_csv_columns(path)
+    for name in ("pac", "t"):
+        if name not in cols:
+            raise PerceptionError(
+                f"BioTac CSV {str(path)!r} must have a {name!r} column. Got {sorted(cols)} instead."
+            )
+    return cols["pac"].astype(np.float64), _seconds_to_ns(cols["t"])
+
+
+def load_preprocessed_npz(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """The paper's preprocessed ``.npz``: ``signals`` and ``labels``.
+
+    NUSkin signals are ``(n, 80, n_bins)`` signed counts; BioTac ``(n, n_samples)`` PAC.
+
+    Args:
+        path: The file.
+
+    Returns:
+        ``(signals as (n, n_channels, n_samples) float32, labels)``.
+
+    Raises:
+        PerceptionError: when the file is missing or lacks the arrays.
+    """
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            signals, labels = z["signals"], z["labels"]
+    except (OSError, KeyError, ValueError) as err:
+        raise PerceptionError(f"Cannot read preprocessed npz {str(path)!r}: {err}") from err
+    signals = np.asarray(signals, dtype=np.float32)
+    if signals.ndim == 2:
+        signals = signals[:, None, :]
+    return signals, labels
+
+
+def read_arm_motion(bag: str | Path, speed_threshold: float = 0.05) -> ArmMotion:
+    """Start and stop of the arm's motion from a ROS 1 bag of ``franka_msgs/msg/FrankaState``.
+
+    Motion is where the sum of absolute joint velocities exceeds ``speed_threshold`` rad/s.
+
+    Args:
+        bag: The ``.bag`` file.
+        speed_threshold: Threshold on the summed joint speeds, rad/s.
+
+    Returns:
+        The motion's start and stop (header stamps, ns).
+
+    Raises:
+        PerceptionError: when the bag is missing, unreadable, or the arm never moves.
+    """
+    bag = Path(bag)
+    if not bag.is_file():
+        raise PerceptionError(
+            f"The 'bag' parameter must name an existing file. Got {str(bag)!r} instead."
+        )
+    try:
+        times: list[int] = []
+        speeds: list[float] = []
+        with AnyReader([bag]) as reader:
+            conns = [c for c in reader.connections if c.msgtype.endswith("FrankaState")]
+            for conn, _, raw in reader.messages(connections=conns):
+                msg = reader.deserialize(raw, conn.msgtype)
+                times.append(stamp_to_ns(msg.header.stamp))
+                speeds.append(float(np.abs(np.asarray(msg.dq)).sum()))
+    except Exception as err:  # rosbags raises many types on corrupt bags
+        raise PerceptionError(f"Cannot read arm state from bag {str(bag)!r}: {err}") from err
+    t = np.asarray(times, dtype=np.int64)
+    s = np.asarray(speeds)
+    moving = np.flatnonzero(s > speed_threshold)
+    if len(moving) == 0:
+        raise PerceptionError(
+            f"The arm never moves in {str(bag)!r} (speed threshold {speed_threshold} rad/s)."
+        )
+    return ArmMotion(int(t[moving[0]]), int(t[moving[-1]]), t, s)
+
+
+class Recording(NamedTuple):
+    """One labelled trial of the real captures."""
+
+    name: str
+    label: str
+    events: EventBlock
+    motion: ArmMotion
+
+
+def food_poking_trials(
+    directory: str | Path, include_empty: bool = False
+) -> tuple[list[Recording], list[str]]:
+    """All trials of the real food-poking captures.
+
+    Args:
+        directory: ``../shared/data/nuskin_food_poking``.
+        include_empty: Keep the single ``empty`` trial (excluded by default: one trial cannot be
+            split into train and test sets).
+
+    Returns:
+        ``(recordings sorted by name, names of the excluded trials)``.
+
+    Raises:
+        PerceptionError: when the directory has no trials or a trial's bag is missing.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise PerceptionError(
+            f"The 'data' parameter must be a directory. Got {str(directory)!r} instead."
+        )
+    recs: list[Recording] = []
+    excluded: list[str] = []
+    for tact in sorted(directory.glob("*_zero_*.tact")):
+        if tact.name.endswith("_raw.tact"):
+            continue
+        name = tact.stem
+        label = name.split("_zero_")[0]
+        if label == "empty" and not include_empty:
+            excluded.append(name)
+            continue
+        recs.append(
+            Recording(
+                name, label, read_capture_tact(tact), read_arm_motion(tact.with_suffix(".bag"))
+            )
+        )
+    if not recs:
+        raise PerceptionError(f"No '<food>_zero_<n>.tact' trials in {str(directory)!r}.")
+    return recs, excluded
+
+
+def load_sim_dataset(path: str | Path) -> dict[str, np.ndarray]:
+    """The simulator's ``dataset.npz`` as a dict of arrays (format in docs/conventions.md).
+
+    Args:
+        path: The file.
+
+    Returns:
+        Its arrays; strings are plain ``str``.
+
+    Raises:
+        PerceptionError: when the file is missing or lacks the common fields.
+    """
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as err:
+        raise PerceptionError(f"Cannot read dataset {str(path)!r}: {err}") from err
+    for key in ("task", "sensor", "y", "onset_ns"):
+        if key not in data:
+            raise PerceptionError(
+                f"Dataset {str(path)!r} must hold {key!r}. Got {sorted(data)} instead."
+            )
+    for key in ("task", "sensor", "label_kind"):
+        if key in data:
+            data[key] = str(data[key])
+    return data

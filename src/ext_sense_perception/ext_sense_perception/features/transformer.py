@@ -1,0 +1,477 @@
+# ruff: noqa: N803  (X / F for sample matrices, as in scikit-learn)
+"""Feature families of contact windows, one scikit-learn transformer each (no ROS).
+
+Every family here is a fixed linear map along the time axis of the window (rebinning,
+decimation, a DFT, an EST kernel convolution, window sums), followed by at most a few
+element-wise steps (magnitude, ``log1p``, ReLU layers of the autoencoder's encoder). That keeps
+the NumPy path vectorised and lets :mod:`ext_sense_perception.training.onnx_export` express the
+same pipeline in ONNX, so the deployed model starts from the raw window.
+
+:class:`WindowFeatures` holds what every family shares: the window geometry, the channel
+selection, the post-contact crop, input checks, the fitted-state contract
+(``check_is_fitted``; an unfitted transformer raises ``NotFittedError``). The families add
+their own parameters: :class:`BaselineFeatures`, :class:`FFTFeatures`, :class:`ESTFeatures`,
+:class:`ActivityFeatures`, :class:`AutoencoderFeatures`; :func:`make_features` builds one by
+name. Input ``X``: ``(n_windows, n_channels * n_samples)`` (windows flattened row-major, as in
+``ContactWindow.data.ravel()``), so a family can head a ``Pipeline`` and be tuned inside
+cross-validation folds (no leakage of the autoencoder's training). Output: float64.
+
+Sampling-rate reduction: BioTac decimation is part of the map (``rate_hz``); the NUSkin
+per-taxel refractory drop works on events, before binning
+(:func:`ext_sense_perception.data.refractory.refractory_mask`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any, ClassVar
+
+import numpy as np
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.neural_network import MLPRegressor
+from sklearn.utils.validation import check_is_fitted
+
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.features.est_kernel import est_kernel, fit_est_kernel
+from ext_sense_perception.features.maps import (
+    FFT_SCALE_IN,
+    FFT_SCALE_OUT,
+    FeatureKind,
+    decimation_indices,
+    dft_matrices,
+    rebin_matrix,
+    select_channels,
+    select_matrix,
+)
+from ext_sense_perception.online.model_input import Geometry
+from ext_sense_runtime.stamps import MS
+
+
+def _positive_int(owner: object, *names: str) -> None:
+    for name in names:
+        value = getattr(owner, name)
+        if not (isinstance(value, (int, np.integer)) and value > 0):
+            raise PerceptionError(
+                f"The {name!r} parameter must be a positive integer. Got {value!r} instead."
+            )
+
+
+class WindowFeatures(TransformerMixin, BaseEstimator):
+    """What every feature family shares: geometry, channels, crop, checks, the fitted state.
+
+    Subclasses set :attr:`kind`, add their parameters to ``__init__`` and implement
+    :meth:`_time_maps` (and :meth:`_features` when they are not one time map).
+
+    Args:
+        n_channels: Channels of the input windows.
+        n_samples: Samples of the input windows.
+        period_ns: Sample period of the input windows, ns.
+        pre_ns: Pre-onset signal in the input windows, ns.
+        sensor: ``"nuskin"`` or ``"biotac"``.
+        post_ns: Post-onset signal used, ns (None: all of it); earlier samples only.
+        channels: Channel selection (see :func:`~.maps.select_channels`).
+    """
+
+    kind: ClassVar[str] = ""
+
+    def __init__(
+        self,
+        n_channels: int = 80,
+        n_samples: int = 300,
+        period_ns: int = 1 * MS,
+        pre_ns: int = 50 * MS,
+        sensor: str = "nuskin",
+        post_ns: int | None = None,
+        channels: str | None = None,
+    ) -> None:
+        self.n_channels = n_channels
+        self.n_samples = n_samples
+        self.period_ns = period_ns
+        self.pre_ns = pre_ns
+        self.sensor = sensor
+        self.post_ns = post_ns
+        self.channels = channels
+
+    # -- fitting -----------------------------------------------------------------------------
+    def _check_params(self) -> None:
+        if self.sensor not in ("nuskin", "biotac"):
+            raise PerceptionError(
+                f"The 'sensor' parameter must be 'nuskin' or 'biotac'. Got {self.sensor!r} instead."
+            )
+        _positive_int(self, "n_channels", "n_samples", "period_ns")
+
+    def _used_samples(self) -> int:
+        if self.post_ns is None:
+            return self.n_samples
+        used = int((self.pre_ns + self.post_ns) // self.period_ns)
+        if not 0 < used <= self.n_samples:
+            raise PerceptionError(
+                f"The 'post_ns' parameter must leave 1..{self.n_samples} samples of the window. "
+                f"Got {self.post_ns} ({used} samples) instead."
+            )
+        return used
+
+    def _time_maps(self, used: int) -> list[np.ndarray]:
+        raise NotImplementedError
+
+    def _fit_features(self, x: np.ndarray) -> None:
+        """Learned state beyond the fixed maps (the autoencoder); ``x`` are checked windows."""
+
+    def fit(self, X: np.ndarray, y: np.ndarray | None = None) -> WindowFeatures:
+        """Build the maps for the geometry (and learn what the family learns from ``X``).
+
+        Args:
+            X: Flattened windows ``(n_windows, n_channels * n_samples)``.
+            y: Ignored.
+
+        Returns:
+            self
+
+        Raises:
+            PerceptionError: A parameter out of range, or windows of another shape or not finite.
+        """
+        self._check_params()
+        self.kind_ = FeatureKind.parse(self.kind)
+        self.channel_index_ = select_channels(self.channels, self.n_channels)
+        self.used_samples_ = self._used_samples()
+        self.time_maps_ = [self._pad(m) for m in self._time_maps(self.used_samples_)]
+        self.time_maps32_ = [m.astype(np.float32) for m in self.time_maps_]
+        self._fit_features(self._validate(X))
+        self.n_features_out_ = int(
+            self.transform(np.zeros((1, self.n_channels * self.n_samples), np.float32)).shape[1]
+        )
+        return self
+
+    def _pad(self, m: np.ndarray) -> np.ndarray:
+        """Rows for the samples beyond ``post_ns`` are zero, so the map takes the whole window."""
+        if m.shape[0] == self.n_samples:
+            return m
+        out = np.zeros((self.n_samples, m.shape[1]))
+        out[: m.shape[0]] = m
+        return out
+
+    # -- evaluation --------------------------------------------------------------------------
+    def _validate(self, X: np.ndarray) -> np.ndarray:
+        x = np.asarray(X)
+        if x.ndim == 3:
+            x = x.reshape(x.shape[0], -1)
+        if x.ndim != 2 or x.shape[1] != self.n_channels * self.n_samples:
+            raise PerceptionError(
+                f"The 'X' parameter must have shape (n, {self.n_channels * self.n_samples}) "
+                f"(= {self.n_channels} channels x {self.n_samples} samples). Got {np.shape(X)} "
+                "instead."
+            )
+        if not np.isfinite(x).all():
+            raise PerceptionError(
+                "The 'X' parameter (window data) must be finite. Got NaN or inf instead."
+            )
+        return x
+
+    def _selected(self, x: np.ndarray) -> np.ndarray:
+        x3 = x.reshape(x.shape[0], self.n_channels, self.n_samples)[:, self.channel_index_, :]
+        return x3.astype(np.float64, copy=False)
+
+    def _features(self, x3: np.ndarray) -> np.ndarray:
+        """Features of the selected channels ``(n, C, n_samples)``: one time map, flattened."""
+        return (x3 @ self.time_maps_[0]).reshape(x3.shape[0], -1)
+
+    def transform(self, X: np.ndarray) -> np.ndarray:
+        """Features of flattened windows.
+
+        Args:
+            X: ``(n_windows, n_channels * n_samples)`` (or ``(n, n_channels, n_samples)``).
+
+        Returns:
+            ``(n_windows, n_features)`` float64.
+
+        Raises:
+            NotFittedError: :meth:`fit` was not called.
+            PerceptionError: on a wrong shape or NaN/inf in the windows.
+        """
+        check_is_fitted(self, "time_maps_")
+        return self._features(self._selected(self._validate(X)))
+
+    def geometry(self) -> Geometry:
+        """The window geometry this transformer accepts."""
+        return Geometry(self.n_channels, self.n_samples, self.period_ns, self.pre_ns, self.sensor)
+
+
+class _Reduced(WindowFeatures):
+    """A family that first reduces the window's time axis: NUSkin rebinning, BioTac decimation.
+
+    Args:
+        n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels: As
+            :class:`WindowFeatures`.
+        bin_ns: NUSkin feature bin, ns (a multiple of ``period_ns``).
+        rate_hz: BioTac decimation target, Hz (None: full rate).
+    """
+
+    def __init__(
+        self,
+        n_channels: int = 80,
+        n_samples: int = 300,
+        period_ns: int = 1 * MS,
+        pre_ns: int = 50 * MS,
+        sensor: str = "nuskin",
+        post_ns: int | None = None,
+        channels: str | None = None,
+        bin_ns: int = 5 * MS,
+        rate_hz: float | None = None,
+    ) -> None:
+        super().__init__(n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels)
+        self.bin_ns = bin_ns
+        self.rate_hz = rate_hz
+
+    def _check_params(self) -> None:
+        super()._check_params()
+        _positive_int(self, "bin_ns")
+
+    def _reduce_matrix(self, used: int) -> np.ndarray:
+        """Time map from the window to the series the features see (rebin or decimate)."""
+        if self.sensor == "nuskin":
+            factor = max(round(self.bin_ns / self.period_ns), 1)
+            if factor * self.period_ns != self.bin_ns and factor > 1:
+                raise PerceptionError(
+                    "The 'bin_ns' parameter must be a multiple of the window period "
+                    f"{self.period_ns}. Got {self.bin_ns} instead."
+                )
+            if used // factor < 1:
+                raise PerceptionError(
+                    f"The 'bin_ns' parameter must fit the window. Got {self.bin_ns} instead."
+                )
+            return rebin_matrix(used, factor)
+        base = 1e9 / self.period_ns
+        if self.rate_hz is None:
+            return np.eye(used)
+        return select_matrix(used, decimation_indices(used, float(self.rate_hz), base))
+
+
+class BaselineFeatures(_Reduced):
+    """The paper's baseline: NUSkin signed counts in ``bin_ns`` bins; BioTac raw (decimated) PAC.
+
+    Parameters as :class:`_Reduced`.
+    """
+
+    kind = "baseline"
+
+    def _time_maps(self, used: int) -> list[np.ndarray]:
+        return [self._reduce_matrix(used)]
+
+
+class FFTFeatures(_Reduced):
+    """|FFT| of each channel's binned (NUSkin) or decimated (BioTac) series, the paper's scaling.
+
+    Parameters as :class:`_Reduced`.
+    """
+
+    kind = "fft"
+
+    def _time_maps(self, used: int) -> list[np.ndarray]:
+        r = self._reduce_matrix(used)
+        cos, sin = dft_matrices(r.shape[1])
+        return [r @ cos, r @ sin]
+
+    def _features(self, x3: np.ndarray) -> np.ndarray:
+        re = x3 @ self.time_maps_[0]
+        im = x3 @ self.time_maps_[1]
+        mag = np.sqrt(re * re + im * im) * (FFT_SCALE_IN * FFT_SCALE_OUT)
+        return mag.reshape(x3.shape[0], -1)
+
+
+class AutoencoderFeatures(FFTFeatures):
+    """The 32-d code of an MLP autoencoder trained on the FFT features of the training windows.
+
+    Args:
+        n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels, bin_ns, rate_hz:
+            As :class:`FFTFeatures`.
+        ae_code: Code size.
+        ae_max_iter: Training epochs.
+        random_state: Seed of the autoencoder.
+    """
+
+    kind = "autoencoder"
+
+    def __init__(
+        self,
+        n_channels: int = 80,
+        n_samples: int = 300,
+        period_ns: int = 1 * MS,
+        pre_ns: int = 50 * MS,
+        sensor: str = "nuskin",
+        post_ns: int | None = None,
+        channels: str | None = None,
+        bin_ns: int = 5 * MS,
+        rate_hz: float | None = None,
+        ae_code: int = 32,
+        ae_max_iter: int = 200,
+        random_state: int = 0,
+    ) -> None:
+        super().__init__(
+            n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels, bin_ns, rate_hz
+        )
+        self.ae_code = ae_code
+        self.ae_max_iter = ae_max_iter
+        self.random_state = random_state
+
+    def _check_params(self) -> None:
+        super()._check_params()
+        _positive_int(self, "ae_code", "ae_max_iter")
+
+    def _fit_features(self, x: np.ndarray) -> None:
+        base = super()._features(self._selected(x))
+        self.ae_mean_ = base.mean(axis=0)
+        scale = base.std(axis=0)
+        self.ae_scale_ = np.where(scale > 1e-12, scale, 1.0)
+        z = (base - self.ae_mean_) / self.ae_scale_
+        net = MLPRegressor(
+            hidden_layer_sizes=(128, 64, self.ae_code, 64, 128),
+            activation="relu",
+            max_iter=self.ae_max_iter,
+            random_state=self.random_state,
+            early_stopping=False,
+        )
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            net.fit(z, z)
+        self.ae_layers_ = [
+            (w.copy(), b.copy()) for w, b in zip(net.coefs_[:3], net.intercepts_[:3], strict=True)
+        ]
+
+    def _features(self, x3: np.ndarray) -> np.ndarray:
+        h = (super()._features(x3) - self.ae_mean_) / self.ae_scale_
+        for w, b in self.ae_layers_:
+            h = np.maximum(h @ w + b, 0.0)
+        return h
+
+
+class ESTFeatures(WindowFeatures):
+    """Event Spike Tensor style: each channel convolved with a learned-shape decaying kernel.
+
+    Sampled at ``est_samples`` equally spaced times; the kernel is an MLP of the lag fitted to
+    ``exp(-t / est_tau_s)`` (:mod:`.est_kernel`).
+
+    Args:
+        n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels: As
+            :class:`WindowFeatures`.
+        est_samples: Equally spaced output samples per channel.
+        est_tau_s: Kernel decay time constant the kernel MLP is fitted to, s.
+        random_state: Seed of the kernel fit.
+    """
+
+    kind = "est"
+
+    def __init__(
+        self,
+        n_channels: int = 80,
+        n_samples: int = 300,
+        period_ns: int = 1 * MS,
+        pre_ns: int = 50 * MS,
+        sensor: str = "nuskin",
+        post_ns: int | None = None,
+        channels: str | None = None,
+        est_samples: int = 50,
+        est_tau_s: float = 0.005,
+        random_state: int = 0,
+    ) -> None:
+        super().__init__(n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels)
+        self.est_samples = est_samples
+        self.est_tau_s = est_tau_s
+        self.random_state = random_state
+
+    def _check_params(self) -> None:
+        super()._check_params()
+        _positive_int(self, "est_samples")
+
+    def _time_maps(self, used: int) -> list[np.ndarray]:
+        span = max(10 * self.est_tau_s, 0.01)
+        weights = fit_est_kernel(self.est_tau_s, span_s=span, seed=self.random_state)
+        self.est_weights_ = weights
+        times = np.linspace(0, used - 1, self.est_samples).round().astype(int)
+        lags = (times[None, :] - np.arange(used)[:, None]) * (self.period_ns * 1e-9)
+        m = np.zeros((used, self.est_samples))
+        causal = lags >= 0
+        m[causal] = est_kernel(lags[causal], weights)
+        m[lags > span] = 0.0
+        return [m]
+
+
+class ActivityFeatures(WindowFeatures):
+    """NUSkin only: log1p event activity over time (all taxels) and per taxel over the window.
+
+    Args:
+        n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels: As
+            :class:`WindowFeatures`.
+        activity_bin_ns: Bin of the all-taxel activity series, ns.
+        activity_late_ns: Also sum each taxel's activity from this time after the window's
+            start to its end, ns (None: only over the whole window).
+    """
+
+    kind = "activity"
+
+    def __init__(
+        self,
+        n_channels: int = 80,
+        n_samples: int = 300,
+        period_ns: int = 1 * MS,
+        pre_ns: int = 50 * MS,
+        sensor: str = "nuskin",
+        post_ns: int | None = None,
+        channels: str | None = None,
+        activity_bin_ns: int = 250 * MS,
+        activity_late_ns: int | None = None,
+    ) -> None:
+        super().__init__(n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels)
+        self.activity_bin_ns = activity_bin_ns
+        self.activity_late_ns = activity_late_ns
+
+    def _check_params(self) -> None:
+        super()._check_params()
+        _positive_int(self, "activity_bin_ns")
+        if self.sensor != "nuskin":
+            raise PerceptionError(
+                "The 'activity' features need NUSkin windows. Got sensor 'biotac' instead."
+            )
+
+    def _time_maps(self, used: int) -> list[np.ndarray]:
+        factor = max(int(self.activity_bin_ns // self.period_ns), 1)
+        rb = rebin_matrix(used, factor)
+        cols = [rb, np.ones((used, 1))]
+        if self.activity_late_ns is not None:
+            late = np.zeros((used, 1))
+            late[min(int(self.activity_late_ns // self.period_ns), used - 1) :] = 1.0
+            cols.append(late)
+        self.activity_bins_ = rb.shape[1]
+        return [np.concatenate(cols, axis=1)]
+
+    def _features(self, x3: np.ndarray) -> np.ndarray:
+        a = np.abs(x3) @ self.time_maps_[0]  # (n, C, n_bins + segments)
+        nb = self.activity_bins_
+        over_time = np.log1p(a[:, :, :nb].sum(axis=1))
+        per_taxel = np.log1p(a[:, :, nb:]).reshape(x3.shape[0], -1)
+        return np.concatenate([over_time, per_taxel], axis=1)
+
+
+FAMILIES: dict[FeatureKind, type[WindowFeatures]] = {
+    FeatureKind.BASELINE: BaselineFeatures,
+    FeatureKind.FFT: FFTFeatures,
+    FeatureKind.EST: ESTFeatures,
+    FeatureKind.ACTIVITY: ActivityFeatures,
+    FeatureKind.AUTOENCODER: AutoencoderFeatures,
+}
+
+
+def make_features(kind: str | FeatureKind, **params: Any) -> WindowFeatures:
+    """The feature family named ``kind`` (aliases such as ``raw`` allowed) with ``params``.
+
+    Raises:
+        PerceptionError: An unknown family, or a parameter the family does not have.
+    """
+    family = FAMILIES[FeatureKind.parse(kind)]
+    unknown = set(params) - set(family._get_param_names())
+    if unknown:
+        raise PerceptionError(
+            f"The {family.kind!r} features have no parameter {sorted(unknown)}; they take "
+            f"{family._get_param_names()}."
+        )
+    return family(**params)

@@ -1,0 +1,188 @@
+"""The model card: a bundle's typed description, with a schema version, read by one loader.
+
+A bundle directory holds ``model.onnx`` (features + scaler + estimator as one ONNX graph),
+``model.joblib`` (the same fitted scikit-learn pipeline) and ``model_card.json``: the task,
+sensor and task profile the windows were cut with, the window the model accepts, the features
+and model, metrics, the data it was trained on, and the anytime models beside it. Cards are
+written by :mod:`ext_sense_perception.training.bundle_io` and read only by :func:`read_card`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import MISSING, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.online.model_input import Geometry
+from ext_sense_perception.profiles import TaskProfile
+from ext_sense_runtime.enums import Sensor, Task
+
+SCHEMA_VERSION = 2
+"""Version 2: typed card with the task profile (version 1 cards had no profile: retrain)."""
+ONNX_FILE = "model.onnx"
+SKLEARN_FILE = "model.joblib"
+CARD_FILE = "model_card.json"
+
+
+@dataclass(frozen=True)
+class ModelCard:
+    """What a bundle holds and how its windows must be cut.
+
+    Attributes:
+        task: Task label.
+        sensor: Sensor label.
+        profile: The task profile the training windows were cut with.
+        window: The window the model accepts (``n_channels`` x ``n_samples`` at ``period_ns``
+            from ``pre_ns`` before the onset).
+        features: Feature family name.
+        feature_params: Parameters of the feature transformer (JSON values).
+        model: Model name.
+        model_params: Fixed estimator parameters.
+        best_params: Hyper-parameters the grid search chose.
+        rate_hz: Sampling rate the windows were reduced to, Hz.
+        class_names: Classes (empty for regression).
+        metrics: Cross-validated figures (``cv_mae_m``, ``residual_std_m`` or ``cv_accuracy``).
+        n_train: Windows trained on.
+        data: Where the training data came from.
+        data_hash: Hash of that data.
+        excluded: Trials left out of the data.
+        train_s: Training time, s.
+        onnx: What the ONNX graph holds (None when export failed).
+        anytime_post_ms: Post-onset times of the anytime bundles beside it, ms.
+        id: The card id (task, sensor, features, model and a hash of the rest).
+        schema_version: :data:`SCHEMA_VERSION`.
+    """
+
+    task: str
+    sensor: str
+    profile: TaskProfile
+    window: Geometry
+    features: str
+    feature_params: dict[str, Any]
+    model: str
+    best_params: dict[str, Any]
+    rate_hz: float
+    class_names: tuple[str, ...]
+    metrics: dict[str, float]
+    n_train: int
+    data: str
+    data_hash: str
+    model_params: dict[str, Any] = field(default_factory=dict)
+    excluded: tuple[str, ...] = ()
+    train_s: float = 0.0
+    onnx: str | None = "whole pipeline (features + scaler + model) in ONNX"
+    anytime_post_ms: tuple[float, ...] = ()
+    id: str = ""
+    schema_version: int = SCHEMA_VERSION
+
+    def __post_init__(self) -> None:
+        if self.schema_version != SCHEMA_VERSION:
+            raise PerceptionError(
+                f"The model card's 'schema_version' must be {SCHEMA_VERSION}. Got "
+                f"{self.schema_version!r} instead: retrain the bundle with this version."
+            )
+        Task.parse(self.task, PerceptionError)
+        Sensor.parse(self.sensor, PerceptionError)
+        if self.profile.task.label != self.task:
+            raise PerceptionError(
+                f"The model card's profile is for {self.profile.task.label!r}, its task is "
+                f"{self.task!r}."
+            )
+        if not self.id:
+            object.__setattr__(self, "id", self._make_id())
+
+    @property
+    def is_regression(self) -> bool:
+        """Whether the model predicts a number (tap position) rather than a class."""
+        return not self.class_names
+
+    def _make_id(self) -> str:
+        body = {k: v for k, v in self.to_dict().items() if k not in ("train_s", "id")}
+        digest = hashlib.sha256(json.dumps(body, sort_keys=True, default=str).encode())
+        return f"{self.task}-{self.sensor}-{self.features}-{self.model}-{digest.hexdigest()[:10]}"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready values."""
+        out = {f.name: getattr(self, f.name) for f in fields(self)}
+        out["profile"] = self.profile.to_dict()
+        out["window"] = self.window._asdict()
+        for key in ("class_names", "excluded", "anytime_post_ms"):
+            out[key] = list(out[key])
+        return json.loads(json.dumps(out, default=_jsonable))
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> ModelCard:
+        """A card from :meth:`to_dict` values.
+
+        Raises:
+            PerceptionError: A field is missing, unknown or of the wrong kind.
+        """
+        if not isinstance(values, dict):
+            raise PerceptionError(f"A model card must be a JSON object. Got {type(values)}.")
+        names = {f.name for f in fields(cls)}
+        required = {f.name for f in fields(cls) if f.default is f.default_factory is MISSING}
+        missing, unknown = required - set(values), set(values) - names
+        if missing or unknown:
+            raise PerceptionError(
+                f"The model card must have the fields {sorted(required)}; missing "
+                f"{sorted(missing)}, unknown {sorted(unknown)}."
+            )
+        v = dict(values)
+        try:
+            v["profile"] = TaskProfile.from_dict(v["profile"])
+            v["window"] = Geometry(**v["window"])
+            for key in ("class_names", "excluded"):
+                v[key] = tuple(str(n) for n in v.get(key, ()))
+            v["anytime_post_ms"] = tuple(float(p) for p in v.get("anytime_post_ms", ()))
+            return cls(**v)
+        except (TypeError, ValueError) as err:
+            raise PerceptionError(f"The model card is invalid: {err}") from err
+
+    def write(self, directory: Path) -> Path:
+        """Write ``model_card.json`` into ``directory``; returns the file."""
+        path = Path(directory) / CARD_FILE
+        path.write_text(json.dumps(self.to_dict(), indent=2) + "\n")
+        return path
+
+
+def _jsonable(v: Any) -> Any:
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.floating):
+        return float(v)
+    if isinstance(v, (tuple, np.ndarray)):
+        return list(v)
+    if isinstance(v, Geometry):
+        return v._asdict()
+    if isinstance(v, TaskProfile):
+        return v.to_dict()
+    return str(v)
+
+
+def jsonable(v: Any) -> Any:
+    """A parameter value as JSON can hold it (NumPy scalars to Python, tuples to lists)."""
+    return json.loads(json.dumps(v, default=_jsonable))
+
+
+def read_card(directory: str | Path) -> ModelCard:
+    """The card of a bundle directory: the one place cards are read.
+
+    Raises:
+        PerceptionError: The card is missing, not JSON, or not a valid card.
+    """
+    path = Path(directory) / CARD_FILE
+    if not path.is_file():
+        raise PerceptionError(f"Model card missing: {str(path)!r} does not exist.")
+    try:
+        values = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as err:
+        raise PerceptionError(f"Model card {str(path)!r} is not readable JSON: {err}") from err
+    try:
+        return ModelCard.from_dict(values)
+    except PerceptionError as err:
+        raise PerceptionError(f"Model card {str(path)!r} is corrupt: {err}") from err

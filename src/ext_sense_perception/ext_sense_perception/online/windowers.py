@@ -1,0 +1,291 @@
+"""Online, causal contact windows: the windower shared part and the NUSkin windower (no ROS).
+
+A windower is fed the sensor stream in arrival order and returns every contact window that
+became complete (or, for anytime estimates, every provisional window whose shortened
+post-contact time has passed). Contact onset is detected causally from the signal itself
+(NUSkin: event activity here; BioTac: PAC energy in :mod:`.pac_windower`) or given from outside
+with :meth:`WindowerBase.mark_onset` (food: the start of the arm's motion). A history of the
+stream is kept so the signal before the onset is in the window.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.online.window import ContactWindow, WindowConfig, bin_events
+from ext_sense_runtime.enums import Sensor, Task
+from ext_sense_runtime.records import EventBlock
+
+
+class WindowerCounters(NamedTuple):
+    """What a windower did and dropped since it was made (monotonic)."""
+
+    onsets: int = 0
+    windows: int = 0
+    provisional_windows: int = 0
+    truncated_windows: int = 0
+    bad_taxel_events: int = 0
+    late_events: int = 0
+    gap_samples: int = 0
+    invalid_samples: int = 0
+
+
+class _Pending:
+    """A detected onset whose window is not yet complete."""
+
+    __slots__ = ("done", "onset_ns")
+
+    def __init__(self, onset_ns: int) -> None:
+        self.onset_ns = onset_ns
+        self.done: set[int] = set()
+
+
+class WindowerBase:
+    """Onset bookkeeping and window scheduling shared by both sensors."""
+
+    def __init__(self, config: WindowConfig) -> None:
+        self.config = config
+        self._pending: list[_Pending] = []
+        self._next_allowed_ns: int | None = None
+        self._now_ns: int | None = None
+        self._counts = dict.fromkeys(WindowerCounters._fields, 0)
+
+    @property
+    def counters(self) -> WindowerCounters:
+        """Counters since construction."""
+        return WindowerCounters(**self._counts)
+
+    @property
+    def now_ns(self) -> int | None:
+        """Stream time: the end of the newest data seen, ns (None before any data)."""
+        return self._now_ns
+
+    @property
+    def pending_onsets(self) -> tuple[int, ...]:
+        """Onsets whose final window is not yet emitted, ns."""
+        return tuple(p.onset_ns for p in self._pending)
+
+    def mark_onset(self, onset_ns: int) -> bool:
+        """Start a window at an onset known from outside (e.g. the arm's motion start).
+
+        Args:
+            onset_ns: Onset time, ns (same clock as the stream).
+
+        Returns:
+            False when the onset was debounced (too close after the previous one).
+        """
+        return self._add_onset(int(onset_ns))
+
+    def _add_onset(self, onset_ns: int) -> bool:
+        if self._next_allowed_ns is not None and onset_ns < self._next_allowed_ns:
+            return False
+        self._pending.append(_Pending(onset_ns))
+        self._next_allowed_ns = onset_ns + self.config.debounce_ns
+        self._counts["onsets"] += 1
+        return True
+
+    def advance(self, now_ns: int) -> list[ContactWindow]:
+        """Declare that the stream is complete up to ``now_ns`` and emit what became due.
+
+        Args:
+            now_ns: Stream time, ns; earlier than the current stream time is ignored.
+
+        Returns:
+            The windows that became due, oldest first.
+        """
+        now_ns = int(now_ns)
+        if self._now_ns is None or now_ns > self._now_ns:
+            self._now_ns = now_ns
+        return self._emit_due()
+
+    def flush(self) -> list[ContactWindow]:
+        """Close every pending window now (the stream stopped); their tails are zero-padded.
+
+        Returns:
+            The final windows of all pending onsets, marked ``truncated`` when incomplete.
+        """
+        out = self._emit_due()
+        for pending in self._pending:
+            out.append(
+                self._make(pending.onset_ns, self.config.post_ns, provisional=False, truncated=True)
+            )
+            self._counts["windows"] += 1
+            self._counts["truncated_windows"] += 1
+        self._pending.clear()
+        return out
+
+    def _emit_due(self) -> list[ContactWindow]:
+        out: list[ContactWindow] = []
+        if self._now_ns is None:
+            return out
+        cfg = self.config
+        still: list[_Pending] = []
+        for pending in self._pending:
+            for post in cfg.anytime_post_ns:
+                if post not in pending.done and pending.onset_ns + post <= self._now_ns:
+                    pending.done.add(post)
+                    out.append(
+                        self._make(pending.onset_ns, post, provisional=True, truncated=False)
+                    )
+                    self._counts["provisional_windows"] += 1
+            if pending.onset_ns + cfg.post_ns <= self._now_ns:
+                out.append(
+                    self._make(pending.onset_ns, cfg.post_ns, provisional=False, truncated=False)
+                )
+                self._counts["windows"] += 1
+            else:
+                still.append(pending)
+        self._pending = still
+        self._prune()
+        return out
+
+    def _keep_from_ns(self) -> int | None:
+        """Oldest time the buffer must still hold."""
+        if self._now_ns is None:
+            return None
+        cfg = self.config
+        lookback = (
+            max(cfg.pre_ns, 0) + cfg.history_ns + cfg.activity_window_ns + cfg.pac_energy_window_ns
+        )
+        keep = self._now_ns - lookback
+        for pending in self._pending:
+            keep = min(keep, pending.onset_ns - cfg.pre_ns)
+        return keep
+
+    def _make(
+        self, onset_ns: int, post_ns: int, *, provisional: bool, truncated: bool
+    ) -> ContactWindow:
+        cfg = self.config
+        period = cfg.period_ns
+        n = cfg.n_samples(post_ns)
+        channels, data = self._cut(onset_ns - cfg.pre_ns, n)
+        return ContactWindow(
+            task=cfg.task.label,
+            sensor=cfg.sensor.label,
+            onset_ns=int(onset_ns),
+            pre_onset_ns=int(cfg.pre_ns),
+            post_onset_ns=int(post_ns),
+            sample_period_ns=int(period),
+            channels=channels,
+            data=data,
+            provisional=provisional,
+            truncated=truncated,
+        )
+
+    def _cut(self, start_ns: int, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def _prune(self) -> None:
+        raise NotImplementedError
+
+
+class EventWindower(WindowerBase):
+    """Contact windows from a NUSkin event stream.
+
+    Onset: the first time ``activity_min_events`` events (any taxel) fall within
+    ``activity_window_ns``; the onset is the first event of that burst. Events are kept in a
+    buffer of chunks covering the pre-onset signal and every pending window.
+
+    Args:
+        config: Window configuration (``sensor`` must be NUSkin).
+    """
+
+    def __init__(self, config: WindowConfig | None = None) -> None:
+        config = config or WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.NUSKIN)
+        if config.sensor is not Sensor.NUSKIN:
+            raise PerceptionError(
+                "The 'config.sensor' parameter must be nuskin for EventWindower. Got "
+                f"{config.sensor.label!r} instead."
+            )
+        super().__init__(config)
+        self._chunks: list[EventBlock] = []
+        self._recent = np.empty(0, dtype=np.int64)
+
+    def feed(self, events: EventBlock, now_ns: int | None = None) -> list[ContactWindow]:
+        """Add a block of events and return the windows that became due.
+
+        Args:
+            events: Events in arrival order (one clock throughout, epoch or monotonic); taxel
+                ids outside 1..n_taxels are counted in ``bad_taxel_events`` and dropped.
+            now_ns: Stream time after this block, ns (e.g. the batch's end); default: the
+                newest event.
+
+        Returns:
+            Completed and provisional windows, oldest first.
+
+        Raises:
+            PerceptionError: The block's arrays differ in length or its times are not integers.
+        """
+        n = events.t_ns.shape
+        if any(np.shape(a) != n for a in events) or len(n) != 1:
+            raise PerceptionError(
+                "The events' arrays must be 1-D of one length. Got shapes "
+                f"{[np.shape(a) for a in events]} instead."
+            )
+        if events.t_ns.dtype.kind not in "iu":
+            raise PerceptionError(
+                "The events' 't_ns' must be integer nanoseconds. Got dtype "
+                f"{events.t_ns.dtype} instead."
+            )
+        tax = events.taxel
+        ok = (tax >= 1) & (tax <= self.config.n_taxels)
+        if not ok.all():
+            self._counts["bad_taxel_events"] += int((~ok).sum())
+            events = events.select(ok)
+        out: list[ContactWindow] = []
+        if events.size:
+            events = events.sorted_by_time()
+            t = events.t_ns
+            if self._now_ns is not None and t[0] < self._now_ns - self.config.history_ns:
+                late = t < self._now_ns - self.config.history_ns
+                self._counts["late_events"] += int(late.sum())
+            self._chunks.append(events)
+            if not self.config.external_onsets:
+                self._detect(t)
+            newest = int(t[-1])
+            if self._now_ns is None or newest > self._now_ns:
+                self._now_ns = newest
+        if now_ns is not None:
+            out.extend(self.advance(now_ns))
+        else:
+            out.extend(self._emit_due())
+        return out
+
+    def _detect(self, t: np.ndarray) -> None:
+        cfg = self.config
+        k = cfg.activity_min_events
+        both = np.concatenate([self._recent, t])
+        first_new = len(self._recent)
+        new_t = both[first_new:]
+        lo = np.searchsorted(both, new_t - cfg.activity_window_ns, side="right")
+        counts = np.arange(first_new, len(both)) - lo + 1
+        hits = np.flatnonzero(counts >= k)
+        starts = both[lo[hits]]  # onset candidates: first event of each qualifying burst
+        while len(starts):
+            if self._next_allowed_ns is not None:
+                starts = starts[starts >= self._next_allowed_ns]
+                if not len(starts):
+                    break
+            self._add_onset(int(starts[0]))
+            starts = starts[1:]
+        cut = np.searchsorted(both, both[-1] - cfg.activity_window_ns, side="right")
+        self._recent = both[cut:]
+
+    def _cut(self, start_ns: int, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
+        cfg = self.config
+        end_ns = start_ns + n_samples * cfg.period_ns
+        parts = [c for c in self._chunks if c.t_ns[-1] >= start_ns and c.t_ns[0] < end_ns]
+        data = bin_events(
+            EventBlock.concat(parts), start_ns, n_samples, cfg.period_ns, cfg.n_taxels
+        )
+        return np.arange(1, cfg.n_taxels + 1, dtype=np.uint16), data
+
+    def _prune(self) -> None:
+        keep = self._keep_from_ns()
+        if keep is None:
+            return
+        while self._chunks and self._chunks[0].t_ns[-1] < keep:
+            self._chunks.pop(0)

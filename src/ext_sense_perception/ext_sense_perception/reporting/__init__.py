@@ -1,0 +1,1 @@
+"""``ext-sense report``: the paper's tables and plots, from the training room's protocol."""

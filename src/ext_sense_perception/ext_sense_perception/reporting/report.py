@@ -1,0 +1,277 @@
+"""``ext-sense report``: paper-style tables (markdown) and plots (PNG) of accuracy against time.
+
+Per dataset (task): a features x models table (score, training time, ONNX inference time;
+NUSkin taps add the GRU (16) + MLP on binned counts when torch is installed),
+the score against the post-contact window (decision latency 25 to 250 ms), against inference
+latency, against sampling rate, one finger / one taxel against two fingers (default model and
+the linear SVM side by side; the single taxel chosen on each split's training part), and the
+anytime estimator's calibration (95% prediction-interval coverage for position; expected
+calibration error and Brier score of the class probabilities). Across tap datasets: rod length.
+
+Everything is measured with :func:`ext_sense_perception.protocol.evaluate` (K splits, default 3
+for speed; the paper's K is given in the table's header when used). A point shared by several
+sections is evaluated once; ``report.md`` is rewritten after every data set, so a long run
+keeps what it has.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from ext_sense_perception.data.sources import from_sim_dataset, load_window_set
+from ext_sense_perception.data.window_set import WindowSet
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.reporting.plots import plot
+from ext_sense_perception.reporting.runner import Runner, check_choices
+from ext_sense_perception.reporting.scores import fmt, score
+from ext_sense_perception.reporting.sections import (
+    dataset_name,
+    gru_row,
+    latency_section,
+    taxel_section,
+)
+from ext_sense_perception.training.gru import torch_available
+from ext_sense_perception.training.models import default_choice
+from ext_sense_perception.training.protocol import EvalResult
+
+NUSKIN_RATES_HZ = (50, 100, 250, 500, 1000, 2000, 3000, 4000)
+NUSKIN_QUICK_RATES_HZ = (50, 250, 1000, 4000)
+BIOTAC_RATES_HZ = (100, 250, 500, 1000, 2200)
+REPORT_FEATURES = ("fft", "baseline", "est", "autoencoder")
+REPORT_MODELS = ("svm_linear", "svm_rbf", "mlp")
+QUICK_FEATURES = ("fft", "baseline")
+QUICK_MODELS = ("svm_rbf",)
+
+
+def report_dataset(
+    ws: WindowSet,
+    path: Path,
+    out: Path,
+    run: Runner,
+    quick: bool,
+    gru: bool | None = None,
+    gru_params: dict[str, Any] | None = None,
+    features: tuple[str, ...] | None = None,
+    models: tuple[str, ...] | None = None,
+    latency: bool = True,
+    taxels: bool = True,
+) -> list[str]:
+    """Markdown lines (and PNGs in ``out``) for one window set.
+
+    ``run`` evaluates and memoises points (K, seed, ``base_params``, jobs); ``gru=False`` leaves
+    out the GRU row (see :func:`gru_row`); ``gru_params`` are fixed
+    :class:`~ext_sense_perception.gru.GRUEstimator` parameters (e.g. fewer epochs for a smoke
+    run); ``features`` / ``models`` replace the features x models table's defaults (the NUSkin
+    food table always starts with its default ``activity`` features); ``latency=False`` /
+    ``taxels=False`` leave out the decision-latency / finger and taxel sections.
+    """
+    k = run.k
+    name = dataset_name(ws, path)
+    lower = ws.is_regression
+    feat0, model0 = default_choice(ws.task, ws.sensor)
+    lines = [f"## {ws.task}, {ws.sensor} ({len(ws.y)} windows; `{path}`)", ""]
+    if ws.excluded:
+        lines += [f"Excluded: {', '.join(ws.excluded)} (single trial of its class).", ""]
+
+    # features x models
+    feats = list(features or (QUICK_FEATURES if quick else REPORT_FEATURES))
+    if ws.sensor == "nuskin" and ws.task == "food_identification" and "activity" not in feats:
+        feats = ["activity", *feats]
+    mods = list(models or (QUICK_MODELS if quick else REPORT_MODELS))
+    lines += [
+        f"### Features and models (K = {k} random 90/10 splits, 4-fold grid search)",
+        "",
+        "| features | model | score | train s/split | ONNX p50 / p99 ms |",
+        "|---|---|---|---|---|",
+    ]
+    inf_x, inf_y, inf_lab = [], [], []
+    for f in feats:
+        for m in mods:
+            try:
+                res = run(ws, name, f, m)
+                p50, p99 = run.infer_ms(ws, f, m, res)
+            except PerceptionError as err:
+                lines.append(f"| {f} | {m} | failed: {err} | | |")
+                continue
+            lines.append(
+                f"| {f} | {m} | {fmt(res)} | {np.mean(res.train_s):.2f} | {p50:.3f} / {p99:.3f} |"
+            )
+            inf_x.append(p50)
+            inf_y.append(score(res))
+            inf_lab.append(f"{f}+{m}")
+    if gru_row(ws, gru):
+        # the paper's best NUSkin tap model: GRU (16) + MLP on the binned counts
+        if not torch_available():
+            lines.append(
+                "| baseline | gru | skipped: torch (optional extra, requirements/train.txt) is "
+                "not installed | | |"
+            )
+        else:
+            try:
+                res = run(ws, name, "baseline", "gru", model_params=gru_params)
+                p50, p99 = run.infer_ms(ws, "baseline", "gru", res, gru_params)
+            except PerceptionError as err:
+                lines.append(f"| baseline | gru | failed: {err} | | |")
+            else:
+                lines.append(
+                    f"| baseline | gru | {fmt(res)} | {np.mean(res.train_s):.2f} "
+                    f"| {p50:.3f} / {p99:.3f} |"
+                )
+                inf_x.append(p50)
+                inf_y.append(score(res))
+                inf_lab.append("baseline+gru")
+    if inf_x:
+        png = out / f"{name}_vs_inference.png"
+        plot(
+            png,
+            inf_x,
+            inf_y,
+            "ONNX inference p50 (ms)",
+            "MAE (cm)" if lower else "accuracy",
+            f"{ws.task} {ws.sensor}: score vs inference latency",
+            logx=False,
+            labels=inf_lab,
+            pareto_lower=lower,
+        )
+        lines += ["", f"![score vs inference latency]({png.name})", ""]
+
+    g = ws.geometry
+    if latency:
+        lines += latency_section(ws, run, name, out, feat0, model0)
+
+    # sampling rate
+    rx, ry = [], []
+    rows = []
+    if ws.sensor == "nuskin" and Path(str(path)).suffix == ".npz":
+        for r in NUSKIN_QUICK_RATES_HZ if quick else NUSKIN_RATES_HZ:
+            res = run(from_sim_dataset(path, rate_hz=r), name, feat0, model0)
+            rows.append(f"| {r} | {fmt(res)} |")
+            rx.append(r)
+            ry.append(score(res))
+    elif ws.sensor == "biotac":
+        for r in BIOTAC_RATES_HZ:
+            res = run(ws, name, feat0, model0, rate_hz=float(r))
+            rows.append(f"| {r} | {fmt(res)} |")
+            rx.append(r)
+            ry.append(score(res))
+    if rows:
+        png = out / f"{name}_vs_rate.png"
+        plot(
+            png,
+            rx,
+            ry,
+            "sampling rate (Hz)",
+            "MAE (cm)" if lower else "accuracy",
+            f"{ws.task} {ws.sensor}: score vs sampling rate",
+            logx=True,
+        )
+        lines += [
+            f"### Sampling rate ({feat0} + {model0}; NUSkin: per-taxel refractory drop; "
+            "BioTac: decimation)",
+            "",
+            "| rate Hz | score |",
+            "|---|---|",
+            *rows,
+            "",
+            f"![score vs sampling rate]({png.name})",
+            "",
+        ]
+
+    # fingers and taxels
+    if taxels and ws.sensor == "nuskin" and g.n_channels == 80:
+        lines += taxel_section(ws, run, name, feat0, model0, 2 if quick else 4, k)
+    return lines
+
+
+def build_report(
+    datasets: list[Path],
+    out: Path,
+    k: int | None = None,
+    quick: bool = False,
+    seed: int = 0,
+    base_params: dict[str, Any] | None = None,
+    gru: bool | None = None,
+    gru_params: dict[str, Any] | None = None,
+    features: list[str] | tuple[str, ...] | None = None,
+    models: list[str] | tuple[str, ...] | None = None,
+    n_jobs: int = 1,
+    latency: bool = True,
+    taxels: bool = True,
+) -> Path:
+    """Evaluate every dataset and write ``out/report.md``, PNGs and ``out/report.json``.
+
+    Args:
+        datasets: Simulator datasets or a food-poking capture directory.
+        out: Output directory.
+        k: Random splits per point (default 3, or 2 with ``quick``).
+        quick: Fewer features, models, rates and candidate taxels.
+        seed: Seed.
+        base_params: Feature parameters for every NUSkin evaluation (e.g. ``bin_ns``).
+        gru: False leaves out the GRU row of NUSkin tap datasets (default: included, or
+            marked skipped when torch is missing).
+        gru_params: Fixed GRU parameters (e.g. ``{"max_epochs": 5}`` for a smoke run).
+        features: Feature sets of the features x models tables (default: fft, baseline, est,
+            autoencoder; quick: fft, baseline).
+        models: Models of those tables (default: svm_linear, svm_rbf, mlp; quick: svm_rbf).
+        n_jobs: Parallel grid-search jobs per evaluation.
+        latency: False leaves out the decision-latency / anytime-calibration sections.
+        taxels: False leaves out the two fingers / one finger / one taxel sections.
+
+    Returns:
+        The markdown file.
+
+    Raises:
+        PerceptionError: on an unknown feature set or model name (before anything runs), or
+            unreadable data.
+    """
+    features, models = check_choices(features, models)
+    k = k or (2 if quick else 3)
+    out.mkdir(parents=True, exist_ok=True)
+    lines = [
+        "# ext_sense perception report",
+        "",
+        "Generated by `ext-sense report`. Scores are mean +- std over the K random 90/10 splits of "
+        "the paper's protocol (MAE in cm for tap localisation, accuracy otherwise).",
+        "",
+    ]
+    records: list[dict[str, Any]] = []
+    run = Runner(k, seed, records, base_params, n_jobs)
+    rods: list[tuple[float, str, EvalResult]] = []
+    with threadpool_limits(limits=1):
+        for done, path in enumerate(datasets, start=1):
+            ws = load_window_set(path)
+            lines += report_dataset(
+                ws, path, out, run, quick, gru, gru_params, features, models, latency, taxels
+            )
+            if done < len(datasets):  # a long run keeps what it has so far
+                _write(
+                    out, [*lines, f"(In progress: {done} of {len(datasets)} data sets.)"], records
+                )
+            if ws.task == "tap_localization" and np.isfinite(ws.rod_length_m).any():
+                feat0, model0 = default_choice(ws.task, ws.sensor)
+                res = run(ws, dataset_name(ws, path), feat0, model0)  # memoised above
+                rods.append((float(np.nanmedian(ws.rod_length_m)), ws.sensor, res))
+    if len(rods) > 1:
+        lines += [
+            "## Rod length (tap localisation, default model)",
+            "",
+            "| rod m | sensor | MAE | MAE / length |",
+            "|---|---|---|---|",
+        ]
+        for length, sensor, res in sorted(rods, key=lambda r: (r[1], r[0])):
+            lines.append(f"| {length:.2f} | {sensor} | {fmt(res)} | {res.mean / length:.3f} |")
+        lines.append("")
+    return _write(out, lines, records)
+
+
+def _write(out: Path, lines: list[str], records: list[dict[str, Any]]) -> Path:
+    """Write ``report.md`` and ``report.json``; returns the markdown file."""
+    md = out / "report.md"
+    md.write_text("\n".join(lines) + "\n")
+    (out / "report.json").write_text(json.dumps(records, indent=2, default=str) + "\n")
+    return md

@@ -1,0 +1,44 @@
+"""How the report states a protocol result: score text, calibration figures (no ROS)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from ext_sense_perception.training.protocol import EvalResult
+
+
+def fmt(res: EvalResult) -> str:
+    """Mean +- std over splits: cm for positions, accuracy otherwise."""
+    if res.metric == "mae_m":
+        return f"{res.mean * 100:.2f} +- {res.std * 100:.2f} cm"
+    return f"{res.mean:.3f} +- {res.std:.3f}"
+
+
+def score(res: EvalResult) -> float:
+    """The mean score in the unit plots use (cm for positions)."""
+    return res.mean * 100 if res.metric == "mae_m" else res.mean
+
+
+def coverage(res: EvalResult) -> float:
+    """Fraction of test positions inside the 95% prediction interval (+-1.96 sigma)."""
+    return float(np.mean(np.abs(res.y_true - res.y_pred) <= 1.959964 * res.y_std))
+
+
+def ece(res: EvalResult, bins: int = 5) -> tuple[float, float]:
+    """Expected calibration error of the top-class probability, and the Brier score."""
+    if res.proba is None:
+        return float("nan"), float("nan")
+    conf = res.proba.max(axis=1)
+    pred = np.asarray(res.class_names)[res.proba.argmax(axis=1)]
+    correct = pred == res.y_true
+    edges = np.linspace(0, 1, bins + 1)
+    ece = 0.0
+    for lo, hi in itertools.pairwise(edges):
+        m = (conf > lo) & (conf <= hi)
+        if m.any():
+            ece += m.mean() * abs(correct[m].mean() - conf[m].mean())
+    onehot = (np.asarray(res.class_names)[None, :] == res.y_true[:, None]).astype(float)
+    brier = float(np.mean(np.sum((res.proba - onehot) ** 2, axis=1)))
+    return float(ece), brier

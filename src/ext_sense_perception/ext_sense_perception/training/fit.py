@@ -1,0 +1,200 @@
+# ruff: noqa: N806  (X / F for sample matrices, as in scikit-learn)
+"""Fitting a deployable model on a window set: grid search, refit, calibration, its card (no ROS).
+
+:func:`fit_model` is the mechanics (one feature set, one model); the choices of what to fit
+live in :mod:`.recipe`, the one training recipe.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+import warnings
+from typing import Any, NamedTuple
+
+import numpy as np
+from joblib import Memory
+from sklearn.base import clone
+from sklearn.calibration import CalibratedClassifierCV
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.model_selection import GridSearchCV, StratifiedKFold
+from sklearn.pipeline import Pipeline
+from threadpoolctl import threadpool_limits
+
+from ext_sense_perception.data.window_set import WindowSet
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.features.maps import FeatureKind
+from ext_sense_perception.online.model_card import ModelCard, jsonable
+from ext_sense_perception.training.models import head_of, make_pipeline
+from ext_sense_perception.training.protocol import features_for, inner_cv
+
+PI_Z = 1.959963984540054  # two-sided 95% normal quantile
+
+
+def nominal_rate_hz(sensor: str) -> float:
+    """The sensor's own sampling rate when none was reduced: NUSkin 4 kHz, BioTac PAC 2200 Hz."""
+    return 4000.0 if sensor == "nuskin" else 2200.0
+
+
+class TrainedModel(NamedTuple):
+    """A fitted pipeline and its card, before saving."""
+
+    pipeline: Pipeline
+    card: ModelCard
+
+
+def _final_classifier(est: Any, y: np.ndarray, seed: int) -> Any:
+    """Calibrated probabilities (Platt, inner CV) for estimators without ``predict_proba``."""
+    if hasattr(est, "predict_proba"):
+        return est
+    smallest = int(np.min(np.unique(y, return_counts=True)[1]))
+    cv = StratifiedKFold(min(3, max(smallest, 2)), shuffle=True, random_state=seed)
+    return CalibratedClassifierCV(est, method="sigmoid", cv=cv)
+
+
+def fit_model(
+    ws: WindowSet,
+    features: str,
+    model: str,
+    feature_params: dict[str, Any] | None = None,
+    feature_grid: dict[str, list[Any]] | None = None,
+    seed: int = 0,
+    n_jobs: int = 1,
+    rate_hz: float | None = None,
+    model_params: dict[str, Any] | None = None,
+) -> TrainedModel:
+    """Fit a deployable model on all windows (grid search with 4-fold CV, then refit).
+
+    BLAS/OpenMP is pinned to one thread: small matrices on a shared 2-core machine run up to 20x
+    slower with threaded BLAS (threads spin against each other).
+
+    Args:
+        ws: Labelled windows.
+        features: Feature set name.
+        model: Model name.
+        feature_params: Fixed :class:`WindowFeatures` parameters.
+        feature_grid: Feature parameters searched too (``features__<param>`` keys).
+        seed: Seed.
+        n_jobs: Grid-search jobs.
+        rate_hz: Sampling rate the windows were reduced to (for the card), Hz.
+        model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
+
+    Returns:
+        The fitted pipeline and its model card.
+    """
+    with threadpool_limits(limits=1):
+        t0 = time.perf_counter()
+        n = len(ws.y)
+        if n < 8:
+            raise PerceptionError(
+                f"The 'ws' parameter must hold at least 8 windows. Got {n} instead."
+            )
+        X = ws.X.reshape(n, -1)
+        feats = features_for(ws, features, **(feature_params or {}))
+        pipe, grid = make_pipeline(feats, model, ws.is_regression, seed)
+        pipe.set_params(**{f"model__{k}": v for k, v in (model_params or {}).items()})
+        grid.update(feature_grid or {})
+        precompute = FeatureKind.parse(features) is not FeatureKind.AUTOENCODER and not feature_grid
+        cv = inner_cv(ws, ws.y, seed)
+        scoring = "neg_mean_absolute_error" if ws.is_regression else "accuracy"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            if precompute:
+                fitted_features = clone(feats).fit(X[:1])
+                F = fitted_features.transform(X)
+                search = GridSearchCV(
+                    head_of(pipe), grid, cv=cv, scoring=scoring, n_jobs=n_jobs
+                ).fit(F, ws.y)
+                best = clone(pipe).set_params(**search.best_params_)
+                best.steps[0] = ("features", fitted_features)
+                head = clone(head_of(best))
+                head_input = F
+            else:
+                with tempfile.TemporaryDirectory(prefix="ext_sense_cv_") as cache:
+                    cached = clone(pipe).set_params(memory=Memory(cache, verbose=0))
+                    search = GridSearchCV(cached, grid, cv=cv, scoring=scoring, n_jobs=n_jobs).fit(
+                        X, ws.y
+                    )
+                best = clone(pipe).set_params(**search.best_params_)
+                best.steps[0] = ("features", clone(best.steps[0][1]).fit(X))
+                head = clone(head_of(best))
+                head_input = (
+                    best.steps[0][1].transform(X)
+                    if FeatureKind.parse(features) is not FeatureKind.AUTOENCODER
+                    else None
+                )
+            metrics: dict[str, Any] = {"cv_folds": cv.get_n_splits()}
+            if ws.is_regression:
+                # residual spread from the grid search's own out-of-fold MAE (sigma = MAE *
+                # sqrt(pi/2) for normal residuals): no extra fits, measured on held-out folds only
+                mae = float(-search.best_score_)
+                metrics["cv_mae_m"] = mae
+                metrics["residual_std_m"] = mae * float(np.sqrt(np.pi / 2))
+                metrics["pi95_halfwidth_m"] = PI_Z * metrics["residual_std_m"]
+                fitted_head = head.fit(
+                    head_input if head_input is not None else best.steps[0][1].transform(X), ws.y
+                )
+            else:
+                metrics["cv_accuracy"] = float(search.best_score_)
+                scaler, est = head.steps[0][1], head.steps[1][1]
+                final = Pipeline([("scale", scaler), ("model", _final_classifier(est, ws.y, seed))])
+                fitted_head = final.fit(
+                    head_input if head_input is not None else best.steps[0][1].transform(X), ws.y
+                )
+        pipeline = Pipeline([best.steps[0], *fitted_head.steps])
+        g = ws.geometry
+        fp = best.steps[0][1].get_params()
+        card = ModelCard(
+            task=ws.task,
+            sensor=ws.sensor,
+            profile=ws.task_profile,
+            window=g,
+            features=FeatureKind.parse(features).name.lower(),
+            feature_params={
+                k: v
+                for k, v in jsonable(fp).items()
+                if isinstance(v, (int, float, str, type(None)))
+            },
+            model=model,
+            model_params=jsonable(dict(model_params or {})),
+            best_params=jsonable(dict(search.best_params_)),
+            rate_hz=float(rate_hz) if rate_hz is not None else nominal_rate_hz(ws.sensor),
+            class_names=tuple(ws.class_names),
+            metrics=metrics,
+            n_train=n,
+            data=ws.source,
+            data_hash=ws.data_hash,
+            excluded=tuple(ws.excluded),
+            train_s=time.perf_counter() - t0,
+        )
+        return TrainedModel(pipeline, card)
+
+
+def fit_anytime(
+    ws: WindowSet,
+    features: str,
+    model: str,
+    posts_ns: tuple[int, ...],
+    **kwargs: Any,
+) -> list[TrainedModel]:
+    """Models for shortened post-contact windows (anytime estimates), shortest first.
+
+    Each is fitted on the same windows cut at ``post`` after the onset and carries its own
+    calibration (residual spread or calibrated probabilities) for that decision latency.
+
+    Args:
+        ws: Labelled (full-length) windows.
+        features: Feature set name.
+        model: Model name.
+        posts_ns: Post-onset times, ns (those not shorter than the windows' are skipped).
+        **kwargs: Passed to :func:`fit_model`.
+
+    Returns:
+        One trained model per post time.
+    """
+    full = ws.geometry.post_ns
+    return [
+        fit_model(ws.crop(int(p)), features, model, **kwargs)
+        for p in sorted(posts_ns)
+        if 0 < p < full
+    ]

@@ -1,0 +1,347 @@
+"""ONNX export of whole models: feature pipeline plus estimator, from the raw window.
+
+:class:`~ext_sense_perception.features.WindowFeatures` gets its own skl2onnx converter: its
+maps are constant matrices along the time axis, so the ONNX graph is ``Reshape`` ->
+``Gather`` (channel selection) -> ``MatMul`` (rebin / decimate / DFT / EST kernel) ->
+element-wise ops (magnitude, ``log1p``, encoder layers). The scaler and the estimator use
+skl2onnx's own converters, except the SVR (MatMul/Exp, faster), the taxel-wise stacked SVR
+(:mod:`ext_sense_perception.taxel_stack`, all channels' kernels in one batched MatMul) and the
+GRU (:mod:`ext_sense_perception.gru_onnx`, ONNX ``GRU`` from the NumPy weights, no torch). The
+exported graph takes ``window``: ``(n, n_channels * n_samples)`` float32, exactly what
+:func:`~ext_sense_perception.features.as_model_input` produces.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from sklearn.pipeline import Pipeline
+
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.features.maps import FFT_SCALE_IN, FFT_SCALE_OUT, FeatureKind
+from ext_sense_perception.features.transformer import FAMILIES, WindowFeatures
+from ext_sense_perception.training.gru import GRUEstimator
+from ext_sense_perception.training.gru_onnx import emit_gru_net
+from ext_sense_perception.training.taxel_stack import TaxelStackSVR
+
+TARGET_OPSET = {"": 17, "ai.onnx.ml": 3}
+INPUT_NAME = "window"
+_registered = False
+
+
+def _shape_calculator(operator) -> None:
+    from skl2onnx.common.data_types import FloatTensorType
+
+    op = operator.raw_operator
+    operator.outputs[0].type = FloatTensorType([None, int(op.n_features_out_)])
+
+
+def _converter(scope, operator, container) -> None:
+    from skl2onnx.algebra.onnx_ops import (
+        OnnxAbs,
+        OnnxAdd,
+        OnnxConcat,
+        OnnxGather,
+        OnnxIdentity,
+        OnnxLog,
+        OnnxMatMul,
+        OnnxMul,
+        OnnxReduceSum,
+        OnnxRelu,
+        OnnxReshape,
+        OnnxSlice,
+        OnnxSqrt,
+        OnnxSub,
+    )
+
+    op: WindowFeatures = operator.raw_operator
+    v = container.target_opset
+    f32 = np.float32
+    x = OnnxReshape(
+        operator.inputs[0], np.array([-1, op.n_channels, op.n_samples], np.int64), op_version=v
+    )
+    if len(op.channel_index_) != op.n_channels or np.any(
+        op.channel_index_ != np.arange(op.n_channels)
+    ):
+        x = OnnxGather(x, op.channel_index_.astype(np.int64), axis=1, op_version=v)
+    n_sel = len(op.channel_index_)
+    kind = op.kind_
+    maps = [m.astype(f32) for m in op.time_maps_]
+    if kind in (FeatureKind.BASELINE, FeatureKind.EST):
+        y = OnnxMatMul(x, maps[0], op_version=v)
+        y = OnnxReshape(y, np.array([-1, n_sel * maps[0].shape[1]], np.int64), op_version=v)
+    elif kind in (FeatureKind.FFT, FeatureKind.AUTOENCODER):
+        re = OnnxMatMul(x, maps[0], op_version=v)
+        im = OnnxMatMul(x, maps[1], op_version=v)
+        power = OnnxAdd(OnnxMul(re, re, op_version=v), OnnxMul(im, im, op_version=v), op_version=v)
+        y = OnnxMul(
+            OnnxSqrt(power, op_version=v),
+            np.array([FFT_SCALE_IN * FFT_SCALE_OUT], f32),
+            op_version=v,
+        )
+        y = OnnxReshape(y, np.array([-1, n_sel * maps[0].shape[1]], np.int64), op_version=v)
+        if kind is FeatureKind.AUTOENCODER:
+            y = OnnxMul(
+                OnnxSub(y, op.ae_mean_.astype(f32), op_version=v),
+                (1.0 / op.ae_scale_).astype(f32),
+                op_version=v,
+            )
+            for w, b in op.ae_layers_:
+                y = OnnxRelu(
+                    OnnxAdd(
+                        OnnxMatMul(y, w.astype(f32), op_version=v), b.astype(f32), op_version=v
+                    ),
+                    op_version=v,
+                )
+    else:  # ACTIVITY
+        nb = op.activity_bins_
+        n_seg = maps[0].shape[1] - nb
+        a = OnnxMatMul(OnnxAbs(x, op_version=v), maps[0], op_version=v)
+        one = np.array([1.0], f32)
+        over = OnnxSlice(
+            a,
+            np.array([0], np.int64),
+            np.array([nb], np.int64),
+            np.array([2], np.int64),
+            op_version=v,
+        )
+        over = OnnxReduceSum(over, np.array([1], np.int64), keepdims=0, op_version=v)
+        over = OnnxLog(OnnxAdd(over, one, op_version=v), op_version=v)
+        seg = OnnxSlice(
+            a,
+            np.array([nb], np.int64),
+            np.array([nb + n_seg], np.int64),
+            np.array([2], np.int64),
+            op_version=v,
+        )
+        seg = OnnxLog(OnnxAdd(seg, one, op_version=v), op_version=v)
+        seg = OnnxReshape(seg, np.array([-1, n_sel * n_seg], np.int64), op_version=v)
+        y = OnnxConcat(over, seg, axis=1, op_version=v)
+    final = OnnxIdentity(y, op_version=v, output_names=operator.outputs[:1])
+    final.add_to(scope, container)
+
+
+def _svr_shape_calculator(operator) -> None:
+    from skl2onnx.common.data_types import FloatTensorType
+
+    operator.outputs[0].type = FloatTensorType([None, 1])
+
+
+def _svr_converter(scope, operator, container) -> None:
+    """SVR with plain MatMul/Exp ops (ONNX Runtime's SVMRegressor measured 25x slower).
+
+    Linear: ``x @ w + b``. RBF: ``exp(-gamma * |x - sv|^2) @ dual_coef + b`` with the squared
+    distance expanded as ``|x'|^2 - 2 x'.sv' + |sv'|^2`` on inputs centred on the support
+    vectors' mean (less float32 cancellation), clipped at 0.
+    """
+    from skl2onnx.algebra.onnx_ops import (
+        OnnxAdd,
+        OnnxExp,
+        OnnxMatMul,
+        OnnxMax,
+        OnnxMul,
+        OnnxReduceSum,
+        OnnxSub,
+    )
+
+    op = operator.raw_operator
+    v = container.target_opset
+    f32 = np.float32
+    sv = np.asarray(op.support_vectors_, dtype=np.float64)
+    coef = np.asarray(op.dual_coef_, dtype=np.float64).T  # (n_sv, 1)
+    b = np.asarray(op.intercept_, dtype=f32).reshape(1, 1)
+    x = operator.inputs[0]
+    out = operator.outputs[:1]
+    if op.kernel == "linear":
+        w = (sv.T @ coef).astype(f32)
+        y = OnnxAdd(OnnxMatMul(x, w, op_version=v), b, op_version=v, output_names=out)
+    elif op.kernel == "rbf":
+        centre = sv.mean(axis=0)
+        svc = sv - centre
+        xc = OnnxSub(x, centre.astype(f32)[None, :], op_version=v)
+        axes = np.array([1], np.int64)
+        xx = OnnxReduceSum(OnnxMul(xc, xc, op_version=v), axes, keepdims=1, op_version=v)
+        cross = OnnxMatMul(xc, (-2.0 * svc.T).astype(f32), op_version=v)
+        ss = (svc * svc).sum(axis=1).astype(f32)[None, :]
+        d2 = OnnxAdd(OnnxAdd(cross, xx, op_version=v), ss, op_version=v)
+        d2 = OnnxMax(d2, np.array([0.0], f32), op_version=v)
+        gamma = np.array([-float(op._gamma)], f32)
+        k = OnnxExp(OnnxMul(d2, gamma, op_version=v), op_version=v)
+        y = OnnxAdd(
+            OnnxMatMul(k, coef.astype(f32), op_version=v), b, op_version=v, output_names=out
+        )
+    else:
+        raise PerceptionError(f"SVR kernel {op.kernel!r} has no ONNX export here (linear, rbf).")
+    y.add_to(scope, container)
+
+
+def _taxel_stack_converter(scope, operator, container) -> None:
+    """Per-channel RBF SVRs and their ridge combination as one batched graph.
+
+    Every block's support vectors are padded to one count (zero coefficients) and the ridge
+    weights folded into the dual coefficients (:meth:`TaxelStackSVR.onnx_arrays`), so all
+    channels run in one ``MatMul``: ``(n_channels, n, d) @ (n_channels, d, n_sv)``, with the
+    squared distance expanded on inputs centred per block, as in :func:`_svr_converter`; the
+    weighted kernel rows are summed over channels.
+    """
+    from skl2onnx.algebra.onnx_ops import (
+        OnnxAdd,
+        OnnxExp,
+        OnnxMatMul,
+        OnnxMax,
+        OnnxMul,
+        OnnxReduceSum,
+        OnnxReshape,
+        OnnxSub,
+        OnnxTranspose,
+    )
+
+    op = operator.raw_operator
+    v = container.target_opset
+    f32 = np.float32
+    arr = op.onnx_arrays()
+    n_ch, _, d = arr["sv"].shape
+    x = OnnxReshape(operator.inputs[0], np.array([-1, n_ch, d], np.int64), op_version=v)
+    xc = OnnxSub(x, arr["centre"].astype(f32)[None, :, :], op_version=v)
+    xc = OnnxTranspose(xc, perm=[1, 0, 2], op_version=v)  # (n_ch, n, d)
+    xx = OnnxReduceSum(
+        OnnxMul(xc, xc, op_version=v), np.array([2], np.int64), keepdims=1, op_version=v
+    )
+    cross = OnnxMatMul(xc, (-2.0 * arr["sv"].transpose(0, 2, 1)).astype(f32), op_version=v)
+    ss = (arr["sv"] ** 2).sum(axis=2)[:, None, :].astype(f32)  # (n_ch, 1, n_sv)
+    d2 = OnnxAdd(OnnxAdd(cross, xx, op_version=v), ss, op_version=v)
+    d2 = OnnxMax(d2, np.array([0.0], f32), op_version=v)
+    k = OnnxExp(OnnxMul(d2, (-arr["gamma"]).astype(f32)[:, None, None], op_version=v), op_version=v)
+    per_channel = OnnxMatMul(k, arr["coef"].astype(f32)[:, :, None], op_version=v)  # (n_ch, n, 1)
+    total = OnnxReduceSum(per_channel, np.array([0], np.int64), keepdims=0, op_version=v)
+    y = OnnxAdd(
+        total,
+        np.array([[arr["intercept"]]], f32),
+        op_version=v,
+        output_names=operator.outputs[:1],
+    )
+    y.add_to(scope, container)
+
+
+def _gru_parser(scope, model, inputs, custom_parsers=None):
+    """Outputs of the GRU: ``variable`` (regression) or ``label`` + ``probabilities``."""
+    from skl2onnx.common.data_types import FloatTensorType, Int64TensorType, StringTensorType
+
+    op = scope.declare_local_operator("ExtSenseGRU", model)
+    op.inputs = inputs
+    if model.net_.classes is None:
+        op.outputs.append(scope.declare_local_variable("variable", FloatTensorType([None, 1])))
+        return op.outputs
+    kind = np.asarray(model.net_.classes).dtype.kind
+    label = StringTensorType([None]) if kind in "US" else Int64TensorType([None])
+    n_classes = len(model.net_.classes)
+    op.outputs.append(scope.declare_local_variable("label", label))
+    op.outputs.append(
+        scope.declare_local_variable("probabilities", FloatTensorType([None, n_classes]))
+    )
+    return op.outputs
+
+
+def _gru_shape_calculator(operator) -> None:
+    """Output types are fixed by :func:`_gru_parser`."""
+
+
+def _gru_converter(scope, operator, container) -> None:
+    """GRU + MLP from the estimator's NumPy weights (:mod:`ext_sense_perception.gru_onnx`)."""
+    from onnx import TensorProto, numpy_helper
+
+    def emit(op_type: str, ins: list[str], outs: list[str], attrs: dict) -> None:
+        container.add_node(
+            op_type,
+            ins,
+            outs,
+            name=scope.get_unique_operator_name(op_type),
+            op_version=container.target_opset,
+            **attrs,
+        )
+
+    def const(hint: str, arr: np.ndarray) -> str:
+        name = scope.get_unique_variable_name(f"gru_{hint}")
+        if arr.dtype.kind in "US":
+            container.add_initializer(
+                name, TensorProto.STRING, list(arr.shape), [str(v) for v in arr.ravel()]
+            )
+        else:
+            container.add_initializer(name, None, None, numpy_helper.from_array(arr, name))
+        return name
+
+    emit_gru_net(
+        operator.raw_operator.net_,
+        operator.inputs[0].full_name,
+        [o.full_name for o in operator.outputs],
+        emit,
+        const,
+        fresh=lambda hint: scope.get_unique_variable_name(f"gru_{hint}"),
+    )
+
+
+def register_converters() -> None:
+    """Teach skl2onnx the feature families, a faster SVR, the taxel stack and the GRU.
+
+    Idempotent.
+    """
+    global _registered
+    if _registered:
+        return
+    from skl2onnx import update_registered_converter
+    from sklearn.svm import SVR
+
+    for family in FAMILIES.values():
+        update_registered_converter(
+            family, f"ExtSense{family.__name__}", _shape_calculator, _converter
+        )
+    update_registered_converter(SVR, "ExtSenseSVR", _svr_shape_calculator, _svr_converter)
+    update_registered_converter(
+        TaxelStackSVR, "ExtSenseTaxelStackSVR", _svr_shape_calculator, _taxel_stack_converter
+    )
+    update_registered_converter(
+        GRUEstimator,
+        "ExtSenseGRU",
+        _gru_shape_calculator,
+        _gru_converter,
+        parser=_gru_parser,
+        options={"zipmap": [False]},  # probabilities stay a tensor, as for the other models
+    )
+    _registered = True
+
+
+def to_onnx_bytes(pipeline: Pipeline, n_inputs: int) -> bytes:
+    """Serialized ONNX model of a fitted pipeline that starts with :class:`WindowFeatures`.
+
+    Args:
+        pipeline: Fitted ``features -> scale -> model`` pipeline.
+        n_inputs: ``n_channels * n_samples`` of the windows.
+
+    Returns:
+        The ONNX model bytes. Classifiers output ``label`` and ``probabilities`` (no ZipMap);
+        regressors output ``variable``.
+
+    Raises:
+        PerceptionError: when skl2onnx cannot convert the model.
+    """
+    register_converters()
+    from skl2onnx import convert_sklearn
+    from skl2onnx.common.data_types import FloatTensorType
+
+    final = pipeline.steps[-1][1]
+    options = {id(final): {"zipmap": False}} if hasattr(final, "classes_") else None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter(
+                "ignore", FutureWarning
+            )  # skl2onnx reads SVC attributes sklearn 1.9 deprecates
+            onx = convert_sklearn(
+                pipeline,
+                initial_types=[(INPUT_NAME, FloatTensorType([None, int(n_inputs)]))],
+                target_opset=TARGET_OPSET,
+                options=options,
+            )
+    except Exception as err:  # skl2onnx raises many types for unsupported models
+        raise PerceptionError(f"Cannot export {type(final).__name__} to ONNX: {err}") from err
+    return onx.SerializeToString()

@@ -1,0 +1,123 @@
+"""The one training recipe: a window set in, a saved bundle (with its anytime models) out.
+
+``ext-sense train``, the demo (on the device stream or a simulated dataset), training from bags
+and the tests all call :func:`train_bundle`, so a bundle differs from another only in its
+windows and the :class:`Recipe` choices, never in how it was trained. What the recipe fixes:
+
+- features and model: the task's default (:func:`~.models.default_choice`) unless named;
+- feature parameters: the task profile's feature bin (see :func:`~.protocol.features_for`), a
+  channel selection, a BioTac decimation rate, and the default grid of feature parameters
+  searched inside the folds (:func:`~.models.default_feature_grid`);
+- anytime models for the task profile's anytime post-contact times;
+- the grid search with 4-fold CV and refit of :func:`~.fit.fit_model`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from ext_sense_perception.data.window_set import WindowSet
+from ext_sense_perception.online.model_card import ModelCard
+from ext_sense_perception.training.bundle_io import save_bundle
+from ext_sense_perception.training.fit import TrainedModel, fit_anytime, fit_model
+from ext_sense_perception.training.models import default_choice, default_feature_grid
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """The choices of a training run; every default is the task's own.
+
+    Attributes:
+        features: Feature family (None: the task's default).
+        model: Model name (None: the task's default).
+        channels: Channel selection (``all``, ``left``, ``right``, ``taxel:N``, ``ids:a,b``).
+        feature_bin_ns: NUSkin feature bin, ns (None: the task profile's).
+        rate_hz: Rate the windows were reduced to: BioTac decimates in the features; NUSkin
+            windows were thinned by the data source, the card records the rate.
+        anytime_post_ns: Post-contact times of the anytime models, ns (None: the task
+            profile's; ``()``: none).
+        seed: Seed of folds and models.
+        n_jobs: Grid-search jobs.
+    """
+
+    features: str | None = None
+    model: str | None = None
+    channels: str | None = None
+    feature_bin_ns: int | None = None
+    rate_hz: float | None = None
+    anytime_post_ns: tuple[int, ...] | None = None
+    seed: int = 0
+    n_jobs: int = 1
+
+
+class Choice(NamedTuple):
+    """What a recipe resolves to for one window set."""
+
+    features: str
+    model: str
+    feature_params: dict[str, Any]
+    feature_grid: dict[str, list[Any]]
+
+
+def resolve(ws: WindowSet, recipe: Recipe) -> Choice:
+    """The feature set, model, fixed feature parameters and feature grid for ``ws``."""
+    features, model = default_choice(ws.task, ws.sensor)
+    features = recipe.features or features
+    model = recipe.model or model
+    params: dict[str, Any] = {}
+    if recipe.channels:
+        params["channels"] = recipe.channels
+    if recipe.feature_bin_ns is not None:
+        params["bin_ns"] = int(recipe.feature_bin_ns)
+    if recipe.rate_hz is not None and ws.sensor == "biotac":
+        params["rate_hz"] = float(recipe.rate_hz)
+    return Choice(features, model, params, default_feature_grid(ws.task, ws.sensor, features))
+
+
+def fit_recipe(
+    ws: WindowSet,
+    recipe: Recipe = Recipe(),
+) -> tuple[TrainedModel, list[TrainedModel]]:
+    """The model and its anytime models the recipe fits on ``ws``, not yet saved."""
+    choice = resolve(ws, recipe)
+    kwargs: dict[str, Any] = {
+        "feature_params": choice.feature_params,
+        "feature_grid": choice.feature_grid,
+        "seed": recipe.seed,
+        "n_jobs": recipe.n_jobs,
+        "rate_hz": recipe.rate_hz,
+    }
+    trained = fit_model(ws, choice.features, choice.model, **kwargs)
+    posts = (
+        ws.task_profile.anytime_post_ns
+        if recipe.anytime_post_ns is None
+        else tuple(recipe.anytime_post_ns)
+    )
+    anytime = fit_anytime(ws, choice.features, choice.model, posts, **kwargs)
+    return trained, anytime
+
+
+def train_bundle(
+    ws: WindowSet,
+    out: str | Path,
+    recipe: Recipe = Recipe(),
+) -> ModelCard:
+    """Train the recipe's model and anytime models on ``ws`` and save them as a bundle.
+
+    Args:
+        ws: Labelled windows.
+        out: Bundle directory.
+        recipe: The choices (default: everything the task's own).
+
+    Returns:
+        The card of the saved bundle.
+
+    Raises:
+        PerceptionError: Too few windows or classes, an unknown feature set or model, or a
+            failed ONNX export.
+    """
+    trained, anytime = fit_recipe(ws, recipe)
+    save_bundle(trained, out, anytime)
+    return trained.card

@@ -1,0 +1,119 @@
+"""`ext-sense report`: choosing features, models and the GRU row; the taxel-selection section."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+from ext_sense.cli import main as ext_sense
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.reporting.report import build_report
+from ext_sense_perception.reporting.runner import check_choices
+
+
+def test_check_choices_canonicalises_and_keeps_order():
+    feats, models = check_choices(["FFT", "raw", "fft"], ["svm_rbf", "svm_linear", "svm_rbf"])
+    assert feats == ("fft", "baseline")
+    assert models == ("svm_rbf", "svm_linear")
+    assert check_choices(None, None) == (None, None)
+
+
+@pytest.mark.parametrize(
+    ("features", "models", "match"),
+    [
+        (["fft", "wavelet"], None, r"'features' parameter must be one of .*'wavelet'"),
+        ([], None, r"'features' parameter must name at least one"),
+        (None, ["svm_rbf", "xgboost"], r"'models' parameter must be among .*'xgboost'"),
+        (None, ["gru"], r"GRU has its own row.*'gru'"),
+        (None, [" "], r"'models' parameter must name at least one"),
+    ],
+)
+def test_check_choices_rejects_unknown_names(features, models, match):
+    with pytest.raises(PerceptionError, match=match):
+        check_choices(features, models)
+
+
+def test_cli_report_unknown_model_fails_before_any_work(tmp_path, capsys, make_tap_dataset):
+    data = make_tap_dataset(tmp_path / "small.npz", n=20, seed=3)
+    out = tmp_path / "rep"
+    rc = ext_sense(
+        ["report", "--data", str(data), "--out", str(out), "--models", "svm_rbf,boosted"]
+    )
+    assert rc == 2
+    assert "'boosted'" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_cli_report_runs_only_the_chosen_features_and_models(tmp_path, make_tap_dataset):
+    data = make_tap_dataset(tmp_path / "small.npz", n=20, seed=3)
+    out = tmp_path / "rep"
+    rc = ext_sense(
+        [
+            "report",
+            "--data",
+            str(data),
+            "--out",
+            str(out),
+            "--quick",
+            "--k",
+            "2",
+            "--features",
+            "fft",
+            "--models",
+            "svm_linear",
+            "--no-gru",
+            "--no-latency",
+            "--no-taxels",
+        ]
+    )
+    assert rc == 0
+    text = (out / "report.md").read_text()
+    assert "Decision latency" not in text
+    assert "Two fingers" not in text
+    assert "Sampling rate" in text
+    table = text.split("### Features and models")[1].split("###")[0]
+    rows = [line for line in table.splitlines() if line.startswith("| ") and "---" not in line]
+    assert [r.split("|")[1:3] for r in rows[1:]] == [[" fft ", " svm_linear "]]
+    assert "| baseline | gru |" not in text
+
+
+def test_report_taxel_section_has_both_models_and_a_training_chosen_taxel(
+    tmp_path, make_tap_dataset
+):
+    data = make_tap_dataset(tmp_path / "small.npz", n=20, seed=3)
+    md = build_report([data], tmp_path / "rep", k=2, quick=True, gru=False, models=["svm_rbf"])
+    text = md.read_text()
+    section = text.split("### Two fingers, one finger, one taxel")[1]
+    header = next(line for line in section.splitlines() if line.startswith("| taxels |"))
+    assert header == "| taxels | fft + svm_rbf (default) | fft + svm_linear |"
+    for label in ("both fingers (80)", "one finger (1-40)", "one finger (41-80)"):
+        row = next(line for line in section.splitlines() if line.startswith(f"| {label} |"))
+        assert row.count(" cm") == 2
+    taxel_row = next(line for line in section.splitlines() if "one taxel, chosen" in line)
+    candidates = {int(v) for v in re.search(r"most active \(([\d, ]+)\)", taxel_row)[1].split(",")}
+    assert len(candidates) == 2  # quick: two candidates
+    chosen = re.search(r"Taxel chosen in each split: (.*)\.", section)[1]
+    for part in chosen.split("; "):
+        ids = {int(v) for v in part.split(": ")[1].split(", ")}
+        assert ids <= candidates
+    # each distinct point runs once: the default model on the full window is shared by the
+    # table, the decision-latency row, the nominal rate, both fingers and the rod section
+    records = json.loads((tmp_path / "rep" / "report.json").read_text())
+    keys = [
+        (r["data"], r["features"], r["model"], json.dumps([r["params"], r["grid"]], sort_keys=True))
+        for r in records
+    ]
+    assert len(keys) == len(set(keys))
+    table = next(r for r in records if r["model"] == "svm_rbf" and r["features"] == "fft")
+    same = [
+        r
+        for r in records
+        if r["data"] == table["data"]
+        and r["model"] == "svm_rbf"
+        and r["features"] == "fft"
+        and not r["grid"]
+        and r["params"].get("channels") in (None, "all")
+    ]
+    assert same == [table]  # the both-fingers row reuses the table's point

@@ -1,0 +1,70 @@
+import contextlib
+import os
+import time
+
+import pytest
+
+pytestmark = pytest.mark.ros
+
+
+def test_node_streams_bytes_and_publishes_ground_truth(tmp_path):
+    rclpy = pytest.importorskip("rclpy")
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+
+    from ext_sense_msgs.msg import ContactGroundTruth
+    from ext_sense_runtime.qos import GROUND_TRUTH_QOS
+    from ext_sense_runtime.stamps import stamp_to_ns
+    from ext_sense_sim.nodes.sim_device import SimDeviceNode
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    link = tmp_path / "nuskin_port"
+    node = listener = None
+    try:
+        node = SimDeviceNode(
+            context=context,
+            parameter_overrides=[
+                Parameter("scene", value="tap_rod20_nuskin"),
+                Parameter("port_link", value=str(link)),
+                Parameter("trials", value=0),
+                Parameter("trial_period_s", value=0.5),
+            ],
+        )
+        listener = rclpy.create_node("gt_listener", context=context)
+        got = []
+        listener.create_subscription(
+            ContactGroundTruth, "ground_truth", got.append, GROUND_TRUTH_QOS
+        )
+        fd = os.open(link, os.O_RDONLY | os.O_NONBLOCK)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        executor.add_node(listener)
+        data = b""
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and len(got) < 2:
+            executor.spin_once(timeout_sec=0.05)
+            with contextlib.suppress(BlockingIOError):
+                data += os.read(fd, 65536)
+        os.close(fd)
+        # the first trials may be published before discovery matched the listener (volatile
+        # QoS), so the stream runs forever and any two consecutive trials will do
+        trials = [m.trial for m in got]
+        assert len(trials) == 2
+        assert trials[1] == trials[0] + 1
+        assert 0.03 < got[0].tap_position_m < 0.2
+        assert got[0].rod_length_m == pytest.approx(0.2)
+        stamp = stamp_to_ns(got[0].header.stamp)
+        assert abs(stamp - time.time_ns()) < 30 * 10**9
+        from ext_sense_drivers.nuskin.wire import WordDecoder
+
+        words = WordDecoder().feed(data)
+        assert words.taxel.size > 100  # the taps' receiver words arrived on the pty
+        assert words.taxel.min() >= 1
+        assert words.taxel.max() <= 80
+    finally:
+        for n in (node, listener):
+            if n is not None:
+                n.destroy_node()
+        rclpy.try_shutdown(context=context)
+    assert not link.exists()
