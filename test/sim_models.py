@@ -17,6 +17,11 @@ EXE = [sys.executable, "-m", "ext_sense.cli"]
 """The ``ext-sense`` command of this interpreter, for the graphs the system tests start."""
 
 
+def cli(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
+    """Run ``ext-sense ARGS`` in a child process, capturing its output."""
+    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=timeout)
+
+
 def stop_graph(proc: subprocess.Popen, timeout: float = 20) -> tuple[str, str]:
     """Stop a graph started with ``start_new_session=True``: SIGINT to its process group (the
     runner and every node), SIGKILL if it is not gone after ``timeout`` s.

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from rosutil import spinning, wait_for
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.slow]  # kills and restarts node processes
 
 EVENTS = "/extsense/nuskin/events"
 

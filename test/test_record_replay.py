@@ -157,6 +157,7 @@ def test_record_then_replay_flat_out_loses_nothing(tmp_path):
 
 
 @pytest.mark.ros
+@pytest.mark.slow  # starts the record and replay commands as processes
 def test_record_and_replay_commands(tmp_path):
     """The CLI ends to end: replay a bag flat out while ``ext-sense record`` records it."""
     src = tmp_path / "src"

@@ -131,6 +131,7 @@ def has_stable_run(stream: list[Estimate], n: int = 3, threshold: float = 0.8) -
     return False
 
 
+@pytest.mark.slow  # waits out real handover timeouts (about 10 s)
 @pytest.mark.parametrize("seed", [1, 2, 3, 4])
 def test_unstable_grasp_keeps_holding(seed):
     # The unstable stream holds confident-looking outliers; the gripper may only open when
@@ -155,6 +156,7 @@ def test_unstable_streams_rarely_fool_the_rule():
     assert fooled < 0.25 * single
 
 
+@pytest.mark.slow  # waits out real link timeouts
 @pytest.mark.parametrize("fault", [LinkFault.NO_ANSWER, LinkFault.BAD_CRC, LinkFault.GRIPPER_FAULT])
 def test_gripper_faults_end_in_the_safe_state_and_the_real_finger_state_is_logged(fault):
     run, final = handover(stable=True, seed=1, fault=fault)

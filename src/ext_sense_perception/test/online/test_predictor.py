@@ -200,6 +200,7 @@ def test_biotac_model_roundtrip(biotac_npz, tmp_path):
     _agree(a, b)
 
 
+@pytest.mark.slow  # trains an MLP, EST and autoencoder bundle (about 15 s)
 @pytest.mark.parametrize(
     ("features", "model"), [("baseline", "mlp"), ("est", "svm_linear"), ("autoencoder", "svm_rbf")]
 )

@@ -46,6 +46,7 @@ def test_cli_report_unknown_model_fails_before_any_work(tmp_path, capsys, make_t
     assert not out.exists()
 
 
+@pytest.mark.slow  # a report run
 def test_cli_report_runs_only_the_chosen_features_and_models(tmp_path, make_tap_dataset):
     data = make_tap_dataset(tmp_path / "small.npz", n=20, seed=3)
     out = tmp_path / "rep"
@@ -79,6 +80,7 @@ def test_cli_report_runs_only_the_chosen_features_and_models(tmp_path, make_tap_
     assert "| baseline | gru |" not in text
 
 
+@pytest.mark.slow  # a report run (about 6 s)
 def test_report_taxel_section_has_both_models_and_a_training_chosen_taxel(
     tmp_path, make_tap_dataset
 ):

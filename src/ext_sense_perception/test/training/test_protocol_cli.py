@@ -164,6 +164,7 @@ def test_cli_errors_are_clear(tmp_path, capsys):
     assert "trials" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # the whole quick report (about 7 s)
 def test_report_quick_writes_tables_and_plots(tmp_path, make_tap_dataset):
     from ext_sense_perception.reporting.report import build_report
 
