@@ -74,7 +74,10 @@ def _common(p: argparse.ArgumentParser, *, need_task: bool = True) -> None:
         "--channels", default=None, help="all, left, right, taxel:N or ids:a,b,c (default all)"
     )
     p.add_argument(
-        "--bin-ms", type=float, default=None, help="NUSkin feature bin, ms (default 5; food 50)"
+        "--bin-ms",
+        type=float,
+        default=None,
+        help="NUSkin feature bin, ms (default: the task profile's, 5; handover 2; food 50)",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
@@ -133,7 +136,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--quick", action="store_true", help="fewer points, for a smoke run")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
-        "--bin-ms", type=float, default=None, help="NUSkin FFT/baseline bin, ms (default 5)"
+        "--bin-ms",
+        type=float,
+        default=None,
+        help="NUSkin FFT/baseline feature bin, ms (default: each task profile's)",
     )
     p.add_argument(
         "--features",

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-MS = 1_000_000
+from ext_sense_runtime.stamps import MS
 
 
 def synthetic_tap_dataset(

@@ -13,10 +13,10 @@ from hypothesis import strategies as st
 from ext_sense_perception.data.bags import BagTopics, is_bag, window_set_from_bag
 from ext_sense_perception.data.sources import from_sim_dataset, load_window_set
 from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.profiles import PAC_PERIOD_NS
 from ext_sense_runtime.records import EventBlock
+from ext_sense_runtime.stamps import MS
 
-MS = 1_000_000
-PAC_PERIOD_NS = 454_545
 T0 = 1_700_000_000_000_000_000
 EVENTS = "/extsense/nuskin/events"
 TRUTH = "/extsense/ground_truth"
