@@ -8,6 +8,7 @@ trains, so a model sees the same windows in a test as in use.
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -15,6 +16,11 @@ from pathlib import Path
 
 EXE = [sys.executable, "-m", "ext_sense.cli"]
 """The ``ext-sense`` command of this interpreter, for the graphs the system tests start."""
+
+CRASH_MARKERS = ("Traceback", "terminate called", "Fatal Python error", "Aborted")
+"""Output of a process that did not stop cleanly (a Python traceback, a C++ abort)."""
+
+EXIT_CODES = re.compile(r"^\[run\] exit codes: (.*)$", re.MULTILINE)
 
 
 def cli(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
@@ -26,6 +32,9 @@ def stop_graph(proc: subprocess.Popen, timeout: float = 20) -> tuple[str, str]:
     """Stop a graph started with ``start_new_session=True``: SIGINT to its process group (the
     runner and every node), SIGKILL if it is not gone after ``timeout`` s.
 
+    Every node ends with exit code 0 on that SIGINT, without abort or traceback:
+    :func:`stop_problems` lists what was not clean, for the caller to assert on.
+
     Returns:
         ``(stdout, stderr)`` of the runner.
     """
@@ -36,6 +45,37 @@ def stop_graph(proc: subprocess.Popen, timeout: float = 20) -> tuple[str, str]:
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, signal.SIGKILL)
         return proc.communicate()
+
+
+def child_exit_codes(stderr: str) -> dict[str, int]:
+    """The node exit codes ``ext-sense run`` reported when the graph stopped (``{}``: none)."""
+    found = EXIT_CODES.findall(stderr)
+    if not found:
+        return {}
+    pairs = (item.split("=", 1) for item in found[-1].split())
+    return {name: int(code) for name, code in pairs}
+
+
+def stop_problems(proc: subprocess.Popen, stdout: str, stderr: str) -> list[str]:
+    """What was not clean about a graph's end: the runner's exit code, any node's exit code
+    (as the runner reported them), and every output line of a crash (:data:`CRASH_MARKERS`).
+
+    Returns:
+        One line per problem; empty when the runner and every node exited with 0.
+    """
+    problems = []
+    if proc.returncode != 0:
+        problems.append(f"runner exited with {proc.returncode}")
+    codes = child_exit_codes(stderr)
+    if not codes:
+        problems.append("the runner reported no exit codes of its nodes")
+    problems += [f"{name} exited with {code}" for name, code in codes.items() if code != 0]
+    problems += [
+        f"output: {line.strip()[:200]}"
+        for line in (stdout + "\n" + stderr).splitlines()
+        if any(marker in line for marker in CRASH_MARKERS)
+    ]
+    return problems
 
 
 def train_sim_model(
@@ -59,3 +99,30 @@ def train_sim_model(
     assert ws.task == task, (ws.task, task)
     train_bundle(ws, model)
     return model, npz
+
+
+def write_card(directory: Path, task: str = "tap_localization", sensor: str = "nuskin") -> Path:
+    """A bundle directory holding only a valid model card (for the model lookup, not inference)."""
+    from ext_sense_perception.online.model_card import ModelCard
+    from ext_sense_perception.online.model_input import Geometry
+    from ext_sense_perception.profiles import profile_for
+    from ext_sense_runtime.stamps import MS
+
+    directory.mkdir(parents=True, exist_ok=True)
+    ModelCard(
+        task=task,
+        sensor=sensor,
+        profile=profile_for(task),
+        window=Geometry(80, 300, MS, 50 * MS),
+        features="baseline",
+        feature_params={},
+        model="card-only",
+        best_params={},
+        rate_hz=4000.0,
+        class_names=() if task == "tap_localization" else ("a", "b"),
+        metrics={},
+        n_train=0,
+        data="",
+        data_hash="",
+    ).write(directory)
+    return directory

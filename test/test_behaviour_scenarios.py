@@ -27,7 +27,7 @@ from pathlib import Path
 
 import pytest
 from rosutil import spinning, wait_for
-from sim_models import EXE, stop_graph, train_sim_model
+from sim_models import EXE, stop_graph, stop_problems, train_sim_model
 
 from ext_sense_runtime.stamps import MS, stamp_to_ns
 
@@ -210,6 +210,7 @@ def test_handover_opens_only_on_stable_grasps(handover_model, tmp_path):
     (tmp_path / "graph.log").write_text(logs)
     counts = {t: len(v) for t, v in recorder.got.items()}
     assert done, f"{len(handovers)} of {grasps} handovers ended, {counts}: {tmp_path / 'graph.log'}"
+    assert not stop_problems(proc, "", logs), stop_problems(proc, "", logs)
     truths = [(_stamp(m), m.class_label) for _, m in recorder.got["/extsense/ground_truth"]]
     finals = [
         (_stamp(m), m.stability_probability)
@@ -308,6 +309,7 @@ def test_food_probe_stops_on_contact_and_classifies_its_own_window(food_model, t
     (tmp_path / "graph.log").write_text(logs)
     counts = {t: len(v) for t, v in recorder.got.items()}
     assert done, f"{counts}\n{tmp_path / 'graph.log'}"
+    assert not stop_problems(proc, "", logs), stop_problems(proc, "", logs)
     decisions = recorder.decisions("/food/decision")
     states = [d[1] for d in decisions]
     assert states[:2] == ["LOWERING", "COLLECTING"], decisions

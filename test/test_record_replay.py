@@ -59,10 +59,15 @@ def test_offline_replay_is_deterministic(tmp_path):
 
 
 def test_offline_cli_prints_summary_last(tmp_path, monkeypatch):
+    from sim_models import write_card
+
     from ext_sense import cli
     from ext_sense_perception.online import predictor
 
     write_tap_bag(tmp_path / "bag")
+    # the task's default model, found by name along the model search path
+    monkeypatch.setenv("EXT_SENSE_MODELS", str(tmp_path / "models"))
+    write_card(tmp_path / "models" / "tap_localization_nuskin")
     monkeypatch.setattr(predictor, "load_model", lambda path, backend: CountingModel())
     out_json = tmp_path / "est.json"
     import contextlib

@@ -4,7 +4,15 @@
 with the same function the launch files use, and starts each node in its own Python process
 (``python -m ext_sense.runner NODE_JSON``), so the graph uses every core and a crash stays in one
 node. The runner supervises the children: Ctrl-C or SIGTERM is forwarded as SIGINT, and when a
-node marked ``required`` exits the others are stopped (launch's ``Shutdown``).
+node marked ``required`` exits the others are stopped (launch's ``Shutdown``). A child not gone
+``STOP_GRACE_S`` after the SIGINT is killed. When the graph has stopped the runner prints every
+child's exit code (``[run] exit codes: sim_device=0 nuskin_driver=0 ...``) and exits non-zero if
+any of them did (see :func:`run_graph`).
+
+Repeated signals are one request: a Ctrl-C in a terminal reaches the runner and every child at
+once, then the runner forwards its own SIGINT; each child treats both as one stop
+(:mod:`ext_sense_runtime.node_main`), and so does the runner. Once the graph is down the runner
+ignores SIGINT and SIGTERM for the little that is left of its process.
 
 ``--in-process`` instead adds every node to one executor in this process, which is handy for
 debugging with a single interpreter.
@@ -28,6 +36,7 @@ from typing import Any
 from ext_sense.graph import GraphSpec, NodeSpec, as_bool
 
 STOP_GRACE_S = 5.0
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def _node_kwargs(spec: NodeSpec, use_sim_time: bool, context: Any = None) -> dict[str, Any]:
@@ -47,54 +56,69 @@ def _node_kwargs(spec: NodeSpec, use_sim_time: bool, context: Any = None) -> dic
 
 def run_one(spec: NodeSpec, use_sim_time: bool) -> int:
     """Start one node in this process and spin it until shutdown (the child side)."""
-    from ext_sense_runtime.node_main import run_node
+    from ext_sense_runtime.node_main import install_stop_handlers, run_node
 
+    if install_stop_handlers().requested():  # a stop held while starting (see _spawn)
+        return 0
     node_class = spec.node_class()
     return run_node(lambda: node_class(**_node_kwargs(spec, use_sim_time)), args=[])
 
 
 def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool) -> int:
-    """Every node on one executor in this process; stops when any node shuts the context."""
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
+    """Every node on one executor in this process, stopped as a node process is.
 
-    from ext_sense_runtime.executor import make_executor, spin_until_shutdown
+    Stops on Ctrl-C or SIGTERM, or when any node shuts the context down
+    (:func:`ext_sense_runtime.node_main.run_nodes`).
+    """
+    from ext_sense_runtime.node_main import install_stop_handlers, run_nodes
 
-    rclpy.init(args=[])
-    created = []
-    try:
-        executor = make_executor()
-        for spec in nodes:
-            node = spec.node_class()(**_node_kwargs(spec, use_sim_time))
-            created.append(node)
-            executor.add_node(node)
-        spin_until_shutdown(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        for node in created:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    install_stop_handlers()
+    classes = [(spec, spec.node_class()) for spec in nodes]
+    return run_nodes(
+        [lambda s=spec, c=cls: c(**_node_kwargs(s, use_sim_time)) for spec, cls in classes],
+        args=[],
+    )
 
 
 def _spawn(spec: NodeSpec, use_sim_time: bool) -> subprocess.Popen[bytes]:
+    """Start a node process with SIGINT and SIGTERM blocked (the mask survives ``exec``).
+
+    A stop signal that comes while the child's interpreter starts and imports (a second or more
+    on a loaded machine) stays pending until ``node_main`` installs its handlers and unblocks
+    them, instead of raising ``KeyboardInterrupt`` in some import.
+    """
     payload = json.dumps({"spec": asdict(spec), "use_sim_time": use_sim_time})
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    return subprocess.Popen([sys.executable, "-m", "ext_sense.runner", payload], env=env)
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    try:
+        return subprocess.Popen([sys.executable, "-m", "ext_sense.runner", payload], env=env)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
-def _stop(procs: dict[str, subprocess.Popen[bytes]]) -> None:
+def _stop(procs: dict[str, subprocess.Popen[bytes]], log: Any) -> dict[str, int]:
+    """SIGINT to every child still running, SIGKILL to any not gone after ``STOP_GRACE_S``.
+
+    Returns:
+        Every child's exit code (negative: the signal that ended it).
+    """
     for proc in procs.values():
         if proc.poll() is None:
             proc.send_signal(signal.SIGINT)
     deadline = time.monotonic() + STOP_GRACE_S
-    for proc in procs.values():
+    for name, proc in procs.items():
         try:
             proc.wait(timeout=max(0.0, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
+            print(f"[run] {name} did not stop within {STOP_GRACE_S:g} s; killing it", file=log)
             proc.kill()
             proc.wait()
+    return {name: proc.returncode for name, proc in procs.items()}
+
+
+def exit_status(code: int) -> int:
+    """A child's exit code as a process exit status: ``128 + N`` for death by signal N."""
+    return 128 - code if code < 0 else code
 
 
 def run_graph(
@@ -103,8 +127,9 @@ def run_graph(
     """Start every node of ``graph`` and supervise them until done.
 
     Returns:
-        0 when stopped by a signal or when every required node exited with 0; otherwise the
-        exit code of the first node that failed.
+        0 when every node exited with 0, stopped by a signal or after the required nodes
+        finished; otherwise the exit status (:func:`exit_status`) of the first node that failed
+        while running or, failing that, of the first that did not exit with 0 when stopped.
     """
     values = graph.resolve(overrides)
     nodes = graph.build(values)
@@ -120,17 +145,20 @@ def run_graph(
         nonlocal stopping
         stopping = True
 
-    previous = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, _on_signal)
     rc = 0
     try:
         for spec in nodes:
+            if stopping:
+                break
             procs[spec.name] = _spawn(spec, use_sim_time)
             print(f"[run] started {spec.name} ({spec.package}/{spec.executable})", file=log)
         required = {s.name for s in nodes if s.required}
         while not stopping:
             time.sleep(0.05)
             finished = {n: p.returncode for n, p in procs.items() if p.poll() is not None}
-            failed = {n: c for n, c in finished.items() if c not in (0, -signal.SIGINT)}
+            failed = {n: c for n, c in finished.items() if c != 0}
             if failed:
                 name, rc = next(iter(failed.items()))
                 print(f"[run] {name} exited with {rc}; stopping the graph", file=log)
@@ -141,10 +169,17 @@ def run_graph(
             if len(finished) == len(procs):
                 break
     finally:
-        _stop(procs)
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-    return rc
+        codes = _stop(procs, log)
+        # A second Ctrl-C must not turn a clean stop into a KeyboardInterrupt (or, during the
+        # interpreter's finalisation, death by SIGINT): the graph is down, this process is done.
+        for signum in STOP_SIGNALS:
+            signal.signal(signum, signal.SIG_IGN)
+    if codes:
+        listed = " ".join(f"{name}={code}" for name, code in codes.items())
+        print(f"[run] exit codes: {listed}", file=log)
+    if rc == 0:
+        rc = next((code for code in codes.values() if code != 0), 0)
+    return exit_status(rc)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -2,7 +2,8 @@
 
 No rclpy import anywhere in this package, so simulators and offline tools can write bags that
 ``ros2 bag play`` accepts on a machine without ROS. See :mod:`ext_sense_bags.writer` for the
-writer API and :mod:`ext_sense_bags.reader` for the reader.
+writer API and :mod:`ext_sense_bags.reader` for the reader; :mod:`ext_sense_bags.recover`
+rewrites a bag a killed recorder left (:mod:`ext_sense_bags.salvage` reads it).
 """
 
 from ext_sense_bags.errors import BagError
@@ -14,6 +15,7 @@ from ext_sense_bags.messages import (
     taxel_event_batch,
 )
 from ext_sense_bags.reader import BagReader, BagRecord, TopicSummary
+from ext_sense_bags.recover import Recovery, recover_bag
 from ext_sense_bags.topics import STANDARD_TOPICS, TopicSpec
 from ext_sense_bags.typestore import EXT_SENSE_TYPES, make_typestore, type_hash
 from ext_sense_bags.writer import BagWriter, Storage
@@ -25,6 +27,7 @@ __all__ = [
     "BagReader",
     "BagRecord",
     "BagWriter",
+    "Recovery",
     "Storage",
     "TopicSpec",
     "TopicSummary",
@@ -33,6 +36,7 @@ __all__ = [
     "header",
     "make_message",
     "make_typestore",
+    "recover_bag",
     "taxel_event_batch",
     "type_hash",
 ]

@@ -27,10 +27,27 @@ The writer API (used by the simulator for its bags and by ``ext-sense record``):
 - ``counts`` holds messages written per topic. The bag is complete only after ``close()``
   (the context manager closes it; on an exception the partial bag is still closed and
   readable).
+- Durability: at least every ``flush_period_s`` (1 s; on the write that finds it due, or on
+  :meth:`BagWriter.flush_if_due`, which a recorder calls from a timer) the pending mcap chunk is
+  closed, written and fsynced, and the sqlite3 transaction is committed (write-ahead log,
+  ``synchronous=NORMAL``; the log is checkpointed and the journal mode set back to ``DELETE``
+  on close). A writer killed at any moment leaves every flushed message readable:
+  :class:`ext_sense_bags.BagReader` reads a bag without footer or metadata, and
+  :func:`ext_sense_bags.recover.recover_bag` (``ext-sense bag recover``) rewrites it whole.
+- A failed write (disk full, file too large, I/O error) raises :class:`BagError` naming the bag
+  and the cause, sets ``failed``, and closes the storage without finishing it; later writes
+  raise at once. What was flushed before stays recoverable.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sqlite3
+import time
+import zlib
+from collections import defaultdict
+from collections.abc import Sequence
 from enum import IntEnum
 from io import BytesIO
 from pathlib import Path
@@ -47,7 +64,19 @@ from rosbags.interfaces import (
     QosTime,
 )
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
-from rosbags.rosbag2.storage_mcap import Channel, McapWriter, write_channel, write_string
+from rosbags.rosbag2.enums import CompressionMode
+from rosbags.rosbag2.storage_mcap import (
+    Channel,
+    McapWriter,
+    PendingChunk,
+    write_channel,
+    write_record,
+    write_string,
+    write_uint16,
+    write_uint32,
+    write_uint64,
+)
+from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
 from ext_sense_bags.errors import BagError
 from ext_sense_bags.topics import STANDARD_TOPICS, TopicSpec
@@ -81,7 +110,66 @@ def offered_qos(reliable: bool, depth: int) -> Qos:
 
 
 class _McapWithHashes(McapWriter):
-    """rosbags' mcap storage, adding ``topic_type_hash`` to the channel metadata as rosbag2 does."""
+    """rosbags' mcap storage with ``topic_type_hash`` in the channel metadata, and ``flush``.
+
+    rosbag2 writes the hash there too; :meth:`flush` closes the pending chunk, writes it out
+    and fsyncs. Chunks carry the CRC-32 of their records (rosbags writes 0), so a salvage can
+    tell a chunk spoiled by a failed write from a whole one.
+    """
+
+    def __init__(self, path: Path, compression: CompressionMode) -> None:
+        super().__init__(path, compression)
+        self.bio.flush()  # the magic and header are on disk before the first chunk
+
+    def close_chunk(self) -> None:
+        """Close the pending chunk as rosbags does, with its records' CRC-32 in the header."""
+        records = self.chunk.bio.getvalue()
+        compressed = self.compressor(records)
+        rec = BytesIO()
+        write_uint64(rec, self.chunk.message_start_time)
+        write_uint64(rec, self.chunk.message_end_time)
+        write_uint64(rec, len(records))
+        write_uint32(rec, zlib.crc32(records))
+        write_string(rec, self.compression)
+        write_uint64(rec, len(compressed))
+        rec.write(compressed)
+        chunk_start = self.bio.tell()
+        write_record(self.bio, 0x06, rec)
+        chunk_end = self.bio.tell()
+
+        offsets: list[tuple[int, int]] = []
+        for cid, msgs in self.chunk.msgs.items():
+            offsets.append((cid, self.bio.tell()))
+            rec = BytesIO()
+            write_uint16(rec, cid)
+            write_uint32(rec, len(msgs) * 16)
+            for ts, offset in msgs:
+                write_uint64(rec, ts)
+                write_uint64(rec, offset)
+            write_record(self.bio, 0x07, rec)
+
+        rec = BytesIO()
+        write_uint64(rec, self.chunk.message_start_time)
+        write_uint64(rec, self.chunk.message_end_time)
+        write_uint64(rec, chunk_start)
+        write_uint64(rec, chunk_end - chunk_start)
+        write_uint32(rec, len(offsets) * 10)
+        for cid, offset in offsets:
+            write_uint16(rec, cid)
+            write_uint64(rec, offset)
+        write_uint64(rec, self.bio.tell() - chunk_end)
+        write_string(rec, self.compression)
+        write_uint64(rec, len(compressed))
+        write_uint64(rec, len(records))
+        self.chunks.append(rec)
+        self.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
+
+    def flush(self) -> None:
+        """Close the pending chunk (if any) and push the file to the disk."""
+        if self.chunk.bio.tell():
+            self.close_chunk()
+        self.bio.flush()
+        os.fsync(self.bio.fileno())
 
     def add_connection(self, connection: Connection, offered_qos_profiles: str) -> None:
         metadata = BytesIO()
@@ -101,8 +189,53 @@ class _McapWithHashes(McapWriter):
         write_channel(self.chunk.bio, channel, self.schemas)
 
 
+class _DurableSqlite3(Sqlite3Writer):
+    """rosbags' sqlite3 storage in write-ahead-log mode with :meth:`flush` (commit).
+
+    rosbags commits only on close, so a killed writer lost every message; here each flush
+    commits. On close the log is checkpointed and the journal mode set back to ``DELETE``, so
+    the finished bag is one self-contained ``.db3`` file, as rosbags writes it.
+    """
+
+    def __init__(self, path: Path, compression: CompressionMode) -> None:
+        super().__init__(path, compression)
+        self.conn.execute("PRAGMA journal_mode=WAL")
+        self.conn.execute("PRAGMA synchronous=NORMAL")
+        self.conn.commit()
+
+    def flush(self) -> None:
+        """Commit what was written since the last flush."""
+        self.conn.commit()
+
+    def close(self, version: int, metadata: str) -> None:
+        """Store the metadata, commit, checkpoint the log into the database and close."""
+        self.cursor.execute(
+            "INSERT INTO metadata(metadata_version, metadata) VALUES(?, ?)", (version, metadata)
+        )
+        self.conn.commit()
+        self.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+        self.conn.execute("PRAGMA journal_mode=DELETE")
+        self.conn.execute("PRAGMA optimize")
+        self.conn.close()
+
+
 class _Writer(Writer):
-    STORAGE_PLUGINS: ClassVar = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _McapWithHashes}
+    STORAGE_PLUGINS: ClassVar = {
+        **Writer.STORAGE_PLUGINS,
+        StoragePlugin.MCAP: _McapWithHashes,
+        StoragePlugin.SQLITE3: _DurableSqlite3,
+    }
+
+
+_WRITE_ERRORS = (OSError, sqlite3.Error, ValueError)
+"""What a storage raises when the disk is full, the file too large, or the file gone."""
+
+
+def _reason(err: BaseException) -> str:
+    """An OS or SQLite error in a few words (``[Errno 28] No space left on device``)."""
+    if isinstance(err, OSError) and err.strerror:
+        return f"[Errno {err.errno}] {err.strerror}" + (f": {err.filename}" if err.filename else "")
+    return f"{type(err).__name__}: {err}" if not isinstance(err, sqlite3.Error) else str(err)
 
 
 class BagWriter:
@@ -113,6 +246,8 @@ class BagWriter:
         storage: :class:`Storage` (mcap by default) or its name ``"mcap"``/``"sqlite3"``.
         distro: Typestore distribution (``"kilted"`` or ``"jazzy"``).
         topics: Extra or overriding topic specs, merged over ``STANDARD_TOPICS``.
+        flush_period_s: Close the pending chunk / commit at least this often (s); a writer
+            killed at any moment loses at most the messages of the last period.
 
     Raises:
         BagError: The path exists or the storage is unknown.
@@ -125,6 +260,7 @@ class BagWriter:
         *,
         distro: str = "kilted",
         topics: dict[str, TopicSpec] | None = None,
+        flush_period_s: float = 1.0,
     ) -> None:
         self.path = Path(path)
         if isinstance(storage, str):
@@ -138,7 +274,16 @@ class BagWriter:
         self.distro = distro
         self.typestore = make_typestore(distro)
         self.specs = {**STANDARD_TOPICS, **(topics or {})}
+        if not flush_period_s > 0:
+            raise BagError(f"The 'flush_period_s' must be > 0. Got {flush_period_s!r}.")
+        self.flush_period_s = float(flush_period_s)
         self.counts: dict[str, int] = {}
+        self.flushed = 0
+        """Messages written and flushed to the disk (what survives a crash now)."""
+        self.failed = ""
+        """Why writing stopped ('' while it works)."""
+        self._written = 0
+        self._last_flush = time.monotonic()
         self._connections: dict[str, Connection] = {}
         try:
             self._writer = _Writer(self.path, version=9, storage_plugin=_PLUGINS[storage])
@@ -147,12 +292,20 @@ class BagWriter:
         self._open = False
 
     def open(self) -> BagWriter:
-        """Create the bag directory and storage file; returns ``self``."""
+        """Create the bag directory and storage file; returns ``self``.
+
+        Raises:
+            BagError: The path exists, or cannot be created or written (permissions, disk).
+        """
         try:
             self._writer.open()
         except WriterError as err:
             raise BagError(f"Cannot create bag at {self.path}: {err}") from err
+        except (OSError, sqlite3.Error) as err:
+            self._writer.storage = None
+            raise BagError(f"Cannot create bag at {self.path}: {_reason(err)}.") from err
         self._open = True
+        self._last_flush = time.monotonic()
         return self
 
     def add_topic(
@@ -162,6 +315,8 @@ class BagWriter:
         *,
         reliable: bool | None = None,
         depth: int | None = None,
+        definition: tuple[str, str] | None = None,
+        qos: Sequence[Qos] | None = None,
     ) -> None:
         """Register ``topic`` before its first message (optional: ``write`` does it too).
 
@@ -170,6 +325,10 @@ class BagWriter:
             msgtype: Full type name; defaults to the standard table's.
             reliable: Offered reliability; defaults to the standard table's (else True).
             depth: Offered history depth; defaults to the standard table's (else 100).
+            definition: ``(message definition text, RIHS01 hash)`` to store instead of the
+                typestore's (a bag rewritten from another keeps its own; the type then need
+                not be in the typestore).
+            qos: Offered QoS profiles to store instead of ``reliable``/``depth``.
 
         Raises:
             BagError: Not open, type unknown, or the topic already registered with another type.
@@ -185,14 +344,28 @@ class BagWriter:
             if known != msgtype:
                 raise BagError(f"Topic {topic!r} already holds {known}; cannot add {msgtype}.")
             return
-        if msgtype not in self.typestore.fielddefs:
+        if definition is None and msgtype not in self.typestore.fielddefs:
             raise BagError(f"Unknown message type {msgtype!r} for topic {topic!r}.")
-        qos = offered_qos(
-            reliable if reliable is not None else (spec.reliable if spec else True),
-            depth if depth is not None else (spec.depth if spec else 100),
+        profiles = (
+            list(qos)
+            if qos is not None
+            else [
+                offered_qos(
+                    reliable if reliable is not None else (spec.reliable if spec else True),
+                    depth if depth is not None else (spec.depth if spec else 100),
+                )
+            ]
         )
-        self._connections[topic] = self._writer.add_connection(
-            topic, msgtype, typestore=self.typestore, offered_qos_profiles=[qos]
+        msgdef, rihs01 = definition if definition is not None else (None, None)
+        self._connections[topic] = self._guard(
+            lambda: self._writer.add_connection(
+                topic,
+                msgtype,
+                typestore=self.typestore,
+                msgdef=msgdef,
+                rihs01=rihs01,
+                offered_qos_profiles=profiles,
+            )
         )
         self.counts[topic] = 0
 
@@ -237,18 +410,75 @@ class BagWriter:
     def _append(self, topic: str, log_time_ns: int, data: bytes | memoryview) -> None:
         if not self._open:
             raise BagError(f"Bag {self.path} is not open.")
-        self._writer.write(self._connections[topic], int(log_time_ns), data)
+        conn, t_ns = self._connections[topic], int(log_time_ns)
+        if not 0 <= t_ns < 2**63:
+            raise BagError(f"The log time of a message on {topic} must be >= 0 ns. Got {t_ns}.")
+        self._guard(lambda: self._writer.write(conn, t_ns, data))
         self.counts[topic] += 1
+        self._written += 1
+        if time.monotonic() - self._last_flush >= self.flush_period_s:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write what is pending to the disk now (close the mcap chunk and fsync; commit).
+
+        Raises:
+            BagError: The write failed (see ``failed``).
+        """
+        if not self._open:
+            raise BagError(f"Bag {self.path} is not open.")
+        self._guard(lambda: self._writer.storage.flush())  # type: ignore[union-attr]
+        self.flushed = self._written
+        self._last_flush = time.monotonic()
+
+    def flush_if_due(self) -> bool:
+        """:meth:`flush` when messages are pending and ``flush_period_s`` has passed.
+
+        Returns:
+            Whether it flushed.
+        """
+        due = time.monotonic() - self._last_flush >= self.flush_period_s
+        if self._open and due and self._written > self.flushed:
+            self.flush()
+            return True
+        return False
+
+    def _guard(self, action: Any) -> Any:
+        """Run a storage action; a failure stops the writer with a clear :class:`BagError`."""
+        if self.failed:
+            raise BagError(self.failed)
+        try:
+            return action()
+        except WriterError as err:  # a misuse (rosbags checks), not the disk
+            raise BagError(f"Bag {self.path}: {err}") from err
+        except _WRITE_ERRORS as err:
+            self._stop(err)
+
+    def _stop(self, err: BaseException) -> None:
+        self._open = False
+        self.failed = (
+            f"Cannot write bag {self.path}: {_reason(err)}; recording stopped after "
+            f"{self._written} messages, {self.flushed} of them flushed to the disk "
+            f"(`ext-sense bag recover {self.path}` rewrites them as a complete bag)."
+        )
+        with contextlib.suppress(Exception):  # the storage is broken already; the error says so
+            self._writer.abort()
+        raise BagError(self.failed) from err
 
     def set_custom_data(self, key: str, value: str) -> None:
         """Store a string in the bag's metadata ``custom_data`` (e.g. the task or the seed)."""
         self._writer.set_custom_data(key, str(value))
 
     def close(self) -> None:
-        """Write the index and ``metadata.yaml``; the bag is readable afterwards."""
+        """Write the index and ``metadata.yaml``; the bag is readable afterwards.
+
+        Raises:
+            BagError: The final write failed (disk full): the flushed part stays recoverable.
+        """
         if self._open:
+            self._guard(self._writer.close)
             self._open = False
-            self._writer.close()
+            self.flushed = self._written
 
     def __enter__(self) -> BagWriter:
         return self.open()

@@ -80,6 +80,13 @@ def _common(p: argparse.ArgumentParser, *, need_task: bool = True) -> None:
         help="NUSkin feature bin, ms (default: the task profile's, 5; handover 2; food 50)",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument(
+        "--lenient",
+        action="store_true",
+        help="drop and count input rows and trials that break a rule (non-finite or out-of-range "
+        "times, taxels outside 1..80, values outside their field, time going backwards, empty "
+        "trials) instead of stopping at the first one; the counts are printed",
+    )
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -176,11 +183,12 @@ def _load(args: argparse.Namespace, *, need_labels: bool = True) -> WindowSet:
     from ext_sense_perception.data.bags import BagTopics, is_bag, window_set_from_bag
     from ext_sense_perception.data.recordings import from_recording
     from ext_sense_perception.data.sources import load_window_set
+    from ext_sense_perception.data.validation import InputPolicy
 
     path = Path(args.data)
-    kwargs: dict[str, float] = {}
-    if args.rate_hz is not None and args.sensor != "biotac":
-        kwargs["rate_hz"] = args.rate_hz  # NUSkin refractory drop; BioTac decimates in features
+    policy = InputPolicy(lenient=args.lenient)
+    # NUSkin refractory drop on events; BioTac decimates in the features
+    nuskin_rate = args.rate_hz if args.sensor != "biotac" else None
     if is_bag(path):
         topics = BagTopics(args.events_topic, args.frames_topic, args.truth_topic)
         ws, counts = window_set_from_bag(
@@ -203,10 +211,16 @@ def _load(args: argparse.Namespace, *, need_labels: bool = True) -> WindowSet:
                 "Got none."
             )
         ws = from_recording(
-            path, args.task, args.sensor, essentials=getattr(args, "essentials", None)
+            path,
+            args.task,
+            args.sensor,
+            essentials=getattr(args, "essentials", None),
+            policy=policy,
         )
     else:
-        ws = load_window_set(path, args.task, args.sensor, **kwargs)
+        ws = load_window_set(path, args.task, args.sensor, rate_hz=nuskin_rate, policy=policy)
+    if args.lenient:
+        print(f"{path}: {policy.summary()}", file=sys.stderr)
     if args.post_ms is not None:
         ws = ws.crop(round(args.post_ms * MS))
     return ws

@@ -6,11 +6,14 @@ a deep history dropped none; Jazzy's rclpy 7.1 has no EventsExecutor.
 
 Never call ``EventsExecutor.spin()`` directly: in rclpy 9.1 it busy-waits (measured 50-70% of a
 core with nothing to do, even with no entities at all) and does not return on SIGINT or SIGTERM,
-while a loop of ``spin_once(timeout_sec)`` idles at 0.2% of a core and ends when rclpy's signal
-handler shuts the context down. :func:`spin_until_shutdown` is that loop.
+while a loop of ``spin_once(timeout_sec)`` idles at 0.2% of a core and ends when a stop is
+requested (the signal handlers of :mod:`ext_sense_runtime.node_main`) or the context is shut
+down. :func:`spin_until_shutdown` is that loop.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
@@ -34,20 +37,24 @@ def make_executor(context: Context | None = None) -> Executor:
 
 
 def spin_until_shutdown(
-    executor: Executor, context: Context | None = None, timeout_s: float = 0.1
+    executor: Executor,
+    context: Context | None = None,
+    timeout_s: float = 0.1,
+    stop: Callable[[], bool] | None = None,
 ) -> None:
-    """Run callbacks until the context is shut down (Ctrl-C, SIGTERM, or a node finishing).
+    """Run callbacks until a stop is requested or the context is shut down (a node finishing).
 
     Args:
         executor: The executor with the nodes added.
         context: The context to watch; the default context when ``None``.
-        timeout_s: Longest wait for one callback; bounds how late a shutdown is noticed.
+        timeout_s: Longest wait for one callback; bounds how late a stop or shutdown is noticed.
+        stop: Polled between callbacks: true ends the loop (e.g. Ctrl-C or SIGTERM received).
     """
     import rclpy
 
     context = context or rclpy.get_default_context()
     try:
-        while context.ok():
+        while context.ok() and not (stop is not None and stop()):
             executor.spin_once(timeout_sec=timeout_s)
     except ExternalShutdownException:
         pass

@@ -1,7 +1,12 @@
-"""``ext-sense record`` and ``ext-sense replay``: rosbag2 (mcap) without the ``ros2`` CLI.
+"""``ext-sense record``, ``replay`` and ``bag recover``: rosbag2 (mcap) without the ``ros2`` CLI.
 
 - ``record OUT [--topics ...] [--duration S]`` subscribes raw and writes a bag whose type
-  hashes equal the built interfaces' (``ros2 bag play`` accepts it).
+  hashes equal the built interfaces' (``ros2 bag play`` accepts it). It writes to the disk at
+  least every ``--flush-period`` (1 s), so a killed recorder loses at most that; a full disk or
+  an unwritable target ends it with one line saying why (exit 1; 2 if the bag cannot be
+  created).
+- ``bag recover BAG [--out DIR]`` rewrites every complete message of a bag a killed recorder
+  left (no footer, no ``metadata.yaml``) as a complete bag, and prints what it recovered.
 - ``replay BAG [--rate R | --flat-out]`` publishes the bag's graph inputs (sensor streams and
   ground truth) as recorded bytes, at recorded pace or flat out, and prints the throughput.
 - ``replay BAG --offline`` drives the graph's core directly, without ROS: the same
@@ -44,7 +49,36 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rec.add_argument(
         "--duration", type=float, default=0.0, help="stop after S seconds (default: until Ctrl-C)"
     )
+    rec.add_argument(
+        "--flush-period",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="write to the disk at least every S seconds: what a killed recorder loses (default 1)",
+    )
     rec.set_defaults(func=_record)
+
+    bag = subparsers.add_parser(
+        "bag",
+        help="bag tools: recover a bag a killed recorder left",
+        description="Bag tools (rosbag2, mcap or sqlite3).",
+    )
+    bag_sub = bag.add_subparsers(dest="bag_command", metavar="ACTION")
+    bag_sub.required = True
+    rcv = bag_sub.add_parser(
+        "recover",
+        help="rewrite every complete message of a crashed recording as a complete bag",
+        description="Read every complete message of a bag whose recorder was killed (an mcap "
+        "file without footer, no metadata.yaml, a sqlite3 write-ahead log left open) and write "
+        "them into a complete bag with metadata.yaml; print the messages recovered per topic "
+        "and what was dropped. In place by default: the damaged original is renamed "
+        "BAG.damaged. A complete bag is left alone.",
+    )
+    rcv.add_argument("bag", type=Path, help="bag directory or .mcap/.db3 file")
+    rcv.add_argument(
+        "--out", type=Path, help="write the recovered bag here instead (must not exist)"
+    )
+    rcv.set_defaults(func=_bag_recover)
 
     rep = subparsers.add_parser(
         "replay",
@@ -71,8 +105,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rep.add_argument("--sensor", default="", help="offline: sensor (default: from the bag)")
     rep.add_argument(
         "--model",
-        type=Path,
-        help="offline: model bundle directory (default: $EXT_SENSE_MODELS/<task>_<sensor>)",
+        default="",
+        help="offline: model bundle directory, or a model name looked up as the graphs do "
+        "(default: the task's default model, <task>_<sensor>; `ext-sense models list`)",
     )
     rep.add_argument("--backend", choices=("onnx", "sklearn"), default="onnx")
     rep.add_argument("--json", type=Path, help="offline: write every estimate to this file")
@@ -89,18 +124,28 @@ def _record(args: argparse.Namespace) -> int:
     from ext_sense_bags import BagError
     from ext_sense_runtime.executor import make_executor
 
-    overrides = [Parameter("bag", value=str(args.out)), Parameter("storage", value=args.storage)]
+    overrides = [
+        Parameter("bag", value=str(args.out)),
+        Parameter("storage", value=args.storage),
+        Parameter("flush_period_s", value=float(args.flush_period)),
+    ]
     if args.topics:
         overrides.append(Parameter("topics", value=list(args.topics)))
     rclpy.init(args=[])
     node = None
+    rc = 0
     try:
         node = RecorderNode(parameter_overrides=overrides)
+        if node.failed:  # the bag could not be created
+            print(f"ext-sense record: {node.failed}", file=sys.stderr)
+            node.destroy_node()
+            node = None
+            return 2
         executor = make_executor()
         executor.add_node(node)
         print(f"recording {sorted(node.received)} into {args.out} (Ctrl-C stops)", flush=True)
         end = time.monotonic() + args.duration if args.duration > 0 else None
-        while rclpy.ok() and (end is None or time.monotonic() < end):
+        while rclpy.ok() and not node.failed and (end is None or time.monotonic() < end):
             executor.spin_once(timeout_sec=0.1)
     except BagError as err:
         print(f"ext-sense record: {err}", file=sys.stderr)
@@ -111,8 +156,45 @@ def _record(args: argparse.Namespace) -> int:
         if node is not None:
             counts = dict(node.received)
             node.destroy_node()
-            print(f"recorded {sum(counts.values())} messages: {counts}", flush=True)
+            done = "recorded"
+            if node.failed:  # a write failed (disk full, ...): said once, exit 1
+                print(f"ext-sense record: recording stopped: {node.failed}", file=sys.stderr)
+                done, rc = "received before the failure", 1
+            print(f"{done} {sum(counts.values())} messages: {counts}", flush=True)
         rclpy.try_shutdown()
+    return rc
+
+
+def _bag_recover(args: argparse.Namespace) -> int:
+    from ext_sense_bags.recover import BagError, bag_problem, recover_bag
+
+    try:
+        problem = bag_problem(args.bag)
+        if not problem:
+            print(f"{args.bag} is complete: nothing to recover", flush=True)
+            return 0
+        result = recover_bag(args.bag, args.out)
+    except BagError as err:
+        print(f"ext-sense bag recover: {err}", file=sys.stderr)
+        return 2
+    report = result.report
+    print(f"{report.file}: {problem}")
+    print(f"recovered {result.messages} messages into {result.out}:")
+    for topic, n in sorted(result.counts.items()):
+        print(f"  {topic}: {n}")
+    if report.storage == "mcap":
+        print(
+            f"dropped: {report.chunks_dropped} chunks, {report.bytes_dropped} bytes "
+            f"({report.chunks} complete chunks read)"
+        )
+    else:
+        print("dropped: the uncommitted last transaction (SQLite recovery keeps every commit)")
+    if report.orphans:
+        print(f"dropped: {report.orphans} messages whose channel record was lost")
+    if result.skipped_topics:
+        print(f"not rewritten (no definition or type hash): {list(result.skipped_topics)}")
+    if result.kept is not None:
+        print(f"the damaged original is kept at {result.kept}")
     return 0
 
 
@@ -250,7 +332,8 @@ def offline_estimates(
 def _replay_offline_cli(args: argparse.Namespace) -> int:
     from ext_sense.nodes.scoreboard import Scoreboard
     from ext_sense_perception.errors import PerceptionError
-    from ext_sense_perception.online.predictor import default_model_dir, load_model
+    from ext_sense_perception.online.model_store import find_model
+    from ext_sense_perception.online.predictor import load_model
     from ext_sense_perception.online.window import WindowConfig
     from ext_sense_runtime.records import truth_of
 
@@ -258,8 +341,8 @@ def _replay_offline_cli(args: argparse.Namespace) -> int:
     if not (task and sensor):
         guessed = bag_task_sensor(args.bag)
         task, sensor = task or guessed[0], sensor or guessed[1]
-    model_dir = args.model or default_model_dir(task, sensor)
     try:
+        model_dir = find_model(args.model, task, sensor)
         model = load_model(model_dir, args.backend)
         if (model.task, model.card.sensor) != (task, sensor):
             raise PerceptionError(

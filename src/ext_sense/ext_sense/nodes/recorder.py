@@ -6,6 +6,16 @@ streams are subscribed best effort (their publishers are), the rest reliable, wi
 history so a burst is not lost. When a publisher appears, the type hash it reports is compared
 with the hash written into the bag; a mismatch (message definitions changed since the build) is
 logged and shown on ``/diagnostics``.
+
+Durability: the writer closes its mcap chunk (or commits its sqlite3 transaction) at least every
+``flush_period_s`` (1 s), on a message or on a timer when the topics are quiet, so a recorder
+killed at any moment loses at most that last period; ``ext-sense bag recover BAG`` rewrites the
+rest as a complete bag. A target that cannot be created, or a write that fails (disk full, file
+too large, I/O error), stops the recording, not the node: the error is logged once and shown
+as ERROR on ``/diagnostics`` (``recording stopped: ...``), later messages are counted as
+``not_recorded``, and the node keeps running so the graph is unaffected. ``ext-sense record``,
+whose only job is recording, exits instead with that message (exit code 1; 2 when the bag
+cannot be created).
 """
 
 from __future__ import annotations
@@ -63,19 +73,39 @@ class RecorderNode(Node):
             high=60.0,
             read_only=True,
         )
-        self.writer = BagWriter(self.path, storage=storage).open()
-        self.writer.set_custom_data("recorded_by", "ext-sense record")
+        self.flush_period_s = declare(
+            self,
+            "flush_period_s",
+            1.0,
+            "Longest time between writes to the disk (mcap chunk closed, sqlite3 commit), s: "
+            "what a killed recorder can lose.",
+            low=0.05,
+            high=10.0,
+            read_only=True,
+        )
+        self.failed = ""
+        """Why recording stopped ('' while it records)."""
+        self.not_recorded = 0
         self.received: dict[str, int] = {}
         self.hash_mismatch: dict[str, str] = {}
         self._checked_hash: set[str] = set()
         self._waiting = [t for t in topics if t not in STANDARD_TOPICS]
+        self.updater = Updater(hardware_id=str(self.path))
+        self.updater.add_check("recording", self._check)
+        self.diagnostics = DiagnosticsPublisher(self, self.updater)
+        try:
+            self.writer = BagWriter(
+                self.path, storage=storage, flush_period_s=self.flush_period_s
+            ).open()
+        except BagError as err:
+            self._fail(err)
+            return
+        self.writer.set_custom_data("recorded_by", "ext-sense record")
         for topic in topics:
             if topic in STANDARD_TOPICS:
                 self._subscribe(topic, STANDARD_TOPICS[topic].msgtype)
         self.create_timer(self.discover_s, self._discover)
-        self.updater = Updater(hardware_id=str(self.path))
-        self.updater.add_check("recording", self._check)
-        self.diagnostics = DiagnosticsPublisher(self, self.updater)
+        self.create_timer(min(0.1, self.flush_period_s / 4), self._flush_if_due)
 
     def _subscribe(self, topic: str, msgtype: str) -> None:
         try:
@@ -87,12 +117,36 @@ class RecorderNode(Node):
         self.received[topic] = 0
 
         def callback(data: bytes, topic: str = topic) -> None:
-            self.writer.write_raw(topic, time.time_ns(), data)
+            if self.failed:
+                self.not_recorded += 1
+                return
+            try:
+                self.writer.write_raw(topic, time.time_ns(), data)
+            except BagError as err:
+                self.not_recorded += 1
+                self._fail(err)
+                return
             self.received[topic] += 1
 
         self.create_subscription(cls, topic, callback, subscription_qos(topic), raw=True)
 
+    def _fail(self, err: BagError) -> None:
+        """Stop recording (once): log the reason and show it on ``/diagnostics``."""
+        if not self.failed:
+            self.failed = str(err)
+            self.get_logger().error(f"recording stopped: {self.failed}")
+
+    def _flush_if_due(self) -> None:
+        if self.failed:
+            return
+        try:
+            self.writer.flush_if_due()
+        except BagError as err:
+            self._fail(err)
+
     def _discover(self) -> None:
+        if self.failed:
+            return
         if self._waiting:
             types = dict(self.get_topic_names_and_types())
             for topic in list(self._waiting):
@@ -119,13 +173,22 @@ class RecorderNode(Node):
     def _check(self) -> tuple[Level, str, dict[str, object]]:
         values: dict[str, object] = {f"messages_{t}": n for t, n in self.received.items()}
         values["waiting_for_type"] = ",".join(self._waiting)
+        writer = getattr(self, "writer", None)  # absent when the bag could not be created
+        values["flushed"] = writer.flushed if writer is not None else 0
+        values["not_recorded"] = self.not_recorded
+        if self.failed:
+            return Level.ERROR, f"recording stopped: {self.failed}", values
         if self.hash_mismatch:
             return Level.ERROR, f"type hash mismatch on {sorted(self.hash_mismatch)}", values
         return Level.OK, "recording", values
 
     def destroy_node(self) -> None:
         """Close the bag (index and metadata) before the node goes."""
-        self.writer.close()
+        if not self.failed:
+            try:
+                self.writer.close()
+            except BagError as err:
+                self._fail(err)
         super().destroy_node()
 
 

@@ -44,7 +44,10 @@ def register_biotac(subparsers: argparse._SubParsersAction) -> argparse.Argument
         "encode",
         help="JSON lines of frame values -> bridge stream",
         description="Write a bridge stream from JSON lines shaped like 'decode' output (seq may be "
-        "omitted: it counts per sensor; null values are sent as words failing parity).",
+        "omitted: it counts per sensor; null values are sent as words failing parity). A "
+        "malformed line (not UTF-8, not JSON, a missing key, a value of the wrong type or out of "
+        "range) stops it with one line naming the file and line number, exit code 2, and no "
+        "output file.",
     )
     enc.add_argument("values", metavar="VALUES.jsonl", help="input ('-' for stdin)")
     enc.add_argument("--out", metavar="STREAM", required=True, help="output bytes ('-' for stdout)")
@@ -90,13 +93,15 @@ def _decode(args: argparse.Namespace) -> int:
 
 
 def _encode(args: argparse.Namespace) -> int:
-    import json
+    import contextlib
+    import os
 
     from ext_sense_drivers.biotac.errors import BioTacError
-    from ext_sense_drivers.biotac.jsonl import record_to_frame
+    from ext_sense_drivers.biotac.jsonl import parse_line, record_to_frame
 
+    name = "<stdin>" if args.values == "-" else args.values
     try:
-        src = sys.stdin if args.values == "-" else open(args.values, encoding="utf-8")  # noqa: SIM115
+        src = sys.stdin.buffer if args.values == "-" else open(args.values, "rb")  # noqa: SIM115
     except OSError as err:
         print(f"ext-sense biotac encode: cannot read {args.values!r}: {err}", file=sys.stderr)
         return 2
@@ -106,26 +111,30 @@ def _encode(args: argparse.Namespace) -> int:
         print(f"ext-sense biotac encode: cannot write --out {args.out!r}: {err}", file=sys.stderr)
         return 2
     next_seq = [0] * 5
-    n = 0
+    n = lineno = 0
+    error = ""
     try:
-        for lineno, line in enumerate(src, start=1):
-            if not line.strip():
+        for lineno, raw in enumerate(src, start=1):
+            if not raw.strip():
                 continue
-            try:
-                record = json.loads(line)
-            except json.JSONDecodeError as err:
-                raise BioTacError(f"line {lineno}: not JSON: {err}") from err
-            out.write(record_to_frame(record, next_seq, where=f"line {lineno}"))
+            where = f"{name}, line {lineno}"
+            out.write(record_to_frame(parse_line(raw, where), next_seq, where=where))
             n += 1
+        out.flush()
     except BioTacError as err:
-        print(f"ext-sense biotac encode: {err}", file=sys.stderr)
-        return 1
+        error = str(err)
+    except OSError as err:  # reading the input or writing the output failed
+        error = f"{name}, near line {max(lineno, 1)}: {err}"
     finally:
-        if src is not sys.stdin:
+        if src is not sys.stdin.buffer:
             src.close()
         if out is not sys.stdout.buffer:
-            out.close()
-        else:
-            out.flush()
+            with contextlib.suppress(OSError):
+                out.close()
+    if error:
+        if out is not sys.stdout.buffer and os.path.isfile(args.out):
+            os.unlink(args.out)  # no half-written stream left behind
+        print(f"ext-sense biotac encode: {error}", file=sys.stderr)
+        return 2
     print(f"biotac encode: frames={n}", file=sys.stderr)
     return 0

@@ -5,10 +5,17 @@ parity_errors``. Values are raw 12-bit counts; a word that failed parity or was 
 reply is ``null`` (never a made-up number). ``encode`` reads the same shape: ``seq`` may be left
 out (it then counts up per sensor from 0), ``parity_errors`` is ignored, and a ``null`` value is
 sent as a word with a parity error so the stream carries the same holes.
+
+Malformed input never raises anything but :class:`BioTacError`, with a one-line message that
+starts with where it is (``"values.jsonl, line 3: ..."``): bytes that are not UTF-8, text that
+is not JSON (or nested deeper than the parser goes, or a number too long to read), a line that
+is not an object, a missing key, a value of the wrong type or out of range
+(:func:`parse_line`, :func:`record_to_frame`).
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable, Iterator
 from typing import Any
 
@@ -32,6 +39,44 @@ from ext_sense_drivers.biotac.words import (
 )
 
 KEYS = ("sensor_id", "seq", "pac", "electrodes", "pdc", "tac", "tdc", "parity_errors")
+_SHOW_CHARS = 40
+
+
+def _show(value: Any) -> str:
+    """A value for an error message: its repr, cut to a few dozen characters, on one line."""
+    try:
+        text = repr(value)
+    except RecursionError:  # a list nested too deep to print
+        return f"a deeply nested {type(value).__name__}"
+    return text if len(text) <= _SHOW_CHARS else text[: _SHOW_CHARS - 3] + "..."
+
+
+def parse_line(raw: bytes, where: str = "line") -> dict[str, Any]:
+    """The JSON object on one line of bytes.
+
+    Args:
+        raw: The line, as read in binary mode.
+        where: Prefix of error messages (e.g. ``"values.jsonl, line 3"``).
+
+    Raises:
+        BioTacError: Not UTF-8, not JSON, nested too deeply, a number too long, not an object.
+    """
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        bad = raw[err.start : err.start + 1]
+        raise BioTacError(f"{where}: not UTF-8 (byte {bad!r} at column {err.start + 1}).") from err
+    try:
+        record = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise BioTacError(f"{where}: not JSON: {err.msg} (column {err.colno}).") from err
+    except RecursionError as err:
+        raise BioTacError(f"{where}: JSON nested too deeply to read.") from err
+    except ValueError as err:  # e.g. an integer of more digits than Python converts
+        raise BioTacError(f"{where}: unreadable JSON: {str(err).splitlines()[0]}") from err
+    if not isinstance(record, dict):
+        raise BioTacError(f"{where}: expected a JSON object. Got {type(record).__name__}.")
+    return record
 
 
 def frames_to_records(frames: BridgeFrames) -> Iterator[dict[str, Any]]:
@@ -65,7 +110,7 @@ def _field(record: dict[str, Any], key: str, size: int | None, where: str) -> li
     if size is None:
         value = [value]
     elif not isinstance(value, list) or len(value) != size:
-        got = len(value) if isinstance(value, list) else type(value).__name__
+        got = f"{len(value)} values" if isinstance(value, list) else type(value).__name__
         raise BioTacError(f"{where}: '{key}' must be a list of {size} values. Got {got} instead.")
     for v in value:
         if v is not None and (
@@ -73,7 +118,7 @@ def _field(record: dict[str, Any], key: str, size: int | None, where: str) -> li
         ):
             raise BioTacError(
                 f"{where}: '{key}' values must be integers in 0..{MAX_VALUE} or null. "
-                f"Got {v!r} instead."
+                f"Got {_show(v)} instead."
             )
     return value
 
@@ -96,15 +141,21 @@ def record_to_frame(
     """
     if not isinstance(record, dict):
         raise BioTacError(f"{where}: expected a JSON object. Got {type(record).__name__}.")
-    sensor = record.get("sensor_id")
+    if "sensor_id" not in record:
+        raise BioTacError(f"{where}: the key 'sensor_id' is missing.")
+    sensor = record["sensor_id"]
     if isinstance(sensor, bool) or not isinstance(sensor, int) or not 0 <= sensor < MAX_SENSORS:
-        raise BioTacError(f"{where}: 'sensor_id' must be in 0..{MAX_SENSORS - 1}. Got {sensor!r}.")
+        raise BioTacError(
+            f"{where}: 'sensor_id' must be an integer in 0..{MAX_SENSORS - 1}. Got {_show(sensor)}."
+        )
     counters = next_seq if next_seq is not None else [0] * MAX_SENSORS
     seq = record.get("seq")
     if seq is None:
         seq = counters[sensor]
     elif isinstance(seq, bool) or not isinstance(seq, int) or not 0 <= seq < SEQ_MODULO:
-        raise BioTacError(f"{where}: 'seq' must be in 0..65535. Got {seq!r} instead.")
+        raise BioTacError(
+            f"{where}: 'seq' must be an integer in 0..65535. Got {_show(seq)} instead."
+        )
     counters[sensor] = (seq + 1) % SEQ_MODULO
     values: list[Any] = [None] * WORDS_PER_FRAME
     for key, positions in (("pac", PAC_POSITIONS), ("electrodes", ELECTRODE_POSITIONS)):

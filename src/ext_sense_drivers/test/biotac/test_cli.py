@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 
 import numpy as np
 import pytest
@@ -96,8 +97,71 @@ def test_decode_missing_file(tmp_path, capsys):
 def test_encode_bad_line(tmp_path, capsys):
     values = tmp_path / "in.jsonl"
     values.write_text(json.dumps(record(0)) + "\n" + "{not json\n")
-    assert cli(["biotac", "encode", str(values), "--out", str(tmp_path / "o.bin")]) == 1
-    assert "line 2" in capsys.readouterr().err
+    assert cli(["biotac", "encode", str(values), "--out", str(tmp_path / "o.bin")]) == 2
+    assert f"{values}, line 2: not JSON" in capsys.readouterr().err
+    assert not (tmp_path / "o.bin").exists()  # no half-written stream
+
+
+GOOD = json.dumps(record(0)).encode()
+
+
+def _with(**change):
+    return json.dumps(record(0) | change).encode()
+
+
+def _without(key):
+    r = record(0)
+    del r[key]
+    return json.dumps(r).encode()
+
+
+@pytest.mark.parametrize(
+    ("line", "match"),
+    [
+        (b'{"sensor_id": 0, "pac": "\xff\xfe"}', r"not UTF-8 \(byte b'\\xff' at column 26\)"),
+        (b"\xef\xbb\xbf" + GOOD, "not JSON: Unexpected UTF-8 BOM"),
+        (b"{not json", "not JSON: Expecting property name enclosed in double quotes"),
+        (GOOD[:-1], "not JSON: Expecting ',' delimiter"),
+        (b"[" * 100_000 + b"]" * 100_000, "nested too deeply"),
+        (b'{"pac": ' + b"[" * 100_000 + b"]" * 100_000 + b"}", "nested too deeply"),
+        (b'{"seq": ' + b"9" * 5000 + b"}", "unreadable JSON: Exceeds the limit"),
+        (b"[1, 2]", "expected a JSON object. Got list"),
+        (b'"text"', "expected a JSON object. Got str"),
+        (_without("sensor_id"), "the key 'sensor_id' is missing"),
+        (_without("pac"), "the key 'pac' is missing"),
+        (_without("tdc"), "the key 'tdc' is missing"),
+        (_with(sensor_id="0"), "'sensor_id' must be an integer in 0..4. Got '0'"),
+        (_with(sensor_id=True), "'sensor_id' must be an integer"),
+        (_with(seq=1.5), "'seq' must be an integer in 0..65535. Got 1.5"),
+        (_with(pac={"a": 1}), "'pac' must be a list of 22 values. Got dict"),
+        (_with(pac=[0] * 23), "'pac' must be a list of 22 values. Got 23 values"),
+        (_with(electrodes=[[0]] * 19), r"'electrodes' values must be integers .* Got \[0\]"),
+        (_with(pdc="x" * 500), r"'pdc' values .* Got 'xxxxx.*\.\.\. instead"),
+        (_with(tac=-1), "'tac' values must be integers in 0..4095 or null. Got -1"),
+        (GOOD.replace(b'"pdc": 2000', b'"pdc": NaN'), "'pdc' values .* Got nan"),
+        (GOOD.replace(b'"pdc": 2000', b'"pdc": 1e999'), "'pdc' values .* Got inf"),
+    ],
+)
+def test_encode_malformed_input_is_one_line_with_the_line_number(tmp_path, capsys, line, match):
+    values = tmp_path / "in.jsonl"
+    values.write_bytes(GOOD + b"\n\n" + line + b"\n" + GOOD + b"\n")
+    out = tmp_path / "o.bin"
+    assert cli(["biotac", "encode", str(values), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert err.startswith(f"ext-sense biotac encode: {values}, line 3: ")
+    assert re.search(match, err), err
+    assert len(err) < 300
+    assert not out.exists()
+
+
+def test_encode_reads_stdin_and_names_it(monkeypatch, tmp_path, capsys):
+    import io
+
+    stdin = io.TextIOWrapper(io.BytesIO(GOOD + b"\n" + b"\x80\n"))
+    monkeypatch.setattr("sys.stdin", stdin)
+    assert cli(["biotac", "encode", "-", "--out", str(tmp_path / "o.bin")]) == 2
+    assert "<stdin>, line 2: not UTF-8" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

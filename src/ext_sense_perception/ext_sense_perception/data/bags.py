@@ -348,13 +348,6 @@ def window_set_from_bag(
     return ws, counts
 
 
-def from_bag(
-    path: str | Path, task: str | None = None, sensor: str | None = None, **kwargs: Any
-) -> WindowSet:
-    """Like :func:`window_set_from_bag`, the window set only (for ``load_window_set``)."""
-    return window_set_from_bag(path, task, sensor, **kwargs)[0]
-
-
 def is_bag(path: str | Path) -> bool:
     """Whether ``path`` looks like a rosbag2 bag (``.mcap``/``.db3``, or a directory of one)."""
     path = Path(path)

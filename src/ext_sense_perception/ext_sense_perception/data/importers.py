@@ -20,6 +20,15 @@ from typing import NamedTuple
 import numpy as np
 from rosbags.highlevel import AnyReader
 
+from ext_sense_perception.data.validation import (
+    BIOTAC_ADC,
+    RULE_ADC,
+    RULE_ORDER,
+    RULE_TIME,
+    InputPolicy,
+    check_event_rows,
+    check_trial_not_empty,
+)
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_runtime.records import EventBlock
 from ext_sense_runtime.stamps import stamp_to_ns
@@ -59,21 +68,23 @@ def _load_rows(path: Path, n_cols: int) -> np.ndarray:
     return rows
 
 
-def read_paper_tact(path: str | Path) -> EventBlock:
+def read_paper_tact(path: str | Path, policy: InputPolicy | None = None) -> EventBlock:
     """The paper's NUSkin ``.tact``: ``isPos taxel removable t``; first and last lines are markers.
 
     Args:
         path: The file.
+        policy: Strict (default) or lenient input rules (:mod:`.validation`).
 
     Returns:
-        Events with polarity +1 (``isPos`` 1) or -1 (``isPos`` 0).
+        Events with polarity +1 (``isPos`` 1) or -1 (``isPos`` 0), in time order.
 
     Raises:
-        PerceptionError: when the file is missing or malformed.
+        PerceptionError: when the file is missing or malformed, or a row breaks a rule.
     """
     rows = _load_rows(Path(path), 4)[1:-1]
-    order = np.argsort(rows[:, 3], kind="stable")
-    rows = rows[order]
+    policy = policy or InputPolicy()
+    where = f"NUSkin events {str(path)!r} (rows after the start marker)"
+    rows = rows[check_event_rows(rows[:, 3], rows[:, 1], None, where, policy)]
     return EventBlock(
         t_ns=_seconds_to_ns(rows[:, 3]),
         taxel=rows[:, 1].astype(np.uint16),
@@ -82,7 +93,7 @@ def read_paper_tact(path: str | Path) -> EventBlock:
     )
 
 
-def read_capture_tact(path: str | Path) -> EventBlock:
+def read_capture_tact(path: str | Path, policy: InputPolicy | None = None) -> EventBlock:
     """A real food-poking capture ``.tact``: ``col0 taxel value t`` between marker lines.
 
     The markers (``1 1 1 t`` first, ``2 2 2 t`` last) are dropped; ``col0`` (the receiver's
@@ -90,19 +101,25 @@ def read_capture_tact(path: str | Path) -> EventBlock:
 
     Args:
         path: The file.
+        policy: Strict (default) or lenient input rules (:mod:`.validation`): finite epoch
+            times in order, taxels 1..80, values 0..1023, at least one event.
 
     Returns:
         Events with their 10-bit values.
 
     Raises:
-        PerceptionError: when the file is missing or malformed.
+        PerceptionError: when the file is missing or malformed, or a row breaks a rule.
     """
     rows = _load_rows(Path(path), 4)
+    first = 1
     if len(rows) and rows[0, 0] == 1 and rows[0, 1] == 1 and rows[0, 2] == 1:
         rows = rows[1:]
+        first = 2
     if len(rows) and rows[-1, 0] == 2 and rows[-1, 1] == 2 and rows[-1, 2] == 2:
         rows = rows[:-1]
-    rows = rows[np.argsort(rows[:, 3], kind="stable")]
+    policy = policy or InputPolicy()
+    where = f"capture {str(path)!r} (rows from line {first})"
+    rows = rows[check_event_rows(rows[:, 3], rows[:, 1], rows[:, 2], where, policy)]
     return EventBlock(
         t_ns=_seconds_to_ns(rows[:, 3]),
         taxel=rows[:, 1].astype(np.uint16),
@@ -150,6 +167,9 @@ def read_csv_columns(path: str | Path) -> dict[str, np.ndarray]:
 def read_biotac_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """The paper's BioTac recording: PAC samples and their times.
 
+    Every row must hold a 12-bit PAC sample and a finite epoch time, in time order: the samples
+    are a series, so a bad row is always an error (dropping it would shift every later sample).
+
     Args:
         path: CSV with columns ``pac`` and ``t`` (epoch seconds).
 
@@ -157,7 +177,7 @@ def read_biotac_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         ``(pac (n,) float64, t_ns (n,) int64)``.
 
     Raises:
-        PerceptionError: when a column is missing.
+        PerceptionError: when a column is missing, or a row breaks a rule.
     """
     cols = read_csv_columns(path)
     for name in ("pac", "t"):
@@ -165,7 +185,18 @@ def read_biotac_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
             raise PerceptionError(
                 f"BioTac CSV {str(path)!r} must have a {name!r} column. Got {sorted(cols)} instead."
             )
-    return cols["pac"].astype(np.float64), _seconds_to_ns(cols["t"])
+    where = f"BioTac CSV {str(path)!r} (rows after the header)"
+    try:
+        pac = cols["pac"].astype(np.float64)
+        t = cols["t"].astype(np.float64)
+    except ValueError as err:
+        raise PerceptionError(f"{where}: 'pac' and 't' must be numbers: {err}") from err
+    strict = InputPolicy()
+    with np.errstate(invalid="ignore"):
+        strict.keep(~((pac >= BIOTAC_ADC[0]) & (pac <= BIOTAC_ADC[1])), RULE_ADC, where, pac)
+        strict.keep(~(np.isfinite(t) & (t >= 0)), RULE_TIME, where, t)
+    strict.keep(np.r_[False, np.diff(t) < 0], RULE_ORDER, where, t)
+    return pac, _seconds_to_ns(t)
 
 
 def load_preprocessed_npz(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
@@ -245,7 +276,7 @@ class Recording(NamedTuple):
 
 
 def food_poking_trials(
-    directory: str | Path, include_empty: bool = False
+    directory: str | Path, include_empty: bool = False, policy: InputPolicy | None = None
 ) -> tuple[list[Recording], list[str]]:
     """All trials of the real food-poking captures.
 
@@ -253,6 +284,8 @@ def food_poking_trials(
         directory: ``../shared/data/nuskin_food_poking``.
         include_empty: Keep the single ``empty`` trial (excluded by default: one trial cannot be
             split into train and test sets).
+        policy: Strict (default) or lenient input rules; a lenient load drops (and names in
+            the excluded list) a trial with no valid event.
 
     Returns:
         ``(recordings sorted by name, names of the excluded trials)``.
@@ -265,6 +298,7 @@ def food_poking_trials(
         raise PerceptionError(
             f"The 'data' parameter must be a directory. Got {str(directory)!r} instead."
         )
+    policy = policy or InputPolicy()
     recs: list[Recording] = []
     excluded: list[str] = []
     for tact in sorted(directory.glob("*_zero_*.tact")):
@@ -275,11 +309,11 @@ def food_poking_trials(
         if label == "empty" and not include_empty:
             excluded.append(name)
             continue
-        recs.append(
-            Recording(
-                name, label, read_capture_tact(tact), read_arm_motion(tact.with_suffix(".bag"))
-            )
-        )
+        events = read_capture_tact(tact, policy)
+        if not check_trial_not_empty(events.size, f"capture {str(tact)!r}", policy):
+            excluded.append(name)
+            continue
+        recs.append(Recording(name, label, events, read_arm_motion(tact.with_suffix(".bag"))))
     if not recs:
         raise PerceptionError(f"No '<food>_zero_<n>.tact' trials in {str(directory)!r}.")
     return recs, excluded

@@ -14,6 +14,7 @@ from ext_sense_perception.data.importers import (
     read_paper_tact,
 )
 from ext_sense_perception.data.sources import food_capture_config
+from ext_sense_perception.data.validation import InputPolicy
 from ext_sense_perception.data.window_set import WindowSet, file_hash, window_set_of
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.window import WindowConfig, window_from_recording
@@ -27,6 +28,7 @@ def from_recording(
     sensor: str,
     essentials: str | Path | None = None,
     config: WindowConfig | None = None,
+    policy: InputPolicy | None = None,
 ) -> WindowSet:
     """Windows of one raw recording: the paper's ``.tact`` or BioTac ``.csv``, or a real capture.
 
@@ -41,6 +43,7 @@ def from_recording(
         sensor: Sensor name.
         essentials: The paper's essentials CSV (None for real captures).
         config: Windows to cut (default: the task profile's; a capture: 0-3 s after motion).
+        policy: Strict (default) or lenient input rules of the NUSkin readers.
 
     Returns:
         The window set.
@@ -55,12 +58,12 @@ def from_recording(
         cols = read_csv_columns(essentials)
     if sensor_e is Sensor.NUSKIN:
         if essentials is None:
-            events = read_capture_tact(path)
+            events = read_capture_tact(path, policy)
             onsets = np.array([read_arm_motion(path.with_suffix(".bag")).start_ns])
             labels = np.array([path.stem.split("_zero_")[0]])
             config = config or food_capture_config()
         else:
-            events = read_paper_tact(path)
+            events = read_paper_tact(path, policy)
             key = "t" if "t" in cols else "tapped_time"
             if key not in cols:
                 raise PerceptionError(

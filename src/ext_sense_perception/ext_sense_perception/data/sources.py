@@ -12,13 +12,19 @@ from pathlib import Path
 
 import numpy as np
 
-from ext_sense_perception.data.bags import from_bag, is_bag
+from ext_sense_perception.data.bags import is_bag, window_set_from_bag
 from ext_sense_perception.data.importers import (
     food_poking_trials,
     load_preprocessed_npz,
     load_sim_dataset,
 )
 from ext_sense_perception.data.refractory import refractory_mask
+from ext_sense_perception.data.validation import (
+    RULE_LABEL,
+    RULE_TAXEL,
+    RULE_WINDOW,
+    InputPolicy,
+)
 from ext_sense_perception.data.window_set import WindowSet, file_hash, labels_of, window_set_of
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.model_input import Geometry
@@ -37,7 +43,10 @@ def thinned(events: EventBlock, rate_hz: float | None) -> EventBlock:
 
 
 def from_sim_dataset(
-    path: str | Path, config: WindowConfig | None = None, rate_hz: float | None = None
+    path: str | Path,
+    config: WindowConfig | None = None,
+    rate_hz: float | None = None,
+    policy: InputPolicy | None = None,
 ) -> WindowSet:
     """Windows of the simulator's ``dataset.npz`` at each trial's onset.
 
@@ -45,6 +54,8 @@ def from_sim_dataset(
         path: The dataset.
         config: Windows to cut (default: the task profile's for the dataset's sensor).
         rate_hz: NUSkin: per-taxel refractory drop to this rate before binning (None: none).
+        policy: Strict (default) or lenient input rules: taxels in 1..80, finite tap
+            positions (a lenient load drops the event or the trial and counts it).
 
     Returns:
         The window set.
@@ -58,8 +69,15 @@ def from_sim_dataset(
         Sensor.parse(d["sensor"], PerceptionError),
     )
     config = config or WindowConfig.for_task(task, sensor)
+    policy = policy or InputPolicy()
     onsets = np.asarray(d["onset_ns"], dtype=np.int64)
     n = len(onsets)
+    labels = np.asarray(d["y"])
+    keep_trial = np.ones(n, dtype=bool)
+    if task.is_regression:
+        y = labels.astype(np.float64)
+        keep_trial = np.isfinite(y)
+        policy.keep(~keep_trial, RULE_LABEL, f"dataset {str(path)!r} 'y' (trials)", y)
     windows = []
     if sensor is Sensor.NUSKIN:
         for key in ("ev_trial", "ev_t_ns", "ev_taxel"):
@@ -69,11 +87,15 @@ def from_sim_dataset(
         ev_trial = np.asarray(d["ev_trial"])
         order = np.argsort(ev_trial, kind="stable")
         ev_trial = ev_trial[order]
+        taxel = np.asarray(d["ev_taxel"]).astype(np.float64)[order]
+        ok = (taxel >= 1) & (taxel <= 80)
+        policy.keep(~ok, RULE_TAXEL, f"dataset {str(path)!r} 'ev_taxel' (sorted by trial)", taxel)
         everything = EventBlock.of(
             np.asarray(d["ev_t_ns"], dtype=np.int64)[order],
-            np.asarray(d["ev_taxel"])[order],
+            taxel.astype(np.uint16),
             np.asarray(d.get("ev_polarity", np.ones(len(order), np.int8)))[order],
-        )
+        ).select(ok)
+        ev_trial = ev_trial[ok]
         starts = np.searchsorted(ev_trial, trial_ids, side="left")
         ends = np.searchsorted(ev_trial, trial_ids, side="right")
         for i in range(n):
@@ -96,15 +118,18 @@ def from_sim_dataset(
             f"Dataset {str(path)!r} has label_kind {kind!r}, which task {task.label!r} does not "
             "have."
         )
+    trials = np.asarray(d.get("trial", np.arange(n)))
+    rods = np.asarray(d.get("rod_length_m", np.full(n, np.nan)), dtype=np.float64)
     return window_set_of(
         config,
-        windows,
-        d["y"],
+        [w for w, k in zip(windows, keep_trial, strict=True) if k],
+        labels[keep_trial],
         str(path),
         file_hash(path),
-        groups=np.asarray(d.get("trial", np.arange(n))),
-        rod_length_m=np.asarray(d.get("rod_length_m", np.full(n, np.nan)), dtype=np.float64),
+        groups=trials[keep_trial],
+        rod_length_m=rods[keep_trial],
         n_channels=int(pac.shape[1]) if sensor is Sensor.BIOTAC and n else None,
+        excluded=tuple(f"trial {int(t)}" for t in trials[~keep_trial]),
     )
 
 
@@ -119,7 +144,10 @@ def food_capture_config() -> WindowConfig:
 
 
 def from_food_poking(
-    directory: str | Path, include_empty: bool = False, rate_hz: float | None = None
+    directory: str | Path,
+    include_empty: bool = False,
+    rate_hz: float | None = None,
+    policy: InputPolicy | None = None,
 ) -> WindowSet:
     """Windows of the real NUSkin food-poking captures, from the start of the arm's motion.
 
@@ -127,12 +155,13 @@ def from_food_poking(
         directory: ``../shared/data/nuskin_food_poking``.
         include_empty: Keep the single ``empty`` trial (excluded by default).
         rate_hz: Per-taxel refractory drop to this rate before binning (None: none).
+        policy: Strict (default) or lenient input rules (:mod:`.validation`).
 
     Returns:
         The window set (``excluded`` names the trials left out), cut with
         :func:`food_capture_config`.
     """
-    recs, excluded = food_poking_trials(directory, include_empty=include_empty)
+    recs, excluded = food_poking_trials(directory, include_empty, policy)
     config = food_capture_config()
     windows = [
         window_from_recording(config, rec.motion.start_ns, events=thinned(rec.events, rate_hz))
@@ -160,6 +189,7 @@ def from_preprocessed_npz(
     sensor: str,
     frequency_hz: float | None = None,
     rate_hz: float | None = None,
+    policy: InputPolicy | None = None,
 ) -> WindowSet:
     """The paper's preprocessed ``.npz`` as a window set.
 
@@ -173,12 +203,14 @@ def from_preprocessed_npz(
         frequency_hz: BioTac sample rate of the file (None: 2200 Hz).
         rate_hz: NUSkin refractory drop; refused, because the file holds binned counts and the
             drop needs the events themselves (BioTac decimation happens in the features).
+        policy: Strict (default) or lenient input rules: finite windows and positions (a
+            lenient load drops and counts the window).
 
     Returns:
         The window set; handover labels are the first label column (``isPos``) as stable/unstable.
 
     Raises:
-        PerceptionError: a NUSkin ``rate_hz``, or a malformed file.
+        PerceptionError: a NUSkin ``rate_hz``, a malformed file, or a window breaking a rule.
     """
     task_e, sensor_e = Task.parse(task, PerceptionError), Sensor.parse(sensor, PerceptionError)
     if rate_hz is not None and sensor_e is Sensor.NUSKIN:
@@ -199,9 +231,18 @@ def from_preprocessed_npz(
     else:
         period = PAC_PERIOD_NS if frequency_hz is None else round(1e9 / frequency_hz)
         pre = 100 * period
+    policy = policy or InputPolicy()
+    where = f"preprocessed {str(path)!r} (windows)"
+    keep = np.isfinite(signals).all(axis=(1, 2))
+    policy.keep(~keep, RULE_WINDOW, where)
     y, names = labels_of(labels, regression=task_e.is_regression)
     if task_e.is_regression:
-        y = y / 100.0 if np.nanmax(np.abs(y)) > 2.0 else y  # the paper's labels are in cm
+        finite = np.isfinite(y)
+        policy.keep(keep & ~finite, RULE_LABEL, where, y)
+        keep &= finite
+    signals, y = signals[keep], y[keep]
+    if task_e.is_regression and len(y):
+        y = y / 100.0 if np.max(np.abs(y)) > 2.0 else y  # the paper's labels are in cm
     geometry = Geometry(signals.shape[1], signals.shape[2], period, pre, sensor_e.label)
     n = len(signals)
     return WindowSet(
@@ -219,7 +260,11 @@ def from_preprocessed_npz(
 
 
 def load_window_set(
-    data: str | Path, task: str | None = None, sensor: str | None = None, **kwargs: object
+    data: str | Path,
+    task: str | None = None,
+    sensor: str | None = None,
+    rate_hz: float | None = None,
+    policy: InputPolicy | None = None,
 ) -> WindowSet:
     """Any supported source as a window set, chosen by what ``data`` is.
 
@@ -229,7 +274,9 @@ def load_window_set(
             directory, a simulator ``dataset.npz`` or a preprocessed ``.npz``.
         task: Task (needed for preprocessed files).
         sensor: Sensor (needed for preprocessed files).
-        **kwargs: Passed to the source's loader.
+        rate_hz: NUSkin: per-taxel refractory drop to this rate (None: none).
+        policy: Strict (default) or lenient input rules of the file readers (bags count their
+            malformed messages instead).
 
     Returns:
         The window set.
@@ -239,9 +286,9 @@ def load_window_set(
     """
     path = Path(data)
     if is_bag(path):
-        return from_bag(path, task, sensor, **kwargs)  # type: ignore[arg-type]
+        return window_set_from_bag(path, task, sensor, rate_hz=rate_hz)[0]
     if path.is_dir():
-        return from_food_poking(path, **kwargs)  # type: ignore[arg-type]
+        return from_food_poking(path, rate_hz=rate_hz, policy=policy)
     if path.suffix == ".npz":
         try:
             with np.load(path, allow_pickle=False) as z:
@@ -254,8 +301,8 @@ def load_window_set(
                     "The 'task' and 'sensor' parameters are needed for a preprocessed npz. Got "
                     "None."
                 )
-            return from_preprocessed_npz(path, task, sensor, **kwargs)  # type: ignore[arg-type]
-        ws = from_sim_dataset(path, **kwargs)  # type: ignore[arg-type]
+            return from_preprocessed_npz(path, task, sensor, rate_hz=rate_hz, policy=policy)
+        ws = from_sim_dataset(path, rate_hz=rate_hz, policy=policy)
         if task is not None and Task.parse(task, PerceptionError).label != ws.task:
             raise PerceptionError(
                 f"The 'task' parameter must match the dataset's {ws.task!r}. Got {task!r} instead."

@@ -1,0 +1,136 @@
+"""Input rules for every import path: a clear error naming file, row and rule, or a counted drop.
+
+Training never proceeds silently on poisoned input. Each reader checks what it reads against
+the rules below; by default the first row that breaks one raises
+:class:`~ext_sense_perception.errors.PerceptionError` naming the file, the row (1-based, as the
+file is read) and the rule. With a lenient :class:`InputPolicy` (``--lenient`` on the CLI) the
+row (or the whole trial, when nothing valid is left of it) is dropped instead and counted by
+rule, so the caller can print what was dropped.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ext_sense_perception.errors import PerceptionError
+
+NUSKIN_TAXELS = (1, 80)
+NUSKIN_VALUE = (0, 1023)
+"""The receiver's 10-bit value field."""
+BIOTAC_ADC = (0, 4095)
+"""BioTac samples are 12-bit ADC counts."""
+EPOCH_S = (0.0, 4.0e9)
+"""Host times are epoch seconds: after 1970 and before 2096."""
+
+RULE_TIME = "time is not a finite number of epoch seconds in [0, 4e9]"
+RULE_ORDER = "time goes backwards"
+RULE_TAXEL = "taxel is not an integer in 1..80"
+RULE_VALUE = "value is not an integer in 0..1023"
+RULE_ADC = "sample is not an integer ADC count in 0..4095"
+RULE_EMPTY = "trial has no valid event"
+RULE_LABEL = "label is not a finite number"
+RULE_WINDOW = "window holds NaN or inf"
+
+
+@dataclass
+class InputPolicy:
+    """Strict (raise on the first bad row) or lenient (drop and count), shared by one load.
+
+    Attributes:
+        lenient: Drop and count bad rows and trials instead of raising.
+        dropped: Rows (or trials, windows) dropped per rule, when lenient.
+    """
+
+    lenient: bool = False
+    dropped: Counter[str] = field(default_factory=Counter)
+
+    def keep(self, bad: np.ndarray, rule: str, where: str, shown: np.ndarray | None = None) -> None:
+        """Raise on the first ``bad`` row (strict), or count them (lenient).
+
+        Args:
+            bad: Boolean mask of rows breaking ``rule``.
+            rule: The rule, in words.
+            where: The file (and trial) the rows come from.
+            shown: The offending values, for the error message (default: none shown).
+
+        Raises:
+            PerceptionError: Strict, and a row breaks the rule.
+        """
+        idx = np.flatnonzero(bad)
+        if not idx.size:
+            return
+        if not self.lenient:
+            got = f" (got {shown[idx[0]]!r})" if shown is not None else ""
+            raise PerceptionError(
+                f"{where}: row {int(idx[0]) + 1}: {rule}{got}; {idx.size} row(s) break this rule "
+                "(--lenient drops and counts them instead)."
+            )
+        self.dropped[rule] += int(idx.size)
+
+    def summary(self) -> str:
+        """What was dropped, e.g. ``"dropped: 3 rows: taxel is not ...; 1 trial: ..."``."""
+        if not self.dropped:
+            return "dropped nothing"
+        return "dropped " + "; ".join(f"{n} x {rule}" for rule, n in sorted(self.dropped.items()))
+
+
+def _integer_in(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Mask of values that are finite integers in ``[lo, hi]``."""
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(x) & (x >= lo) & (x <= hi) & (np.floor(x) == x)
+
+
+def check_event_rows(
+    t_s: np.ndarray,
+    taxel: np.ndarray,
+    value: np.ndarray | None,
+    where: str,
+    policy: InputPolicy,
+) -> np.ndarray:
+    """Rows of a NUSkin event file that satisfy every rule (strict: all, or an error).
+
+    Args:
+        t_s: Host times, epoch seconds (float).
+        taxel: Taxel ids as read (float).
+        value: 10-bit values as read (float), or None when the format has none.
+        where: The file, for messages.
+        policy: Strict or lenient.
+
+    Returns:
+        Boolean mask of the rows to keep, in file order (times non-decreasing).
+    """
+    keep = np.ones(len(t_s), dtype=bool)
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.isfinite(t_s) & (t_s >= EPOCH_S[0]) & (t_s <= EPOCH_S[1]))
+    policy.keep(bad, RULE_TIME, where, t_s)
+    keep &= ~bad
+    bad = keep & ~_integer_in(taxel, *NUSKIN_TAXELS)
+    policy.keep(bad, RULE_TAXEL, where, taxel)
+    keep &= ~bad
+    if value is not None:
+        bad = keep & ~_integer_in(value, *NUSKIN_VALUE)
+        policy.keep(bad, RULE_VALUE, where, value)
+        keep &= ~bad
+    # time order among the rows kept so far: a row earlier than the latest before it is bad
+    idx = np.flatnonzero(keep)
+    if idx.size > 1:
+        kept_t = t_s[idx]
+        backwards = kept_t < np.maximum.accumulate(kept_t)
+        bad = np.zeros(len(t_s), dtype=bool)
+        bad[idx[backwards]] = True
+        policy.keep(bad, RULE_ORDER, where, t_s)
+        keep &= ~bad
+    return keep
+
+
+def check_trial_not_empty(n_events: int, where: str, policy: InputPolicy) -> bool:
+    """Whether a trial has events left (strict: an error when not; lenient: counted)."""
+    if n_events:
+        return True
+    if not policy.lenient:
+        raise PerceptionError(f"{where}: {RULE_EMPTY} (--lenient drops such trials).")
+    policy.dropped[RULE_EMPTY] += 1
+    return False

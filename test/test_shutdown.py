@@ -1,0 +1,182 @@
+"""Ctrl-C of the whole graph: the tap graph under ``ext-sense run``, stopped 10 times by signals
+to its process group as a terminal sends them (SIGINT, in some runs a second SIGINT shortly
+after, in one run SIGTERM), ends every process within a few seconds with exit code 0, no abort
+and no traceback (issue #15; docs/runtime.md "Stopping a graph").
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import threading
+import time
+
+import pytest
+from sim_models import CRASH_MARKERS, EXE, child_exit_codes, stop_problems, train_sim_model
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(600)]
+
+NODES = {"sim_device", "nuskin_driver", "contact_window", "contact_inference", "estimate_monitor"}
+RUNS = 10
+STOP_LIMIT_S = 8.0
+"""Longest time from the first signal until the whole process group is gone: well inside
+launch's grace period (SIGTERM after 5 s, SIGKILL 5 s later) once the runner's own 5 s SIGKILL
+fallback is counted (it must never be needed: a killed node reports -9)."""
+
+
+def _signals(run: int) -> list[tuple[float, signal.Signals]]:
+    """(delay after the previous signal, signal) sent to the process group in ``run``."""
+    if run == RUNS - 1:
+        return [(0.0, signal.SIGTERM)]
+    if run % 3 == 1:  # a second Ctrl-C, as from an impatient user or launch's forwarding
+        return [(0.0, signal.SIGINT), (0.05 + 0.1 * run, signal.SIGINT)]
+    return [(0.0, signal.SIGINT)]
+
+
+class Graph:
+    """``ext-sense run tap_localization`` in its own process group, its output read as it comes."""
+
+    def __init__(self, *args: str) -> None:
+        self.proc = subprocess.Popen(
+            [*EXE, "run", "tap_localization", *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+        )
+        self.out: list[str] = []
+        self.err: list[str] = []
+        self.readers = [
+            threading.Thread(target=self._read, args=(s, lines), daemon=True)
+            for s, lines in ((self.proc.stdout, self.out), (self.proc.stderr, self.err))
+        ]
+        for r in self.readers:
+            r.start()
+
+    @staticmethod
+    def _read(stream, lines: list[str]) -> None:
+        for line in stream:
+            lines.append(line)
+
+    def wait_for_tap(self, timeout: float) -> bool:
+        """Whether the monitor printed an estimate (every node up and working) in time."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and self.proc.poll() is None:
+            if any(x.startswith("tap ") for x in self.out):
+                return True
+            time.sleep(0.05)
+        return False
+
+    def group_alive(self) -> bool:
+        try:
+            os.killpg(self.proc.pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
+    def stop(self, signals: list[tuple[float, signal.Signals]]) -> float:
+        """Send ``signals`` to the process group; returns the seconds until the group is gone
+        (``inf`` if it was not gone after :data:`STOP_LIMIT_S`, then it is killed)."""
+        start = time.monotonic()
+        for delay, signum in signals:
+            time.sleep(delay)
+            if self.group_alive():
+                os.killpg(self.proc.pid, signum)
+        while self.group_alive() and time.monotonic() - start < STOP_LIMIT_S:
+            self.proc.poll()  # reap the runner; its children are its to reap
+            time.sleep(0.02)
+        took = time.monotonic() - start
+        if self.group_alive():
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            took = float("inf")
+        self.proc.wait(timeout=10)
+        for r in self.readers:
+            r.join(timeout=5)
+        return took
+
+
+@pytest.fixture(scope="module")
+def tap_model(tmp_path_factory):
+    model, _ = train_sim_model(
+        tmp_path_factory.mktemp("shutdown_model"), "tap_rod30_nuskin", "tap_localization", 16
+    )
+    return model
+
+
+def test_ctrl_c_of_the_process_group_ends_every_node_cleanly(tap_model, tmp_path, capsys):
+    results = []
+    for run in range(RUNS):
+        graph = Graph(
+            "trials:=0",  # forever: only the signal ends the graph
+            f"model:={tap_model}",
+            f"seed:={run}",
+            f"port:={tmp_path / f'nuskin{run}.pty'}",
+        )
+        up = graph.wait_for_tap(timeout=60)
+        time.sleep(0.13 * run % 1.0)  # the signal lands at different points of the stream
+        signals = _signals(run)
+        took = graph.stop(signals)
+        stdout, stderr = "".join(graph.out), "".join(graph.err)
+        (tmp_path / f"run{run}.log").write_text(stdout + stderr)
+        results.append(
+            {
+                "run": run,
+                "signals": "+".join(s.name for _, s in signals),
+                "up": up,
+                "stop_s": took,
+                "runner": graph.proc.returncode,
+                "codes": child_exit_codes(stderr),
+                "crash_lines": sum(
+                    any(m in line for m in CRASH_MARKERS) for line in (stdout + stderr).splitlines()
+                ),
+                # each C++ abort prints one "terminate called" (its "Fatal Python error" lines
+                # come once or twice); a node the runner saw end with SIGABRT counts too
+                "aborts": max(
+                    stderr.count("terminate called"),
+                    sum(c == -signal.SIGABRT for c in child_exit_codes(stderr).values()),
+                ),
+                "problems": stop_problems(graph.proc, stdout, stderr),
+            }
+        )
+
+    aborts = sum(r["aborts"] for r in results)
+    nonzero = sum(r["runner"] != 0 for r in results) + sum(
+        c != 0 for r in results for c in r["codes"].values()
+    )
+    crash_lines = sum(r["crash_lines"] for r in results)
+    worst = max(r["stop_s"] for r in results)
+    summary = (
+        f"shutdown: {RUNS} runs: {aborts} aborts, {crash_lines} traceback/abort lines, "
+        f"{nonzero} non-zero exits (runner and {sum(len(r['codes']) for r in results)} nodes), "
+        f"slowest stop {worst:.2f} s"
+    )
+    with capsys.disabled():
+        print()
+        for r in results:
+            print(
+                f"  run {r['run']}: {r['signals']:<13} stop {r['stop_s']:.2f} s, "
+                f"runner {r['runner']}, nodes {r['codes']}"
+            )
+        print(summary)
+    failed = [r for r in results if r["problems"] or not r["up"] or r["stop_s"] > STOP_LIMIT_S]
+    assert not failed, f"{summary}\n" + "\n".join(
+        f"run {r['run']} ({r['signals']}, up={r['up']}, {tmp_path}/run{r['run']}.log): "
+        f"{r['problems']}"
+        for r in failed
+    )
+    for r in results:
+        assert set(r["codes"]) == NODES, r["codes"]
+
+
+def test_ctrl_c_while_the_nodes_start(tap_model, tmp_path):
+    """A Ctrl-C while the node processes still start up (interpreters importing rclpy): held
+    until each node process can stop cleanly, not a ``KeyboardInterrupt`` in some import."""
+    for run, delay in enumerate((0.4, 1.0)):
+        graph = Graph("trials:=0", f"model:={tap_model}", f"port:={tmp_path / f'n{run}.pty'}")
+        time.sleep(delay)
+        took = graph.stop([(0.0, signal.SIGINT)])
+        stdout, stderr = "".join(graph.out), "".join(graph.err)
+        problems = stop_problems(graph.proc, stdout, stderr)
+        assert took <= STOP_LIMIT_S, (delay, took)
+        assert not problems, (delay, problems)
