@@ -45,9 +45,11 @@ setup-jazzy:
 test-jazzy: setup-jazzy
 	@$(JAZZY_VENV)/bin/pytest -m ros
 
-## Build the workspace with colcon (as the Docker image does), into ros2_ws/{build,install}.
+## Build the workspace with colcon (as the Docker image does), into ros2_ws/{build,install};
+## colcon-bash writes install/setup.bash (`source install/setup.bash`), colcon-core only setup.sh.
 colcon: setup
-	@$(VENV)/bin/python -m pip install -q colcon-core colcon-ros colcon-cmake colcon-python-setup-py
+	@$(VENV)/bin/python -m pip install -q colcon-core colcon-ros colcon-cmake colcon-python-setup-py \
+	  colcon-bash
 	@PATH=$(abspath $(VENV))/bin:$$PATH AMENT_PREFIX_PATH=$(abspath $(VENV)) PYTHON=$(abspath $(PY)) \
 	  scripts/build_workspace.sh
 

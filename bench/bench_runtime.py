@@ -15,8 +15,9 @@ left out of the graph (the bench itself is their source).
    from the end of the window (onset + 250 ms, the window's last possible event) to the
    estimate arriving here, and prints it beside the node's own ``compute_latency`` (features
    and model). Targets: p50 <= 5 ms, p99 <= 10 ms. The model is ``--model``, else the demo's
-   (``$EXT_SENSE_MODELS/tap_localization_nuskin``); when that is missing the demo's training
-   (``ext_sense.commands.demo.ensure_model``) trains one into a temporary directory first.
+   (``tap_localization_nuskin``, found as the graphs find it); when that is missing the demo's
+   training (``ext_sense.commands.demo.ensure_model``) trains one into a temporary directory
+   first.
 2. Worst case: 80 taxels at 4 kHz (320k events/s) as receiver words over a pty into the graph's
    ``nuskin_driver`` (``source:=serial``), then its ``contact_window``; events sent vs events
    the window node counted.
@@ -174,23 +175,26 @@ def tap_batches(
 def latency_model(model: str, train_taps: int, tmp: Path) -> tuple[Path, str]:
     """The bundle to serve and how it was found: ``--model``, the demo's, or trained here."""
     from ext_sense.commands.demo import ensure_model
-    from ext_sense_perception.online.predictor import default_model_dir
+    from ext_sense_perception.errors import PerceptionError
+    from ext_sense_perception.online.model_store import find_model
 
     if model:
         path = Path(model).resolve()
         if not (path / "model_card.json").is_file():
             raise SystemExit(f"bench_runtime: --model {model}: no model_card.json there")
         return path, str(path)
-    default = default_model_dir(GRAPH, "nuskin").resolve()
-    if (default / "model_card.json").is_file():
+    try:
+        default = find_model("", GRAPH, "nuskin")
         return default, f"{default} (the demo's)"
+    except PerceptionError as err:
+        missing = str(err)
     out = tmp / "model"
     t0 = time.monotonic()
     if ensure_model(out, "nuskin", train_taps, log=sys.stderr):
         raise SystemExit("bench_runtime: training the demo's model failed")
     return out, (
         f"the demo's, trained here on {train_taps} streamed taps in "
-        f"{time.monotonic() - t0:.0f} s (none at {default})"
+        f"{time.monotonic() - t0:.0f} s ({missing})"
     )
 
 

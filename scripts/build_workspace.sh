@@ -19,3 +19,11 @@ fi
 cd "$ROOT/ros2_ws"
 colcon build --event-handlers console_direct- \
   --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$(command -v "$PYTHON")"
+
+# The README's next step is `source install/setup.bash`: colcon writes it only with the
+# colcon-bash extension (colcon-common-extensions has it; colcon-core alone writes setup.sh).
+if [ ! -f install/setup.bash ]; then
+  echo "build_workspace.sh: ros2_ws/install/setup.bash was not written: install colcon-bash" \
+    "(pip install colcon-bash, or apt install python3-colcon-bash)" >&2
+  exit 1
+fi

@@ -16,6 +16,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "ext_sense.commands.run",  # run GRAPH
     "ext_sense.commands.bags",  # record, replay
     "ext_sense.commands.demo",  # demo (the main job)
+    "ext_sense.commands.models",  # models create|list
     "ext_sense_drivers.cli",  # nuskin ..., biotac ...
     "ext_sense_sim.cli",  # sim list|run|serve
     "ext_sense_perception.cli",  # features, train, evaluate, report

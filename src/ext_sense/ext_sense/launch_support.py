@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 from ext_sense.graph import as_bool, launch_node_kwargs
+from ext_sense.graph_model import with_model
 from ext_sense.graphs import GRAPHS
 
 
@@ -18,7 +19,10 @@ def generate_launch_description_for(graph_name: str) -> Any:
 
     Nodes are built in an ``OpaqueFunction`` once the launch arguments are resolved, by the same
     ``GraphSpec.build`` that ``ext-sense run`` calls; a node marked ``required`` shuts the whole
-    launch down when it exits.
+    launch down when it exits. Before any node is built, the graph's model is looked up as
+    ``ext-sense run`` does (:func:`ext_sense.graph_model.with_model`): with no usable model the
+    function raises, so the launch fails before any process starts and ``ros2 launch`` prints
+    the message (which places were searched, which command creates the models) and exits 1.
     """
     from launch import LaunchDescription
     from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
@@ -29,6 +33,7 @@ def generate_launch_description_for(graph_name: str) -> Any:
 
     def _nodes(context: Any) -> list[Any]:
         values = {a.name: LaunchConfiguration(a.name).perform(context) for a in graph.arguments}
+        values = with_model(graph, values)  # ModelMissingError: nothing is started
         use_sim_time = as_bool(values["use_sim_time"])
         actions = []
         for spec in graph.nodes(values):

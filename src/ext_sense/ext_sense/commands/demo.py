@@ -1,10 +1,12 @@
 """``ext-sense demo``: the main job, end to end, in one command.
 
-1. Makes sure a tap-localisation model exists: when ``MODEL_DIR/model_card.json`` is missing it
-   trains one into ``build/models/tap_localization_<sensor>`` (the default the inference node
-   looks in). NUSkin: on windows cut from the emulated device's own byte stream by the driver's
-   decoder and the window node's core (no train/serve skew); BioTac: ``ext-sense sim run`` then
-   ``ext-sense train``.
+1. Makes sure a tap-localisation model exists: when ``MODEL_DIR/model_card.json`` is missing (or
+   was trained from other simulator or perception code) it trains one into
+   ``tap_localization_<sensor>`` in the user's data directory (``$EXT_SENSE_MODELS`` when set;
+   the place ``ext-sense models create`` writes and the graphs look in first, see
+   ``ext_sense_perception.online.model_store``), or into ``--model DIR``. NUSkin: on windows
+   cut from the emulated device's own byte stream by the driver's decoder and the window node's
+   core (no train/serve skew); BioTac: ``ext-sense sim run`` then ``ext-sense train``.
 2. Runs the ``tap_localization`` graph with ``source:=sim``: the emulated NUSkin streams over a
    pty, the driver decodes it, ``contact_window`` cuts windows, ``contact_inference`` publishes
    ``/extsense/contact_estimate``, and ``estimate_monitor`` prints each estimate beside the
@@ -41,8 +43,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--model",
         type=Path,
-        help="model bundle (default: "
-        "$EXT_SENSE_MODELS/tap_localization_<sensor>, trained when missing)",
+        help="model bundle directory, trained when missing (default: tap_localization_<sensor> "
+        "in $EXT_SENSE_MODELS when set, else in ~/.local/share/ext_sense/models)",
     )
     parser.add_argument("--backend", choices=("onnx", "sklearn"), default="onnx")
     parser.add_argument(
@@ -172,7 +174,7 @@ def train_on_stream(model_dir: Path, scene_name: str, trials: int, log: TextIO) 
 def _train_on_dataset(
     model_dir: Path, sensor: str, scene_name: str, trials: int, retrain: bool, log: TextIO
 ) -> int:
-    """Simulate a dataset (kept under build/datasets) and train the one recipe on it."""
+    """Simulate a dataset (kept in ``datasets/`` beside the models directory) and train on it."""
     from ext_sense_perception.data.sources import from_sim_dataset
     from ext_sense_perception.errors import PerceptionError
     from ext_sense_perception.training.recipe import train_bundle
@@ -220,9 +222,9 @@ def as_delivered(dataset: Path, out: Path) -> Path:
 def _demo(args: argparse.Namespace) -> int:
     from ext_sense.graphs import GRAPHS
     from ext_sense.runner import run_graph
-    from ext_sense_perception.online.predictor import default_model_dir
+    from ext_sense_perception.online.model_store import default_name, default_store
 
-    model_dir = (args.model or default_model_dir(TASK, args.sensor)).resolve()
+    model_dir = (args.model or default_store() / default_name(TASK, args.sensor)).resolve()
     rc = ensure_model(model_dir, args.sensor, args.train_trials, args.retrain, args.scene)
     if rc:
         print(f"ext-sense demo: preparing the model failed ({rc})", file=sys.stderr)

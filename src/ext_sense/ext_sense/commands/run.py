@@ -36,6 +36,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from ext_sense.graph_model import ModelMissingError, with_model
+
     graph = GRAPHS[args.graph]
     if args.show_args:
         for a in graph.arguments:
@@ -49,6 +51,10 @@ def _run(args: argparse.Namespace) -> int:
         print(f"ext-sense run: {err}", file=sys.stderr)
         return 2
     if args.dry_run:
+        try:  # show the bundle the graph would load; a missing one is only noted here
+            nodes = graph.nodes(with_model(graph, overrides))
+        except ModelMissingError as err:
+            print(f"note: {err}", file=sys.stderr)
         for spec in nodes:
             remaps = " ".join(f"{a}:={b}" for a, b in spec.remappings)
             params = " ".join(f"{k}:={v!r}" for k, v in spec.parameters.items())
@@ -56,6 +62,12 @@ def _run(args: argparse.Namespace) -> int:
             print(f"{spec.name}: {spec.package}/{spec.executable}{required}")
             print(f"    parameters: {params}\n    remappings: {remaps}")
         return 0
+    try:  # before any node starts: a graph without a usable model refuses here
+        overrides = with_model(graph, overrides)
+    except GraphError as err:
+        print(f"ext-sense run: {err}", file=sys.stderr)
+        return 2
+    print(f"[run] model {overrides['model']}", file=sys.stderr)
     from ext_sense.runner import run_graph
 
     return run_graph(graph, overrides, in_process=args.in_process)

@@ -29,7 +29,8 @@ from rclpy.node import Node
 from ext_sense_msgs.msg import ContactEstimate, ContactWindow
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.messages import window_from_msg
-from ext_sense_perception.online.predictor import ModelBundle, default_model_dir, load_model
+from ext_sense_perception.online.model_store import default_name, locate_model
+from ext_sense_perception.online.predictor import ModelBundle, load_model
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
@@ -53,15 +54,16 @@ class ContactInferenceNode(Node):
         self.backend = declare(
             self, "backend", "onnx", "Inference backend: onnx or sklearn.", read_only=True
         )
-        path = declare(
+        self.model_arg = declare(
             self,
             "model_path",
             "",
-            "Model bundle directory; empty: "
-            "$EXT_SENSE_MODELS/<task>_<sensor> (default build/models).",
+            "Model bundle directory, or a model name looked up in $EXT_SENSE_MODELS, the user's "
+            "data directory, the package share and the checkout's build/models; empty: the "
+            "task's default model, <task>_<sensor>.",
             read_only=True,
         )
-        self.model_path = Path(path) if path else default_model_dir(self.task, self.sensor)
+        self.model_path: Path | None = None
         self.publish_provisional = declare(
             self, "publish_provisional", True, "Publish estimates of provisional (anytime) windows."
         )
@@ -103,7 +105,7 @@ class ContactInferenceNode(Node):
             WINDOW_QOS,
             event_callbacks=self.qos_events.subscription(),
         )
-        self.updater = Updater(hardware_id=str(self.model_path))
+        self.updater = Updater(hardware_id=self.model_arg or default_name(self.task, self.sensor))
         self.updater.add_check("model", self._check_model)
         self.updater.add_check("inference", self._check_inference)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
@@ -112,6 +114,8 @@ class ContactInferenceNode(Node):
 
     def _load(self) -> None:
         try:
+            # a name is looked up again at every try: a model created meanwhile is found
+            self.model_path = locate_model(self.model_arg, self.task, self.sensor)
             self.model = load_model(self.model_path, self.backend)
         except PerceptionError as err:
             self.model = None
@@ -157,7 +161,7 @@ class ContactInferenceNode(Node):
 
     def _check_model(self) -> tuple[Level, str, dict[str, object]]:
         values = {
-            "model_path": str(self.model_path),
+            "model_path": str(self.model_path or self.model_arg),
             "backend": self.backend,
             "model_id": self.model_id,
         }

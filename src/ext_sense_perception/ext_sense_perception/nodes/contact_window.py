@@ -18,7 +18,6 @@ from __future__ import annotations
 import array
 import time
 from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 from rclpy.node import Node
@@ -27,7 +26,7 @@ from ext_sense_msgs.msg import BioTacFrame, ContactGroundTruth, ContactWindow, T
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.messages import window_fields
 from ext_sense_perception.online.model_card import read_card
-from ext_sense_perception.online.predictor import default_model_dir
+from ext_sense_perception.online.model_store import locate_model
 from ext_sense_perception.online.stage import WindowStage
 from ext_sense_perception.online.window import WindowConfig
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
@@ -57,8 +56,9 @@ class ContactWindowNode(Node):
             self,
             "model_path",
             "",
-            "Model bundle whose card's task profile cuts the windows (empty: "
-            "$EXT_SENSE_MODELS/<task>_<sensor>); without a readable card, the task's own profile.",
+            "Model bundle whose card's task profile cuts the windows: a directory, or a model "
+            "name looked up as contact_inference does (empty: the task's default model, "
+            "<task>_<sensor>); without a readable card, the task's own profile.",
             read_only=True,
         )
         base, profile_source = self._base_config(task, sensor, model_path)
@@ -226,11 +226,11 @@ class ContactWindowNode(Node):
     def _base_config(self, task: str, sensor: str, model_path: str) -> tuple[WindowConfig, str]:
         """The window configuration of the model's card, else of the task; and where from."""
         try:
-            path = Path(model_path) if model_path else default_model_dir(task, sensor)
             config = WindowConfig.for_task(task, sensor)
         except PerceptionError as err:
             raise ValueError(f"contact_window: {err}") from err
         try:
+            path = locate_model(model_path, task, sensor)
             card = read_card(path)
         except PerceptionError as err:
             self.get_logger().info(f"task profile of {task} (no model card: {err})")

@@ -10,7 +10,6 @@ ONNX Runtime: this module imports neither scikit-learn's training stack nor torc
 
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 from typing import Any
@@ -31,16 +30,6 @@ from ext_sense_runtime.records import Estimate
 
 BACKENDS = ("onnx", "sklearn")
 BACKEND_NAMES = {"onnx": "ONNX", "sklearn": "scikit-learn"}
-
-
-def default_model_dir(task: str, sensor: str) -> Path:
-    """Where a task's default model bundle lives: ``$EXT_SENSE_MODELS/<task>_<sensor>``.
-
-    ``EXT_SENSE_MODELS`` defaults to ``build/models`` under the working directory; the demo
-    trains its model there when it is missing.
-    """
-    root = Path(os.environ.get("EXT_SENSE_MODELS", Path.cwd() / "build" / "models"))
-    return root / f"{task}_{sensor}"
 
 
 class ModelBundle:
