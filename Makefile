@@ -19,9 +19,9 @@ test: setup lint
 	@$(VENV)/bin/pytest
 
 ## The everyday lane: lint and the tests not marked slow (no graph subprocesses, no training on
-## hundreds of taps). Run `make test` before you push.
+## hundreds of taps), on both cores. Run `make test` before you push.
 test-fast: setup lint
-	@$(VENV)/bin/pytest -m "not slow"
+	@$(VENV)/bin/pytest -m "not slow" -n 2
 
 lint: setup
 	@$(VENV)/bin/ruff check .

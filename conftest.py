@@ -1,7 +1,8 @@
 """Test-wide settings: isolate ROS 2 traffic and logs of this test run.
 
-Each pytest run gets its own ROS_DOMAIN_ID (from the process id) and localhost-only discovery,
-so parallel runs on one machine never see each other's topics; logs go under build/.
+Each pytest run gets its own ROS_DOMAIN_ID (from the process id; under pytest-xdist one per
+worker) and localhost-only discovery, so parallel runs on one machine never see each other's
+topics; logs go under build/.
 Shared-memory segments that crashed participants leave in /dev/shm are cleaned at the end.
 """
 
@@ -16,6 +17,9 @@ ROOT = Path(__file__).resolve().parent
 SHARED_DATA = ROOT.parent / "shared" / "data"
 
 os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 200))
+if worker := os.environ.get("PYTEST_XDIST_WORKER"):  # gw0, gw1, ...: a domain each (below 233)
+    domain = int(os.environ["ROS_DOMAIN_ID"]) + 1 + int(worker[2:])
+    os.environ["ROS_DOMAIN_ID"] = str(domain % 232)
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("ROS_LOG_DIR", str(ROOT / "build" / "ros_log"))
 os.environ.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "1")

@@ -62,6 +62,18 @@ def tap_stream(
     return out
 
 
+def event_batch_msg(batch: Batch, stamp_ns: int | None = None):
+    """The rclpy ``TaxelEventBatch`` of a synthetic batch (stamp: ``stamp_ns``, else its own)."""
+    from ext_sense_msgs.msg import TaxelEventBatch
+    from ext_sense_runtime.stamps import fill_stamp
+
+    msg = TaxelEventBatch()
+    fill_stamp(msg.header.stamp, batch.stamp_ns if stamp_ns is None else stamp_ns)
+    msg.taxel, msg.polarity = batch.taxel, batch.polarity
+    msg.value, msg.offset_ns = batch.value, batch.offset_ns
+    return msg
+
+
 class CountingModel:
     """Stand-in for a tap model bundle: position = events in the window / 1e6 m; NaN rejected.
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 from rosutil import spinning, wait_for
-from synthetic import MS, T0, CountingModel, tap_stream
+from synthetic import MS, T0, CountingModel, event_batch_msg, tap_stream
 
 from ext_sense_bags import BagReader, BagWriter, ground_truth, taxel_event_batch, type_hash
 
@@ -116,14 +116,7 @@ def test_record_then_replay_flat_out_loses_nothing(tmp_path):
         fill_stamp(gt.header.stamp, T0)
         holder["truth"].publish(gt)
         for b in batches:
-            msg = TaxelEventBatch()
-            fill_stamp(msg.header.stamp, b.stamp_ns)
-            msg.taxel, msg.polarity, msg.value, msg.offset_ns = (
-                b.taxel,
-                b.polarity,
-                b.value,
-                b.offset_ns,
-            )
+            msg = event_batch_msg(b)
             holder["events"].publish(msg)
             time.sleep(0.0002)
         assert wait_for(lambda: recorder.received.get(EVENTS) == len(batches), 5.0)

@@ -24,7 +24,7 @@ import pytest
 from rosutil import spinning, wait_for
 from sim_models import EXE, stop_graph, train_sim_model
 from sim_models import cli as ext_sense
-from synthetic import T0, tap_stream
+from synthetic import T0, event_batch_msg, tap_stream
 
 from ext_sense_bags import BagReader, recover_bag
 
@@ -46,7 +46,6 @@ def test_recorder_node_survives_a_full_disk(tmp_path):
     from ext_sense.nodes.recorder import RecorderNode
     from ext_sense_msgs.msg import TaxelEventBatch
     from ext_sense_runtime.qos import DIAGNOSTICS_QOS, SENSOR_STREAM_QOS
-    from ext_sense_runtime.stamps import fill_stamp
 
     status: dict[str, tuple[int, str, dict[str, str]]] = {}
     holder = {}
@@ -64,14 +63,7 @@ def test_recorder_node_survives_a_full_disk(tmp_path):
 
     def publish(batches):
         for b in batches:
-            msg = TaxelEventBatch()
-            fill_stamp(msg.header.stamp, b.stamp_ns)
-            msg.taxel, msg.polarity, msg.value, msg.offset_ns = (
-                b.taxel,
-                b.polarity,
-                b.value,
-                b.offset_ns,
-            )
+            msg = event_batch_msg(b)
             holder["pub"].publish(msg)
             time.sleep(0.0005)
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rosutil import spinning, wait_for
-from synthetic import MS, CountingModel, tap_stream
+from synthetic import MS, CountingModel, event_batch_msg, tap_stream
 
 pytestmark = pytest.mark.ros
 
@@ -71,17 +71,10 @@ class Probe:
         return None
 
     def publish_batches(self, batches, base_ns, pace=True):
-        from ext_sense_msgs.msg import TaxelEventBatch
-        from ext_sense_runtime.stamps import fill_stamp
 
         t_start = time.monotonic()
         for i, b in enumerate(batches):
-            msg = TaxelEventBatch()
-            fill_stamp(msg.header.stamp, base_ns + (b.stamp_ns - batches[0].stamp_ns))
-            msg.taxel = b.taxel
-            msg.polarity = b.polarity
-            msg.value = b.value
-            msg.offset_ns = b.offset_ns
+            msg = event_batch_msg(b, base_ns + (b.stamp_ns - batches[0].stamp_ns))
             self.events.publish(msg)
             if pace:
                 delay = t_start + (i + 1) * 1e-3 - time.monotonic()
