@@ -24,25 +24,6 @@ class Geometry(NamedTuple):
         return self.n_samples * self.period_ns - self.pre_ns
 
 
-def window_matrix(windows: list, geometry: Geometry) -> np.ndarray:
-    """Stack window data into ``(n, n_channels * n_samples)`` float32, cropping longer windows.
-
-    Args:
-        windows: ``ContactWindow``s (or arrays ``(n_channels, n_samples)``).
-        geometry: The geometry to fit.
-
-    Returns:
-        The flattened windows.
-
-    Raises:
-        PerceptionError: when a window is shorter, has other channels or another period.
-    """
-    rows = [as_model_input(w, geometry) for w in windows]
-    if not rows:
-        return np.zeros((0, geometry.n_channels * geometry.n_samples), np.float32)
-    return np.stack(rows)
-
-
 def as_model_input(window: object, geometry: Geometry) -> np.ndarray:
     """One window as a flat float32 row for a model of ``geometry``.
 
