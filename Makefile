@@ -5,7 +5,7 @@ VENV        ?= .venv
 JAZZY_VENV  ?= .venv-jazzy
 PY          := $(VENV)/bin/python
 
-.PHONY: setup demo test test-fast lint format bench bench-quick test-jazzy setup-jazzy colcon clean
+.PHONY: setup demo demo-sessions test test-fast lint format bench bench-quick test-jazzy setup-jazzy colcon clean
 
 setup:
 	@scripts/setup.sh kilted
@@ -13,6 +13,10 @@ setup:
 ## The main job: tap localization on the emulated NUSkin, printing estimates beside ground truth.
 demo: setup
 	@$(VENV)/bin/ext-sense demo
+
+## Sessions on the simulator: collect, train, score on a second day, calibrate, score again.
+demo-sessions: setup
+	@scripts/demo_sessions.sh
 
 ## Lint and every test (unit, node, system). CI runs exactly this.
 test: setup lint

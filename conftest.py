@@ -44,6 +44,23 @@ def food_poking_dir(shared_data: Path) -> Path:
     return path
 
 
+FOOD_SESSIONS = (
+    "nuskin_food_poking",
+    "nuskin_food_poking_2021-04-03",
+    "nuskin_food_poking_2021-04-05",
+)
+
+
+@pytest.fixture(scope="session")
+def food_sessions(shared_data: Path) -> list[Path]:
+    """The three real NUSkin food-poking sessions (1, 3 and 5 April 2021), one folder each."""
+    paths = [shared_data / name for name in FOOD_SESSIONS]
+    absent = [str(p) for p in paths if not p.is_dir()]
+    if absent:
+        pytest.skip(f"real food sessions not available: {', '.join(absent)} absent")
+    return paths
+
+
 SHM = Path("/dev/shm")
 _SHM_AT_START: set[str] = set()
 

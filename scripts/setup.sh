@@ -51,25 +51,44 @@ if ! fresh deps "$s"; then
   rm -f "$VENV/.stamp-msgs"
 fi
 
-# 2. The interface package, built with cmake into the venv prefix.
-MSGS="$ROOT/src/ext_sense_msgs"
-s=$(stamp_of "$MSGS"/CMakeLists.txt "$MSGS"/package.xml "$MSGS"/msg/*.msg "$0")
-if ! fresh msgs "$s"; then
-  echo "setup: building ext_sense_msgs" >&2
-  BUILD="$ROOT/build/$DISTRO/ext_sense_msgs"
-  rm -rf "$BUILD"; mkdir -p "$(dirname "$BUILD")"
+# 2. The interface packages, built with cmake into the venv prefix: ours (ext_sense_msgs), and
+#    the parts of control_msgs and franka_msgs we use, which are not on PyPI (interfaces/,
+#    definitions byte-identical to upstream; on a ROS install the real packages are used).
+#    A file that differs on upstream's branch for this distribution (control_msgs jazzy:
+#    FollowJointTrajectory.action) lives in interfaces/$DISTRO/<package>/ and replaces its
+#    counterpart in a staged copy of the source.
+build_interfaces() {  # name source-dir python-import-check
+  local name=$1 src=$2 check=$3 over="$ROOT/interfaces/$DISTRO/$1" s build
+  shopt -s nullglob  # a package may have no srv/ or action/, and no overlay
+  s=$(stamp_of "$src"/CMakeLists.txt "$src"/package.xml "$src"/msg/*.msg "$src"/srv/*.srv \
+    "$src"/action/*.action "$over"/*/* "$0")
+  shopt -u nullglob
+  fresh "msgs-$name" "$s" && return 0
+  echo "setup: building $name" >&2
+  build="$ROOT/build/$DISTRO/$name"
+  rm -rf "$build" "$build-src"; mkdir -p "$(dirname "$build")"
+  if [ -d "$over" ]; then
+    cp -r "$src" "$build-src" && cp -r "$over"/. "$build-src"/ && src="$build-src"
+  fi
   # Fix 2: without AMENT_PREFIX_PATH rosidl finds no typesupport ("No 'rosidl_typesupport_c'").
   # Fix 3: Python3 must be this venv's interpreter, not the system's.
-  AMENT_PREFIX_PATH="$VENV" PATH="$VENV/bin:$PATH" cmake -S "$MSGS" -B "$BUILD" \
+  AMENT_PREFIX_PATH="$VENV" PATH="$VENV/bin:$PATH" cmake -S "$src" -B "$build" \
     -DBUILD_TESTING=OFF -DCMAKE_PREFIX_PATH="$VENV" -DCMAKE_INSTALL_PREFIX="$VENV" \
-    -DPython3_EXECUTABLE="$VPY" -DPYTHON_EXECUTABLE="$VPY" >"$BUILD.log" 2>&1 \
-    || { cat "$BUILD.log" >&2; exit 1; }
-  AMENT_PREFIX_PATH="$VENV" PATH="$VENV/bin:$PATH" cmake --build "$BUILD" -j2 >>"$BUILD.log" 2>&1 \
-    && cmake --install "$BUILD" >>"$BUILD.log" 2>&1 || { tail -50 "$BUILD.log" >&2; exit 1; }
-  "$VPY" -c "from ext_sense_msgs.msg import BioTacFrame, TaxelEventBatch, ContactWindow, ContactEstimate, ContactGroundTruth" \
-    || { echo "setup: ext_sense_msgs built but does not import" >&2; exit 1; }
-  mark msgs "$s"
-fi
+    -DPython3_EXECUTABLE="$VPY" -DPYTHON_EXECUTABLE="$VPY" >"$build.log" 2>&1 \
+    || { cat "$build.log" >&2; exit 1; }
+  AMENT_PREFIX_PATH="$VENV" PATH="$VENV/bin:$PATH" cmake --build "$build" -j2 >>"$build.log" 2>&1 \
+    && cmake --install "$build" >>"$build.log" 2>&1 || { tail -50 "$build.log" >&2; exit 1; }
+  "$VPY" -c "$check" || { echo "setup: $name built but does not import" >&2; exit 1; }
+  mark "msgs-$name" "$s"
+}
+[ -f "$VENV/.stamp-msgs" ] || rm -f "$VENV"/.stamp-msgs-*  # the wheels changed: rebuild all
+build_interfaces ext_sense_msgs "$ROOT/src/ext_sense_msgs" \
+  "from ext_sense_msgs.msg import BioTacFrame, TaxelEventBatch, ContactWindow, ContactEstimate, ContactGroundTruth"
+build_interfaces control_msgs "$ROOT/interfaces/control_msgs" \
+  "from control_msgs.action import FollowJointTrajectory, GripperCommand, ParallelGripperCommand"
+build_interfaces franka_msgs "$ROOT/interfaces/franka_msgs" \
+  "from franka_msgs.msg import FrankaRobotState; from franka_msgs.srv import SetFullCollisionBehavior; from franka_msgs.action import ErrorRecovery"
+touch "$VENV/.stamp-msgs"
 
 # 3. Every Python package of src/, editable (code changes need no reinstall; only a changed
 #    setup.py or a new package triggers this step).

@@ -32,6 +32,7 @@ def samples() -> dict[str, object]:
     batch.polarity = [1, -1, 0, 1]
     batch.value = [0, 1023, 512, 7]
     batch.offset_ns = [0, 250_000, 999_999, 2**40]
+    batch.flag = [1, 0, 0, 1]  # the receiver words' flag bits, as received
     batch.words_total, batch.resyncs, batch.skipped_bytes, batch.bad_taxel_words = 10, 2, 3, 1
 
     window = ContactWindow()

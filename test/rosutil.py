@@ -59,3 +59,17 @@ def wait_for(predicate: Callable[[], bool], timeout: float = 10.0, step: float =
             return True
         time.sleep(step)
     return bool(predicate())
+
+
+def spin_until(executor: Any, predicate: Callable[[], bool], timeout_s: float = 10.0) -> bool:
+    """Spin ``executor`` in this thread until ``predicate()`` holds; False after ``timeout_s``.
+
+    For tests that own their executor (lifecycle transitions, action round trips) rather than
+    spinning it in a thread as :func:`spinning` does.
+    """
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.01)
+        if predicate():
+            return True
+    return False

@@ -12,6 +12,8 @@ import re
 import signal
 import subprocess
 import sys
+import threading
+import time
 from pathlib import Path
 
 EXE = [sys.executable, "-m", "ext_sense.cli"]
@@ -106,14 +108,16 @@ def write_card(directory: Path, task: str = "tap_localization", sensor: str = "n
     from ext_sense_perception.online.model_card import ModelCard
     from ext_sense_perception.online.model_input import Geometry
     from ext_sense_perception.profiles import profile_for
-    from ext_sense_runtime.stamps import MS
 
     directory.mkdir(parents=True, exist_ok=True)
+    profile = profile_for(task)
+    period = profile.period_ns(sensor)
+    n_samples = (profile.pre_ns + profile.post_ns) // period  # the profile's whole window
     ModelCard(
         task=task,
         sensor=sensor,
-        profile=profile_for(task),
-        window=Geometry(80, 300, MS, 50 * MS),
+        profile=profile,
+        window=Geometry(80 if sensor == "nuskin" else 1, n_samples, period, profile.pre_ns, sensor),
         features="baseline",
         feature_params={},
         model="card-only",
@@ -126,3 +130,91 @@ def write_card(directory: Path, task: str = "tap_localization", sensor: str = "n
         data_hash="",
     ).write(directory)
     return directory
+
+
+STOP_LIMIT_S = 8.0
+"""Longest time from the first signal until the whole process group is gone: well inside
+launch's grace period (SIGTERM after 5 s, SIGKILL 5 s later) once the runner's own 5 s SIGKILL
+fallback is counted (it must never be needed: a killed node reports -9)."""
+
+
+class Graph:
+    """``ext-sense run GRAPH`` in its own process group, its output read as it comes."""
+
+    def __init__(self, *args: str, graph: str = "tap_localization") -> None:
+        self.proc = subprocess.Popen(
+            [*EXE, "run", graph, *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+        )
+        self.out: list[str] = []
+        self.err: list[str] = []
+        self.readers = [
+            threading.Thread(target=self._read, args=(s, lines), daemon=True)
+            for s, lines in ((self.proc.stdout, self.out), (self.proc.stderr, self.err))
+        ]
+        for r in self.readers:
+            r.start()
+
+    @staticmethod
+    def _read(stream, lines: list[str]) -> None:
+        for line in stream:
+            lines.append(line)
+
+    def wait_for_tap(self, timeout: float) -> bool:
+        """Whether the monitor printed an estimate (every node up and working) in time."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and self.proc.poll() is None:
+            if any(x.startswith("tap ") for x in self.out):
+                return True
+            time.sleep(0.05)
+        return False
+
+    def group_alive(self) -> bool:
+        try:
+            os.killpg(self.proc.pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
+    def stop(self, signals: list[tuple[float, signal.Signals]]) -> float:
+        """Send ``signals`` to the process group; returns the seconds until the group is gone
+        (``inf`` if it was not gone after :data:`STOP_LIMIT_S`, then it is killed)."""
+        start = time.monotonic()
+        for delay, signum in signals:
+            time.sleep(delay)
+            if self.group_alive():
+                os.killpg(self.proc.pid, signum)
+        while self.group_alive() and time.monotonic() - start < STOP_LIMIT_S:
+            self.proc.poll()  # reap the runner; its children are its to reap
+            time.sleep(0.02)
+        took = time.monotonic() - start
+        if self.group_alive():
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            took = float("inf")
+        self.proc.wait(timeout=10)
+        for r in self.readers:
+            r.join(timeout=5)
+        return took
+
+    def node_pid(self, name: str) -> int:
+        """The process id of the graph's node ``name`` (a child of the runner).
+
+        Raises:
+            LookupError: No such node process (not started, or gone).
+        """
+        marker = f'"name": "{name}"'
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit():
+                continue
+            try:
+                stat = (entry / "stat").read_text()
+                cmdline = (entry / "cmdline").read_bytes().decode(errors="replace")
+            except OSError:
+                continue
+            ppid = int(stat.rsplit(")", 1)[1].split()[1])
+            if ppid == self.proc.pid and "ext_sense.runner" in cmdline and marker in cmdline:
+                return int(entry.name)
+        raise LookupError(f"no process of node {name!r} under runner {self.proc.pid}")

@@ -345,13 +345,21 @@ def test_food_probe_stops_on_contact_and_classifies_its_own_window(food_model, t
     ]
     lowering = [a for a in arm if a[0] < stop[0]]
     assert lowering
-    assert all(v == pytest.approx(-0.01) for _, _, v, _ in lowering[1:])
+    # the descent is a FollowJointTrajectory of joint waypoints 50 ms apart (the sim_arm stands
+    # in for franka_ros2's joint_trajectory_controller), interpolated linearly in joint space:
+    # the Cartesian speed is 1 cm/s to within 0.16 % (measured), no longer exactly
+    speeds = [v for _, _, v, _ in lowering[1:]]
+    assert all(v == pytest.approx(-0.01, rel=2e-3) for v in speeds), speeds
     first_over = next(a for a in arm if a[3] >= 10.0)
     assert first_over[0] == stop[0]
     retract = next(d for d in decisions if d[1] == "RETRACTING")
     held = [a for a in arm if stop[0] < a[0] < retract[0]]
     assert held
-    assert max(abs(a[1] - first_over[1]) for a in held) < 1e-4
+    # the stop is a cancel of the trajectory goal over ROS (as on the robot): the fork travels on
+    # until the arm takes it, 0.1 mm per 10 ms at 1 cm/s (0.11 mm seen under load), then holds
+    assert max(abs(a[1] - first_over[1]) for a in held) < 1e-3
+    still = held[len(held) // 2 :]
+    assert max(a[1] for a in still) - min(a[1] for a in still) < 1e-6
     assert 0.139 < first_over[1] < 0.144  # 8 mm gap + 10 N / 1000 N/m, force bias aside
     finished = next(d for d in decisions if d[1] == "DONE")
     retracted = [a for a in arm if a[0] <= finished[0]][-1]  # (a next probe may have begun since)

@@ -103,6 +103,17 @@ def test_tap_localization_over_can(models):
     _check_summary(out, lines, SUMMARY_TAP, 3)
 
 
+def test_tap_localization_with_the_hot_path_in_one_process(models):
+    """``hot_path:=one_process``: driver, window and inference nodes in one node_group process."""
+    model, _ = models("tap_localization")
+    out, lines = _run_graph("tap_localization", model, 4, "hot_path:=one_process")
+    _check_summary(out, lines, SUMMARY_TAP, 4)
+    assert "started hot_path: nuskin_driver contact_window contact_inference in one process" in (
+        out.stderr
+    )
+    assert "[run] exit codes: sim_device=0 hot_path=0 estimate_monitor=0" in out.stderr
+
+
 def test_handover_over_pty(models):
     model, _ = models("handover_stability")
     out, lines = _run_graph("handover", model, 3)

@@ -250,17 +250,27 @@ class _FakeLaunch:
                 super().__init__(**kwargs)
                 fake.nodes.append(kwargs)
 
+        class LifecycleNode(Node):
+            pass
+
         names = {
             "launch": {"LaunchDescription": Entity},
             "launch.actions": {
                 "DeclareLaunchArgument": Entity,
                 "OpaqueFunction": Entity,
                 "Shutdown": Entity,
+                "EmitEvent": Entity,
+                "RegisterEventHandler": Entity,
             },
+            "launch.events": {"matches_action": lambda action: ("matches", action)},
             "launch.substitutions": {"LaunchConfiguration": LaunchConfiguration},
             "launch_ros": {},
-            "launch_ros.actions": {"Node": Node},
+            "launch_ros.actions": {"Node": Node, "LifecycleNode": LifecycleNode},
+            "launch_ros.event_handlers": {"OnStateTransition": Entity},
+            "launch_ros.events": {},
+            "launch_ros.events.lifecycle": {"ChangeState": Entity},
         }
+        self.lifecycle_node_type = LifecycleNode
         for name, attrs in names.items():
             monkeypatch.setitem(sys.modules, name, types.SimpleNamespace(**attrs))
 
@@ -293,7 +303,8 @@ def test_launch_support_refuses_without_a_model_before_any_node(graph_name, tmp_
     monkeypatch.setenv("EXT_SENSE_MODELS", str(tmp_path))
     model = write_card(tmp_path / f"{_task_of(graph_name)}_nuskin", _task_of(graph_name))
     actions = fake.run(graph_name)
-    assert len(actions) == len(fake.nodes) == len(GRAPHS[graph_name].nodes())
+    node_actions = [a for a in actions if "executable" in getattr(a, "kwargs", {})]
+    assert len(node_actions) == len(fake.nodes) == len(GRAPHS[graph_name].nodes())
     perception = [n for n in fake.nodes if n["package"] == "ext_sense_perception"]
     assert [n["parameters"][0]["model_path"] for n in perception] == [str(model)] * 2
 
@@ -334,3 +345,178 @@ def test_run_refuses_without_a_model_in_one_line_before_any_node(tmp_path):
     assert str(tmp_path / "data" / "ext_sense" / "models") in lines[0]
     assert "'ext-sense models create'" in lines[0]
     assert "[run] started" not in out.stderr + out.stdout
+
+
+@pytest.mark.parametrize(
+    ("argument", "message"),
+    [
+        ("trials:=abc", "The 'trials' argument must be an integer in [0, 1000000]. Got 'abc'"),
+        ("trials:=-1", "The 'trials' argument must be an integer in [0, 1000000]. Got '-1'"),
+        ("trials:=1.5", "The 'trials' argument must be an integer in [0, 1000000]. Got '1.5'"),
+        ("baud:=abc", "The 'baud' argument must be an integer in [1, 100000000]. Got 'abc'"),
+        ("seed:=xyz", "The 'seed' argument must be an integer in [0, 4294967295]. Got 'xyz'"),
+        ("handover_timeout_s:=nan", "'handover_timeout_s' argument must be a number in [0.1,"),
+        ("grasp_trials:=0", "The 'grasp_trials' argument must be an integer in [1, 1000]"),
+        ("source:=bag", "The 'bag' argument must name an existing rosbag2 directory or"),
+        ("port:=/nonexistent/x", "The 'port' argument must be a path in an existing, writable"),
+        ("scene:=/nonexistent/scene.yaml", "The 'scene' argument must be a scene name or an"),
+    ],
+)
+def test_bad_graph_arguments_are_refused_before_any_node_in_one_line(argument, message, tmp_path):
+    graph = GRAPHS["handover"]
+    overrides = parse_assignments([argument])
+    with pytest.raises(GraphError) as info:
+        graph.check_files(graph.resolve(overrides))
+    assert message in str(info.value)
+    out = subprocess.run(
+        [sys.executable, "-m", "ext_sense.cli", "run", "handover", argument],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=60,
+    )
+    assert out.returncode == 2
+    assert out.stderr.strip().splitlines() == [f"ext-sense run: {info.value}"]
+    assert "[run]" not in out.stderr + out.stdout
+
+
+def test_the_launch_file_refuses_bad_arguments_as_run_does(monkeypatch):
+    fake = _FakeLaunch(monkeypatch)
+    with pytest.raises(GraphError, match=r"The 'trials' argument must be an integer"):
+        fake.run("tap_localization", trials="abc")
+    with pytest.raises(GraphError, match=r"The 'bag' argument must name an existing"):
+        fake.run("tap_localization", source="bag", bag="/nonexistent.mcap")
+    assert fake.nodes == []
+
+
+def test_good_numbers_and_existing_files_pass(tmp_path):
+    graph = GRAPHS["handover"]
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    values = graph.resolve({"trials": " 0", "seed": "4294967295", "handover_timeout_s": "2.5"})
+    graph.check_files({**values, "port": str(tmp_path / "x.pty")})
+    graph.check_files({**values, "source": "bag", "bag": str(bag)})
+    graph.check_files({**values, "source": "serial", "port": "/dev/not_plugged_in_yet"})
+
+
+@pytest.mark.parametrize("manage", ["true", "false"])
+def test_launch_drives_the_lifecycle_drivers_unless_told_not_to(manage, tmp_path, monkeypatch):
+    """The driver is a LifecycleNode (with the namespace launch_ros requires); managed, the
+    launch emits configure and registers activate on configuring -> inactive."""
+    from lifecycle_msgs.msg import Transition
+
+    fake = _FakeLaunch(monkeypatch)
+    monkeypatch.setenv("EXT_SENSE_MODELS", str(tmp_path))
+    write_card(tmp_path / "tap_localization_nuskin", "tap_localization")
+    actions = fake.run("tap_localization", manage_drivers=manage)
+    drivers = [a for a in actions if isinstance(a, fake.lifecycle_node_type)]
+    assert [d.kwargs["executable"] for d in drivers] == ["nuskin_driver"]
+    assert drivers[0].kwargs["namespace"] == ""
+    assert drivers[0].kwargs["parameters"][0]["autostart"] is False
+    events = [a for a in actions if type(a).__name__ == "Entity" and "event" in a.kwargs]
+    handlers = [a for a in actions if type(a).__name__ == "Entity" and not a.kwargs and a.args]
+    if manage == "false":
+        assert events == []
+        assert handlers == []
+        return
+    configure = events[0].kwargs["event"].kwargs
+    assert configure["transition_id"] == Transition.TRANSITION_CONFIGURE
+    assert configure["lifecycle_node_matcher"] == ("matches", drivers[0])
+    on_transition = handlers[0].args[0].kwargs
+    assert on_transition["target_lifecycle_node"] is drivers[0]
+    assert (on_transition["start_state"], on_transition["goal_state"]) == (
+        "configuring",
+        "inactive",
+    )
+    activate = on_transition["entities"][0].kwargs["event"].kwargs
+    assert activate["transition_id"] == Transition.TRANSITION_ACTIVATE
+
+
+def test_food_probe_drives_its_arm_through_franka_ros2_interfaces():
+    graph = GRAPHS["food_identification"]
+    nodes = graph.nodes({"behaviours": "true"})
+    arm = next(s for s in nodes if s.executable == "sim_arm")
+    food = next(s for s in nodes if s.executable == "food_behaviour")
+    assert arm.package == "ext_sense_sim"
+    assert food.parameters["arm"] == "franka"  # the adapter, against sim_arm's interfaces
+    real = graph.nodes({"behaviours": "true", "arm": "franka"})
+    assert all(s.executable != "sim_arm" for s in real)
+    assert next(s for s in real if s.executable == "food_behaviour").parameters["arm"] == "franka"
+
+
+@pytest.mark.parametrize("manage", ["true", "false"])
+def test_gripper_is_a_lifecycle_node_managed_like_the_drivers(manage):
+    nodes = GRAPHS["handover"].nodes({"behaviours": "true", "manage_drivers": manage})
+    gripper = next(s for s in nodes if s.executable == "robotiq_gripper")
+    driver = next(s for s in nodes if s.executable == "nuskin_driver")
+    assert gripper.lifecycle
+    assert gripper.parameters["autostart"] is False
+    assert gripper.manage == driver.manage == (manage == "true")
+
+
+@pytest.mark.parametrize("graph_name", sorted(GRAPHS))
+def test_hot_path_one_process_groups_driver_window_and_inference(graph_name):
+    from ext_sense.graph_process import HOT_PATH, process_groups
+
+    graph = GRAPHS[graph_name]
+    apart = graph.nodes({"hot_path": "processes"})
+    assert all(len(specs) == 1 for _, specs in process_groups(apart))
+    assert apart == graph.nodes()  # one process per node is the default
+    for source, hot in (
+        ("sim", ["nuskin_driver", "contact_window", "contact_inference"]),
+        ("bag", ["contact_window", "contact_inference"]),  # the bag player is the source
+    ):
+        nodes = graph.nodes({"hot_path": "one_process", "source": source})
+        groups = dict(process_groups(nodes))
+        assert [s.name for s in groups[HOT_PATH]] == hot
+        # the other nodes keep a process each, and every node is started exactly once
+        assert all(len(v) == 1 for k, v in groups.items() if k != HOT_PATH)
+        assert sorted(s.name for v in groups.values() for s in v) == sorted(n.name for n in nodes)
+        # otherwise the same nodes as with a process each
+        assert [s.name for s in nodes] == [s.name for s in graph.nodes({"source": source})]
+
+
+def test_a_process_group_round_trips_through_its_json_argument():
+    import json
+
+    from ext_sense.runner import _spec_from_json, group_payload
+
+    nodes = GRAPHS["tap_localization"].nodes({"hot_path": "one_process", "model": "/m"})
+    group = tuple(n for n in nodes if n.process)
+    payload = json.loads(group_payload(group, use_sim_time=True))
+    assert payload["use_sim_time"] is True
+    assert tuple(_spec_from_json(raw) for raw in payload["specs"]) == group
+
+
+def test_node_group_is_a_console_script_of_ext_sense():
+    setup = (ROOT / "src" / "ext_sense" / "setup.py").read_text()
+    assert '"node_group = ext_sense.runner:main"' in setup
+
+
+@pytest.mark.parametrize("monitor", ["true", "false"])
+def test_launch_starts_the_hot_path_as_one_node_group_action(monitor, tmp_path, monkeypatch):
+    """One ``Node`` action of ``node_group`` (no name or remappings: they would apply to every
+    node of the process), holding the driver, window and inference node specs."""
+    import json
+
+    fake = _FakeLaunch(monkeypatch)
+    monkeypatch.setenv("EXT_SENSE_MODELS", str(tmp_path))
+    write_card(tmp_path / "tap_localization_nuskin", "tap_localization")
+    actions = fake.run("tap_localization", hot_path="one_process", monitor=monitor)
+    groups = [a for a in actions if a.kwargs.get("executable") == "node_group"]
+    assert len(groups) == 1
+    kwargs = groups[0].kwargs
+    assert kwargs["package"] == "ext_sense"
+    assert not {"name", "parameters", "remappings"} & kwargs.keys()
+    assert "on_exit" not in kwargs  # the required monitor is a process of its own
+    specs = json.loads(kwargs["arguments"][0])["specs"]
+    assert [s["name"] for s in specs] == ["nuskin_driver", "contact_window", "contact_inference"]
+    assert specs[0]["lifecycle"]
+    assert specs[0]["manage"]  # the group's process activates it
+    assert specs[1]["parameters"]["model_path"] == str(tmp_path / "tap_localization_nuskin")
+    # no LifecycleNode action nor lifecycle events: the driver is in the group
+    assert not [a for a in actions if isinstance(a, fake.lifecycle_node_type)]
+    others = [a.kwargs["executable"] for a in actions if a.kwargs.get("executable")]
+    assert others == ["sim_device", "node_group"] + (
+        ["estimate_monitor"] if monitor == "true" else []
+    )

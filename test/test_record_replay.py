@@ -187,3 +187,43 @@ def test_record_and_replay_commands(tmp_path):
     with BagReader(src) as a, BagReader(out) as b:
         assert b.topics[EVENTS].count == a.topics[EVENTS].count
         assert b.topics[TRUTH].count == 1
+
+
+@pytest.mark.ros
+@pytest.mark.slow  # starts the record and replay commands as processes
+def test_ctrl_c_ends_record_and_replay_with_exit_0_and_no_traceback(tmp_path):
+    """SIGINT to the process group, twice as a terminal and an impatient user send it."""
+    import os
+    import signal
+
+    src = tmp_path / "src"
+    write_tap_bag(src, onsets_ms=(100.0, 20_000.0))  # 20 s at recorded pace
+    exe = [sys.executable, "-m", "ext_sense.cli"]
+    commands = {
+        "record": [*exe, "record", str(tmp_path / "rec"), "--topics", EVENTS, TRUTH],
+        "replay": [*exe, "replay", str(src), "--start-delay", "0"],
+    }
+    for name, command in commands.items():
+        proc = subprocess.Popen(
+            command,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+        )
+        time.sleep(4.0)  # rclpy imported, spinning
+        assert proc.poll() is None, proc.communicate()
+        os.killpg(proc.pid, signal.SIGINT)
+        time.sleep(0.2)
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=20)
+        assert proc.returncode == 0, (name, out, err)
+        assert "Traceback" not in err, (name, err)
+        assert "KeyboardInterrupt" not in err, (name, err)
+        if name == "record":
+            assert out.splitlines()[-1].startswith("recorded ")
+            with BagReader(tmp_path / "rec") as bag:  # closed: footer and metadata written
+                assert set(bag.topics) <= {EVENTS, TRUTH}
+        else:
+            assert out.splitlines()[-1].startswith("stopped after ")

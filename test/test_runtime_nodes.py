@@ -20,7 +20,7 @@ def _params(**kw):
     return [Parameter(k, value=v) for k, v in kw.items()]
 
 
-def _json_loader(path, backend):
+def _json_loader(path, backend, *_):
     """Stand-in for the bundle loader: ``path/model.json`` must hold {"ok": true}."""
     from ext_sense_perception.errors import PerceptionError
 
@@ -95,7 +95,7 @@ def test_window_and_inference_nodes_give_provisional_then_final(monkeypatch, tmp
     from ext_sense_perception.nodes.contact_inference import ContactInferenceNode
     from ext_sense_perception.nodes.contact_window import ContactWindowNode
 
-    monkeypatch.setattr(contact_inference, "load_model", lambda p, b: CountingModel())
+    monkeypatch.setattr(contact_inference, "load_model", lambda p, b, *_: CountingModel())
     probes = []
     with spinning(
         lambda context: ContactWindowNode(context=context),
@@ -194,3 +194,204 @@ def test_inference_faults_keep_the_node_alive_and_recording_complete(monkeypatch
     with BagReader(bag) as reader:
         assert reader.topics["/window"].count == 5
         assert reader.topics["/window"].msgtype == "ext_sense_msgs/msg/ContactWindow"
+
+
+class _BrokenOnceModel(CountingModel):
+    """A model whose first prediction raises an unexpected error (not a PerceptionError)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.calls = 0
+
+    def predict(self, window):
+        self.calls += 1
+        if self.calls == 1:
+            raise TypeError("class_names is not a list")
+        return super().predict(window)
+
+
+def test_an_exception_in_a_callback_is_caught_counted_and_diagnosed(monkeypatch, tmp_path):
+    from ext_sense_msgs.msg import ContactWindow
+    from ext_sense_perception.nodes import contact_inference
+    from ext_sense_perception.nodes.contact_inference import ContactInferenceNode
+    from ext_sense_runtime.stamps import fill_stamp
+
+    monkeypatch.setattr(contact_inference, "load_model", lambda p, b, *_: _BrokenOnceModel())
+    probes = []
+
+    def window():
+        msg = ContactWindow()
+        fill_stamp(msg.header.stamp, time.time_ns() - 251 * MS)
+        msg.task, msg.sensor = "tap_localization", "nuskin"
+        msg.pre_onset_ns, msg.post_onset_ns, msg.sample_period_ns = 50 * MS, 250 * MS, MS
+        msg.shape, msg.channels = [2, 3], [1, 2]
+        msg.data = np.ones(6, dtype=np.float32)
+        return msg
+
+    with spinning(
+        lambda context: ContactInferenceNode(
+            context=context, parameter_overrides=_params(model_path=str(tmp_path))
+        ),
+        _probe_factory(probes),
+    ) as (inference, _):
+        probe = probes[0]
+        time.sleep(0.5)  # discovery
+        probe.windows.publish(window())
+        assert wait_for(lambda: inference.guard.total == 1, 3.0)
+        probe.windows.publish(window())  # the node goes on: the next window is estimated
+        assert wait_for(lambda: len(probe.estimates) == 1, 3.0)
+        assert wait_for(
+            lambda: (
+                (s := probe.status("contact_inference: callbacks")) is not None
+                and s.level == b"\x02"
+            ),
+            3.0,
+        )
+        st = probe.status("contact_inference: callbacks")
+        assert "_on_window: TypeError: class_names is not a list" in st.message
+        assert dict((kv.key, kv.value) for kv in st.values)["exceptions__on_window"] == "1"
+
+
+def test_a_stall_mid_contact_is_diagnosed_within_a_second_and_degrades_the_window(
+    monkeypatch, tmp_path
+):
+    """The event stream stops 50 ms into a tap (as a driver under ``kill -STOP``), then returns."""
+    from ext_sense_msgs.msg import ContactWindow
+    from ext_sense_perception.nodes import contact_inference
+    from ext_sense_perception.nodes.contact_inference import ContactInferenceNode
+    from ext_sense_perception.nodes.contact_window import ContactWindowNode
+    from ext_sense_runtime.qos import WINDOW_QOS
+
+    monkeypatch.setattr(contact_inference, "load_model", lambda p, b, *_: CountingModel())
+    probes = []
+    windows: list = []
+    with spinning(
+        lambda context: ContactWindowNode(context=context),
+        lambda context: ContactInferenceNode(
+            context=context, parameter_overrides=_params(model_path=str(tmp_path))
+        ),
+        _probe_factory(probes),
+    ) as (window_node, _, _):
+        probe = probes[0]
+        probe.node.create_subscription(ContactWindow, "window", windows.append, WINDOW_QOS)
+        time.sleep(0.5)  # discovery
+        batches = tap_stream([50.0], 1000.0, seed=2)
+        base = time.time_ns()
+        probe.publish_batches(batches[:100], base)  # stops 50 ms after the onset
+        stalled_at = time.monotonic()
+        seen: dict[int, float] = {}
+
+        def liveness_level():
+            st = probe.status("contact_window: liveness")
+            if st is not None and st.level[0] not in seen:
+                seen[st.level[0]] = time.monotonic() - stalled_at
+            return st
+
+        assert wait_for(lambda: (liveness_level(), 2 in seen)[1], 2.0, step=0.005)
+        st = probe.status("contact_window: liveness")
+        assert st.message.startswith("stall: no input on /events for ")
+        assert 1 in seen  # WARN first
+        print(f"stall: WARN after {seen[1]:.3f} s, ERROR after {seen[2]:.3f} s")
+        assert seen[1] < seen[2] < 1.0  # ERROR within a second of the stall
+        assert wait_for(lambda: any(not e.provisional for e in probe.estimates), 2.0)
+        finals = [e for e in probe.estimates if not e.provisional]
+        assert len(finals) == 1
+        assert finals[0].degraded
+        assert finals[0].degraded_reason.startswith("stall: no input on /events")
+        early = [e for e in probe.estimates if e.provisional and e.post_contact_used.nanosec < 40e6]
+        assert early
+        assert not any(e.degraded for e in early)  # cut before the stall
+        assert window_node.liveness.contacts_lost == 1
+        values = {kv.key: kv.value for kv in st.values}
+        assert values["stream"] == "/events"
+        # data returns: the status clears
+        probe.publish_batches(batches[100:400], base + 1500 * MS)
+        assert wait_for(
+            lambda: (
+                (s := probe.status("contact_window: liveness")) is not None and s.level == b"\x00"
+            ),
+            2.0,
+        )
+        assert {kv.key: kv.value for kv in probe.status("contact_window: liveness").values}[
+            "contacts_lost_in_stall"
+        ] == "1"
+    final_windows = [w for w in windows if not w.provisional]
+    assert [w.degraded for w in final_windows] == [True]
+
+
+def test_an_estimate_later_than_the_deadline_is_degraded(monkeypatch, tmp_path):
+    from ext_sense_msgs.msg import ContactWindow
+    from ext_sense_perception.nodes import contact_inference
+    from ext_sense_perception.nodes.contact_inference import ContactInferenceNode
+    from ext_sense_runtime.stamps import fill_stamp
+
+    monkeypatch.setattr(contact_inference, "load_model", lambda p, b, *_: CountingModel())
+    probes = []
+
+    def window(ended_ms_ago):
+        msg = ContactWindow()
+        fill_stamp(msg.header.stamp, time.time_ns() - (250 + ended_ms_ago) * MS)
+        msg.task, msg.sensor = "tap_localization", "nuskin"
+        msg.pre_onset_ns, msg.post_onset_ns, msg.sample_period_ns = 50 * MS, 250 * MS, MS
+        msg.shape, msg.channels = [2, 3], [1, 2]
+        msg.data = np.ones(6, dtype=np.float32)
+        return msg
+
+    with spinning(
+        lambda context: ContactInferenceNode(
+            context=context,
+            parameter_overrides=_params(model_path=str(tmp_path), deadline_ms=300.0),
+        ),
+        _probe_factory(probes),
+    ) as (inference, _):
+        probe = probes[0]
+        time.sleep(0.5)  # discovery
+        probe.windows.publish(window(1))
+        probe.windows.publish(window(2000))  # its window ended 2 s ago: a stalled node's
+        assert wait_for(lambda: len(probe.estimates) == 2, 3.0)
+        assert wait_for(
+            lambda: (
+                (s := probe.status("contact_inference: inference")) is not None
+                and s.level == b"\x01"
+            ),
+            3.0,
+        )
+    on_time, late = probe.estimates
+    assert not on_time.degraded
+    assert on_time.degraded_reason == ""
+    assert late.degraded
+    assert late.degraded_reason.startswith("late: ready 20")
+    assert late.degraded_reason.endswith("ms after the window ended (deadline 300 ms)")
+    assert inference.degraded_out == 1
+
+
+def test_a_quiet_stream_closes_the_window_by_deadline_and_an_idle_node_stops_waking():
+    """Windows close on data or, when the stream goes quiet, on one deadline; with nothing
+    pending the window node arms no timer (issue #16: the former 1 ms timer cost 12 % idle)."""
+    from ext_sense_msgs.msg import ContactWindow
+    from ext_sense_perception.nodes.contact_window import ContactWindowNode
+    from ext_sense_runtime.qos import WINDOW_QOS
+
+    probes = []
+    windows: list = []
+    with spinning(lambda context: ContactWindowNode(context=context), _probe_factory(probes)) as (
+        window_node,
+        _,
+    ):
+        probe = probes[0]
+        probe.node.create_subscription(ContactWindow, "window", windows.append, WINDOW_QOS)
+        time.sleep(0.5)  # discovery
+        assert window_node._armed_ns is None  # nothing arrived: nothing to wait for
+        # the events stop 60 ms after the onset: the rest of the window comes from the clock
+        batches = tap_stream([50.0], 110.0, noise_per_s=0.0, seed=3)
+        probe.publish_batches(batches, time.time_ns())
+        assert wait_for(lambda: any(not w.provisional for w in windows), 3.0)
+        final = [w for w in windows if not w.provisional]
+        assert len(final) == 1
+        assert not final[0].truncated  # closed at its end, not flushed by the stream timeout
+        assert [w.post_onset_ns // MS for w in windows] == [25, 50, 100, 150, 250]
+        assert wait_for(lambda: window_node._deadline.is_canceled(), 2.0)
+        assert window_node._armed_ns is None
+        woken = window_node.wakeups
+        time.sleep(0.5)
+        assert window_node.wakeups == woken  # idle: no timer callbacks at all

@@ -6,23 +6,23 @@ and no traceback (issue #15; docs/runtime.md "Stopping a graph").
 
 from __future__ import annotations
 
-import os
 import signal
-import subprocess
-import threading
 import time
 
 import pytest
-from sim_models import CRASH_MARKERS, EXE, child_exit_codes, stop_problems, train_sim_model
+from sim_models import (
+    CRASH_MARKERS,
+    STOP_LIMIT_S,
+    Graph,
+    child_exit_codes,
+    stop_problems,
+    train_sim_model,
+)
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(600)]
 
 NODES = {"sim_device", "nuskin_driver", "contact_window", "contact_inference", "estimate_monitor"}
 RUNS = 10
-STOP_LIMIT_S = 8.0
-"""Longest time from the first signal until the whole process group is gone: well inside
-launch's grace period (SIGTERM after 5 s, SIGKILL 5 s later) once the runner's own 5 s SIGKILL
-fallback is counted (it must never be needed: a killed node reports -9)."""
 
 
 def _signals(run: int) -> list[tuple[float, signal.Signals]]:
@@ -32,68 +32,6 @@ def _signals(run: int) -> list[tuple[float, signal.Signals]]:
     if run % 3 == 1:  # a second Ctrl-C, as from an impatient user or launch's forwarding
         return [(0.0, signal.SIGINT), (0.05 + 0.1 * run, signal.SIGINT)]
     return [(0.0, signal.SIGINT)]
-
-
-class Graph:
-    """``ext-sense run tap_localization`` in its own process group, its output read as it comes."""
-
-    def __init__(self, *args: str) -> None:
-        self.proc = subprocess.Popen(
-            [*EXE, "run", "tap_localization", *args],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            start_new_session=True,
-        )
-        self.out: list[str] = []
-        self.err: list[str] = []
-        self.readers = [
-            threading.Thread(target=self._read, args=(s, lines), daemon=True)
-            for s, lines in ((self.proc.stdout, self.out), (self.proc.stderr, self.err))
-        ]
-        for r in self.readers:
-            r.start()
-
-    @staticmethod
-    def _read(stream, lines: list[str]) -> None:
-        for line in stream:
-            lines.append(line)
-
-    def wait_for_tap(self, timeout: float) -> bool:
-        """Whether the monitor printed an estimate (every node up and working) in time."""
-        end = time.monotonic() + timeout
-        while time.monotonic() < end and self.proc.poll() is None:
-            if any(x.startswith("tap ") for x in self.out):
-                return True
-            time.sleep(0.05)
-        return False
-
-    def group_alive(self) -> bool:
-        try:
-            os.killpg(self.proc.pid, 0)
-        except ProcessLookupError:
-            return False
-        return True
-
-    def stop(self, signals: list[tuple[float, signal.Signals]]) -> float:
-        """Send ``signals`` to the process group; returns the seconds until the group is gone
-        (``inf`` if it was not gone after :data:`STOP_LIMIT_S`, then it is killed)."""
-        start = time.monotonic()
-        for delay, signum in signals:
-            time.sleep(delay)
-            if self.group_alive():
-                os.killpg(self.proc.pid, signum)
-        while self.group_alive() and time.monotonic() - start < STOP_LIMIT_S:
-            self.proc.poll()  # reap the runner; its children are its to reap
-            time.sleep(0.02)
-        took = time.monotonic() - start
-        if self.group_alive():
-            os.killpg(self.proc.pid, signal.SIGKILL)
-            took = float("inf")
-        self.proc.wait(timeout=10)
-        for r in self.readers:
-            r.join(timeout=5)
-        return took
 
 
 @pytest.fixture(scope="module")

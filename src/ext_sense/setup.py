@@ -16,12 +16,14 @@ setup(
     name=package_name,
     version="0.1.0",
     packages=find_packages(exclude=["test"]),
-    package_data={package_name: ["py.typed"]},
+    package_data={package_name: ["py.typed", "view/foxglove_layout.json"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/launch", sorted(glob.glob(LAUNCH_DIR + "/*.launch.py"))),
         ("share/" + package_name + "/config", glob.glob("config/*.yaml")),
+        # the live view's Foxglove layout (docs/view.md), where a ROS install looks for shares
+        ("share/" + package_name + "/foxglove", ["ext_sense/view/foxglove_layout.json"]),
     ],
     install_requires=["setuptools"],
     zip_safe=False,
@@ -34,6 +36,9 @@ setup(
             "ext-sense = ext_sense.cli:main",
             "estimate_monitor = ext_sense.nodes.estimate_monitor:main",
             "bag_player = ext_sense.nodes.bag_player:main",
+            "foxglove_view = ext_sense.nodes.foxglove_view:main",
+            # several nodes of a graph on one executor (hot_path:=one_process)
+            "node_group = ext_sense.runner:main",
         ],
     },
 )

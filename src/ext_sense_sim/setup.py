@@ -23,6 +23,7 @@ setup(
     entry_points={
         "console_scripts": [
             "sim_device = ext_sense_sim.nodes.sim_device:main",
+            "sim_arm = ext_sense_sim.nodes.sim_arm:main",
         ],
     },
 )

@@ -17,6 +17,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "ext_sense.commands.bags",  # record, replay
     "ext_sense.commands.demo",  # demo (the main job)
     "ext_sense.commands.models",  # models create|list
+    "ext_sense.commands.collect",  # collect TASK OUT
+    "ext_sense.commands.plot",  # plot BAG|CAPTURE_FOLDER
     "ext_sense_drivers.cli",  # nuskin ..., biotac ...
     "ext_sense_sim.cli",  # sim list|run|serve
     "ext_sense_perception.cli",  # features, train, evaluate, report

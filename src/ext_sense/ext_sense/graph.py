@@ -10,6 +10,7 @@ or ``rclpy``.
 from __future__ import annotations
 
 import importlib
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -23,12 +24,66 @@ class GraphError(ValueError):
 
 @dataclass(frozen=True)
 class ArgumentSpec:
-    """One launch argument: ``name:=value`` on the command line of both front ends."""
+    """One launch argument: ``name:=value`` on the command line of both front ends.
+
+    Values arrive as strings (``ros2 launch`` resolves every argument to one); ``kind`` and the
+    bounds are checked by :meth:`check` when the graph resolves its arguments, so a value that
+    is not a number, or out of range, is one line naming the argument before any node starts,
+    not a traceback in some node (or a graph that starts and fails later).
+
+    Attributes:
+        kind: ``str``, ``int`` or ``float``: what the value must parse as.
+        low: Inclusive lower bound of a number (``None``: none).
+        high: Inclusive upper bound of a number (``None``: none).
+    """
 
     name: str
     default: str
     description: str
     choices: tuple[str, ...] = ()
+    kind: type = str
+    low: float | None = None
+    high: float | None = None
+
+    def expected(self) -> str:
+        """What a value must be, in words (``"an integer in [0, 1000000]"``)."""
+        if self.choices:
+            return f"one of {list(self.choices)}"
+        what = {int: "an integer", float: "a number"}.get(self.kind, "a string")
+        low, high = _number(self.low), _number(self.high)
+        if self.low is not None and self.high is not None:
+            return f"{what} in [{low}, {high}]"
+        if self.low is not None:
+            return f"{what} >= {low}"
+        if self.high is not None:
+            return f"{what} <= {high}"
+        return what
+
+    def check(self, value: str) -> None:
+        """Refuse a value that is not of the argument's kind, range or choices.
+
+        Raises:
+            GraphError: ``The 'trials' argument must be an integer >= 0. Got '-1' instead.``
+        """
+        wrong = GraphError(
+            f"The '{self.name}' argument must be {self.expected()}. Got '{value}' instead."
+        )
+        if self.choices:
+            if value not in self.choices:
+                raise wrong
+            return
+        if self.kind is str:
+            return
+        try:
+            number = self.kind(value.strip())
+        except ValueError:
+            raise wrong from None
+        if not math.isfinite(number):
+            raise wrong
+        if (self.low is not None and number < self.low) or (
+            self.high is not None and number > self.high
+        ):
+            raise wrong
 
 
 @dataclass(frozen=True)
@@ -43,6 +98,12 @@ class NodeSpec:
         parameters: Parameter overrides (typed, never strings for numbers).
         remappings: ``(from, to)`` topic remappings.
         required: When this node exits, the whole graph stops (launch's ``Shutdown``).
+        lifecycle: A lifecycle node (``rclpy.lifecycle``): it starts unconfigured.
+        manage: For a lifecycle node: the front end configures and activates it (launch
+            ``ChangeState`` events, ``ext-sense run`` in the node's process); false leaves it
+            unconfigured for an external lifecycle manager.
+        process: Name of the process this node shares with the others of that name (one
+            executor; :mod:`ext_sense.graph_process`); empty: a process of its own.
     """
 
     package: str
@@ -52,6 +113,9 @@ class NodeSpec:
     parameters: Mapping[str, ParameterValue] = field(default_factory=dict)
     remappings: tuple[tuple[str, str], ...] = ()
     required: bool = False
+    lifecycle: bool = False
+    manage: bool = True
+    process: str = ""
 
     def node_class(self) -> type:
         """Import and return the Node subclass named by :attr:`plugin`."""
@@ -82,12 +146,15 @@ class GraphSpec:
     description: str
     arguments: tuple[ArgumentSpec, ...]
     build: Callable[[Mapping[str, str]], tuple[NodeSpec, ...]]
+    files: Callable[[Mapping[str, str]], None] | None = None
+    """Checks that the files the arguments name exist (bag, pty directory, scene file)."""
 
     def resolve(self, overrides: Mapping[str, str] | None = None) -> dict[str, str]:
-        """Argument values: defaults updated with ``overrides``, checked against choices.
+        """Argument values: defaults updated with ``overrides``, each checked by its spec.
 
         Raises:
-            GraphError: An unknown argument, or a value outside the argument's choices.
+            GraphError: An unknown argument, or a value not of its argument's kind, range or
+                choices.
         """
         values = {a.name: a.default for a in self.arguments}
         known = {a.name: a for a in self.arguments}
@@ -97,17 +164,30 @@ class GraphSpec:
                     f"Graph '{self.name}' has no argument '{key}'. "
                     f"Expected one of: {', '.join(sorted(known))}."
                 )
-            if known[key].choices and value not in known[key].choices:
-                raise GraphError(
-                    f"The '{key}' argument must be one of {list(known[key].choices)}. "
-                    f"Got '{value}' instead."
-                )
             values[key] = value
+        for argument in self.arguments:
+            argument.check(values[argument.name])
         return values
+
+    def check_files(self, values: Mapping[str, str]) -> None:
+        """Refuse, before any node starts, values naming files the graph needs but cannot use.
+
+        Args:
+            values: Resolved argument values (:meth:`resolve`).
+
+        Raises:
+            GraphError: One line naming the argument and what is wrong with its file.
+        """
+        if self.files is not None:
+            self.files(values)
 
     def nodes(self, overrides: Mapping[str, str] | None = None) -> tuple[NodeSpec, ...]:
         """The nodes to start for these argument values."""
         return self.build(self.resolve(overrides))
+
+
+def _number(x: float | None) -> str:
+    return str(int(x)) if x is not None and float(x).is_integer() else f"{x}"
 
 
 def parse_assignments(items: list[str]) -> dict[str, str]:

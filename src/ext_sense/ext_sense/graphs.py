@@ -14,9 +14,21 @@ The functions here only describe; :mod:`ext_sense.launch_support` turns a descri
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Mapping
+from dataclasses import replace
+from pathlib import Path
 
-from ext_sense.graph import ArgumentSpec, GraphSpec, NodeSpec, ParameterValue, as_bool
+from ext_sense.graph import (
+    ArgumentSpec,
+    GraphError,
+    GraphSpec,
+    NodeSpec,
+    ParameterValue,
+    as_bool,
+)
+from ext_sense.graph_process import PROCESS_ARGUMENTS, place_hot_path
+from ext_sense.graph_view import VIEW_ARGUMENTS, view_nodes
 
 NS = "/extsense"
 TOPIC_EVENTS = f"{NS}/nuskin/events"
@@ -60,7 +72,9 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
             "Serial device of the sensor (source serial), or the path where the simulated "
             "device links its pty (source sim; empty: a path under /tmp).",
         ),
-        ArgumentSpec("baud", "4000000", "Serial baud rate (source serial)."),
+        ArgumentSpec(
+            "baud", "4000000", "Serial baud rate (source serial).", kind=int, low=1, high=100e6
+        ),
         ArgumentSpec(
             "can_channel",
             "",
@@ -69,8 +83,15 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
         ArgumentSpec("can_interface", "socketcan", "python-can interface (source can)."),
         ArgumentSpec("bag", "", "rosbag2 directory or .mcap file to replay (source bag)."),
         ArgumentSpec("scene", "", "Simulator scene name or YAML path (empty: the task's default)."),
-        ArgumentSpec("trials", default_trials, "Simulated trials; 0 runs until stopped."),
-        ArgumentSpec("seed", "0", "Simulator random seed."),
+        ArgumentSpec(
+            "trials",
+            default_trials,
+            "Simulated trials; 0 runs until stopped.",
+            kind=int,
+            low=0,
+            high=1e6,
+        ),
+        ArgumentSpec("seed", "0", "Simulator random seed.", kind=int, low=0, high=2**32 - 1),
         ArgumentSpec("model", "", "Model bundle directory (empty: the task's default model)."),
         ArgumentSpec("backend", "onnx", "Inference backend.", BACKENDS),
         ArgumentSpec(
@@ -98,6 +119,16 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
         ArgumentSpec(
             "use_sim_time", "false", "Use /clock (bag replay with clock).", ("true", "false")
         ),
+        ArgumentSpec(
+            "manage_drivers",
+            "true",
+            "Configure and activate the lifecycle driver nodes (the sensor driver, and the "
+            "gripper with behaviours); false leaves them unconfigured for an external "
+            "lifecycle manager (e.g. nav2_lifecycle_manager, `ros2 lifecycle set`).",
+            ("true", "false"),
+        ),
+        *VIEW_ARGUMENTS,
+        *PROCESS_ARGUMENTS,
     )
 
 
@@ -108,6 +139,39 @@ def _sensor_topic(sensor: str) -> tuple[str, str]:
 
 def _port(task: str, args: Mapping[str, str]) -> str:
     return args["port"] or f"/tmp/ext_sense_{task}_{args['sensor']}.pty"
+
+
+def _needed_files(task: str) -> Callable[[Mapping[str, str]], None]:
+    """The graph's check of the files its source needs (:meth:`GraphSpec.check_files`).
+
+    A serial device is not checked: one plugged in after the start must work (the driver
+    retries); the model is checked by :mod:`ext_sense.graph_model`.
+    """
+
+    def check(args: Mapping[str, str]) -> None:
+        source, bag, scene = args["source"], args["bag"], args["scene"]
+        if source == "bag" and not (bag and Path(bag).exists()):
+            got = f"'{bag}': no such file or directory" if bag else "nothing"
+            raise GraphError(
+                f"The 'bag' argument must name an existing rosbag2 directory or .mcap/.db3 file "
+                f"with source:=bag. Got {got}."
+            )
+        if source != "sim":
+            return
+        if not args["can_channel"]:
+            port = Path(_port(task, args))
+            if not (port.parent.is_dir() and os.access(port.parent, os.W_OK | os.X_OK)):
+                raise GraphError(
+                    f"The 'port' argument must be a path in an existing, writable directory (the "
+                    f"simulated device links its pty there). Got '{port}': {port.parent} is not."
+                )
+        if scene.endswith((".yaml", ".yml")) and not Path(scene).is_file():
+            raise GraphError(
+                f"The 'scene' argument must be a scene name or an existing YAML "
+                f"file. Got '{scene}': no such file."
+            )
+
+    return check
 
 
 def _source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
@@ -183,8 +247,15 @@ def _source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                 **(
                     {"frame_id": "nuskin"} if sensor == "nuskin" else {"frame_id_prefix": "biotac_"}
                 ),
+                # a lifecycle node: the front end (or an external manager) drives it
+                "autostart": False,
+                # the emulated devices send nothing between trials (a real NUSkin receiver
+                # sends its idle stream, a BioTac bridge 100 frames/s): no stall check on them
+                **({"expected_rate_hz": 0.0} if source == "sim" else {}),
             },
             remappings=((rel, topic),),
+            lifecycle=True,
+            manage=as_bool(args["manage_drivers"]),
         )
     )
     return tuple(nodes)
@@ -298,10 +369,13 @@ SIM_TRIGGERS = {
 simulated device, and how a trial is aligned to it (a grasp starts when the object is offered;
 a food trial's motion start is put at the probe's)."""
 
-SIM_FOOD_ARM = {"sim_start_z_m": 0.16, "sim_surface_z_m": 0.152, "stop_height_m": 0.125}
-"""The food probe's simulated arm against the food scene (``food_fork_nuskin``): the tines
-touch the food 8 mm below the start (the scene draws 4..12 mm) and the preset stop is the
-scene's 35 mm travel; its force is a 1000 N/m spring, not the scene's per-food profile."""
+SIM_FOOD_ARM = {"start_z_m": 0.16, "surface_z_m": 0.152}
+"""The simulated arm (``sim_arm``, franka_ros2's interfaces) against the food scene
+(``food_fork_nuskin``): the tines touch the food 8 mm below the start (the scene draws 4..12 mm);
+its force is a 1000 N/m spring, not the scene's per-food profile."""
+
+SIM_FOOD_STOP_HEIGHT_M = 0.125
+"""The probe's preset stop over the simulated arm: the scene's 35 mm travel from the start."""
 
 
 def _handover_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
@@ -311,10 +385,15 @@ def _handover_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
         # device listens, and not before the inference node has had time to load its model (as
         # the bag player's start delay)
         handover |= {"regrasp_s": 1.0, "start_subscribers": 1, "start_delay_s": 4.0}
+    # a lifecycle node, as the drivers: the front end (or an external manager) drives it
+    gripper = _behaviour(
+        "robotiq_gripper", "RobotiqGripperNode", {"port": args["gripper_port"], "autostart": False}
+    )
+    gripper = replace(
+        gripper, remappings=(), lifecycle=True, manage=as_bool(args["manage_drivers"])
+    )
     return (
-        _behaviour(
-            "robotiq_gripper", "RobotiqGripperNode", {"port": args["gripper_port"]}, remappings=()
-        ),
+        gripper,
         _behaviour(
             "handover_behaviour",
             "HandoverBehaviourNode",
@@ -328,21 +407,24 @@ def _handover_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
 
 
 def _food_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
-    food: dict[str, ParameterValue] = {}
+    # the behaviour always drives the arm through the franka_ros2 adapter; with arm:=sim the
+    # sim_arm node serves the same interfaces a franka_ros2 robot does
+    food: dict[str, ParameterValue] = {"arm": "franka"}
+    arm: tuple[NodeSpec, ...] = ()
+    if args["arm"] == "sim":
+        food["stop_height_m"] = SIM_FOOD_STOP_HEIGHT_M
+        plugin = "ext_sense_sim.nodes.sim_arm:SimArmNode"
+        arm = (NodeSpec("ext_sense_sim", "sim_arm", "sim_arm", plugin, dict(SIM_FOOD_ARM)),)
     if args["source"] == "sim":
         # probe by itself, once the window node and the simulated device hear the motion start
-        food = {**SIM_FOOD_ARM, "auto_start": True, "repeat_s": 2.0, "start_subscribers": 2}
-    return (
-        _behaviour(
-            "food_behaviour",
-            "FoodBehaviourNode",
-            food,
-            remappings=(
-                ("contact_estimate", TOPIC_ESTIMATE),
-                ("motion_start", TOPIC_MOTION_START),
-            ),
-        ),
+        food |= {"auto_start": True, "repeat_s": 2.0, "start_subscribers": 2}
+    probe = _behaviour(
+        "food_behaviour",
+        "FoodBehaviourNode",
+        food,
+        remappings=(("contact_estimate", TOPIC_ESTIMATE), ("motion_start", TOPIC_MOTION_START)),
     )
+    return (*arm, probe)
 
 
 def _chain(
@@ -351,11 +433,13 @@ def _chain(
     """The build function of a task's graph: source, driver, perception, behaviours, monitor."""
 
     def build(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
-        return (
+        return place_hot_path(
             _source_nodes(task, args)
             + _perception_nodes(task, args)
             + (behaviours(args) if as_bool(args["behaviours"]) else ())
             + _monitor_nodes(task, args)
+            + view_nodes(args, _sensor_topic(args["sensor"])),
+            args,
         )
 
     return build
@@ -367,6 +451,7 @@ GRAPHS: dict[str, GraphSpec] = {
         description="Where was the held rod tapped? Tap position on /extsense/contact_estimate.",
         arguments=_common_arguments("30"),
         build=_chain("tap_localization", _tap_behaviours),
+        files=_needed_files("tap_localization"),
     ),
     "handover": GraphSpec(
         name="handover",
@@ -379,19 +464,36 @@ GRAPHS: dict[str, GraphSpec] = {
                 "4",
                 "behaviours:=true with source sim: simulated trials (contact windows) per "
                 "person's grasp; trials:=N then makes N / grasp_trials handovers.",
+                kind=int,
+                low=1,
+                high=1000,
             ),
             ArgumentSpec(
                 "handover_timeout_s",
                 "30",
                 "Handover safety timeout, s: no stable grasp by then, keep holding.",
+                kind=float,
+                low=0.1,
+                high=3600,
             ),
         ),
         build=_chain("handover_stability", _handover_behaviours),
+        files=_needed_files("handover_stability"),
     ),
     "food_identification": GraphSpec(
         name="food_identification",
         description="Which food did the fork touch?",
-        arguments=_common_arguments("7"),
+        arguments=(
+            *_common_arguments("7"),
+            ArgumentSpec(
+                "arm",
+                "sim",
+                "behaviours:=true: the probe's arm, sim (the sim_arm node, franka_ros2's "
+                "interfaces) or franka (a franka_ros2 robot running fr3_arm_controller).",
+                ("sim", "franka"),
+            ),
+        ),
         build=_chain("food_identification", _food_behaviours),
+        files=_needed_files("food_identification"),
     ),
 }

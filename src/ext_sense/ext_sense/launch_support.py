@@ -9,9 +9,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from ext_sense.graph import as_bool, launch_node_kwargs
+from ext_sense.graph import NodeSpec, as_bool, launch_node_kwargs
 from ext_sense.graph_model import with_model
+from ext_sense.graph_process import process_groups
 from ext_sense.graphs import GRAPHS
+from ext_sense.runner import group_payload
 
 
 def generate_launch_description_for(graph_name: str) -> Any:
@@ -23,6 +25,21 @@ def generate_launch_description_for(graph_name: str) -> Any:
     ``ext-sense run`` does (:func:`ext_sense.graph_model.with_model`): with no usable model the
     function raises, so the launch fails before any process starts and ``ros2 launch`` prints
     the message (which places were searched, which command creates the models) and exits 1.
+    Arguments are checked the same way first (:meth:`~ext_sense.graph.GraphSpec.resolve`: kind
+    and range; :meth:`~ext_sense.graph.GraphSpec.check_files`: bag, pty directory, scene file):
+    ``trials:=abc`` fails the launch with the line ``ext-sense run`` prints.
+
+    A lifecycle node (the drivers) starts as ``launch_ros``'s ``LifecycleNode``; unless
+    ``manage_drivers:=false`` the launch emits its ``configure`` transition at once and its
+    ``activate`` when it reaches ``inactive`` from ``configuring`` (so a later deactivate by
+    hand is not undone), as a lifecycle manager would.
+
+    Nodes the graph puts in one process (``hot_path:=one_process``,
+    :mod:`ext_sense.graph_process`) are one ``Node`` action of the ``node_group`` executable
+    (:func:`group_node_kwargs`), as ``ext-sense run`` starts them; a lifecycle node among them
+    is configured and activated by that process, as ``ext-sense run`` does (or left
+    unconfigured with ``manage_drivers:=false``), since launch's lifecycle events need a
+    ``LifecycleNode`` action of its own.
     """
     from launch import LaunchDescription
     from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
@@ -33,14 +50,22 @@ def generate_launch_description_for(graph_name: str) -> Any:
 
     def _nodes(context: Any) -> list[Any]:
         values = {a.name: LaunchConfiguration(a.name).perform(context) for a in graph.arguments}
+        graph.check_files(graph.resolve(values))  # GraphError: nothing is started
         values = with_model(graph, values)  # ModelMissingError: nothing is started
         use_sim_time = as_bool(values["use_sim_time"])
         actions = []
-        for spec in graph.nodes(values):
+        for name, specs in process_groups(graph.nodes(values)):
+            if len(specs) > 1:  # one process, one executor: the node_group executable
+                actions.append(Node(**group_node_kwargs(name, specs, use_sim_time)))
+                continue
+            spec = specs[0]
             kwargs = launch_node_kwargs(spec, use_sim_time)
             if spec.required:
                 kwargs["on_exit"] = Shutdown(reason=f"{spec.name} finished")
-            actions.append(Node(**kwargs))
+            if spec.lifecycle:
+                actions += _lifecycle_actions(kwargs, spec.manage)
+            else:
+                actions.append(Node(**kwargs))
         return actions
 
     declared = [
@@ -53,3 +78,56 @@ def generate_launch_description_for(graph_name: str) -> Any:
         for a in graph.arguments
     ]
     return LaunchDescription([*declared, OpaqueFunction(function=_nodes)])
+
+
+def group_node_kwargs(name: str, specs: tuple[NodeSpec, ...], use_sim_time: bool) -> dict[str, Any]:
+    """Keyword arguments of ``launch_ros.actions.Node`` for a process group.
+
+    No ``name``, ``parameters`` or ``remappings`` at the action: launch_ros would pass them as
+    process-wide ROS arguments, renaming and remapping every node of the process alike. Each
+    node's own come in the JSON argument, as its node arguments (what ``ext-sense run`` gives).
+    A group holding a ``required`` node shuts the launch down when it exits.
+    """
+    from launch.actions import Shutdown
+
+    kwargs: dict[str, Any] = {
+        "package": "ext_sense",
+        "executable": "node_group",
+        "arguments": [group_payload(specs, use_sim_time)],
+        "output": "screen",
+        "emulate_tty": True,
+    }
+    if any(s.required for s in specs):
+        kwargs["on_exit"] = Shutdown(reason=f"{name} finished")
+    return kwargs
+
+
+def _lifecycle_actions(kwargs: dict[str, Any], manage: bool) -> list[Any]:
+    """A ``LifecycleNode`` and, when ``manage``, the events that configure and activate it."""
+    from launch.actions import EmitEvent, RegisterEventHandler
+    from launch.events import matches_action
+    from launch_ros.actions import LifecycleNode
+    from launch_ros.event_handlers import OnStateTransition
+    from launch_ros.events.lifecycle import ChangeState
+    from lifecycle_msgs.msg import Transition
+
+    node = LifecycleNode(namespace="", **kwargs)
+    if not manage:
+        return [node]
+
+    def change(transition_id: int) -> Any:
+        return EmitEvent(
+            event=ChangeState(
+                lifecycle_node_matcher=matches_action(node), transition_id=transition_id
+            )
+        )
+
+    activate_when_configured = RegisterEventHandler(
+        OnStateTransition(
+            target_lifecycle_node=node,
+            start_state="configuring",
+            goal_state="inactive",
+            entities=[change(Transition.TRANSITION_ACTIVATE)],
+        )
+    )
+    return [node, activate_when_configured, change(Transition.TRANSITION_CONFIGURE)]

@@ -66,7 +66,8 @@ def graph_nodes() -> list[NodeSpec]:
     for graph in GRAPHS.values():
         for sensor in ("nuskin", "biotac"):
             for source in ("sim", "bag"):
-                for spec in graph.nodes({"sensor": sensor, "source": source, "behaviours": "true"}):
+                given = {"sensor": sensor, "source": source, "behaviours": "true", "view": "true"}
+                for spec in graph.nodes(given):
                     seen.setdefault(spec.executable, spec)
     return sorted(seen.values(), key=lambda s: (s.package, s.executable))
 

@@ -14,6 +14,12 @@ once, then the runner forwards its own SIGINT; each child treats both as one sto
 (:mod:`ext_sense_runtime.node_main`), and so does the runner. Once the graph is down the runner
 ignores SIGINT and SIGTERM for the little that is left of its process.
 
+Nodes the graph puts in one process (:attr:`~ext_sense.graph.NodeSpec.process`, e.g. the hot
+path with ``hot_path:=one_process``, :mod:`ext_sense.graph_process`) are one child,
+``python -m ext_sense.runner GROUP_JSON``, spinning them on one executor; the exit codes then
+name the process (``hot_path=0``). The launch files start the same group through the
+``node_group`` console script, which is :func:`main`.
+
 ``--in-process`` instead adds every node to one executor in this process, which is handy for
 debugging with a single interpreter.
 
@@ -34,6 +40,7 @@ from dataclasses import asdict
 from typing import Any
 
 from ext_sense.graph import GraphSpec, NodeSpec, as_bool
+from ext_sense.graph_process import process_groups
 
 STOP_GRACE_S = 5.0
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -54,40 +61,83 @@ def _node_kwargs(spec: NodeSpec, use_sim_time: bool, context: Any = None) -> dic
     return kwargs
 
 
+def _make_node(spec: NodeSpec, node_class: type, use_sim_time: bool, context: Any = None) -> Any:
+    """Construct the node; a managed lifecycle node is then configured and activated.
+
+    ``ext-sense run`` is the lifecycle manager of its graph, as the launch files' events are of
+    theirs: each lifecycle node (``spec.lifecycle``) is driven through ``configure`` and
+    ``activate`` in its own process right after construction, unless the graph leaves it to an
+    external manager (``manage_drivers:=false``, ``spec.manage`` false). A failed transition
+    is logged by rclpy and leaves the node where it is (unconfigured or inactive), still
+    reachable on ``<node>/change_state``.
+    """
+    node = node_class(**_node_kwargs(spec, use_sim_time, context))
+    if spec.lifecycle and spec.manage:
+        from rclpy.lifecycle import TransitionCallbackReturn
+
+        if node.trigger_configure() == TransitionCallbackReturn.SUCCESS:
+            node.trigger_activate()
+    return node
+
+
 def run_one(spec: NodeSpec, use_sim_time: bool) -> int:
     """Start one node in this process and spin it until shutdown (the child side)."""
     from ext_sense_runtime.node_main import install_stop_handlers, run_node
 
-    if install_stop_handlers().requested():  # a stop held while starting (see _spawn)
+    if install_stop_handlers().requested():  # a stop held while starting (see spawn_node)
         return 0
     node_class = spec.node_class()
-    return run_node(lambda: node_class(**_node_kwargs(spec, use_sim_time)), args=[])
+    return run_node(lambda: _make_node(spec, node_class, use_sim_time), args=[])
 
 
-def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool) -> int:
+def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence[str] = ()) -> int:
     """Every node on one executor in this process, stopped as a node process is.
 
     Stops on Ctrl-C or SIGTERM, or when any node shuts the context down
-    (:func:`ext_sense_runtime.node_main.run_nodes`).
+    (:func:`ext_sense_runtime.node_main.run_nodes`). A managed lifecycle node is configured
+    and activated right after it is built, as in a process of its own.
+
+    Args:
+        nodes: The nodes, built in this order.
+        use_sim_time: Every node's ``use_sim_time``.
+        args: Process-wide ROS arguments (``--ros-args ...``, as ``ros2 launch`` appends them),
+            for every node; each node's own name and remappings are its node arguments.
     """
     from ext_sense_runtime.node_main import install_stop_handlers, run_nodes
 
-    install_stop_handlers()
+    if install_stop_handlers().requested():  # a stop held while starting (see spawn_node)
+        return 0
     classes = [(spec, spec.node_class()) for spec in nodes]
     return run_nodes(
-        [lambda s=spec, c=cls: c(**_node_kwargs(s, use_sim_time)) for spec, cls in classes],
-        args=[],
+        [lambda s=spec, c=cls: _make_node(s, c, use_sim_time) for spec, cls in classes],
+        args=["node_group", *args] if args else [],
     )
 
 
-def _spawn(spec: NodeSpec, use_sim_time: bool) -> subprocess.Popen[bytes]:
+def spawn_node(spec: NodeSpec, use_sim_time: bool) -> subprocess.Popen[bytes]:
     """Start a node process with SIGINT and SIGTERM blocked (the mask survives ``exec``).
+
+    Public for front ends that supervise a graph themselves (``ext-sense collect``); pair it
+    with :func:`stop_nodes`.
 
     A stop signal that comes while the child's interpreter starts and imports (a second or more
     on a loaded machine) stays pending until ``node_main`` installs its handlers and unblocks
     them, instead of raising ``KeyboardInterrupt`` in some import.
     """
-    payload = json.dumps({"spec": asdict(spec), "use_sim_time": use_sim_time})
+    return _spawn(json.dumps({"spec": asdict(spec), "use_sim_time": use_sim_time}))
+
+
+def spawn_group(specs: Sequence[NodeSpec], use_sim_time: bool) -> subprocess.Popen[bytes]:
+    """Start one process running ``specs`` on one executor (see :func:`spawn_node`)."""
+    return _spawn(group_payload(specs, use_sim_time))
+
+
+def group_payload(specs: Sequence[NodeSpec], use_sim_time: bool) -> str:
+    """The JSON argument of ``node_group`` (and of ``python -m ext_sense.runner``)."""
+    return json.dumps({"specs": [asdict(s) for s in specs], "use_sim_time": use_sim_time})
+
+
+def _spawn(payload: str) -> subprocess.Popen[bytes]:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     try:
@@ -96,7 +146,7 @@ def _spawn(spec: NodeSpec, use_sim_time: bool) -> subprocess.Popen[bytes]:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
-def _stop(procs: dict[str, subprocess.Popen[bytes]], log: Any) -> dict[str, int]:
+def stop_nodes(procs: dict[str, subprocess.Popen[bytes]], log: Any) -> dict[str, int]:
     """SIGINT to every child still running, SIGKILL to any not gone after ``STOP_GRACE_S``.
 
     Returns:
@@ -149,12 +199,18 @@ def run_graph(
         signal.signal(signum, _on_signal)
     rc = 0
     try:
-        for spec in nodes:
+        for name, specs in process_groups(nodes):
             if stopping:
                 break
-            procs[spec.name] = _spawn(spec, use_sim_time)
-            print(f"[run] started {spec.name} ({spec.package}/{spec.executable})", file=log)
-        required = {s.name for s in nodes if s.required}
+            if len(specs) == 1:
+                spec = specs[0]
+                procs[name] = spawn_node(spec, use_sim_time)
+                print(f"[run] started {spec.name} ({spec.package}/{spec.executable})", file=log)
+            else:
+                procs[name] = spawn_group(specs, use_sim_time)
+                held = " ".join(s.name for s in specs)
+                print(f"[run] started {name}: {held} in one process (node_group)", file=log)
+        required = {name for name, specs in process_groups(nodes) if any(s.required for s in specs)}
         while not stopping:
             time.sleep(0.05)
             finished = {n: p.returncode for n, p in procs.items() if p.poll() is not None}
@@ -169,7 +225,7 @@ def run_graph(
             if len(finished) == len(procs):
                 break
     finally:
-        codes = _stop(procs, log)
+        codes = stop_nodes(procs, log)
         # A second Ctrl-C must not turn a clean stop into a KeyboardInterrupt (or, during the
         # interpreter's finalisation, death by SIGINT): the graph is down, this process is done.
         for signum in STOP_SIGNALS:
@@ -182,15 +238,25 @@ def run_graph(
     return exit_status(rc)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Child entry point: ``python -m ext_sense.runner NODE_JSON``."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    payload = json.loads(argv[0])
-    raw = payload["spec"]
-    spec = NodeSpec(
+def _spec_from_json(raw: dict[str, Any]) -> NodeSpec:
+    return NodeSpec(
         **{**raw, "remappings": tuple(tuple(r) for r in raw["remappings"])}  # JSON lists
     )
-    return run_one(spec, bool(payload["use_sim_time"]))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Child entry point: ``python -m ext_sense.runner NODE_JSON|GROUP_JSON [--ros-args ...]``.
+
+    Also the ``node_group`` console script the launch files start for a process group
+    (``launch_ros`` appends ``--ros-args`` and what follows: passed to rclpy for every node).
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    payload = json.loads(argv[0])
+    use_sim_time = bool(payload["use_sim_time"])
+    if "specs" in payload:
+        specs = [_spec_from_json(raw) for raw in payload["specs"]]
+        return run_in_process(specs, use_sim_time, argv[1:])
+    return run_one(_spec_from_json(payload["spec"]), use_sim_time)
 
 
 if __name__ == "__main__":

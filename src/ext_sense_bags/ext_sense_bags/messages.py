@@ -129,18 +129,28 @@ def taxel_event_batch(
     resyncs: int = 0,
     skipped_bytes: int = 0,
     bad_taxel_words: int = 0,
+    flag: Any = None,
 ) -> Any:
     """Build a ``TaxelEventBatch`` from parallel arrays (see the .msg for units).
 
+    ``flag`` is the receiver words' flag bit per event, as received (0/1); ``None`` leaves
+    the message's ``flag`` empty: the source has no such bit (simulator datasets, the ACES
+    line).
+
     Raises:
-        BagError: The arrays differ in length or an offset is negative.
+        BagError: The arrays differ in length, an offset is negative or a flag not 0/1.
     """
     arrays = [np.asarray(a) for a in (taxel, polarity, value, offset_ns)]
-    if len({a.size for a in arrays}) != 1:
-        sizes = [a.size for a in arrays]
-        raise BagError(f"taxel, polarity, value, offset_ns must have one length. Got {sizes}.")
+    flags = np.zeros(0, np.uint8) if flag is None else np.asarray(flag).ravel()
+    if len({a.size for a in arrays}) != 1 or (flag is not None and flags.size != arrays[0].size):
+        sizes = [a.size for a in arrays] + ([flags.size] if flag is not None else [])
+        raise BagError(
+            f"taxel, polarity, value, offset_ns (and flag) must have one length. Got {sizes}."
+        )
     if arrays[3].size and int(arrays[3].min()) < 0:
         raise BagError("offset_ns must be >= 0 (times after header.stamp).")
+    if flags.size and not np.isin(flags, (0, 1)).all():
+        raise BagError(f"flag must be 0 or 1 per event. Got {sorted(set(flags.tolist()))}.")
     return make_message(
         "ext_sense_msgs/msg/TaxelEventBatch",
         header=header(stamp_ns, frame_id),
@@ -152,6 +162,7 @@ def taxel_event_batch(
         resyncs=resyncs,
         skipped_bytes=skipped_bytes,
         bad_taxel_words=bad_taxel_words,
+        flag=flags.astype(np.uint8),
     )
 
 

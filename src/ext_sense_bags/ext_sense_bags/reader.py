@@ -8,7 +8,15 @@
         print(bag.topics)                       # {topic: TopicSummary(msgtype, count, type_hash)}
         for rec in bag.records(["/extsense/nuskin/events"]):    # in log-time order
             msg = bag.decode(rec)               # rosbags message object (NumPy arrays)
-            rec.data                            # the CDR bytes, e.g. to publish(bytes) with rclpy
+            rec.data                            # the CDR bytes, as recorded
+            bag.current_cdr(rec)                # the bytes in the current definition: publish
+
+A bag recorded before a message definition changed keeps decoding: each topic's recorded type
+hash is compared with the current typestore's, and a topic recorded with another definition
+decodes with a typestore built from the definition the bag stores
+(:mod:`ext_sense_bags.recorded`); its messages have the fields as recorded (a field added since
+is missing: read it with ``getattr(msg, name, default)``). :meth:`BagReader.current_cdr` turns
+such a message into the current type, the new fields at their defaults, for a live graph.
 
 A bag a killed recorder left (an mcap file without footer, a bag directory without
 ``metadata.yaml``, a sqlite3 file with its write-ahead log) is read through
@@ -27,6 +35,7 @@ from typing import Any
 from rosbags.rosbag2 import Reader
 
 from ext_sense_bags.errors import BagError
+from ext_sense_bags.recorded import TypeSource, decoding_store, to_current
 from ext_sense_bags.records import BagRecord, SalvageReport, TopicSummary
 from ext_sense_bags.salvage import Salvage, has_open_log, open_salvaged, storage_file
 from ext_sense_bags.typestore import make_typestore
@@ -39,7 +48,8 @@ class BagReader:
 
     Args:
         path: Bag directory, or a single ``.mcap`` / ``.db3`` file.
-        distro: Typestore distribution for :meth:`decode`.
+        distro: Typestore distribution for :meth:`decode` (topics recorded with the current
+            definitions; the others decode with the definition the bag stores).
 
     Raises:
         BagError: The path does not exist or is not a readable bag (on :meth:`open`).
@@ -47,9 +57,11 @@ class BagReader:
 
     def __init__(self, path: str | Path, *, distro: str = "kilted") -> None:
         self.path = Path(path)
+        self.distro = distro
         self.typestore = make_typestore(distro)
         self._reader: Reader | None = None
         self._salvage: Salvage | None = None
+        self._sources: dict[tuple[str, str, str], TypeSource] = {}
 
     def open(self) -> BagReader:
         """Open the bag and read its index; returns ``self``.
@@ -171,7 +183,7 @@ class BagReader:
                 return
         try:
             for conn, log_time, data in reader.messages(connections=conns):
-                yield BagRecord(conn.topic, conn.msgtype, int(log_time), bytes(data))
+                yield BagRecord(conn.topic, conn.msgtype, int(log_time), bytes(data), conn.digest)
         except BagError:
             raise
         except Exception as err:
@@ -193,24 +205,79 @@ class BagReader:
         try:
             for cid, log_time, data in salvage.records(ids):
                 info = found[cid]
-                yield BagRecord(info.topic, info.msgtype, log_time, data)
+                yield BagRecord(info.topic, info.msgtype, log_time, data, info.type_hash)
         except (OSError, ValueError) as err:
             raise BagError(f"Corrupt bag {self.path}: {err}") from err
 
+    def type_source(self, record: BagRecord) -> TypeSource:
+        """The typestore ``record`` decodes with: the current one, or its topic's recorded one.
+
+        Resolved once per (topic, type, recorded hash) from the definition the bag stores for
+        it, so a bag older than a ``.msg`` change decodes as it was written.
+        """
+        key = (record.topic, record.msgtype, record.type_hash)
+        if key not in self._sources:
+            stored = [d for d in self._definitions() if d[:3] == key]
+            _, msgtype, digest, msgdef, encoding = next((d for d in stored if d[3]), (*key, "", ""))
+            self._sources[key] = decoding_store(msgtype, digest, msgdef, encoding, self.distro)
+        return self._sources[key]
+
+    def _definitions(self) -> list[tuple[str, str, str, str, Any]]:
+        """``(topic, type, recorded hash, definition text, its encoding)`` per connection."""
+        if self._salvage is not None:
+            return [
+                (t.topic, t.msgtype, t.type_hash, t.msgdef, t.msgdef_encoding)
+                for t in self._salvage.topics.values()
+            ]
+        return [
+            (c.topic, c.msgtype, c.digest, c.msgdef.data, c.msgdef.format)
+            for c in self._require().connections
+        ]
+
     def decode(self, record: BagRecord) -> Any:
-        """Deserialize one record to a rosbags message object.
+        """Deserialize one record to a rosbags message object, with the fields as recorded.
 
         Raises:
-            BagError: The type is not in the typestore or the bytes do not decode.
+            BagError: The type is in neither the typestore nor the bag, or the bytes do not
+                decode (the message says when the bag was recorded with another definition
+                it does not store).
         """
-        if record.msgtype not in self.typestore.fielddefs:
+        source = self.type_source(record)
+        if record.msgtype not in source.store.fielddefs:
             raise BagError(f"Cannot decode {record.msgtype!r}: not in the typestore.")
         try:
-            return self.typestore.deserialize_cdr(record.data, record.msgtype)
+            return source.store.deserialize_cdr(record.data, record.msgtype)
         except Exception as err:
+            why = (
+                f" (the bag recorded it with another definition, hash {record.type_hash}, "
+                f"and {source.problem})"
+                if source.problem
+                else ""
+            )
             raise BagError(
                 f"Message on {record.topic} at {record.log_time_ns} ns does not decode as "
-                f"{record.msgtype}: {err}"
+                f"{record.msgtype}{why}: {err}"
+            ) from err
+
+    def current_cdr(self, record: BagRecord) -> bytes:
+        """``record``'s bytes in the current definition of its type (e.g. to publish them).
+
+        The stored bytes when the topic was recorded with the current definition; else the
+        message decoded as recorded, converted (fields added since at their defaults) and
+        serialized anew, so a live subscriber of the current type can read it.
+
+        Raises:
+            BagError: The message does not decode or does not convert.
+        """
+        if not self.type_source(record).recorded:
+            return record.data
+        msg = to_current(self.decode(record), record.msgtype, self.distro)
+        try:
+            return bytes(self.typestore.serialize_cdr(msg, record.msgtype))
+        except Exception as err:
+            raise BagError(
+                f"Message on {record.topic} at {record.log_time_ns} ns does not convert to the "
+                f"current {record.msgtype}: {err}"
             ) from err
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[BagRecord, Any]]:

@@ -25,6 +25,9 @@ class BagRecord(NamedTuple):
     msgtype: str
     log_time_ns: int
     data: bytes
+    type_hash: str = ""
+    """RIHS01 hash its topic recorded ('' when none): tells a message of an older definition
+    of ``msgtype`` (:mod:`ext_sense_bags.recorded`), so it decodes as it was written."""
 
 
 class SalvagedTopic(NamedTuple):

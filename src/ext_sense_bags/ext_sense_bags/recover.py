@@ -11,7 +11,9 @@
 Every complete message (:mod:`ext_sense_bags.salvage`) is written, in the order it was
 recorded, into a new bag of the same storage through :class:`ext_sense_bags.BagWriter`, which
 writes the index and a rosbag2 ``metadata.yaml`` with the message counts, the offered QoS and
-the type hashes as the original recorded them (the typestore's hash where it recorded none).
+the type hashes as the original recorded them. Where it recorded no hash, the hash is computed
+from the definition it stored (a bag older than a ``.msg`` change keeps its own definition and
+hash, so it still decodes as written), and only without either from the current typestore.
 The original is never deleted: in place, it is renamed ``<bag>.damaged`` (``.damaged.2``, ...).
 """
 
@@ -26,6 +28,7 @@ from rosbags.rosbag2.metadata import parse_qos
 
 from ext_sense_bags.errors import BagError
 from ext_sense_bags.reader import BagReader
+from ext_sense_bags.recorded import decoding_store
 from ext_sense_bags.salvage import SalvageReport, open_salvaged
 from ext_sense_bags.typestore import make_typestore
 from ext_sense_bags.writer import BagWriter
@@ -115,7 +118,10 @@ def _rewrite(path: Path, out: Path) -> Recovery:
             topic_of: dict[int, str] = {}
             for cid, info in salvage.topics.items():
                 known = info.msgtype in typestore.fielddefs
-                digest = info.type_hash or (typestore.hash_rihs01(info.msgtype) if known else "")
+                digest = info.type_hash or _stored_hash(
+                    info.msgtype, info.msgdef, info.msgdef_encoding
+                )
+                digest = digest or (typestore.hash_rihs01(info.msgtype) if known else "")
                 if not (info.msgtype and digest and (info.msgdef or known)):
                     skipped.append(info.topic)
                     continue
@@ -134,3 +140,17 @@ def _rewrite(path: Path, out: Path) -> Recovery:
     finally:
         salvage.close()
     return Recovery(out, counts, salvage.report, None, tuple(skipped))
+
+
+def _stored_hash(msgtype: str, msgdef: str, encoding: str) -> str:
+    """RIHS01 hash of the definition a bag stored without its hash ('' when it stored none).
+
+    The current typestore's hash would not do: it names the current definition, which an old
+    bag's bytes do not follow.
+    """
+    if not msgdef:
+        return ""
+    source = decoding_store(msgtype, "", msgdef, encoding)
+    if source.problem or msgtype not in source.store.fielddefs:
+        return ""
+    return str(source.store.hash_rihs01(msgtype))

@@ -28,7 +28,8 @@ EXT_SENSE_TYPES: tuple[str, ...] = (
 )
 """Every message type of ``ext_sense_msgs``."""
 
-_STORES = {"kilted": Stores.ROS2_KILTED, "jazzy": Stores.ROS2_JAZZY}
+STORES = {"kilted": Stores.ROS2_KILTED, "jazzy": Stores.ROS2_JAZZY}
+"""Distribution name -> the rosbags store its standard types come from."""
 
 
 def msg_dir() -> Path:
@@ -58,7 +59,6 @@ def msg_dir() -> Path:
     raise BagError(f"ext_sense_msgs .msg files not found; expected them in one of: {tried}")
 
 
-@lru_cache(maxsize=4)
 def make_typestore(distro: str = "kilted") -> Typestore:
     """Return the typestore of ``distro`` with the ext_sense messages registered.
 
@@ -72,9 +72,14 @@ def make_typestore(distro: str = "kilted") -> Typestore:
     Raises:
         BagError: Unknown distribution or missing ``.msg`` files.
     """
-    if distro not in _STORES:
-        raise BagError(f"The 'distro' parameter must be one of {sorted(_STORES)}. Got {distro!r}.")
-    store = get_typestore(_STORES[distro])
+    return _typestore(distro)  # one cache key per distro, however the caller names it
+
+
+@lru_cache(maxsize=4)
+def _typestore(distro: str) -> Typestore:
+    if distro not in STORES:
+        raise BagError(f"The 'distro' parameter must be one of {sorted(STORES)}. Got {distro!r}.")
+    store = get_typestore(STORES[distro])
     folder = msg_dir()
     types = {}
     for name in EXT_SENSE_TYPES:

@@ -1,17 +1,23 @@
 """The franka_ros2 side of the arm adapter, without rclpy: names, conversions, thresholds.
 
-franka_msgs is not on PyPI, so nothing here imports it at module load: :func:`import_franka_msgs`
-does it on demand and says what is missing. Names of the topic, service and action come from
-parameters (:class:`FrankaNames`), defaulting to franka_ros2's:
+franka_msgs is not on PyPI (``scripts/setup.sh`` builds the definitions used here into the venv
+from ``interfaces/franka_msgs``; a ROS install has the real package), so nothing here imports it
+at module load: :func:`import_franka_msgs` does it on demand and says what is missing. Names
+of the topic, service and action come from parameters (:class:`FrankaNames`), defaulting to
+franka_ros2's:
 
 - state: ``/franka_robot_state_broadcaster/robot_state`` (``franka_msgs/msg/FrankaRobotState``;
   external wrench ``o_f_ext_hat_k`` (WrenchStamped, base frame), pose ``o_t_ee`` (PoseStamped));
 - collision thresholds: ``/service_server/set_full_collision_behavior``
   (``franka_msgs/srv/SetFullCollisionBehavior``);
 - error recovery: ``/action_server/error_recovery`` (``franka_msgs/action/ErrorRecovery``);
-- Cartesian velocity command: franka_ros2 ships no topic for this, so the adapter publishes
-  ``geometry_msgs/TwistStamped`` on ``twist_topic`` for a Cartesian velocity controller of the
-  user's (an assumption to adapt on the real robot).
+- motion: ``/fr3_arm_controller/follow_joint_trajectory``
+  (``control_msgs/action/FollowJointTrajectory``), the ``joint_trajectory_controller`` that
+  franka_ros2's MoveIt configuration (``franka_fr3_moveit_config``) loads and most franka_ros2
+  user code drives. franka_ros2 has no commandable Cartesian controller (its Cartesian examples
+  generate their own motion), so the adapter turns the fork's straight vertical line into joint
+  waypoints (:mod:`ext_sense_behaviours.panda_kinematics`) and stops by cancelling the goal, on
+  which the controller holds its position.
 """
 
 from __future__ import annotations
@@ -19,9 +25,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from types import ModuleType
-from typing import Any
+from typing import Any, NamedTuple
+
+import numpy as np
 
 from ext_sense_behaviours.errors import BehaviourError
+from ext_sense_behaviours.panda_kinematics import jacobian
 from ext_sense_behaviours.records import ArmState
 from ext_sense_runtime.stamps import stamp_to_ns
 
@@ -31,7 +40,7 @@ class FrankaNames:
     """Where the franka_ros2 interfaces live (all overridable by parameters)."""
 
     state_topic: str = "/franka_robot_state_broadcaster/robot_state"
-    twist_topic: str = "/cartesian_velocity_controller/command"
+    trajectory_action: str = "/fr3_arm_controller/follow_joint_trajectory"
     collision_service: str = "/service_server/set_full_collision_behavior"
     error_recovery_action: str = "/action_server/error_recovery"
 
@@ -50,36 +59,81 @@ def import_franka_msgs() -> ModuleType:
         raise BehaviourError(
             "The franka arm adapter needs the 'franka_msgs' package (FrankaRobotState, "
             "SetFullCollisionBehavior, ErrorRecovery), which is not installed here: it is not on "
-            "PyPI. Build frankaemika/franka_ros2 in a colcon workspace and source it, or use "
-            "arm:=sim."
+            "PyPI. Run `make setup` (it builds them into the venv), or on a ROS install build "
+            "franka_ros2's franka_msgs in a colcon workspace and source it; or use arm:=sim."
         ) from err
     import franka_msgs  # type: ignore[import-not-found]
 
     return franka_msgs
 
 
-def arm_state_from_robot_state(msg: Any) -> ArmState:
-    """Convert a ``FrankaRobotState`` (or anything with the same fields) into an ArmState.
+ROBOT_MODE_REFLEX = 4
+"""``FrankaRobotState.ROBOT_MODE_REFLEX``: the robot stopped itself (a collision threshold was
+exceeded) and takes no motion until error recovery."""
 
-    Uses ``header.stamp``, ``o_f_ext_hat_k.wrench.force`` and ``o_t_ee.pose.position.z``; the
-    vertical velocity is the last commanded twist ``o_dp_ee_c.twist.linear.z`` (the message
-    carries no measured Cartesian velocity).
+
+class RobotReading(NamedTuple):
+    """What the adapter takes from one ``FrankaRobotState``.
+
+    Attributes:
+        state: Height, external force and vertical velocity for the behaviours.
+        joint_names: Names of the measured joints (the trajectory goal's joint names).
+        q: Measured joint positions, (7,) radians (the start of a planned line).
+        contact: A Cartesian linear contact flag is raised (force over the lower threshold).
+        collision: A Cartesian linear collision flag is raised (over the upper threshold).
+        reflex: The robot is in reflex mode (stopped by its own collision reflex).
+    """
+
+    state: ArmState
+    joint_names: tuple[str, ...]
+    q: np.ndarray
+    contact: bool
+    collision: bool
+    reflex: bool
+
+
+def _raised(v: Any) -> bool:
+    return bool(v.x or v.y or v.z)
+
+
+def reading_from_robot_state(msg: Any) -> RobotReading:
+    """Convert a ``FrankaRobotState`` into the adapter's reading.
+
+    Uses ``header.stamp``, ``o_f_ext_hat_k.wrench.force`` (external force, base frame),
+    ``o_t_ee.pose.position.z``, ``measured_joint_state`` and ``collision_indicators``. The vertical
+    velocity is ``J(q) dq`` from the measured joint velocities (the message carries no measured
+    Cartesian velocity; under the trajectory controller the commanded twist is not set); NaN
+    when the velocities are missing.
 
     Raises:
-        BehaviourError: A field is missing (another franka_msgs version).
+        BehaviourError: A field is missing or malformed (another franka_msgs version).
     """
     try:
         stamp_ns = stamp_to_ns(msg.header.stamp)
         f = msg.o_f_ext_hat_k.wrench.force
         z = float(msg.o_t_ee.pose.position.z)
-        twist = getattr(msg, "o_dp_ee_c", None)
-        vz = float(twist.twist.linear.z) if twist is not None else math.nan
+        joints = msg.measured_joint_state
+        q = np.asarray(joints.position, dtype=np.float64)
+        dq = np.asarray(joints.velocity, dtype=np.float64)
+        flags = msg.collision_indicators
+        contact = _raised(flags.is_cartesian_linear_contact)
+        collision = _raised(flags.is_cartesian_linear_collision)
+        reflex = int(msg.robot_mode) == ROBOT_MODE_REFLEX
+        names = tuple(joints.name)
     except AttributeError as err:
         raise BehaviourError(
             f"The robot state lacks a field the adapter reads ({err}); expected "
-            "franka_msgs/msg/FrankaRobotState with o_f_ext_hat_k and o_t_ee."
+            "franka_msgs/msg/FrankaRobotState with o_f_ext_hat_k, o_t_ee, measured_joint_state "
+            "and collision_indicators."
         ) from err
-    return ArmState(stamp_ns, z, (float(f.x), float(f.y), float(f.z)), vz)
+    if q.shape != (7,) or len(names) != 7:
+        raise BehaviourError(
+            f"The robot state's measured_joint_state must name 7 joints with 7 positions. Got "
+            f"{len(names)} names and {q.size} positions instead."
+        )
+    vz = float(jacobian(q)[2] @ dq) if dq.shape == (7,) else math.nan
+    state = ArmState(stamp_ns, z, (float(f.x), float(f.y), float(f.z)), vz)
+    return RobotReading(state, names, q, contact, collision, reflex)
 
 
 def collision_behavior_values(

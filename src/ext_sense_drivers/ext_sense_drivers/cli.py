@@ -1,9 +1,11 @@
 """``ext-sense nuskin ...`` and ``ext-sense biotac ...``: the drivers' command-line tools.
 
 ``nuskin decode RAW_FILE --out EVENTS.csv`` decodes a receiver capture (e.g. a lab
-``*_raw.tact``) into one CSV row per valid word, header ``word,polarity,taxel,value`` (``word``
-counts the valid words from 0), and prints one line of decoder counters to stderr. The
-``biotac`` commands live in :mod:`ext_sense_drivers.biotac.cli` and are added when present.
+``*_raw.tact``) into one CSV row per valid word, header ``word,polarity,taxel,value,flag``
+(``word`` counts the valid words from 0, ``flag`` is the word's flag bit as received, see
+:mod:`ext_sense_drivers.nuskin.events_csv`), and prints one line of decoder counters to
+stderr. The ``biotac`` commands live in :mod:`ext_sense_drivers.biotac.cli` and are added
+when present.
 """
 
 from __future__ import annotations
@@ -13,7 +15,8 @@ import importlib
 import sys
 from pathlib import Path
 
-CSV_HEADER = "word,polarity,taxel,value"
+from ext_sense_drivers.nuskin.events_csv import CSV_HEADER
+
 _READ_BYTES = 1 << 20
 
 
@@ -37,7 +40,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         choices=("ignore", "is_positive"),
         default="ignore",
         help="how the word's flag bit maps to polarity (default ignore: 0 for every event, "
-        "as the real receivers leave the bit at 0)",
+        "as the real receivers leave the bit at 0); the bit itself is always written, as "
+        "received, in the flag column",
     )
     decode.set_defaults(func=_decode)
     _register_biotac(subparsers)
@@ -54,8 +58,7 @@ def _register_biotac(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _decode(args: argparse.Namespace) -> int:
-    import numpy as np
-
+    from ext_sense_drivers.nuskin.events_csv import write_rows
     from ext_sense_drivers.nuskin.wire import FlagPolarity, WordDecoder
 
     decoder = WordDecoder(FlagPolarity[args.flag_polarity.upper()])
@@ -80,12 +83,7 @@ def _decode(args: argparse.Namespace) -> int:
             if not data:
                 break
             words = decoder.feed(data)
-            if words.size:
-                rows = np.column_stack(
-                    (np.arange(n, n + words.size), words.polarity, words.taxel, words.value)
-                )
-                np.savetxt(out, rows, fmt="%d", delimiter=",")
-                n += words.size
+            n += write_rows(out, n, words.polarity, words.taxel, words.value, words.flag)
         decoder.flush()
     finally:
         source.close()

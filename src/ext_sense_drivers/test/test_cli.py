@@ -24,9 +24,19 @@ def test_decode_writes_one_row_per_word_and_a_summary(tmp_path, capsys):
         == 0
     )
     lines = out.read_text().splitlines()
-    assert lines == [CSV_HEADER, "0,1,3,7", "1,-1,80,1023"]
+    assert CSV_HEADER == "word,polarity,taxel,value,flag"
+    assert lines == [CSV_HEADER, "0,1,3,7,1", "1,-1,80,1023,0"]
     err = capsys.readouterr().err
     assert "words=2 resyncs=1 skipped_bytes=1 bad_taxel_words=1" in err
+
+
+def test_decode_keeps_the_flag_bit_as_received_whatever_the_polarity_choice(tmp_path):
+    raw = tmp_path / "cap_raw.tact"
+    raw.write_bytes(encode_words([5, 6, 7], [100, 200, 300], [1, 0, 1]))
+    out = tmp_path / "events.csv"
+    assert _run(["nuskin", "decode", str(raw), "--out", str(out)]) == 0
+    # default polarity 'ignore': polarity 0 for all, the wire bit still in its column
+    assert out.read_text().splitlines()[1:] == ["0,0,5,100,1", "1,0,6,200,0", "2,0,7,300,1"]
 
 
 def test_decode_missing_file_is_a_clear_error(tmp_path, capsys):
@@ -45,4 +55,5 @@ def test_decode_real_capture_matches_the_lab_file(food_poking_dir, tmp_path, cap
     np.testing.assert_array_equal(rows[:, 1], tact.flag)
     np.testing.assert_array_equal(rows[:, 2], tact.taxel)
     np.testing.assert_array_equal(rows[:, 3], tact.value)
+    np.testing.assert_array_equal(rows[:, 4], tact.flag)  # the bit as received: the lab's col0
     assert f"words={tact.taxel.shape[0]} resyncs=0" in capsys.readouterr().err

@@ -198,6 +198,71 @@ FOOD_CAPTURE_POST_NS = 3000 * MS
 """The real food captures end about 3.1 s after the arm starts moving: their window is 0-3 s."""
 
 
+class Anchor(str, Enum):
+    """What a food window's onset is tied to when windows are cut from recordings.
+
+    The model card records it; the live graph applies the same rule (see
+    :func:`capture_profile`): ``arm_motion`` and ``capture_start`` windows are cut at the food
+    behaviour's mark of the descent's start, ``contact`` windows at the onset the window node
+    detects itself.
+    """
+
+    ARM_MOTION = "arm_motion"
+    """The start of the arm's motion (from the arm's joint velocities)."""
+    CAPTURE_START = "capture_start"
+    """The start of the capture (its first line); the arm moves ``CAPTURE_LEAD_NS`` later."""
+    CONTACT = "contact"
+    """The fork's tactile onset, detected by the live windower's detector."""
+
+    @classmethod
+    def parse(cls, value: object) -> Anchor:
+        """The anchor named ``value``.
+
+        Raises:
+            PerceptionError: An unknown name.
+        """
+        try:
+            return cls(value)
+        except ValueError as err:
+            names = ", ".join(a.value for a in cls)
+            raise PerceptionError(
+                f"The 'anchor' parameter must be one of {names}. Got {value!r} instead."
+            ) from err
+
+
+CAPTURE_LEAD_NS = 580 * MS
+"""From a food capture's start to the start of the arm's motion: 0.54-0.60 s, median 0.58 s, over
+the 44 trials of 1 April 2021 that have arm bags. A ``capture_start`` window is a window whose
+onset is the (expected) motion start with this much signal before it, so the live graph serves it
+from the same motion-start mark as an ``arm_motion`` window."""
+CAPTURE_POST_NS = 2920 * MS
+"""Post-onset span of ``capture_start`` windows: the window covers the capture's first 3.5 s."""
+CONTACT_PRE_NS = 500 * MS
+"""Signal kept before a detected food contact, ns."""
+CONTACT_POST_NS = 2000 * MS
+"""Signal after a detected food contact, ns."""
+
+
+def capture_profile(anchor: Anchor | str) -> TaskProfile:
+    """The food profile for windows cut from real captures at ``anchor``.
+
+    - ``arm_motion``: 0 to 3 s after the motion start (the captures end 3.1 s after it);
+    - ``capture_start``: the capture's first 3.5 s, i.e. ``CAPTURE_LEAD_NS`` before the motion
+      start to ``CAPTURE_POST_NS`` after it (external onset: the live graph's motion mark);
+    - ``contact``: ``CONTACT_PRE_NS`` before to ``CONTACT_POST_NS`` after the detected contact
+      (onset from the signal, as tap and handover).
+    """
+    food = PROFILES[Task.FOOD_IDENTIFICATION]
+    anchor = Anchor.parse(anchor)
+    if anchor is Anchor.ARM_MOTION:
+        return food.with_window(0, FOOD_CAPTURE_POST_NS)
+    if anchor is Anchor.CAPTURE_START:
+        return food.with_window(CAPTURE_LEAD_NS, CAPTURE_POST_NS)
+    return replace(
+        food.with_window(CONTACT_PRE_NS, CONTACT_POST_NS), onset_source=OnsetSource.SIGNAL
+    )
+
+
 def profile_for(task: Task | str) -> TaskProfile:
     """The task's profile.
 

@@ -9,7 +9,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 from rclpy.node import Node
 
 
@@ -62,3 +67,12 @@ def declare(
         else:
             raise ValueError(f"Parameter '{name}': a range needs a numeric default.")
     return node.declare_parameter(name, default, descriptor).value
+
+
+def refused(err: Exception) -> SetParametersResult:
+    """The answer of an on-set callback that raised: the change is refused, with the cause.
+
+    The ``fallback`` of a guarded on-set callback
+    (``guard.wrap(self._on_set, fallback=refused)``): rclpy needs a result, not ``None``.
+    """
+    return SetParametersResult(successful=False, reason=f"{type(err).__name__}: {err}")

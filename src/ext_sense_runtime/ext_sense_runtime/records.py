@@ -151,6 +151,9 @@ class Estimate(NamedTuple):
         class_names: The model's classes.
         class_probabilities: Probabilities in the order of ``class_names``.
         stability_probability: P(stable grasp), 0..1.
+        degraded: Not a normal estimate: its window held a stall or a late packet, or it was
+            ready after the inference node's deadline.
+        degraded_reason: Why (empty when not degraded).
     """
 
     task: str
@@ -167,6 +170,8 @@ class Estimate(NamedTuple):
     class_names: tuple[str, ...] = ()
     class_probabilities: tuple[float, ...] = ()
     stability_probability: float = math.nan
+    degraded: bool = False
+    degraded_reason: str = ""
 
 
 def estimate_of(msg: Any) -> Estimate:
@@ -186,6 +191,9 @@ def estimate_of(msg: Any) -> Estimate:
         class_names=tuple(str(n) for n in msg.class_names),
         class_probabilities=tuple(float(p) for p in msg.class_probabilities),
         stability_probability=float(msg.stability_probability),
+        # absent from messages recorded before the field existed
+        degraded=bool(getattr(msg, "degraded", False)),
+        degraded_reason=str(getattr(msg, "degraded_reason", "")),
     )
 
 

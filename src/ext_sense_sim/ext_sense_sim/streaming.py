@@ -102,9 +102,15 @@ LATE_WRITE_NS = 2_000_000
 
 
 class Trigger(NamedTuple):
-    """A request to play the next trial(s) now: ``stamp_ns`` on the host epoch clock."""
+    """A request to play the next trial(s) now: ``stamp_ns`` on the host epoch clock.
+
+    ``label`` (a class name; ``""``: the schedule's) is the class to play: whoever triggers
+    can keep the scene in step with what it knows only then (``ext-sense collect`` replays a
+    class when a grasp gave no contact window).
+    """
 
     stamp_ns: int
+    label: str = ""
 
 
 ALIGNS = ("start", "onset")
@@ -155,13 +161,13 @@ def stream_on_trigger(
     The triggers are a food probe's motion start or a handover's offer.
 
     The trials of one trigger are ``period_s`` apart and, with ``labels``, all of the class
-    ``labels[k % len(labels)]`` for the k-th trigger (trials of other classes are skipped, so
-    the seed still fixes everything). ``align="start"``: the first trial starts when the
-    trigger is taken. ``align="onset"``: its onset (the motion start for food) is put at the
-    trigger's stamp; the trial's bytes before its onset are then in the past and are skipped
-    (counted in ``extra["skipped_bytes"]``), those from the onset to now go out at once, and
-    the ground truth is stamped with the trigger's stamp (the true onset by construction). The
-    next trial is simulated while waiting for its trigger.
+    ``labels[k % len(labels)]`` for the k-th trigger, or the trigger's own ``label`` (trials of
+    other classes are skipped, so the seed still fixes everything). ``align="start"``: the first
+    trial starts when the trigger is taken. ``align="onset"``: its onset (the motion start for
+    food) is put at the trigger's stamp; the trial's bytes before its onset are then in the past
+    and are skipped (counted in ``extra["skipped_bytes"]``), those from the onset to now go out
+    at once, and the ground truth is stamped with the trigger's stamp (the true onset by
+    construction). The next trial is simulated while waiting for its trigger.
 
     Args:
         scene: A scene listing its sensor's wire effect.
@@ -208,6 +214,8 @@ def stream_on_trigger(
         if trigger is None:
             break
         stats.extra["triggers"] += 1
+        if trigger.label and trigger.label != plan.class_label:
+            plan = _next_like(plans, trigger.label, scene)  # simulated late: played late
         t0 = trigger.stamp_ns - plan.onset_ns if align == "onset" else clock()
         for j in range(per_trigger):
             start = t0 + j * period_ns
@@ -233,7 +241,8 @@ def stream_on_trigger(
             if j + 1 < per_trigger:
                 # one grasp's trials share their class; simulated now, in the idle time before
                 # the next one is due (simulating it when due would send it late, in a burst)
-                plan = _next_like(plans, plan.class_label if labels else "", scene)
+                same = labels or trigger.label
+                plan = _next_like(plans, plan.class_label if same else "", scene)
                 while not stop.is_set() and clock() < start + period_ns:
                     sleep(min(0.01, max(0.0, (start + period_ns - clock()) / 1e9)))
     return stats

@@ -86,6 +86,24 @@ def test_each_trigger_plays_a_grasp_of_one_scheduled_class(scene):
     assert sum(len(d) for _, d in writes) == stats.bytes
 
 
+def test_a_trigger_label_overrides_the_schedule_for_its_grasp(scene):
+    clock = FakeClock(100 * S)
+    triggers: queue.Queue[Trigger] = queue.Queue()
+    triggers.put(Trigger(100 * S, "stable"))
+    triggers.put(Trigger(100 * S, "stable"))  # the same class again (a grasp without a window)
+    triggers.put(Trigger(100 * S))  # no label: the schedule's third entry
+    _, _, truths = _run(
+        scene,
+        triggers,
+        clock,
+        trials=6,
+        per_trigger=2,
+        period_s=1.0,
+        labels=["unstable", "unstable", "unstable"],
+    )
+    assert [g.class_label for g in truths] == ["stable"] * 4 + ["unstable"] * 2
+
+
 def test_onset_alignment_puts_the_trial_onset_at_the_trigger_stamp(scene):
     # the trigger (e.g. a food probe's motion start) is taken 40 ms after its stamp
     clock = FakeClock(50 * S + 40 * MS)

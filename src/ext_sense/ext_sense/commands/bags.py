@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:  # imported by the handlers: ``ext-sense --help`` stays fast
     from ext_sense_perception.online.predictor import ModelBundle
     from ext_sense_perception.online.window import WindowConfig
+    from ext_sense_runtime.node_main import StopRequest
     from ext_sense_runtime.records import Estimate
 
 DEFAULT_INPUTS = ("/extsense/nuskin/events", "/extsense/biotac/frames", "/extsense/ground_truth")
@@ -115,6 +116,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rep.set_defaults(func=_replay)
 
 
+def _init_rclpy() -> StopRequest:
+    """``rclpy.init`` with the project's stop handlers instead of rclpy's (see ``node_main``).
+
+    rclpy's own SIGINT handler raises ``KeyboardInterrupt`` wherever the main thread is, also
+    inside a callback the executor's C++ called (an abort); the project's handlers only record
+    the request, which the spin loops below poll: Ctrl-C ends record and replay with exit 0.
+    """
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    from ext_sense_runtime.node_main import install_stop_handlers
+
+    stop = install_stop_handlers()
+    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO if stop.installed else None)
+    return stop
+
+
 def _record(args: argparse.Namespace) -> int:
     import rclpy
     from rclpy.executors import ExternalShutdownException
@@ -131,8 +149,8 @@ def _record(args: argparse.Namespace) -> int:
     ]
     if args.topics:
         overrides.append(Parameter("topics", value=list(args.topics)))
-    rclpy.init(args=[])
-    node = None
+    stop = _init_rclpy()
+    node = executor = None
     rc = 0
     try:
         node = RecorderNode(parameter_overrides=overrides)
@@ -145,7 +163,12 @@ def _record(args: argparse.Namespace) -> int:
         executor.add_node(node)
         print(f"recording {sorted(node.received)} into {args.out} (Ctrl-C stops)", flush=True)
         end = time.monotonic() + args.duration if args.duration > 0 else None
-        while rclpy.ok() and not node.failed and (end is None or time.monotonic() < end):
+        while (
+            rclpy.ok()
+            and not stop.requested()
+            and not node.failed
+            and (end is None or time.monotonic() < end)
+        ):
             executor.spin_once(timeout_sec=0.1)
     except BagError as err:
         print(f"ext-sense record: {err}", file=sys.stderr)
@@ -153,6 +176,8 @@ def _record(args: argparse.Namespace) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        if executor is not None:
+            executor.shutdown()  # before the node: it lets go of its entities
         if node is not None:
             counts = dict(node.received)
             node.destroy_node()
@@ -162,6 +187,7 @@ def _record(args: argparse.Namespace) -> int:
                 done, rc = "received before the failure", 1
             print(f"{done} {sum(counts.values())} messages: {counts}", flush=True)
         rclpy.try_shutdown()
+        stop.ignore_further()
     return rc
 
 
@@ -226,16 +252,18 @@ def _replay_live(args: argparse.Namespace) -> int:
     ]
     if args.topics:
         overrides.append(Parameter("topics", value=list(args.topics)))
-    rclpy.init(args=[])
-    node = None
+    stop = _init_rclpy()
+    node = executor = None
     rc = 0
     try:
         node = BagPlayerNode(parameter_overrides=overrides)
         executor = make_executor()
         executor.add_node(node)
-        while rclpy.ok() and not node.finished.is_set():
+        while rclpy.ok() and not stop.requested() and not node.finished.is_set():
             executor.spin_once(timeout_sec=0.05)
-        if node.error:
+        if stop.requested():
+            print(f"stopped after {node.published} messages", flush=True)
+        elif node.error:
             print(f"ext-sense replay: {node.error}", file=sys.stderr)
             rc = 2
         else:
@@ -248,9 +276,12 @@ def _replay_live(args: argparse.Namespace) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        if executor is not None:
+            executor.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        stop.ignore_further()
     return rc
 
 

@@ -36,24 +36,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ext_sense.graph_model import ModelMissingError, with_model
+    from ext_sense.graph_model import with_model
 
     graph = GRAPHS[args.graph]
     if args.show_args:
         for a in graph.arguments:
-            choices = f" {{{'|'.join(a.choices)}}}" if a.choices else ""
-            print(f"{a.name}:={a.default!r}{choices}\n    {a.description}")
+            kind = f" ({a.expected()})" if a.choices or a.kind is not str else ""
+            print(f"{a.name}:={a.default!r}{kind}\n    {a.description}")
         return 0
-    try:
+    try:  # every argument typed and range-checked
         overrides = parse_assignments(args.assignments)
         nodes = graph.nodes(overrides)
     except GraphError as err:
         print(f"ext-sense run: {err}", file=sys.stderr)
         return 2
     if args.dry_run:
-        try:  # show the bundle the graph would load; a missing one is only noted here
+        try:  # show the bundle the graph would load; a missing one or file is only noted here
+            graph.check_files(graph.resolve(overrides))
             nodes = graph.nodes(with_model(graph, overrides))
-        except ModelMissingError as err:
+        except GraphError as err:
             print(f"note: {err}", file=sys.stderr)
         for spec in nodes:
             remaps = " ".join(f"{a}:={b}" for a, b in spec.remappings)
@@ -62,7 +63,8 @@ def _run(args: argparse.Namespace) -> int:
             print(f"{spec.name}: {spec.package}/{spec.executable}{required}")
             print(f"    parameters: {params}\n    remappings: {remaps}")
         return 0
-    try:  # before any node starts: a graph without a usable model refuses here
+    try:  # before any node starts: missing files, or no usable model, are refused here
+        graph.check_files(graph.resolve(overrides))
         overrides = with_model(graph, overrides)
     except GraphError as err:
         print(f"ext-sense run: {err}", file=sys.stderr)

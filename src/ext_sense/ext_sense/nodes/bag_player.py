@@ -1,10 +1,12 @@
 """``bag_player`` node: publishes a recorded bag's messages, at recorded pace or flat out.
 
 Messages go out as the bag stores them (serialized CDR bytes, ``publish(bytes)``), under their
-recorded topic names, so nothing is decoded on the way. A reader thread paces the publishing
-(device-like input never blocks the executor). By default only the inputs of a graph are
-played (sensor streams and ground truth), so a graph fed by a bag recomputes its own windows
-and estimates instead of seeing the recorded ones.
+recorded topic names, so nothing is decoded on the way; only a topic recorded with an older
+definition of its type (a bag older than a ``.msg`` change) is converted to the current one,
+the fields added since at their defaults (``BagReader.current_cdr``), so subscribers can read
+it. A reader thread paces the publishing (device-like input never blocks the executor). By
+default only the inputs of a graph are played (sensor streams and ground truth), so a graph fed
+by a bag recomputes its own windows and estimates instead of seeing the recorded ones.
 
 ``rate`` 1.0 plays at recorded pace (log time), 2.0 twice as fast, 0 flat out.
 """
@@ -20,6 +22,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ext_sense_bags import STANDARD_TOPICS, BagError, BagReader
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
@@ -59,6 +62,7 @@ class BagPlayerNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "bag_player"), **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
         self.bag_path = declare(
             self, "bag", "", "rosbag2 directory or .mcap/.db3 file.", read_only=True
         )
@@ -128,8 +132,11 @@ class BagPlayerNode(Node):
             self.get_logger().error(f"cannot play: {err}")
         self.updater = Updater(hardware_id=str(self.bag_path))
         self.updater.add_check("playback", self._check)
+        self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
-        self._thread = threading.Thread(target=self._play, name="bag_player", daemon=True)
+        self._thread = threading.Thread(
+            target=self.guard(self._play), name="bag_player", daemon=True
+        )
         if self._topics:
             self._thread.start()
         else:
@@ -161,7 +168,7 @@ class BagPlayerNode(Node):
                         delay = (due - time.monotonic_ns()) / 1e9
                         if delay > 0 and self._stop.wait(delay):
                             return
-                    self._pubs[rec.topic].publish(rec.data)
+                    self._pubs[rec.topic].publish(bag.current_cdr(rec))
                     self.published += 1
                     self.play_seconds = time.monotonic() - started
             self._linger()

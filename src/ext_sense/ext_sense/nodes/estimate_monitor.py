@@ -19,6 +19,7 @@ from rclpy.node import Node
 
 from ext_sense.nodes.scoreboard import Scoreboard
 from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
@@ -32,6 +33,7 @@ class EstimateMonitorNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "estimate_monitor"), **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
         task = declare(
             self, "task", "tap_localization", "Task whose estimates are scored.", read_only=True
         )
@@ -82,14 +84,15 @@ class EstimateMonitorNode(Node):
         self.done = False
         self._last_news = time.monotonic_ns()
         self.create_subscription(
-            ContactEstimate, "contact_estimate", self._on_estimate, ESTIMATE_QOS
+            ContactEstimate, "contact_estimate", self.guard(self._on_estimate), ESTIMATE_QOS
         )
         self.create_subscription(
-            ContactGroundTruth, "ground_truth", self._on_truth, GROUND_TRUTH_QOS
+            ContactGroundTruth, "ground_truth", self.guard(self._on_truth), GROUND_TRUTH_QOS
         )
-        self.create_timer(0.2, self._on_timer)
+        self.create_timer(0.2, self.guard(self._on_timer))
         self.updater = Updater(hardware_id=task)
         self.updater.add_check("score", self._check)
+        self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
 
     def _print(self, lines: list[str]) -> None:
@@ -132,7 +135,10 @@ class EstimateMonitorNode(Node):
             return
         self.done = True
         self.board.close()
-        missed = max(0, self.trials_seen - self.board.scored)
+        degraded = len(self.board.degraded)
+        missed = max(0, self.trials_seen - self.board.scored - degraded)
+        if degraded:  # said apart: a degraded estimate is neither scored nor missing
+            print(f"degraded estimates (listed, not scored): {degraded}", flush=True)
         if missed or self.board.unmatched_estimates:
             print(
                 f"trials without estimate: {missed}; estimates without trial: "

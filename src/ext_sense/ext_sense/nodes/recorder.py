@@ -28,6 +28,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from ext_sense.nodes.bag_player import message_class
 from ext_sense_bags import STANDARD_TOPICS, BagError, BagWriter, type_hash
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
@@ -51,6 +52,7 @@ class RecorderNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "recorder"), **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
         self.path = declare(
             self, "bag", "", "Directory of the new bag (must not exist).", read_only=True
         )
@@ -92,6 +94,7 @@ class RecorderNode(Node):
         self._waiting = [t for t in topics if t not in STANDARD_TOPICS]
         self.updater = Updater(hardware_id=str(self.path))
         self.updater.add_check("recording", self._check)
+        self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
         try:
             self.writer = BagWriter(
@@ -104,8 +107,8 @@ class RecorderNode(Node):
         for topic in topics:
             if topic in STANDARD_TOPICS:
                 self._subscribe(topic, STANDARD_TOPICS[topic].msgtype)
-        self.create_timer(self.discover_s, self._discover)
-        self.create_timer(min(0.1, self.flush_period_s / 4), self._flush_if_due)
+        self.create_timer(self.discover_s, self.guard(self._discover))
+        self.create_timer(min(0.1, self.flush_period_s / 4), self.guard(self._flush_if_due))
 
     def _subscribe(self, topic: str, msgtype: str) -> None:
         try:
@@ -128,7 +131,13 @@ class RecorderNode(Node):
                 return
             self.received[topic] += 1
 
-        self.create_subscription(cls, topic, callback, subscription_qos(topic), raw=True)
+        self.create_subscription(
+            cls,
+            topic,
+            self.guard.wrap(callback, name=f"record {topic}"),
+            subscription_qos(topic),
+            raw=True,
+        )
 
     def _fail(self, err: BagError) -> None:
         """Stop recording (once): log the reason and show it on ``/diagnostics``."""

@@ -41,6 +41,8 @@ class Scoreboard:
     latencies_ns: list[int] = field(default_factory=list)
     unmatched_estimates: int = 0
     provisional_seen: int = 0
+    degraded: list[Estimate] = field(default_factory=list)
+    """Final estimates flagged degraded: matched to their trial, listed, not scored."""
 
     @property
     def is_regression(self) -> bool:
@@ -70,6 +72,9 @@ class Scoreboard:
         if truth is None:
             self.pending.append(est)
             return []
+        if est.degraded:  # not a normal estimate: listed, never scored as one
+            self.degraded.append(est)
+            return [f"trial {truth.trial:3d}: DEGRADED estimate not scored ({est.degraded_reason})"]
         self.latencies_ns.append(int(est.compute_latency_ns))
         latency = f"latency {est.compute_latency_ns / MS:.2f} ms"
         lag = f"onset {(est.onset_ns - truth.onset_ns) / MS:+.1f} ms"

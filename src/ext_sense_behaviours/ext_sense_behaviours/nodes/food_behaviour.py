@@ -1,7 +1,9 @@
 """``food_behaviour`` node: lower the fork, stop on contact, classify, retract, publish.
 
 Runs :class:`~ext_sense_behaviours.food.FoodMachine` on an arm adapter (``arm`` = ``sim``: the
-simulated arm inside the node; ``franka``: franka_ros2, needs franka_msgs) from a timer at
+simulated arm inside the node; ``franka``: a franka_ros2 robot, or the ``sim_arm`` node that
+stands in for one, through :class:`~ext_sense_behaviours.nodes.franka_adapter.FrankaArmAdapter`:
+robot state, collision thresholds, ``FollowJointTrajectory`` goals) from a timer at
 ``control_rate_hz``. Publishes ``motion_start`` (``ContactGroundTruth``, task
 ``food_identification``, stamp = motion start) so the ``contact_window`` node cuts the food
 window, takes the final food ``ContactEstimate`` for that motion start from ``contact_estimate``,
@@ -30,6 +32,7 @@ from ext_sense_behaviours.food import FOOD_TASK, FoodConfig, FoodMachine, FoodRe
 from ext_sense_behaviours.franka import FrankaNames
 from ext_sense_behaviours.records import ArmState
 from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
@@ -44,6 +47,7 @@ class FoodBehaviourNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "food_behaviour"), **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
         arm_kind = declare(self, "arm", "sim", "Arm adapter: sim or franka.", read_only=True)
 
         def d(name: str, default: Any, text: str, low: Any = None, high: Any = None) -> Any:
@@ -112,10 +116,10 @@ class FoodBehaviourNode(Node):
                 state_topic=d(
                     "franka.state_topic", defaults.state_topic, "FrankaRobotState topic."
                 ),
-                twist_topic=d(
-                    "franka.twist_topic",
-                    defaults.twist_topic,
-                    "TwistStamped command topic of the Cartesian velocity controller.",
+                trajectory_action=d(
+                    "franka.trajectory_action",
+                    defaults.trajectory_action,
+                    "FollowJointTrajectory action of the arm's joint_trajectory_controller.",
                 ),
                 collision_service=d(
                     "franka.collision_service",
@@ -131,8 +135,22 @@ class FoodBehaviourNode(Node):
             arm = FrankaArmAdapter(
                 self,
                 names,
-                rate_hz,
-                d("franka.collision_force_n", 20.0, "Robot reflex force threshold, N.", 1.0, 100.0),
+                collision_force_n=d(
+                    "franka.collision_force_n",
+                    20.0,
+                    "Robot reflex force threshold, N (its contact flag, half of it, also stops "
+                    "the descent).",
+                    1.0,
+                    100.0,
+                ),
+                max_descent_m=d(
+                    "franka.max_descent_m",
+                    0.15,
+                    "Length of the planned descent, m (the probe stops it earlier).",
+                    0.005,
+                    0.5,
+                ),
+                guard=self.guard,
             )
         else:
             raise ValueError(
@@ -153,14 +171,15 @@ class FoodBehaviourNode(Node):
         self.decision_pub = self.create_publisher(String, "food/decision", COMMAND_QOS)
         self.arm_pub = self.create_publisher(JointState, "arm/state", COMMAND_QOS)
         self.create_subscription(
-            ContactEstimate, "contact_estimate", self._on_estimate, ESTIMATE_QOS
+            ContactEstimate, "contact_estimate", self.guard(self._on_estimate), ESTIMATE_QOS
         )
-        self.create_subscription(Bool, "food/start", self._on_start, COMMAND_QOS)
+        self.create_subscription(Bool, "food/start", self.guard(self._on_start), COMMAND_QOS)
         self._estimate_msgs: dict[int, ContactEstimate] = {}
         self.results = 0
-        self.create_timer(1.0 / rate_hz, self._on_timer)
+        self.create_timer(1.0 / rate_hz, self.guard(self._on_timer))
         self.updater = Updater(hardware_id=f"arm:{arm_kind}")
         self.updater.add_check("food", self._check)
+        self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
 
     def _publish_arm(self, state: ArmState) -> None:
@@ -234,6 +253,7 @@ class FoodBehaviourNode(Node):
                 "results_published": self.results,
                 "force_n": f"{self.machine.detector.last_norm_n:.2f}",
                 "invalid_force_samples": self.machine.detector.invalid_samples,
+                **(self.arm.status() if hasattr(self.arm, "status") else {}),
             },
         )
 

@@ -1,71 +1,110 @@
-"""The franka_ros2 arm adapter (needs franka_msgs, which is not on PyPI: not runnable here).
+"""The franka_ros2 arm adapter: the food probe's arm on a Panda / FR3 under franka_ros2.
 
-Implements :class:`~ext_sense_behaviours.arm.ArmAdapter` on a node: reads
-``FrankaRobotState`` from the state topic, streams ``geometry_msgs/TwistStamped`` Cartesian
-velocity commands at ``command_rate_hz`` (a velocity controller needs a steady stream; zero
-twist when stopped), sets the robot's collision reflex through ``SetFullCollisionBehavior`` as a
-safety net behind the 10 N software stop, and offers error recovery through the
-``ErrorRecovery`` action. Names are parameters (:class:`~ext_sense_behaviours.franka.FrankaNames`).
-Imported lazily by the ``food_behaviour`` node only when ``arm`` is ``franka``.
+Implements :class:`~ext_sense_behaviours.arm.ArmAdapter` on a node, through the interfaces a
+franka_ros2 robot offers (names are parameters, :class:`~ext_sense_behaviours.franka.FrankaNames`):
+
+- reads ``franka_msgs/msg/FrankaRobotState`` from the robot state broadcaster: external force
+  ``o_f_ext_hat_k``, height from ``o_t_ee``, measured joints, collision indicators, robot mode;
+- sets the robot's collision reflex through ``franka_msgs/srv/SetFullCollisionBehavior`` once
+  the service is there (asynchronously: the node never blocks waiting for the robot), as a
+  safety net behind the behaviour's 10 N software stop;
+- moves through ``control_msgs/action/FollowJointTrajectory`` of the ``joint_trajectory_controller``
+  franka_ros2's MoveIt configuration runs (``fr3_arm_controller``): the vertical descent and
+  retract become joint waypoints (:func:`~ext_sense_behaviours.panda_kinematics.vertical_line`)
+  planned from the measured joints; ``stop`` cancels the goal, on which the controller holds
+  the position it has;
+- stops the descent by itself when the robot raises a Cartesian contact or collision flag (its
+  lower threshold crossed) or reports reflex mode, whatever the behaviour decides;
+- offers error recovery through ``franka_msgs/action/ErrorRecovery`` after a reflex.
+
+The simulated arm ``ext_sense_sim.nodes.sim_arm`` speaks exactly these interfaces, so the tests
+and the food graph's simulated source run this code. Imported lazily by ``food_behaviour``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
-from geometry_msgs.msg import TwistStamped
+import numpy as np
+from builtin_interfaces.msg import Duration
+from control_msgs.action import FollowJointTrajectory
 from rclpy.action import ActionClient
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from trajectory_msgs.msg import JointTrajectoryPoint
 
 from ext_sense_behaviours.errors import BehaviourError
 from ext_sense_behaviours.franka import (
     FrankaNames,
-    arm_state_from_robot_state,
+    RobotReading,
     collision_behavior_values,
     import_franka_msgs,
+    reading_from_robot_state,
 )
+from ext_sense_behaviours.panda_kinematics import vertical_line
 from ext_sense_behaviours.records import ArmState
-from ext_sense_runtime.qos import COMMAND_QOS
+
+
+def _duration(seconds: float) -> Duration:
+    ns = round(seconds * 1e9)
+    return Duration(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 class FrankaArmAdapter:
-    """A Panda under franka_ros2 as an :class:`~ext_sense_behaviours.arm.ArmAdapter`.
+    """A Panda / FR3 under franka_ros2 as an :class:`~ext_sense_behaviours.arm.ArmAdapter`.
 
     Args:
-        node: The node that owns the subscriptions, publisher, clients and timer.
+        node: The node that owns the subscription, clients and timer.
         names: Topic, service and action names.
-        command_rate_hz: Rate of the twist stream, Hz.
-        collision_force_n, collision_torque_nm, joint_torque_nm: Reflex thresholds.
+        collision_force_n, collision_torque_nm, joint_torque_nm: Reflex thresholds (collision;
+            contact flags at half these).
+        max_descent_m: Length of the planned descent, m (the behaviour stops it earlier).
+        guard: Wraps each callback (the node's :class:`CallbackGuard`); identity when ``None``.
 
     Raises:
-        BehaviourError: franka_msgs is not installed.
+        BehaviourError: franka_msgs is not installed, or a threshold is not positive.
     """
 
     def __init__(
         self,
         node: Node,
         names: FrankaNames | None = None,
-        command_rate_hz: float = 100.0,
         collision_force_n: float = 20.0,
         collision_torque_nm: float = 20.0,
         joint_torque_nm: float = 40.0,
+        max_descent_m: float = 0.15,
+        guard: Callable[[Callable[..., Any]], Callable[..., Any]] | None = None,
     ) -> None:
         fm = import_franka_msgs()
         import franka_msgs.action  # type: ignore[import-not-found]
 
+        wrap = guard or (lambda f: f)
         self.node = node
         self.names = names or FrankaNames()
-        self._latest: ArmState | None = None
+        self.max_descent_m = float(max_descent_m)
+        self.thresholds = collision_behavior_values(
+            collision_force_n, collision_torque_nm, joint_torque_nm
+        )
+        self.reading: RobotReading | None = None
         self._returned_ns: int | None = None
-        self._vz = 0.0
-        self._target_z: float | None = None
-        self.bad_states = 0
+        self._goal: Any = None  # the accepted goal handle of the motion under way
+        self._motion_id = 0  # bumps at every command: answers for older goals are stale
+        self.descending = False
+        self.counters = {
+            "bad_states": 0,
+            "contact_stops": 0,
+            "goals_sent": 0,
+            "goals_rejected": 0,
+            "goals_failed": 0,
+        }
+        self.thresholds_set: bool | None = None  # None: not yet answered
+        self.last_error = ""
         state_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         node.create_subscription(
-            fm.msg.FrankaRobotState, self.names.state_topic, self._on_state, state_qos
+            fm.msg.FrankaRobotState, self.names.state_topic, wrap(self._on_state), state_qos
         )
-        self._twist_pub = node.create_publisher(TwistStamped, self.names.twist_topic, COMMAND_QOS)
+        self._trajectory = ActionClient(node, FollowJointTrajectory, self.names.trajectory_action)
         self._collision = node.create_client(
             fm.srv.SetFullCollisionBehavior, self.names.collision_service
         )
@@ -74,66 +113,163 @@ class FrankaArmAdapter:
         )
         self._srv_types = fm.srv
         self._action_types = franka_msgs.action
-        self.set_collision_behavior(collision_force_n, collision_torque_nm, joint_torque_nm)
-        node.create_timer(1.0 / command_rate_hz, self._send)
+        self._threshold_request: Any = None
+        self._configure_timer = node.create_timer(0.2, wrap(self._send_thresholds))
 
-    def set_collision_behavior(self, force_n: float, torque_nm: float, joint_nm: float) -> Any:
-        """Ask the robot to set its collision reflex thresholds (asynchronous)."""
+    # -- the collision reflex ------------------------------------------------------------------
+
+    def _send_thresholds(self) -> None:
+        """Send the thresholds once the robot's service is there (a timer, never blocking)."""
+        if self._threshold_request is not None or not self._collision.service_is_ready():
+            return
         request = self._srv_types.SetFullCollisionBehavior.Request()
-        for field, values in collision_behavior_values(force_n, torque_nm, joint_nm).items():
+        for field, values in self.thresholds.items():
             setattr(request, field, values)
-        if not self._collision.wait_for_service(timeout_sec=2.0):
-            self.node.get_logger().error(
-                f"collision service '{self.names.collision_service}' not available; the robot "
-                "keeps its current reflex thresholds"
+        self._threshold_request = self._collision.call_async(request)
+        self._threshold_request.add_done_callback(self._on_thresholds)
+        self.node.destroy_timer(self._configure_timer)
+
+    def _on_thresholds(self, future: Any) -> None:
+        response = future.result()
+        self.thresholds_set = bool(response is not None and response.success)
+        if self.thresholds_set:
+            self.node.get_logger().info(
+                f"robot collision reflex set: {self.thresholds['upper_force_thresholds_nominal']}"
             )
-            return None
-        return self._collision.call_async(request)
+        else:
+            self.last_error = f"collision thresholds refused: {getattr(response, 'error', '')}"
+            self.node.get_logger().error(self.last_error)
 
     def recover(self) -> Any:
-        """Send an error-recovery goal (after a reflex stop)."""
-        if not self._recovery.wait_for_server(timeout_sec=2.0):
+        """Send an error-recovery goal (after a reflex); returns the goal future.
+
+        Raises:
+            BehaviourError: The robot's error recovery action is not available.
+        """
+        if not self._recovery.server_is_ready():
             raise BehaviourError(
                 f"error recovery action '{self.names.error_recovery_action}' not available"
             )
         return self._recovery.send_goal_async(self._action_types.ErrorRecovery.Goal())
 
+    # -- state ---------------------------------------------------------------------------------
+
     def _on_state(self, msg: Any) -> None:
         try:
-            self._latest = arm_state_from_robot_state(msg)
+            reading = reading_from_robot_state(msg)
         except BehaviourError as err:
-            self.bad_states += 1
+            self.counters["bad_states"] += 1
             self.node.get_logger().error(str(err), throttle_duration_sec=5.0)
             return
-        if self._target_z is not None and self._vz > 0 and self._latest.z_m >= self._target_z:
-            self._vz, self._target_z = 0.0, None
-
-    def _send(self) -> None:
-        msg = TwistStamped()
-        msg.header.stamp = self.node.get_clock().now().to_msg()
-        msg.header.frame_id = "base"
-        msg.twist.linear.z = self._vz
-        self._twist_pub.publish(msg)
-
-    def move_down(self, speed_mps: float) -> None:
-        """Stream a downward twist of ``speed_mps``."""
-        self._vz, self._target_z = -abs(float(speed_mps)), None
-        self._send()
-
-    def stop(self) -> None:
-        """Stream zero twist."""
-        self._vz, self._target_z = 0.0, None
-        self._send()
-
-    def retract(self, height_m: float, speed_mps: float) -> None:
-        """Stream an upward twist until the state reports ``height_m``."""
-        self._vz, self._target_z = abs(float(speed_mps)), float(height_m)
-        self._send()
+        self.reading = reading
+        if self.descending and (reading.contact or reading.collision or reading.reflex):
+            what = "reflex" if reading.reflex else "collision" if reading.collision else "contact"
+            self.counters["contact_stops"] += 1
+            self.node.get_logger().warning(
+                f"robot {what} flag at |F|={reading.state.force_norm_n:.1f} N: descent stopped"
+            )
+            self.stop()
 
     def read_state(self) -> ArmState | None:
         """The newest state not returned before, else ``None``."""
-        state = self._latest
-        if state is None or state.stamp_ns == self._returned_ns:
+        reading = self.reading
+        if reading is None or reading.state.stamp_ns == self._returned_ns:
             return None
-        self._returned_ns = state.stamp_ns
-        return state
+        self._returned_ns = reading.state.stamp_ns
+        return reading.state
+
+    # -- motion --------------------------------------------------------------------------------
+
+    def move_down(self, speed_mps: float) -> None:
+        """Plan ``max_descent_m`` straight down at ``speed_mps`` and send it to the controller."""
+        self._line(-self.max_descent_m, speed_mps)
+        self.descending = True
+
+    def retract(self, height_m: float, speed_mps: float) -> None:
+        """Plan straight up to ``height_m`` at ``speed_mps`` (nothing when already there)."""
+        reading = self._reading()
+        dz = float(height_m) - reading.state.z_m
+        if dz > 1e-5:
+            self._line(dz, speed_mps)
+
+    def stop(self) -> None:
+        """Cancel the motion under way; the controller holds where the arm is."""
+        self.descending = False
+        self._motion_id += 1
+        goal, self._goal = self._goal, None
+        if goal is not None:
+            goal.cancel_goal_async()
+
+    def _reading(self) -> RobotReading:
+        if self.reading is None:
+            raise BehaviourError("no robot state yet: cannot plan a motion")
+        return self.reading
+
+    def _line(self, dz_m: float, speed_mps: float) -> None:
+        """Send a vertical line of ``dz_m`` from the measured joints as a trajectory goal."""
+        self.stop()
+        reading = self._reading()
+        times, positions = vertical_line(reading.q, dz_m, abs(float(speed_mps)))
+        velocities = np.gradient(positions, times, axis=0) if len(times) > 1 else None
+        goal = FollowJointTrajectory.Goal()
+        goal.trajectory.joint_names = list(reading.joint_names)
+        for i, t in enumerate(times):
+            point = JointTrajectoryPoint(
+                positions=positions[i].tolist(), time_from_start=_duration(float(t))
+            )
+            if velocities is not None and i < len(times) - 1:
+                point.velocities = velocities[i].tolist()
+            elif velocities is not None:
+                point.velocities = [0.0] * 7
+            goal.trajectory.points.append(point)
+        if not self._trajectory.server_is_ready():
+            self.counters["goals_failed"] += 1
+            raise BehaviourError(
+                f"trajectory action '{self.names.trajectory_action}' not available: is the "
+                "joint_trajectory_controller loaded and active?"
+            )
+        motion = self._motion_id
+        self.counters["goals_sent"] += 1
+        future = self._trajectory.send_goal_async(goal)
+        future.add_done_callback(lambda f: self._on_goal_response(f, motion))
+
+    def _on_goal_response(self, future: Any, motion: int) -> None:
+        handle = future.result()
+        if handle is None or not handle.accepted:
+            self.counters["goals_rejected"] += 1
+            self.last_error = "trajectory goal rejected by the controller"
+            self.node.get_logger().error(self.last_error)
+            return
+        if motion != self._motion_id:  # stopped (or replaced) before the goal was accepted
+            handle.cancel_goal_async()
+            return
+        self._goal = handle
+        handle.get_result_async().add_done_callback(lambda f: self._on_result(f, handle))
+
+    def _on_result(self, future: Any, handle: Any) -> None:
+        from action_msgs.msg import GoalStatus
+
+        outcome = future.result()
+        if self._goal is handle:
+            self._goal = None
+        if outcome is None or outcome.status in (GoalStatus.STATUS_SUCCEEDED,):
+            return
+        if outcome.status == GoalStatus.STATUS_CANCELED:
+            return
+        self.counters["goals_failed"] += 1
+        self.last_error = (
+            f"trajectory goal ended with status {outcome.status}: "
+            f"{outcome.result.error_string or outcome.result.error_code}"
+        )
+        self.node.get_logger().error(self.last_error)
+
+    def status(self) -> dict[str, object]:
+        """Key-values for ``/diagnostics``."""
+        reading = self.reading
+        return {
+            **self.counters,
+            "thresholds_set": {None: "pending", True: "yes", False: "refused"}[self.thresholds_set],
+            "robot_reflex": bool(reading is not None and reading.reflex),
+            "robot_contact": bool(reading is not None and reading.contact),
+            "last_error": self.last_error or "none",
+        }

@@ -1,12 +1,17 @@
 """``handover_behaviour`` node: open the gripper once the person's grasp is stable.
 
 Subscribes ``contact_estimate`` (``ContactEstimate``, task ``handover_stability``) and
-``gripper/status`` (from ``robotiq_gripper``); publishes ``gripper/command`` (open), every
+commands the gripper through ``control_msgs/action/GripperCommand`` on ``gripper_action``
+(default ``/robotiq_gripper_controller/gripper_cmd``: our ``robotiq_gripper`` node, or a
+``ros2_control`` ``GripperActionController`` unchanged): a grasp goal (gap 0) whose result
+``stalled`` means it holds an object, an open goal (gap ``open_position_m``) whose success means
+it released. ``gripper/status`` (from ``robotiq_gripper`` only; optional) adds faults with their
+cause and, after a fault, where the fingers really are. Publishes every
 decision with its reason on ``handover/decision`` (``std_msgs/String``) and in the log, and
 ``handover/offer`` (``ContactGroundTruth``, task ``handover_stability``, stamped when a handover
 starts: the object is offered; the simulated sensor plays the person's grasp on it). The
-node first closes the ready gripper on the object (``grasp_on_start``); the handover starts
-when the gripper reports it holds an object (``auto_start``) or on ``handover/start``
+node first closes the gripper on the object (``grasp_on_start``); the handover starts
+when the grasp result reports it holds an object (``auto_start``) or on ``handover/start``
 (``std_msgs/Bool`` true; after a fault this is the only way out); with ``regrasp_s`` > 0 it
 grasps again after each release or timeout for the next handover (demos with many trials).
 The decisions are those of :class:`~ext_sense_behaviours.handover.HandoverMachine`; any gripper
@@ -24,7 +29,6 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 
 from ext_sense_behaviours.decisions import Decision
@@ -37,11 +41,13 @@ from ext_sense_behaviours.handover import (
     HandoverMachine,
     HandoverState,
 )
+from ext_sense_behaviours.nodes.gripper_client import GripperClient, GripperReply
 from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare, refused
 from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
 from ext_sense_runtime.records import estimate_of
 from ext_sense_runtime.stamps import S, fill_stamp
@@ -60,6 +66,7 @@ class HandoverBehaviourNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "handover_behaviour"), **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
         threshold = declare(
             self, "threshold", 0.8, "P(stable) an estimate must reach, 0..1.", low=0.01, high=1.0
         )
@@ -80,11 +87,16 @@ class HandoverBehaviourNode(Node):
             low=0.1,
             high=60.0,
         )
-        self.open_speed = declare(
-            self, "open_speed", 0.5, "Opening speed, 0..1.", low=0.0, high=1.0
+        self.open_position_m = declare(
+            self,
+            "open_position_m",
+            0.085,
+            "Finger gap of the open goal, m (the 2F-85's stroke).",
+            low=0.0,
+            high=0.5,
         )
-        self.open_force = declare(
-            self, "open_force", 0.3, "Opening force, 0..1.", low=0.0, high=1.0
+        self.open_effort_n = declare(
+            self, "open_effort_n", 70.0, "max_effort of the open goal, N.", low=0.0, high=1000.0
         )
         self.grasp_on_start = declare(
             self,
@@ -92,9 +104,20 @@ class HandoverBehaviourNode(Node):
             True,
             "Close the ready gripper on the object first (then the handover starts on contact).",
         )
-        self.grasp_force = declare(
-            self, "grasp_force", 0.3, "Grasping force, 0..1.", low=0.0, high=1.0
+        self.grasp_effort_n = declare(
+            self, "grasp_effort_n", 70.0, "max_effort of the grasp goal, N.", low=0.0, high=1000.0
         )
+        action = declare(
+            self,
+            "gripper_action",
+            "/robotiq_gripper_controller/gripper_cmd",
+            "GripperCommand action of the gripper (our robotiq_gripper or a ros2_control "
+            "GripperActionController).",
+            read_only=True,
+        )
+        self.gripper = GripperClient(self, action)
+        self._object_held = False
+        self._grasp_retry_ns = 0
         regrasp_s = declare(
             self,
             "regrasp_s",
@@ -147,21 +170,23 @@ class HandoverBehaviourNode(Node):
             ),
             sink=self._on_decision,
         )
-        self.add_on_set_parameters_callback(self._on_set)
+        self.add_on_set_parameters_callback(self.guard.wrap(self._on_set, fallback=refused))
         self.gripper_level = Level.STALE
         self.gripper_message = "no gripper status yet"
         self.estimates = 0
-        self.command_pub = self.create_publisher(JointState, "gripper/command", COMMAND_QOS)
         self.decision_pub = self.create_publisher(String, "handover/decision", COMMAND_QOS)
         self.offer_pub = self.create_publisher(ContactGroundTruth, "handover/offer", COMMAND_QOS)
         self.create_subscription(
-            ContactEstimate, "contact_estimate", self._on_estimate, ESTIMATE_QOS
+            ContactEstimate, "contact_estimate", self.guard(self._on_estimate), ESTIMATE_QOS
         )
-        self.create_subscription(DiagnosticStatus, "gripper/status", self._on_gripper, COMMAND_QOS)
-        self.create_subscription(Bool, "handover/start", self._on_start, COMMAND_QOS)
-        self.create_timer(1.0 / tick_hz, self._on_tick)
+        self.create_subscription(
+            DiagnosticStatus, "gripper/status", self.guard(self._on_gripper), COMMAND_QOS
+        )
+        self.create_subscription(Bool, "handover/start", self.guard(self._on_start), COMMAND_QOS)
+        self.create_timer(1.0 / tick_hz, self.guard(self._on_tick))
         self.updater = Updater(hardware_id="handover")
         self.updater.add_check("handover", self._check)
+        self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
 
     def _now(self) -> int:
@@ -175,7 +200,7 @@ class HandoverBehaviourNode(Node):
                 if p.name.endswith("_s"):
                     value = round(value * S)
                 changes[_CONFIG_PARAMS[p.name]] = value
-            elif p.name in ("open_speed", "open_force", "auto_start"):
+            elif p.name in ("open_position_m", "open_effort_n", "grasp_effort_n", "auto_start"):
                 setattr(self, p.name, p.value)
         if changes:
             if self.machine.state == HandoverState.RELEASING:
@@ -202,14 +227,69 @@ class HandoverBehaviourNode(Node):
 
     def _act(self, decision: Decision | None) -> None:
         if decision is not None and HandoverAction[decision.action] == HandoverAction.OPEN_GRIPPER:
-            cmd = JointState(
-                name=["finger_joint"],
-                position=[0.0],
-                velocity=[self.open_speed],
-                effort=[self.open_force],
+            self.gripper.send(
+                self.open_position_m, self.open_effort_n, self.guard(self._on_open_done)
             )
-            cmd.header.stamp = self.get_clock().now().to_msg()
-            self.command_pub.publish(cmd)
+
+    def _on_open_done(self, reply: GripperReply) -> None:
+        """The open goal ended: released, or a fault (keep holding) unless one is known."""
+        now = self._now()
+        self._object_held = False
+        if self.machine.state != HandoverState.RELEASING:
+            return  # a fault from gripper/status came first
+        if reply.succeeded:
+            self.machine.on_gripper(True, now)
+            return
+        cause = self.gripper_message if self.gripper_level == Level.ERROR else ""
+        why = f"open goal {reply.reason}" + (f": {cause}" if cause else "")
+        self._act(self.machine.on_fault(why, now))
+
+    def _on_grasp_done(self, reply: GripperReply) -> None:
+        """The grasp goal ended: an object is held when the fingers stalled on it."""
+        self._grasp_pending = False
+        if reply.succeeded and reply.stalled:
+            self._object_held = True
+            return
+        if reply.succeeded:
+            self.get_logger().warning(
+                "gripper closed on nothing (reached the goal gap): no object to hand over",
+                throttle_duration_sec=10.0,
+            )
+        else:
+            self.get_logger().warning(
+                f"grasp goal {reply.reason}; trying again in 1 s", throttle_duration_sec=10.0
+            )
+        self._grasp_retry_ns = self._now() + S
+
+    def _ready_for_next(self, now: int) -> bool:
+        state = self.machine.state
+        return state == HandoverState.IDLE or (
+            state in (HandoverState.RELEASED, HandoverState.TIMED_OUT)
+            and self.regrasp_ns > 0
+            and self._ended_ns is not None
+            and now - self._ended_ns >= self.regrasp_ns
+        )
+
+    def _prepare_next(self, now: int) -> None:
+        """Grasp the object, then start the handover once it is held (from the tick)."""
+        if not self._ready_for_next(now):
+            return
+        if self._object_held:
+            if (
+                self.auto_start
+                and self.offer_pub.get_subscription_count() >= self.start_subscribers
+                and now - self._started_ns >= self.start_delay_ns
+            ):
+                self._act(self.machine.start(now))
+        elif (
+            self.grasp_on_start
+            and not self._grasp_pending
+            and now >= self._grasp_retry_ns
+            and self.gripper.ready()
+        ):
+            self._grasp_pending = True
+            self.get_logger().info("grasping the object before the handover")
+            self.gripper.send(0.0, self.grasp_effort_n, self.guard(self._on_grasp_done))
 
     def _on_start(self, msg: Bool) -> None:
         if not msg.data:
@@ -242,47 +322,11 @@ class HandoverBehaviourNode(Node):
             if state in (HandoverState.HOLDING, HandoverState.RELEASING):
                 self._act(self.machine.on_fault(msg.message, now))
             return
-        try:
-            status = status_from_values(values)
-        except BehaviourError:
-            return  # no register values yet (e.g. "no status yet")
-        if state == HandoverState.RELEASING:
-            self.machine.on_gripper(is_open(status), now)
-            return
-        ready_for_next = state == HandoverState.IDLE or (
-            state in (HandoverState.RELEASED, HandoverState.TIMED_OUT)
-            and self.regrasp_ns > 0
-            and self._ended_ns is not None
-            and now - self._ended_ns >= self.regrasp_ns
-        )
-        if not ready_for_next:
-            return
-        if status.object_held:
-            if (
-                self.auto_start
-                and self.offer_pub.get_subscription_count() >= self.start_subscribers
-                and now - self._started_ns >= self.start_delay_ns
-            ):
-                self._act(self.machine.start(now))
-        elif self.grasp_on_start and status.ready and not self._grasp_pending:
-            self._grasp_pending = True
-            self.get_logger().info("grasping the object before the handover")
-            cmd = JointState(
-                name=["finger_joint"],
-                position=[1.0],
-                velocity=[self.open_speed],
-                effort=[self.grasp_force],
-            )
-            cmd.header.stamp = self.get_clock().now().to_msg()
-            self.command_pub.publish(cmd)
-        elif self._grasp_pending and status.motion_done and not status.object_held:
-            self.get_logger().warning(
-                "gripper closed on nothing (gOBJ=3): no object to hand over",
-                throttle_duration_sec=10.0,
-            )
 
     def _on_tick(self) -> None:
-        self._act(self.machine.on_tick(self._now()))
+        now = self._now()
+        self._act(self.machine.on_tick(now))
+        self._prepare_next(now)
 
     def _check(self) -> tuple[Level, str, dict[str, object]]:
         state = self.machine.state

@@ -1,37 +1,66 @@
-"""``robotiq_gripper`` node: a Robotiq 2F over Modbus RTU behind two topics.
+"""``robotiq_gripper`` node: a Robotiq 2F over Modbus RTU behind the standard gripper actions.
 
-``control_msgs`` (GripperCommand action) and ``std_srvs`` are not available here, so the
-interface is topics:
+It speaks what MoveIt and ``ros2_control`` gripper controllers speak, so user code written for
+PickNik's ``ros2_robotiq_gripper`` (a ``GripperActionController``) works unchanged:
 
-- ``gripper/command`` (``sensor_msgs/JointState``, in): ``position[0]`` the requested closure,
-  0.0 open .. 1.0 closed; optional ``velocity[0]`` speed and ``effort[0]`` force, each 0..1
-  (missing: the ``speed``/``force`` parameters).
+- ``/<controller_name>/gripper_cmd`` (``control_msgs/action/GripperCommand``; default
+  ``/robotiq_gripper_controller/gripper_cmd``, as PickNik's driver): goal ``command.position``
+  the finger gap in metres (0 closed .. ``stroke_m`` open), ``command.max_effort`` the grip
+  force in newtons (0: the ``force`` parameter); speed from the ``speed`` parameter.
+- ``/<parallel_controller_name>/gripper_cmd`` (``control_msgs/action/ParallelGripperCommand``;
+  default ``/robotiq_parallel_gripper_controller/gripper_cmd``, the shape of Jazzy's
+  ``parallel_gripper_action_controller``): ``command.position[0]`` the gap in metres, optional
+  ``velocity[0]`` (m/s) and ``effort[0]`` (N).
+
+Both results carry the final gap, ``stalled`` (the fingers stopped on an object: Robotiq object
+detection, gOBJ 1 or 2) and ``reached_goal`` (gOBJ 3); both count as success
+(:func:`~ext_sense_behaviours.gripper_action.goal_outcome`). A goal fails (aborted) on a link
+error, a gripper fault, a gripper not activated, or after ``goal_timeout_s``; a newer goal
+preempts the one running (aborted); a cancel stops the fingers where they are.
+
+Topics:
+
+- ``joint_states`` (``sensor_msgs/JointState``, out, every poll): ``joint_name`` at the finger
+  gap in metres.
 - ``gripper/activate`` (``std_msgs/Bool``, in): true resets and activates (clears faults),
   false resets (rACT = 0).
 - ``gripper/status`` (``diagnostic_msgs/DiagnosticStatus``, out, every poll): level OK / WARN
   (not ready) / ERROR (fault or link error), a readable message, and the register fields as
   key-values ``gACT gGTO gSTA gOBJ gFLT gPR gPO gCU``, plus ``link`` = ``ok`` when they were
   read just now or ``error`` when they are the last values read before a link error.
-- ``gripper/joint_states`` (``sensor_msgs/JointState``, out): ``position[0]`` = gPO / 255
-  (normalised closure, not the URDF joint angle), ``effort[0]`` = gCU x 0.01 A.
+
+A lifecycle node, as the sensor drivers are: configure opens the Modbus link (the worker thread
+starts, connects and polls; status and ``joint_states`` flow), activate serves (goals are
+accepted only while active; inactive, the action servers refuse them), deactivate stops serving
+(a goal under way is aborted) with the link kept open, cleanup and shutdown close the link.
+``autostart`` (default true: ``ros2 run``, tests) configures and activates at start-up; the
+graphs set it false and drive the transitions (launch events, ``ext-sense run``), or leave them
+to an external manager (``manage_drivers:=false``).
 
 The serial link lives in a worker thread
 (:class:`~ext_sense_behaviours.gripper_worker.GripperWorker`), so the executor never blocks on
-the device.
+the device; a goal's execute callback awaits a future that the worker's status callback
+completes.
 """
 
 from __future__ import annotations
 
 import math
 import threading
+import time
 from typing import Any
 
+from control_msgs.action import GripperCommand, ParallelGripperCommand
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from rclpy.node import Node
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.lifecycle import LifecycleNode, State, TransitionCallbackReturn
+from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool
 
 from ext_sense_behaviours.gripper import describe, status_to_values
+from ext_sense_behaviours.gripper_action import GoalOutcome, GripperScale, goal_outcome
 from ext_sense_behaviours.gripper_worker import GripperCommandRequest, GripperWorker
 from ext_sense_drivers.robotiq import GripperStatus, RobotiqClient, RobotiqError
 from ext_sense_runtime.diagnostics import Level, Updater
@@ -45,8 +74,22 @@ def _fraction_to_byte(value: float) -> int:
     return round(min(max(value, 0.0), 1.0) * 255)
 
 
-class RobotiqGripperNode(Node):
-    """Drives one Robotiq 2F gripper."""
+class _Goal:
+    """The goal being carried out: its target count and the future its execute awaits."""
+
+    def __init__(
+        self, handle: ServerGoalHandle, target: int, force_n: float, deadline: float
+    ) -> None:
+        self.handle, self.target, self.force_n, self.deadline = handle, target, force_n, deadline
+        self.future: Future = Future()
+
+    def finish(self, outcome: GoalOutcome) -> None:
+        if not self.future.done():
+            self.future.set_result(outcome)
+
+
+class RobotiqGripperNode(LifecycleNode):
+    """Drives one Robotiq 2F gripper (a lifecycle node: see the module docstring)."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "robotiq_gripper"), **kwargs)
@@ -78,23 +121,111 @@ class RobotiqGripperNode(Node):
         )
         auto_activate = declare(self, "auto_activate", True, "Activate the gripper on connect.")
         self.speed = declare(
-            self, "speed", 0.5, "Default finger speed, 0..1 of maximum.", low=0.0, high=1.0
+            self,
+            "speed",
+            0.5,
+            "Finger speed of GripperCommand goals, 0..1 of maximum.",
+            low=0.0,
+            high=1.0,
         )
         self.force = declare(
-            self, "force", 0.5, "Default grip force, 0..1 of maximum.", low=0.0, high=1.0
+            self,
+            "force",
+            0.5,
+            "Grip force of goals with no max_effort, 0..1 of maximum.",
+            low=0.0,
+            high=1.0,
         )
-        self.joint_name = declare(self, "joint_name", "finger_joint", "Joint name in joint_states.")
+        self.joint_name = declare(
+            self, "joint_name", "robotiq_finger_gap", "Joint name in joint_states.", read_only=True
+        )
+        self.scale = GripperScale(
+            declare(
+                self,
+                "stroke_m",
+                0.085,
+                "Finger gap fully open, m (2F-85: 0.085, 2F-140: 0.14).",
+                low=0.01,
+                high=0.5,
+                read_only=True,
+            ),
+            declare(
+                self,
+                "max_force_n",
+                235.0,
+                "Grip force at full force setting, N.",
+                low=1.0,
+                high=1000.0,
+                read_only=True,
+            ),
+            declare(
+                self,
+                "max_speed_m_s",
+                0.15,
+                "Finger speed at full speed setting, m/s.",
+                low=0.001,
+                high=1.0,
+                read_only=True,
+            ),
+        )
+        self.goal_timeout_s = declare(
+            self,
+            "goal_timeout_s",
+            5.0,
+            "Longest time a goal may take before it is aborted, s.",
+            low=0.1,
+            high=60.0,
+        )
+        controller = declare(
+            self,
+            "controller_name",
+            "/robotiq_gripper_controller",
+            "Namespace of the GripperCommand action (<name>/gripper_cmd).",
+            read_only=True,
+        )
+        parallel = declare(
+            self,
+            "parallel_controller_name",
+            "/robotiq_parallel_gripper_controller",
+            "Namespace of the ParallelGripperCommand action (<name>/gripper_cmd).",
+            read_only=True,
+        )
         self.add_on_set_parameters_callback(self._on_set)
 
         self._lock = threading.Lock()
         self.status: GripperStatus | None = None
         self.error: str = ""
+        self._goal: _Goal | None = None
+        self.goals = {"succeeded": 0, "aborted": 0, "canceled": 0, "rejected": 0}
         self.status_pub = self.create_publisher(DiagnosticStatus, "gripper/status", COMMAND_QOS)
-        self.joint_pub = self.create_publisher(JointState, "gripper/joint_states", COMMAND_QOS)
-        self.create_subscription(JointState, "gripper/command", self._on_command, COMMAND_QOS)
+        self.joint_pub = self.create_publisher(JointState, "joint_states", COMMAND_QOS)
         self.create_subscription(Bool, "gripper/activate", self._on_activate, COMMAND_QOS)
+        cancel = self._on_cancel
+        self.active = False
+        self.gripper_server = ActionServer(
+            self,
+            GripperCommand,
+            f"{controller.rstrip('/')}/gripper_cmd",
+            self._execute_gripper_command,
+            goal_callback=self._on_goal_request,
+            cancel_callback=cancel,
+        )
+        self.parallel_server = ActionServer(
+            self,
+            ParallelGripperCommand,
+            f"{parallel.rstrip('/')}/gripper_cmd",
+            self._execute_parallel_command,
+            goal_callback=self._on_goal_request,
+            cancel_callback=cancel,
+        )
 
         self.worker: GripperWorker | None = None
+        self._open_worker = lambda: GripperWorker(
+            lambda: RobotiqClient.open(self.port, baud, timeout_s, slave=slave, retries=retries),
+            self._on_worker_status,
+            poll_period_s=1.0 / poll_hz,
+            auto_activate=auto_activate,
+        )
         if not self.port:
             self.error = (
                 "parameter 'port' is empty: set it to the gripper's serial device (e.g. the pty "
@@ -102,44 +233,173 @@ class RobotiqGripperNode(Node):
             )
             self.get_logger().error(self.error)
             self.create_timer(1.0, lambda: self._publish_status(None, None))
-        else:
-            self.worker = GripperWorker(
-                lambda: RobotiqClient.open(
-                    self.port, baud, timeout_s, slave=slave, retries=retries
-                ),
-                self._on_worker_status,
-                poll_period_s=1.0 / poll_hz,
-                auto_activate=auto_activate,
-            )
-            self.worker.start()
         self.updater = Updater(hardware_id=self.port or "no port")
         self.updater.add_check("link", self._check_link)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
+        autostart = declare(
+            self,
+            "autostart",
+            True,
+            "Configure and activate this lifecycle node at start-up (ros2 run, tests); the graphs "
+            "set it false and drive the transitions themselves (launch events, ext-sense run), or "
+            "leave them to an external manager (manage_drivers:=false).",
+            read_only=True,
+        )
+        if autostart:
+            self.trigger_configure()
+            self.trigger_activate()
+        else:
+            self.get_logger().info("unconfigured: waiting for a lifecycle manager to configure")
+
+    def on_configure(self, state: State) -> TransitionCallbackReturn:
+        """Open the Modbus link: the worker thread connects (retrying) and polls."""
+        if not self.port:
+            self.get_logger().error(f"cannot configure: {self.error}")
+            return TransitionCallbackReturn.FAILURE
+        self.worker = self._open_worker()
+        self.worker.start()
+        self.get_logger().info(f"configured: opening the gripper on {self.port}")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: State) -> TransitionCallbackReturn:
+        """Serve: gripper goals are accepted from now on."""
+        self.active = True
+        self.get_logger().info("active: serving the gripper actions")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_deactivate(self, state: State) -> TransitionCallbackReturn:
+        """Stop serving; a goal under way is aborted; the link stays open."""
+        self.active = False
+        with self._lock:
+            goal = self._goal
+        if goal is not None:
+            goal.finish(
+                GoalOutcome(False, self._current_gap(), 0.0, False, False, "gripper deactivated")
+            )
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_cleanup(self, state: State) -> TransitionCallbackReturn:
+        """Close the link (the worker thread stops and closes the port)."""
+        self._release()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: State) -> TransitionCallbackReturn:
+        """Close the link on the way out from any state."""
+        self.on_deactivate(state)
+        self._release()
+        return TransitionCallbackReturn.SUCCESS
+
+    def _release(self) -> None:
+        worker, self.worker = self.worker, None
+        if worker is not None:
+            worker.stop()
+        with self._lock:
+            self.status = None
+
+    def _on_goal_request(self, _request: Any) -> GoalResponse:
+        if not self.active:
+            self.get_logger().error("gripper goal refused: the node is not active (lifecycle)")
+            self.goals["rejected"] += 1
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
 
     def _on_set(self, params: list) -> Any:
         from rcl_interfaces.msg import SetParametersResult
 
         for p in params:
-            if p.name in ("speed", "force"):
+            if p.name in ("speed", "force", "goal_timeout_s"):
                 setattr(self, p.name, float(p.value))
         return SetParametersResult(successful=True)
 
-    def _on_command(self, msg: JointState) -> None:
-        if not msg.position or not math.isfinite(msg.position[0]):
-            self.get_logger().warning(
-                "gripper/command ignored: position[0] (0 open .. 1 closed) missing or NaN"
-            )
-            return
-        speed = msg.velocity[0] if msg.velocity and math.isfinite(msg.velocity[0]) else self.speed
-        force = msg.effort[0] if msg.effort and math.isfinite(msg.effort[0]) else self.force
-        request = GripperCommandRequest(
-            "move",
-            _fraction_to_byte(msg.position[0]),
-            _fraction_to_byte(speed),
-            _fraction_to_byte(force),
+    def _on_cancel(self, _goal_handle: ServerGoalHandle) -> CancelResponse:
+        return CancelResponse.ACCEPT
+
+    async def _execute_gripper_command(self, goal_handle: ServerGoalHandle) -> Any:
+        command = goal_handle.request.command
+        outcome = await self._carry_out(goal_handle, command.position, None, command.max_effort)
+        return GripperCommand.Result(
+            position=outcome.position_m,
+            effort=outcome.effort_n,
+            stalled=outcome.stalled,
+            reached_goal=outcome.reached_goal,
         )
-        if self.worker is None or not self.worker.submit(request):
-            self.get_logger().error(f"gripper command dropped: {self.error or 'queue full'}")
+
+    async def _execute_parallel_command(self, goal_handle: ServerGoalHandle) -> Any:
+        command = goal_handle.request.command
+        if not command.position:
+            outcome = self._refuse(goal_handle, "command.position[0] (gap, m) is missing")
+        else:
+            velocity = command.velocity[0] if command.velocity else None
+            effort = command.effort[0] if command.effort else 0.0
+            outcome = await self._carry_out(goal_handle, command.position[0], velocity, effort)
+        state = JointState(name=[self.joint_name], position=[outcome.position_m])
+        state.effort = [outcome.effort_n]
+        state.header.stamp = self.get_clock().now().to_msg()
+        return ParallelGripperCommand.Result(
+            state=state, stalled=outcome.stalled, reached_goal=outcome.reached_goal
+        )
+
+    def _current_gap(self) -> float:
+        status = self.status
+        return self.scale.gap_m(status.position) if status is not None else float("nan")
+
+    def _refuse(self, goal_handle: ServerGoalHandle, why: str) -> GoalOutcome:
+        self.get_logger().error(f"gripper goal aborted: {why}")
+        goal_handle.abort()
+        self.goals["aborted"] += 1
+        return GoalOutcome(False, self._current_gap(), 0.0, False, False, why)
+
+    async def _carry_out(
+        self,
+        goal_handle: ServerGoalHandle,
+        gap_m: float,
+        velocity_m_s: float | None,
+        effort_n: float,
+    ) -> GoalOutcome:
+        """Send one move to the worker and wait for the status that ends it."""
+        if not math.isfinite(gap_m):
+            return self._refuse(goal_handle, "the requested position is not finite")
+        with self._lock:
+            status, error = self.status, self.error
+        if self.worker is None or error or status is None or not status.ready:
+            why = error or ("no status yet" if status is None else describe(status))
+            return self._refuse(goal_handle, f"gripper not ready ({why})")
+        target = self.scale.position_counts(gap_m)
+        force = self.scale.force_counts(effort_n, _fraction_to_byte(self.force))
+        speed = self.scale.speed_counts(velocity_m_s, _fraction_to_byte(self.speed))
+        goal = _Goal(
+            goal_handle,
+            target,
+            force / 255 * self.scale.max_force_n,
+            time.monotonic() + self.goal_timeout_s,
+        )
+        with self._lock:
+            previous, self._goal = self._goal, goal
+        if previous is not None:
+            previous.finish(
+                GoalOutcome(
+                    False, self._current_gap(), 0.0, False, False, "preempted by a newer goal"
+                )
+            )
+        if not self.worker.submit(GripperCommandRequest("move", target, speed, force)):
+            goal.finish(
+                GoalOutcome(False, self._current_gap(), 0.0, False, False, "command queue full")
+            )
+        outcome: GoalOutcome = await goal.future
+        with self._lock:
+            if self._goal is goal:
+                self._goal = None
+        if goal_handle.is_cancel_requested and not outcome.succeeded:
+            goal_handle.canceled()
+            self.goals["canceled"] += 1
+        elif outcome.succeeded:
+            goal_handle.succeed()
+            self.goals["succeeded"] += 1
+        else:
+            self.get_logger().error(f"gripper goal aborted: {outcome.reason}")
+            goal_handle.abort()
+            self.goals["aborted"] += 1
+        return outcome
 
     def _on_activate(self, msg: Bool) -> None:
         if self.worker is not None:
@@ -149,9 +409,30 @@ class RobotiqGripperNode(Node):
         with self._lock:
             self.status = status
             previous, self.error = self.error, "" if error is None else str(error)
+            goal = self._goal
         if error is not None and str(error) != previous:
             self.get_logger().error(f"gripper: {error}")
+        if goal is not None:
+            self._advance(goal, status, error)
         self._publish_status(status, error)
+
+    def _advance(
+        self, goal: _Goal, status: GripperStatus | None, error: RobotiqError | None
+    ) -> None:
+        """Finish the running goal when this status (or error) decides it (worker thread)."""
+        gap = self.scale.gap_m(status.position) if status is not None else float("nan")
+        if error is not None:
+            goal.finish(GoalOutcome(False, gap, 0.0, False, False, str(error)))
+        elif status is not None:
+            outcome = goal_outcome(status, goal.target, self.scale, goal.force_n)
+            if outcome is not None:
+                goal.finish(outcome)
+            elif time.monotonic() > goal.deadline:
+                goal.finish(GoalOutcome(False, gap, 0.0, False, False, "goal timed out"))
+            elif goal.handle.is_cancel_requested and self.worker is not None:
+                # stop where the fingers are: a go-to the current position ends the motion
+                self.worker.submit(GripperCommandRequest("move", status.position, 255, 0))
+                goal.finish(GoalOutcome(False, gap, 0.0, False, False, "canceled"))
 
     def _publish_status(self, status: GripperStatus | None, error: RobotiqError | None) -> None:
         msg = DiagnosticStatus(name="robotiq_2f", hardware_id=self.port or "no port")
@@ -171,9 +452,7 @@ class RobotiqGripperNode(Node):
             msg.values = [KeyValue(key=k, value=v) for k, v in status_to_values(status)]
             msg.values.append(KeyValue(key="link", value="ok" if fresh else "error"))
             joints = JointState(
-                name=[self.joint_name],
-                position=[status.position / 255.0],
-                effort=[status.current * 0.01],
+                name=[self.joint_name], position=[self.scale.gap_m(status.position)]
             )
             joints.header.stamp = self.get_clock().now().to_msg()
             self.joint_pub.publish(joints)
@@ -207,8 +486,7 @@ class RobotiqGripperNode(Node):
 
     def destroy_node(self) -> None:
         """Stop the worker thread and close the port, then destroy the node."""
-        if self.worker is not None:
-            self.worker.stop()
+        self._release()
         super().destroy_node()
 
 

@@ -18,10 +18,11 @@ from ext_sense_behaviours.errors import BehaviourError
 from ext_sense_behaviours.nodes.conversions import marker_from_spec
 from ext_sense_behaviours.tap import TAP_TASK, rod_marker, tap_marker
 from ext_sense_msgs.msg import ContactEstimate
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare, refused
 from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
 from ext_sense_runtime.records import estimate_of
 
@@ -33,6 +34,7 @@ class TapMarkerNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "tap_marker"), **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
         self.rod_length_m = declare(
             self,
             "rod_length_m",
@@ -59,17 +61,18 @@ class TapMarkerNode(Node):
             low=0.0,
             high=3600.0,
         )
-        self.add_on_set_parameters_callback(self._on_set)
+        self.add_on_set_parameters_callback(self.guard.wrap(self._on_set, fallback=refused))
         self.published = 0
         self.dropped = 0
         self.last_text = ""
         self.pub = self.create_publisher(Marker, "marker", COMMAND_QOS)
         self.create_subscription(
-            ContactEstimate, "contact_estimate", self._on_estimate, ESTIMATE_QOS
+            ContactEstimate, "contact_estimate", self.guard(self._on_estimate), ESTIMATE_QOS
         )
-        self.create_timer(1.0, self._publish_rod)
+        self.create_timer(1.0, self.guard(self._publish_rod))
         self.updater = Updater(hardware_id=self.frame_id)
         self.updater.add_check("markers", self._check)
+        self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
 
     def _on_set(self, params: list) -> SetParametersResult:

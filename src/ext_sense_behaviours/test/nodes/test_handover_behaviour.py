@@ -9,7 +9,7 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
@@ -17,8 +17,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 from visualization_msgs.msg import Marker  # noqa: E402
 
-from ext_sense_behaviours.gripper import status_to_values  # noqa: E402
-from ext_sense_drivers.robotiq import ActivationStatus, GripperStatus, ObjectStatus  # noqa: E402
+from ext_sense_drivers.robotiq import ObjectStatus  # noqa: E402
 from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth  # noqa: E402
 from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS  # noqa: E402
 from ext_sense_runtime.stamps import stamp_to_ns  # noqa: E402
@@ -98,7 +97,24 @@ def test_tap_marker_draws_the_estimate(ros):
     assert rod.scale.z == pytest.approx(0.5)
 
 
-def test_robotiq_gripper_node_on_the_emulator(ros):
+def _send_goal(spin_until, client, goal) -> object:
+    """Send ``goal`` and return the final result response (status and result)."""
+    assert spin_until(client.server_is_ready)
+    sent = client.send_goal_async(goal)
+    assert spin_until(sent.done)
+    assert sent.result().accepted
+    result = sent.result().get_result_async()
+    assert spin_until(result.done)
+    return result.result()
+
+
+def test_robotiq_gripper_node_serves_the_gripper_actions_on_the_emulator(ros):
+    """A GripperCommand goal from a plain rclpy action client moves the emulated gripper and
+    returns the final gap; a ParallelGripperCommand goal opens it again."""
+    from action_msgs.msg import GoalStatus
+    from control_msgs.action import GripperCommand, ParallelGripperCommand
+    from rclpy.action import ActionClient
+
     from ext_sense_behaviours.nodes.robotiq_gripper import RobotiqGripperNode
 
     add, spin_until = ros
@@ -115,49 +131,85 @@ def test_robotiq_gripper_node_on_the_emulator(ros):
         )
         probe = add(Probe)
         probe.listen(DiagnosticStatus, "gripper/status")
-        probe.listen(JointState, "gripper/joint_states")
-        cmd = probe.publisher(JointState, "gripper/command")
+        probe.listen(JointState, "joint_states")
         statuses = probe.got["gripper/status"]
         assert spin_until(lambda: statuses and statuses[-1].message == "activated, idle")
-        cmd.publish(JointState(position=[1.0], velocity=[1.0], effort=[0.5]))
-        assert spin_until(lambda: statuses[-1].message == "holding an object")
-        values = dict((kv.key, kv.value) for kv in statuses[-1].values)
-        assert values["gOBJ"] == "2"
-        assert values["gPO"] == "120"
-        joints = probe.got["gripper/joint_states"]
-        assert spin_until(lambda: joints[-1].position[0] == pytest.approx(120 / 255))
+        close = ActionClient(probe, GripperCommand, "/robotiq_gripper_controller/gripper_cmd")
+        goal = GripperCommand.Goal()
+        goal.command.position, goal.command.max_effort = 0.0, 100.0
+        response = _send_goal(spin_until, close, goal)
+        assert response.status == GoalStatus.STATUS_SUCCEEDED
+        # closed on the object at gPO 120: stalled (object detected), gap as gPO says
+        assert response.result.stalled
+        assert not response.result.reached_goal
+        assert response.result.position == pytest.approx(0.085 * (1 - 120 / 255))
+        assert response.result.effort == pytest.approx(round(100 / 235 * 255) / 255 * 235)
+        assert emulator.status().object_held
+        joints = probe.got["joint_states"]
+        assert spin_until(
+            lambda: joints and joints[-1].position[0] == pytest.approx(0.045, abs=1e-3)
+        )
+        assert joints[-1].name == ["robotiq_finger_gap"]
+        parallel = ActionClient(
+            probe, ParallelGripperCommand, "/robotiq_parallel_gripper_controller/gripper_cmd"
+        )
+        goal = ParallelGripperCommand.Goal()
+        goal.command.name, goal.command.position = ["robotiq_finger_gap"], [0.085]
+        response = _send_goal(spin_until, parallel, goal)
+        assert response.status == GoalStatus.STATUS_SUCCEEDED
+        assert response.result.reached_goal
+        assert not response.result.stalled
+        assert response.result.state.position[0] == pytest.approx(0.085)
+        assert emulator.status().position == 0
+        # a lost link: the status says so, and a goal is aborted, not left hanging
         emulator.set_fault(LinkFault.NO_ANSWER)
         assert spin_until(lambda: statuses[-1].level == bytes([2]))
         assert "No answer" in statuses[-1].message
+        response = _send_goal(spin_until, close, GripperCommand.Goal())
+        assert response.status == GoalStatus.STATUS_ABORTED
         emulator.set_fault(LinkFault.NONE)
-        assert spin_until(lambda: statuses[-1].message == "holding an object")
+        assert spin_until(lambda: statuses[-1].message.startswith("at requested position"))
 
 
-def _gripper_status(obj: ObjectStatus, position: int, request: int) -> DiagnosticStatus:
-    status = GripperStatus(True, True, ActivationStatus.COMPLETED, obj, 0, 0, request, position, 0)
-    return DiagnosticStatus(
-        level=bytes([0]),
-        name="robotiq_2f",
-        message="",
-        values=[KeyValue(key=k, value=v) for k, v in status_to_values(status)],
-    )
+class ControllerStandIn(Node):
+    """The server side of a ``ros2_control`` ``GripperActionController``: GripperCommand on
+    ``/robotiq_gripper_controller/gripper_cmd``, closing goals stall on an object at 30 mm,
+    others reach their gap. Nothing of our Robotiq node: the handover must work with this."""
+
+    def __init__(self, **kwargs):
+        from control_msgs.action import GripperCommand
+        from rclpy.action import ActionServer
+
+        super().__init__("gripper_controller", **kwargs)
+        self.goals: list[float] = []
+        self._result_type = GripperCommand.Result
+        self.server = ActionServer(
+            self, GripperCommand, "/robotiq_gripper_controller/gripper_cmd", self._execute
+        )
+
+    def _execute(self, goal_handle):
+        position = goal_handle.request.command.position
+        self.goals.append(position)
+        goal_handle.succeed()
+        if position < 0.03:
+            return self._result_type(position=0.03, effort=70.0, stalled=True)
+        return self._result_type(position=position, reached_goal=True)
 
 
-def test_handover_node_opens_after_three_stable_estimates(ros):
+def test_handover_node_opens_after_three_stable_estimates_through_the_action(ros):
     from ext_sense_behaviours.nodes.handover_behaviour import HandoverBehaviourNode
 
     add, spin_until = ros
+    controller = add(ControllerStandIn)
     add(HandoverBehaviourNode, parameter_overrides=[Parameter("consecutive", value=3)])
     probe = add(Probe)
-    probe.listen(JointState, "gripper/command")
     probe.listen(String, "handover/decision")
-    status_pub = probe.publisher(DiagnosticStatus, "gripper/status")
     est_pub = probe.publisher(ContactEstimate, "contact_estimate", ESTIMATE_QOS)
     decisions = probe.got["handover/decision"]
-    assert spin_until(lambda: status_pub.get_subscription_count() > 0)
     assert spin_until(lambda: est_pub.get_subscription_count() > 0)
-    status_pub.publish(_gripper_status(ObjectStatus.DETECTED_CLOSING, 150, 255))
+    # grasp goal (gap 0) stalls on the object: the handover starts by itself
     assert spin_until(lambda: any("HOLDING" in d.data for d in decisions))
+    assert controller.goals == [0.0]
     for p, prov in [
         (0.9, False),
         (0.95, True),
@@ -170,12 +222,10 @@ def test_handover_node_opens_after_three_stable_estimates(ros):
             ContactEstimate(task="handover_stability", stability_probability=p, provisional=prov)
         )
         spin_until(lambda: False, 0.1)
-    assert probe.got["gripper/command"] == []  # the streak was broken by the 0.3
+    assert controller.goals == [0.0]  # the streak was broken by the 0.3
     est_pub.publish(ContactEstimate(task="handover_stability", stability_probability=0.97))
-    assert spin_until(lambda: len(probe.got["gripper/command"]) == 1)
-    assert probe.got["gripper/command"][0].position[0] == 0.0
-    status_pub.publish(_gripper_status(ObjectStatus.AT_POSITION, 0, 0))
     assert spin_until(lambda: "RELEASED" in decisions[-1].data)
+    assert controller.goals == [0.0, pytest.approx(0.085)]
     texts = [d.data for d in decisions]
     assert any("provisional estimate" in t for t in texts)
     assert any("unstable grasp" in t for t in texts)

@@ -7,7 +7,9 @@ came: 22 raw PAC samples per message, never averaged. Words failing parity or Bi
 replies are flagged in ``invalid_word_mask`` and counted; corrupt bytes are counted, never fatal.
 ``header.stamp`` is the first PAC sample's time from the per-sensor
 :class:`~ext_sense_drivers.biotac.clock.FrameClock`. ``/diagnostics`` carries the link state,
-frames/s per expected sensor and the decode counters.
+frames/s per expected sensor, the decode counters and the liveness of every expected sensor:
+a bridge sends each sensor's frames at 100 Hz whatever touches it, so a sensor silent while
+the link is up is a stall (WARN, then ERROR, naming the sensor).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from typing import Any
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.lifecycle import LifecycleNode
 from rclpy.node import Node
 
 from ext_sense_drivers.biotac.clock import FRAME_RATE_HZ, PAC_PERIOD_NS, FrameClock
@@ -24,10 +27,14 @@ from ext_sense_drivers.biotac.decoder import BridgeDecoder
 from ext_sense_drivers.biotac.driver_config import BioTacDriverConfig
 from ext_sense_drivers.biotac.frame_layout import MAX_SENSORS, STANDARD_FRAME_SIZE
 from ext_sense_drivers.biotac.frames import BridgeFrames
+from ext_sense_drivers.liveness import DriverLiveness, StreamWatch
 from ext_sense_drivers.nodes.link_node import (
+    ManagedLink,
     create_stream_publisher,
+    declare_autostart,
     declare_backoff,
     declare_link_parameters,
+    declare_liveness,
     link_status,
     monotonic_to_ros_ns,
     stop_reader,
@@ -35,6 +42,7 @@ from ext_sense_drivers.nodes.link_node import (
 from ext_sense_drivers.transports.base import LinkState
 from ext_sense_drivers.transports.reader import Backoff, StreamReader
 from ext_sense_msgs.msg import BioTacFrame
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
@@ -98,11 +106,12 @@ def _declare_config(node: Node) -> BioTacDriverConfig:
     )
 
 
-class BioTacDriverNode(Node):
+class BioTacDriverNode(ManagedLink, LifecycleNode):
     """Publishes BioTac frames on ``frames`` from a serial, CAN or file bridge stream."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("biotac_driver", **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
         self.config = _declare_config(self)
         period_s = declare(
             self,
@@ -114,7 +123,25 @@ class BioTacDriverNode(Node):
             read_only=True,
         )
         backoff = declare_backoff(self, "link", max_read_only=False)
-        self.add_on_set_parameters_callback(self._on_set)
+        rate, warn_ns, error_ns = declare_liveness(
+            self,
+            FRAME_RATE_HZ,
+            "Least frame rate of each expected sensor while the link is up, frames/s "
+            "(default 100: the bridge sends every sensor's frames at 100 Hz whatever touches "
+            "it).",
+        )
+        where = self.config.hardware_id
+        self._watches = {
+            s: StreamWatch(f"frames of BioTac sensor {s} on {where}", rate, warn_ns, error_ns)
+            for s in sorted(set(self.config.expected_sensors))
+        }
+        self.liveness = DriverLiveness(list(self._watches.values()))
+        self.add_on_set_parameters_callback(
+            self.guard.wrap(
+                self._on_set,
+                fallback=lambda err: SetParametersResult(successful=False, reason=str(err)),
+            )
+        )
 
         self.decoder = BridgeDecoder()
         self.clocks: list[FrameClock] = [self.config.make_clock() for _ in range(MAX_SENSORS)]
@@ -135,13 +162,15 @@ class BioTacDriverNode(Node):
             self._rates[s] = task
             self._updater.add(task)
         self._updater.add_check("decode", self._check_decode)
+        self._updater.add_check("liveness", self.liveness.check)
+        self.guard.attach(self._updater)
         self._last_reported = self.decoder.counters
         self._diagnostics = DiagnosticsPublisher(self, self._updater)
-        self._timer = self.create_timer(period_s, self._tick)
-        self.reader.start()
+        self._period_s = period_s
         self.get_logger().info(
             f"reading the BioTac bridge from {self.config.transport} {self.config.hardware_id}"
         )
+        self.start_managed(declare_autostart(self))
 
     def _on_set(self, params: list[Any]) -> SetParametersResult:
         for p in params:
@@ -213,6 +242,7 @@ class BioTacDriverNode(Node):
             self._pub.publish(msg)
             if s in self._rates:
                 self._rates[s].tick()
+                self._watches[s].on_data(1, int(arrival_ns[k]))
         self.frames_published += frames.n
 
     def _check_link(self) -> tuple[Level, str, dict[str, object]]:

@@ -16,13 +16,23 @@ from typing import Any
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 
+from ext_sense_drivers.liveness import DriverLiveness
 from ext_sense_drivers.transports.base import LinkState
 from ext_sense_drivers.transports.link_config import LinkConfig
 from ext_sense_drivers.transports.reader import Backoff, StreamReader
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level
+from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import SENSOR_STREAM_QOS
 from ext_sense_runtime.qos_events import QosEventCounter
+from ext_sense_runtime.stamps import MS
+
+LIVENESS_PERIOD_S = 0.1
+"""How often the liveness of the stream is judged: a stall is on ``/diagnostics`` at most this
+long after it passed a threshold. 0.1 s, not 0.05: with the drain timer idle, this timer and
+the link watch (0.5 s) are what an idle driver wakes for (idle cost 1.2-1.3 % of a core at
+0.05 s and 0.2 s, 0.55 % now; ``bench/bench_idle.py``, issue #16 asks for at most 1 %)."""
 
 LINK_DESCRIPTIONS: Mapping[str, str] = {
     "transport": "Byte source: serial, can or file.",
@@ -123,6 +133,58 @@ def declare_backoff(node: Node, lost: str, *, max_read_only: bool = True) -> Bac
     return Backoff(initial_s, max(initial_s, max_s))
 
 
+def declare_liveness(node: Node, rate_hz: float, rate_wording: str) -> tuple[float, int, int]:
+    """Declare ``expected_rate_hz``, ``stall_warn_ms`` and ``stall_error_ms``.
+
+    Args:
+        node: The driver node.
+        rate_hz: The device's own least rate while streaming (the default).
+        rate_wording: What ``expected_rate_hz`` counts, with its unit and where the default
+            comes from.
+
+    Returns:
+        The expected rate (0: no stall check) and the WARN and ERROR silences in ns.
+
+    Raises:
+        ValueError: ``stall_error_ms`` is below ``stall_warn_ms``.
+    """
+    rate = declare(
+        node,
+        "expected_rate_hz",
+        float(rate_hz),
+        rate_wording + " 0 turns the stall check off (a source silent when idle, as the "
+        "simulator's emulated devices are).",
+        low=0.0,
+        high=10_000_000.0,
+        read_only=True,
+    )
+    warn_ms = declare(
+        node,
+        "stall_warn_ms",
+        200.0,
+        "Silence of the stream while the link is up and the node active that is a stall: WARN "
+        "on /diagnostics naming the stream (at least 3 expected intervals), ms.",
+        low=1.0,
+        high=60_000.0,
+        read_only=True,
+    )
+    error_ms = declare(
+        node,
+        "stall_error_ms",
+        500.0,
+        "Silence of the stream that turns the stall ERROR (>= stall_warn_ms), ms.",
+        low=1.0,
+        high=60_000.0,
+        read_only=True,
+    )
+    if error_ms < warn_ms:
+        raise ValueError(
+            f"The 'stall_error_ms' parameter must be >= stall_warn_ms ({warn_ms:g}). "
+            f"Got {error_ms:g} instead."
+        )
+    return rate, round(warn_ms * MS), round(error_ms * MS)
+
+
 def monotonic_to_ros_ns(node: Node) -> int:
     """Offset from monotonic host ns (the transports' arrival times) to the node's ROS time ns.
 
@@ -184,3 +246,180 @@ def stop_reader(node: Node) -> None:
     reader = getattr(node, "reader", None)
     if reader is not None:
         reader.stop()
+
+
+class ManagedLink:
+    """The lifecycle of a driver's link, mixed into a ``rclpy.lifecycle.LifecycleNode``.
+
+    configure opens the device (starts the reader thread, which retries with backoff until the
+    device is there: a device plugged in late works), activate streams (the drain timer runs),
+    deactivate stops streaming, cleanup and shutdown release the device. A missing or lost
+    device is logged on the console at each failed attempt (throttled), not only on
+    ``/diagnostics``, and its return is logged too.
+
+    While active with the link connected the device must be sending: every
+    :data:`LIVENESS_PERIOD_S` the node's :class:`DriverLiveness` is told so, and when its level
+    changes (a stall turns WARN or ERROR, or data returns) ``/diagnostics`` is published at
+    once instead of at the next 1 Hz report. Every timer runs under the node's
+    :class:`CallbackGuard`: an exception is counted and reported, the node goes on.
+
+    The node provides ``reader`` (a :class:`StreamReader`), ``_tick`` (the drain),
+    ``_period_s`` (the drain period), ``guard``, ``liveness`` and ``_diagnostics``, and calls
+    :meth:`start_managed` at the end of ``__init__``.
+    """
+
+    reader: StreamReader
+    _period_s: float
+    guard: CallbackGuard
+    liveness: DriverLiveness
+    _diagnostics: DiagnosticsPublisher
+
+    def start_managed(self: Any, autostart: bool) -> None:
+        """Leave the node unconfigured for a lifecycle manager, or configure and activate it."""
+        self._drain_timer = None
+        self._watch_timer = None
+        self._seen_failures = 0
+        self._was_connected = False
+        self._liveness_timer = self.create_timer(
+            LIVENESS_PERIOD_S, self.guard(self._check_liveness)
+        )
+        if autostart:
+            self.trigger_configure()
+            self.trigger_activate()
+        else:
+            self.get_logger().info("unconfigured: waiting for a lifecycle manager to configure")
+
+    def on_configure(self: Any, state: Any) -> Any:
+        """Open the device: the reader thread starts and retries until it is there."""
+        from rclpy.lifecycle import TransitionCallbackReturn
+
+        self.reader.start()
+        self._watch_timer = self.create_timer(0.5, self.guard(self._watch_link))
+        self.get_logger().info(f"configured: opening {self.reader.description}")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self: Any, state: Any) -> Any:
+        """Stream: the drain timer publishes what arrives."""
+        from rclpy.lifecycle import TransitionCallbackReturn
+
+        if self.config.transport != "file":
+            # a live device's bytes from before activation are stale: never published (a
+            # capture file's are the recording itself, read from its start, and kept)
+            self.reader.drain()
+        self._drain_timer = self.create_timer(self._period_s, self.guard(self._drain))
+        self._drained_state = self.reader.state
+        self.reader.on_data = self._wake_drain
+        self.get_logger().info("active: streaming")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_deactivate(self: Any, state: Any) -> Any:
+        """Stop publishing; the device stays open."""
+        from rclpy.lifecycle import TransitionCallbackReturn
+
+        self._stop_streaming()
+        self.reader.drain()  # what arrived while inactive is not published later
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_cleanup(self: Any, state: Any) -> Any:
+        """Release the device (the reader thread stops and closes it)."""
+        from rclpy.lifecycle import TransitionCallbackReturn
+
+        self._release()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self: Any, state: Any) -> Any:
+        """Release the device on the way out from any state."""
+        from rclpy.lifecycle import TransitionCallbackReturn
+
+        self._release()
+        return TransitionCallbackReturn.SUCCESS
+
+    def _stop_streaming(self: Any) -> None:
+        self.reader.on_data = None
+        if self._drain_timer is not None:
+            self.destroy_timer(self._drain_timer)
+            self._drain_timer = None
+
+    def _drain(self: Any) -> None:
+        """The drain timer: publish what arrived; with nothing more queued, stop ticking.
+
+        A drain timer ticking every ``batch_period_s`` with nothing to read cost 12 % of a
+        core per idle driver. It now runs only while bytes flow: when a tick leaves the queue
+        empty it is cancelled, and the reader thread restarts it with the next chunk
+        (:meth:`_wake_drain`), so a batch still covers one period from its first bytes. The
+        queue is looked at again after the cancel: a chunk queued in between restarts it.
+        """
+        self._drained_state = self.reader.state
+        self._tick()
+        timer = self._drain_timer
+        if timer is not None and not self.reader.queued_chunks:
+            timer.cancel()
+            if self.reader.queued_chunks:
+                timer.reset()
+
+    def _wake_drain(self: Any) -> None:
+        """Restart a stopped drain timer (the reader thread, on each queued chunk).
+
+        The executor is woken too: a wait-set executor (Jazzy's SingleThreadedExecutor) computes
+        its wait from the timers it saw when the wait began, and would notice the restarted
+        timer only when its spin timeout (0.1 s) ran out. The EventsExecutor sees the reset.
+        """
+        timer = self._drain_timer
+        try:
+            if timer is not None and timer.is_canceled():
+                timer.reset()
+                executor = self.executor
+                if executor is not None:
+                    executor.wake()
+        except Exception:  # the timer or executor went away with a deactivate or a shutdown
+            pass
+
+    def _release(self: Any) -> None:
+        self._stop_streaming()
+        if self._watch_timer is not None:
+            self.destroy_timer(self._watch_timer)
+            self._watch_timer = None
+        self.reader.stop()
+
+    def _check_liveness(self: Any) -> None:
+        """Streaming is active with the link connected; publish diagnostics when the level moves."""
+        streaming = self._drain_timer is not None and self.reader.state == LinkState.CONNECTED
+        if self._drain_timer is not None and self.reader.state != self._drained_state:
+            self._wake_drain()  # a lost link or an exhausted file: one tick finishes the stream
+        self.liveness.set_streaming(streaming)
+        if self.liveness.changed():
+            self._diagnostics.publish()
+            level, message, _ = self.liveness.check()
+            log = self.get_logger().info if level == Level.OK else self.get_logger().warning
+            log(f"liveness {level.name}: {message}")
+
+    def _watch_link(self: Any) -> None:
+        """Console lines for a device that is missing, lost, or back."""
+        reader = self.reader
+        failures = reader.open_failures + reader.disconnects
+        if reader.state == LinkState.CONNECTED:
+            if not self._was_connected and (failures or reader.connects > 1):
+                self.get_logger().info(f"{reader.description}: connected")
+            self._was_connected = True
+        elif failures > self._seen_failures:
+            self._was_connected = False
+            delay = reader.backoff.delay(max(1, reader.failures_in_row))
+            self.get_logger().warning(
+                f"{reader.description} unavailable ({reader.last_error}); retrying in "
+                f"{delay:.1f} s (failure {reader.failures_in_row} in a row)",
+                throttle_duration_sec=5.0,
+            )
+        self._seen_failures = failures
+
+
+def declare_autostart(node: Node) -> bool:
+    """Declare ``autostart``: configure and activate at start-up, without a lifecycle manager."""
+    return declare(
+        node,
+        "autostart",
+        True,
+        "Configure and activate this lifecycle node at start-up (ros2 run, tests); the graphs "
+        "set it false and drive the transitions themselves (launch events, ext-sense run), or "
+        "leave them to an external manager (manage_drivers:=false).",
+        read_only=True,
+    )

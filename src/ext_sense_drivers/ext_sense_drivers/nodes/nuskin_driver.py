@@ -4,7 +4,10 @@ A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the por
 or a capture file) and reconnects with exponential backoff; a timer every ``batch_period_s``
 drains what arrived, decodes it (receiver words, or the ACES line in ``aces_line`` mode) and
 publishes one batch with every event decoded since the previous tick. Bad bytes are counted,
-never fatal. ``/diagnostics`` carries the link state, the event rate and the decode counters.
+never fatal. ``/diagnostics`` carries the link state, the event rate, the decode counters and
+the stream's liveness: a powered receiver sends words all the time (its idle stream), so
+silence while the link is up is a stall (WARN, then ERROR, naming the stream). Each event's
+flag bit goes out as received in the batch's ``flag`` array.
 """
 
 from __future__ import annotations
@@ -14,21 +17,27 @@ from typing import Any
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.lifecycle import LifecycleNode
 from rclpy.node import Node
 
+from ext_sense_drivers.liveness import NUSKIN_IDLE_WORDS_PER_S, DriverLiveness, StreamWatch
 from ext_sense_drivers.nodes.link_node import (
+    ManagedLink,
     create_stream_publisher,
+    declare_autostart,
     declare_backoff,
     declare_link_parameters,
+    declare_liveness,
     link_status,
     monotonic_to_ros_ns,
     stop_reader,
 )
-from ext_sense_drivers.nuskin.driver_config import DriverConfig
-from ext_sense_drivers.nuskin.streams import BatchCounters
+from ext_sense_drivers.nuskin.driver_config import DriverConfig, Mode
+from ext_sense_drivers.nuskin.streams import BatchCounters, FlaggedEvents
 from ext_sense_drivers.transports.base import LinkState
 from ext_sense_drivers.transports.reader import StreamReader
 from ext_sense_msgs.msg import TaxelEventBatch
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
@@ -86,31 +95,54 @@ def _declare_config(node: Node) -> DriverConfig:
     )
 
 
-def _fill_batch(msg: TaxelEventBatch, block: EventBlock, stamp_ns: int) -> None:
+def _fill_batch(
+    msg: TaxelEventBatch, block: EventBlock, stamp_ns: int, flag: np.ndarray | None = None
+) -> None:
     """Set the arrays of ``msg`` from a block, times relative to ``stamp_ns`` (same clock).
 
-    The arrays are built as ``array.array`` from bytes: assigning NumPy arrays makes rclpy
-    check every element in Python.
+    ``flag`` (the words' flag bits, parallel to the block) fills ``msg.flag``; ``None`` (a
+    source without the bit) leaves it empty. The arrays are built as ``array.array`` from
+    bytes: assigning NumPy arrays makes rclpy check every element in Python.
     """
     columns = (
         ("H", block.taxel, np.uint16),
         ("b", block.polarity, np.int8),
         ("H", block.value, np.uint16),
         ("q", block.t_ns - np.int64(stamp_ns), np.int64),
+        ("B", np.zeros(0, np.uint8) if flag is None else flag, np.uint8),
     )
     out = []
     for code, column, dtype in columns:
         arr = array.array(code)
         arr.frombytes(np.ascontiguousarray(column, dtype).tobytes())
         out.append(arr)
-    msg.taxel, msg.polarity, msg.value, msg.offset_ns = out
+    msg.taxel, msg.polarity, msg.value, msg.offset_ns, msg.flag = out
 
 
-class NuskinDriverNode(Node):
+def _declare_liveness(node: Node, config: DriverConfig, stream: str) -> DriverLiveness:
+    """The stall check: receiver words (mode words) or line samples (aces_line) on ``stream``."""
+    rate, warn_ns, error_ns = declare_liveness(
+        node,
+        NUSKIN_IDLE_WORDS_PER_S,
+        "Least rate of the receiver's words while the link is up, words/s (default 540: a "
+        "powered receiver sends its idle stream all the time, 511-536 words/s median on the "
+        "real captures of April 2021). In aces_line mode the line's samples are watched at "
+        "the line's sample rate instead, unless this is 0.",
+    )
+    what = f"receiver words on {stream}"
+    if config.mode_kind != Mode.WORDS and rate > 0:
+        from ext_sense_drivers.aces.bank import load_bank
+
+        rate, what = float(load_bank().sample_rate_hz), f"ACES line samples on {stream}"
+    return DriverLiveness([StreamWatch(what, rate, warn_ns, error_ns)])
+
+
+class NuskinDriverNode(ManagedLink, LifecycleNode):
     """Publishes NUSkin taxel events on ``events`` from a serial, CAN or file byte source."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("nuskin_driver", **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
         self.config = _declare_config(self)
         self.frame_id = declare(
             self, "frame_id", "nuskin", "Frame of the sensor (header.frame_id)."
@@ -134,7 +166,13 @@ class NuskinDriverNode(Node):
             read_only=True,
         )
         backoff = declare_backoff(self, "port")
-        self.add_on_set_parameters_callback(self._on_set)
+        self.liveness = _declare_liveness(self, self.config, self.config.hardware_id)
+        self.add_on_set_parameters_callback(
+            self.guard.wrap(
+                self._on_set,
+                fallback=lambda err: SetParametersResult(successful=False, reason=str(err)),
+            )
+        )
 
         self.stream = self.config.make_stream()
         self.reader = StreamReader(self.config.make_transport(), backoff=backoff)
@@ -149,14 +187,16 @@ class NuskinDriverNode(Node):
         self._updater.add(self._rate)
         self._updater.add_check("link", self._check_link)
         self._updater.add_check("decode", self._check_decode)
+        self._updater.add_check("liveness", self.liveness.check)
+        self.guard.attach(self._updater)
         self._last_resyncs = 0
         self._last_failures = 0
         self._diagnostics = DiagnosticsPublisher(self, self._updater)
-        self._timer = self.create_timer(period_s, self._tick)
-        self.reader.start()
+        self._period_s = period_s
         self.get_logger().info(
             f"reading {self.config.mode} from {self.config.transport} {self.config.hardware_id}"
         )
+        self.start_managed(declare_autostart(self))
 
     def _on_set(self, params: list[Any]) -> SetParametersResult:
         for p in params:
@@ -179,39 +219,48 @@ class NuskinDriverNode(Node):
         this drain.
         """
         link_down = self.reader.state != LinkState.CONNECTED
-        blocks = []
+        parts: list[FlaggedEvents] = []
+        watch = self.liveness.watches[0]
         for connection, chunk in self.reader.drain_tagged():
             if connection != self._connection:
                 if self._connection and not self._finished:  # the old stream ended
-                    blocks.append(self.stream.restart())
+                    parts.append(FlaggedEvents(self.stream.restart(), None))
                 self._connection, self._finished = connection, False
             try:
-                blocks.append(self.stream.feed(chunk))
+                part = self.stream.feed_flagged(chunk)
             except Exception as err:  # a decoder bug must cost a chunk, not the node
                 self.decode_failures += 1
                 self.get_logger().error(
                     f"decoding failed, chunk of {len(chunk.data)} bytes dropped: {err!r}",
                     throttle_duration_sec=1.0,
                 )
-                blocks.append(self.stream.restart())
+                parts.append(FlaggedEvents(self.stream.restart(), None))
+                continue
+            parts.append(part)
+            # words: only decoded words show the device alive (garbage is not its idle stream);
+            # the ACES line (no flag bit): every 2-byte line sample does
+            watch.on_data(
+                len(chunk.data) // 2 if part.flag is None else part.events.size, chunk.t_ns
+            )
         if link_down and self._connection and not self._finished:
-            blocks.append(self.stream.restart())
+            parts.append(FlaggedEvents(self.stream.restart(), None))
             self._finished = True
-        block = EventBlock.concat(blocks)
+        block, flag = FlaggedEvents.concat(parts)
         if block.size == 0:
             return
         self._rate.add(block.size)
         c = self.stream.batch_counters
-        for lo in range(0, block.size, self.max_batch_events):
-            part = EventBlock(*(column[lo : lo + self.max_batch_events] for column in block))
-            self._publish(part, c)
+        step = self.max_batch_events
+        for lo in range(0, block.size, step):
+            part_block = EventBlock(*(column[lo : lo + step] for column in block))
+            self._publish(part_block, None if flag is None else flag[lo : lo + step], c)
 
-    def _publish(self, block: EventBlock, counters: BatchCounters) -> None:
+    def _publish(self, block: EventBlock, flag: np.ndarray | None, counters: BatchCounters) -> None:
         first_ns = int(block.t_ns.min())
         msg = TaxelEventBatch()
         fill_stamp(msg.header.stamp, first_ns + self._mono_to_ros_ns)
         msg.header.frame_id = self.frame_id
-        _fill_batch(msg, block, first_ns)
+        _fill_batch(msg, block, first_ns, flag)
         msg.words_total, msg.resyncs = counters.words_total, counters.resyncs
         msg.skipped_bytes, msg.bad_taxel_words = counters.skipped_bytes, counters.bad_taxel_words
         self._pub.publish(msg)

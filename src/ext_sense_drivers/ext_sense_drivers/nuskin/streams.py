@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import NamedTuple, Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 from ext_sense_drivers.nuskin.clock import ArrivalClock
 from ext_sense_drivers.nuskin.wire import FlagPolarity, WordDecoder
@@ -26,11 +27,45 @@ class BatchCounters(NamedTuple):
     bad_taxel_words: int
 
 
+class FlaggedEvents(NamedTuple):
+    """Decoded events and the receiver's flag bit of each, as received.
+
+    The flag travels beside the :class:`EventBlock` rather than in it: the block is the one
+    event record of every package (simulator, importers, windows), none of which has the bit;
+    only the driver's message carries it on.
+
+    Attributes:
+        events: The events.
+        flag: ``(n,)`` uint8, bit 0 of byte 1 of each event's word; ``None`` when the source
+            has no such bit (the ACES line).
+    """
+
+    events: EventBlock
+    flag: npt.NDArray[np.uint8] | None
+
+    @classmethod
+    def concat(cls, parts: list[FlaggedEvents]) -> FlaggedEvents:
+        """Join parts end to end; the flag is ``None`` unless some part has one.
+
+        A part without a flag among flagged ones gets zeros: in a word stream only
+        ``restart()`` gives such parts, and they are empty.
+        """
+        events = EventBlock.concat([p.events for p in parts])
+        if all(p.flag is None for p in parts):
+            return cls(events, None)
+        flags = [p.flag if p.flag is not None else np.zeros(p.events.size, np.uint8) for p in parts]
+        return cls(events, np.concatenate(flags).astype(np.uint8, copy=False))
+
+
 class EventStream(Protocol):
     """What the driver node needs from a decoding path."""
 
     def feed(self, chunk: Chunk) -> EventBlock:
         """Decode one chunk into stamped events (monotonic host ns)."""
+        ...
+
+    def feed_flagged(self, chunk: Chunk) -> FlaggedEvents:
+        """Same as :meth:`feed`, with each event's flag bit when the source has one."""
         ...
 
     def restart(self) -> EventBlock:
@@ -65,9 +100,13 @@ class WordStream:
 
     def feed(self, chunk: Chunk) -> EventBlock:
         """Decode the chunk's words and spread them over the time since the previous read."""
+        return self.feed_flagged(chunk).events
+
+    def feed_flagged(self, chunk: Chunk) -> FlaggedEvents:
+        """:meth:`feed`, keeping each word's flag bit as received."""
         words = self.decoder.feed(chunk.data)
         t_ns = self.clock.stamp(words.size, chunk.t_ns, len(chunk.data))
-        return EventBlock(t_ns, words.taxel, words.polarity, words.value)
+        return FlaggedEvents(EventBlock(t_ns, words.taxel, words.polarity, words.value), words.flag)
 
     def restart(self) -> EventBlock:
         """Count a held-back partial word as skipped: the new connection cannot complete it."""
@@ -137,6 +176,10 @@ class AcesLineStream:
             t0 = int(chunk.t_ns) - int(sample_to_ns(np.int64(n), rate))
             self._decoder = self._factory(t0_ns=t0, **self._kwargs)
         return self._decoder.feed(chunk.data)
+
+    def feed_flagged(self, chunk: Chunk) -> FlaggedEvents:
+        """:meth:`feed`; the line has no flag bit, so the flag is ``None``."""
+        return FlaggedEvents(self.feed(chunk), None)
 
     def restart(self) -> EventBlock:
         """Flush the decoder (signatures cut by the drop are found if most of them arrived)."""

@@ -59,10 +59,13 @@ class StreamReader:
     Args:
         transport: The byte source; only this thread touches it once started.
         backoff: Reconnect delays.
-        read_timeout_s: Longest single read; bounds how late :meth:`stop` takes effect.
+        read_timeout_s: Longest single read; bounds how late :meth:`stop` takes effect. A read
+            returns with the first byte, so it does not delay data; it is how often a silent
+            link wakes this thread (0.2 s: part of an idle driver's cost, issue #16).
         max_pending_bytes: Queue bound in bytes.
         on_data: Called from the reader thread after each queued chunk (e.g. to wake an
-            executor); must be quick and must not raise.
+            executor); must be quick and must not raise. Public (:attr:`on_data`): a node
+            sets it once its timer exists.
     """
 
     def __init__(
@@ -70,7 +73,7 @@ class StreamReader:
         transport: Transport,
         *,
         backoff: Backoff | None = None,
-        read_timeout_s: float = 0.02,
+        read_timeout_s: float = 0.2,
         max_pending_bytes: int = 16 << 20,
         on_data: Callable[[], None] | None = None,
     ) -> None:
@@ -78,7 +81,7 @@ class StreamReader:
         self.backoff = backoff or Backoff()
         self.read_timeout_s = float(read_timeout_s)
         self.max_pending_bytes = int(max_pending_bytes)
-        self._on_data = on_data
+        self.on_data = on_data
         self._queue: deque[tuple[int, Chunk]] = deque()
         self._pending = 0
         self._lock = threading.Lock()
@@ -137,6 +140,11 @@ class StreamReader:
         return tagged
 
     @property
+    def queued_chunks(self) -> int:
+        """Chunks waiting for :meth:`drain`."""
+        return len(self._queue)
+
+    @property
     def alive(self) -> bool:
         """Whether the reader thread runs."""
         return self._thread is not None and self._thread.is_alive()
@@ -182,8 +190,9 @@ class StreamReader:
                 self.dropped_bytes += len(old.data)
         self.bytes_total += len(chunk.data)
         self.chunks_total += 1
-        if self._on_data is not None:
-            self._on_data()
+        on_data = self.on_data
+        if on_data is not None:
+            on_data()
 
     def _fail(self, err: TransportError) -> None:
         self.transport.close()

@@ -1,7 +1,6 @@
 """The NUSkin driver node over a pty: bytes in, batches out, diagnostics, port lost and back."""
 
 import os
-import time
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +13,7 @@ rclpy = pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
+from rosutil import spin_until  # noqa: E402
 
 from ext_sense_drivers.nodes.nuskin_driver import NuskinDriverNode  # noqa: E402
 from ext_sense_drivers.nuskin.wire import encode_words  # noqa: E402
@@ -82,15 +82,6 @@ def graph(tmp_path):
             device.unplug()
 
 
-def _spin_until(executor, predicate, timeout_s=8.0):
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        executor.spin_once(timeout_sec=0.01)
-        if predicate():
-            return True
-    return False
-
-
 def _events(batches):
     taxel = [t for b in batches for t in b.taxel]
     value = [v for b in batches for v in b.value]
@@ -113,9 +104,9 @@ def test_bytes_in_batches_out_and_port_lost_and_back(graph):
     # A stream that starts mid-word and carries a burst of garbage between two halves.
     raw = encode_words(taxel, value)
     # pyserial flushes the input buffer when it opens a port: send once the driver has it open.
-    assert _spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
+    assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
     device.send(raw[2:600] + bytes([0x00, 0x13, 0xFF]) + raw[600:])
-    assert _spin_until(executor, lambda: len(_events(got["batches"])[0]) >= 299)
+    assert spin_until(executor, lambda: len(_events(got["batches"])[0]) >= 299)
     taxels, values = _events(got["batches"])
     assert taxels == taxel[1:].tolist()
     assert values == value[1:].tolist()
@@ -130,7 +121,7 @@ def test_bytes_in_batches_out_and_port_lost_and_back(graph):
     assert stamps == sorted(stamps)
 
     # Diagnostics name the counters and the port state.
-    assert _spin_until(
+    assert spin_until(
         executor, lambda: _diag_values(got, "decode")[1].get("words_total") == "299", 5.0
     )
     _, decode = _diag_values(got, "decode")
@@ -143,18 +134,18 @@ def test_bytes_in_batches_out_and_port_lost_and_back(graph):
 
     # The port vanishes: the node reports it and keeps retrying.
     device.unplug()
-    assert _spin_until(executor, lambda: driver.reader.disconnects == 1, 5.0)
-    assert _spin_until(executor, lambda: driver.reader.open_failures >= 1, 5.0)
+    assert spin_until(executor, lambda: driver.reader.disconnects == 1, 5.0)
+    assert spin_until(executor, lambda: driver.reader.open_failures >= 1, 5.0)
     got["diag"].clear()
-    assert _spin_until(executor, lambda: _diag_values(got, "link")[0] is not None, 5.0)
+    assert spin_until(executor, lambda: _diag_values(got, "link")[0] is not None, 5.0)
     assert _diag_values(got, "link")[1]["port_state"] in ("backoff", "connecting")
 
     # The port comes back: same node, new connection, events flow again.
     device.plug()
-    assert _spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
+    assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
     n_before = len(_events(got["batches"])[0])
     device.send(encode_words([5, 80, 41], [1, 2, 3]))
-    assert _spin_until(executor, lambda: len(_events(got["batches"])[0]) >= n_before + 3)
+    assert spin_until(executor, lambda: len(_events(got["batches"])[0]) >= n_before + 3)
     assert _events(got["batches"])[0][n_before:] == [5, 80, 41]
     assert driver.reader.connects == 2
     assert driver.reader.alive
@@ -187,9 +178,9 @@ def _run_driver(overrides, until, timeout_s=8.0, feed=None):
         executor.add_node(driver)
         executor.add_node(probe)
         if feed is not None:
-            assert _spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
+            assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
             feed()
-        ok = _spin_until(executor, lambda: until(batches, driver), timeout_s)
+        ok = spin_until(executor, lambda: until(batches, driver), timeout_s)
         return ok, batches, driver.reader.state
     finally:
         if executor is not None:
@@ -283,6 +274,9 @@ class _BrokenStream:
     def feed(self, chunk):
         raise RuntimeError("decoder bug")
 
+    def feed_flagged(self, chunk):
+        raise RuntimeError("decoder bug")
+
     def restart(self):
         return self.real.restart()
 
@@ -305,14 +299,14 @@ def test_a_decoder_failure_costs_a_chunk_not_the_node():
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(driver)
         executor.add_node(probe)
-        assert _spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
+        assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
         real = driver.stream
         driver.stream = _BrokenStream(real)
         driver.reader.transport.write(encode_words([1], [1]))
-        assert _spin_until(executor, lambda: driver.decode_failures == 1, 5.0)
+        assert spin_until(executor, lambda: driver.decode_failures == 1, 5.0)
         driver.stream = real
         driver.reader.transport.write(encode_words([9, 10], [5, 6]))
-        assert _spin_until(executor, lambda: len(_events(batches)[0]) >= 2, 5.0)
+        assert spin_until(executor, lambda: len(_events(batches)[0]) >= 2, 5.0)
         assert _events(batches) == ([9, 10], [5, 6])
         # frame_id is the one parameter that changes at run time, and never to empty.
         empty = Parameter("frame_id", Parameter.Type.STRING, "")
@@ -323,7 +317,7 @@ def test_a_decoder_failure_costs_a_chunk_not_the_node():
         read_only = Parameter("baud", Parameter.Type.INTEGER, 9600)
         assert not driver.set_parameters([read_only])[0].successful
         driver.reader.transport.write(encode_words([11], [7]))
-        assert _spin_until(executor, lambda: batches[-1].taxel.tolist() == [11], 5.0)
+        assert spin_until(executor, lambda: batches[-1].taxel.tolist() == [11], 5.0)
         assert batches[-1].header.frame_id == "left"
     finally:
         if executor is not None:
@@ -332,6 +326,28 @@ def test_a_decoder_failure_costs_a_chunk_not_the_node():
             if node is not None:
                 node.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def test_an_exception_in_a_driver_callback_is_caught_counted_and_diagnosed(graph):
+    device, driver, executor, got = graph
+    assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
+    real = driver._publish
+
+    def broken(*args):
+        raise RuntimeError("publisher bug")
+
+    driver._publish = broken  # the drain timer's callback raises past the decoder's own try
+    device.send(encode_words([4], [40]))
+    assert spin_until(executor, lambda: driver.guard.total == 1, 5.0)
+    assert "RuntimeError: publisher bug" in driver.guard.last_cause
+    driver._diagnostics.publish()
+    assert spin_until(executor, lambda: _diag_values(got, "callbacks")[0] is not None, 5.0)
+    status, values = _diag_values(got, "callbacks")
+    assert status.level == b"\x02"
+    assert values["exceptions_total"] == "1"
+    driver._publish = real  # the node lives on: the next words are published
+    device.send(encode_words([5, 6], [50, 60]))
+    assert spin_until(executor, lambda: _events(got["batches"])[0][-2:] == [5, 6], 5.0)
 
 
 def test_shipped_parameter_file_is_accepted():
@@ -347,7 +363,26 @@ def test_shipped_parameter_file_is_accepted():
         assert driver.config.can_arbitration_id == 0x100
         assert driver.max_batch_events == 20000
         assert driver.get_parameter("batch_period_s").value == 0.001
+        assert driver.liveness.watches[0].expected_rate_hz == 540.0
+        assert driver.liveness.watches[0].warn_ns == 200_000_000
     finally:
         if driver is not None:
             driver.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def test_the_drain_timer_stops_while_the_link_is_silent_and_data_restarts_it(graph):
+    """An idle driver does not tick every batch period (issue #16: idle cost); the reader
+    thread restarts the drain with the next bytes, and no byte waits for a later chunk."""
+    device, driver, executor, got = graph
+    assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
+    assert spin_until(executor, lambda: driver._drain_timer.is_canceled(), 2.0)
+    for burst, taxels in enumerate(([3, 4, 5], [7], [80, 1])):
+        n_before = len(_events(got["batches"])[0])
+        wanted = n_before + len(taxels)
+        device.send(encode_words(taxels, [burst] * len(taxels)))
+        assert spin_until(executor, lambda w=wanted: len(_events(got["batches"])[0]) >= w)
+        assert _events(got["batches"])[0][n_before:] == taxels
+        # the queue drained: the timer stops again until the next bytes
+        assert spin_until(executor, lambda: driver._drain_timer.is_canceled(), 2.0)
+        assert driver.reader.queued_chunks == 0

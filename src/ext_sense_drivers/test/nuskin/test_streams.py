@@ -6,7 +6,7 @@ import pytest
 from ext_sense_drivers.nuskin.clock import ArrivalClock
 from ext_sense_drivers.nuskin.driver_config import DriverConfig, Mode, TransportKind
 from ext_sense_drivers.nuskin.errors import NuskinError
-from ext_sense_drivers.nuskin.streams import AcesLineStream, WordStream
+from ext_sense_drivers.nuskin.streams import AcesLineStream, FlaggedEvents, WordStream
 from ext_sense_drivers.nuskin.wire import FlagPolarity, encode_words
 from ext_sense_drivers.transports import Chunk
 from ext_sense_drivers.transports.can_bus import CanTransport
@@ -30,6 +30,25 @@ def test_word_stream_stamps_words_and_counts():
     assert stream.diagnostics()["words_total"] == 4
 
 
+@pytest.mark.parametrize("polarity", list(FlagPolarity))
+def test_word_stream_keeps_each_words_flag_bit_as_received(polarity):
+    stream = WordStream(polarity)
+    raw = encode_words([1, 2, 3], [10, 20, 30], [1, 0, 1])
+    first = stream.feed_flagged(Chunk(b"\xff" + raw[:6], 1_000_000))  # a word cut in two
+    rest = stream.feed_flagged(Chunk(raw[6:], 2_000_000))
+    joined = FlaggedEvents.concat([first, FlaggedEvents(stream.restart(), None), rest])
+    assert joined.events.taxel.tolist() == [1, 2, 3]
+    assert joined.flag.dtype == np.uint8
+    assert joined.flag.tolist() == [1, 0, 1]  # whatever the polarity makes of it
+
+
+def test_flagged_events_of_a_source_without_the_bit_have_no_flag():
+    block = EventBlock.of([1, 2], [3, 4])
+    joined = FlaggedEvents.concat([FlaggedEvents(block, None), FlaggedEvents(block, None)])
+    assert joined.flag is None
+    assert joined.events.size == 4
+
+
 def test_aces_line_stream_decodes_and_restarts():
     from ext_sense_drivers.aces.encoder import encode_line
     from ext_sense_drivers.aces.wire import samples_to_bytes
@@ -40,7 +59,11 @@ def test_aces_line_stream_decodes_and_restarts():
     line = encode_line(t, taxel, polarity, n_samples=1000)
     data = samples_to_bytes(line.samples).data
     stream = AcesLineStream()
-    blocks = [stream.feed(Chunk(data[i : i + 301], 10**9 + i)) for i in range(0, len(data), 301)]
+    parts = [
+        stream.feed_flagged(Chunk(data[i : i + 301], 10**9 + i)) for i in range(0, len(data), 301)
+    ]
+    assert all(p.flag is None for p in parts)  # the line has no flag bit
+    blocks = [p.events for p in parts]
     blocks.append(stream.restart())
     block = EventBlock.concat(blocks)
     assert block.taxel.tolist() == taxel.tolist()

@@ -290,6 +290,11 @@ def window_set_from_bag(
                 windows.extend(stage.on_events(msg))
             else:
                 windows.extend(stage.on_frame(msg))
+        if n_msgs == 0:  # windows cut from ground truth alone would be all zeros
+            raise PerceptionError(
+                f"No message on {stream!r} of bag {str(path)!r} could be read ({drops[0]} "
+                "undecodable): there is no sensor data to cut windows from."
+            )
         for mark in marks[next_mark:]:
             stage.on_motion_start(int(mark) + config.pre_ns)
         if stage.last_data_ns is not None:

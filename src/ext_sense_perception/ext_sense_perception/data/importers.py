@@ -267,25 +267,55 @@ def read_arm_motion(bag: str | Path, speed_threshold: float = 0.05) -> ArmMotion
 
 
 class Recording(NamedTuple):
-    """One labelled trial of the real captures."""
+    """One labelled trial of the real captures.
+
+    ``capture_start_ns`` is the capture's first line (its ``1 1 1 t`` marker, or its first event
+    where the marker is missing); ``motion`` is None when the trial has no arm bag.
+    """
 
     name: str
     label: str
     events: EventBlock
-    motion: ArmMotion
+    motion: ArmMotion | None
+    capture_start_ns: int
+
+
+def capture_start_ns(path: str | Path, events: EventBlock) -> int:
+    """The host time of a capture's ``1 1 1 t`` start marker (else of its first event), ns.
+
+    Raises:
+        PerceptionError: when the file has neither a marker nor an event.
+    """
+    with open(path, encoding="ascii", errors="replace") as fh:
+        first = fh.readline().split()
+    if len(first) == 4 and first[:3] == ["1", "1", "1"]:
+        try:
+            t = float(first[3])
+        except ValueError:
+            t = float("nan")
+        if np.isfinite(t):
+            return int(_seconds_to_ns(np.array([t]))[0])
+    if not events.size:
+        raise PerceptionError(f"Capture {str(path)!r} has no start marker and no event.")
+    return int(events.t_ns[0])
 
 
 def food_poking_trials(
-    directory: str | Path, include_empty: bool = False, policy: InputPolicy | None = None
+    directory: str | Path,
+    include_empty: bool = False,
+    policy: InputPolicy | None = None,
+    arm_motion: bool = True,
 ) -> tuple[list[Recording], list[str]]:
-    """All trials of the real food-poking captures.
+    """All trials of a session of real food-poking captures.
 
     Args:
-        directory: ``../shared/data/nuskin_food_poking``.
+        directory: A session folder such as ``../shared/data/nuskin_food_poking``.
         include_empty: Keep the single ``empty`` trial (excluded by default: one trial cannot be
             split into train and test sets).
         policy: Strict (default) or lenient input rules; a lenient load drops (and names in
             the excluded list) a trial with no valid event.
+        arm_motion: Read each trial's arm bag for the motion start (a missing bag is then an
+            error); False: leave ``motion`` None.
 
     Returns:
         ``(recordings sorted by name, names of the excluded trials)``.
@@ -313,7 +343,8 @@ def food_poking_trials(
         if not check_trial_not_empty(events.size, f"capture {str(tact)!r}", policy):
             excluded.append(name)
             continue
-        recs.append(Recording(name, label, events, read_arm_motion(tact.with_suffix(".bag"))))
+        motion = read_arm_motion(tact.with_suffix(".bag")) if arm_motion else None
+        recs.append(Recording(name, label, events, motion, capture_start_ns(tact, events)))
     if not recs:
         raise PerceptionError(f"No '<food>_zero_<n>.tact' trials in {str(directory)!r}.")
     return recs, excluded

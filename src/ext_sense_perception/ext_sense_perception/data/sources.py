@@ -28,8 +28,14 @@ from ext_sense_perception.data.validation import (
 from ext_sense_perception.data.window_set import WindowSet, file_hash, labels_of, window_set_of
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.model_input import Geometry
-from ext_sense_perception.online.window import WindowConfig, window_from_recording
-from ext_sense_perception.profiles import FOOD_CAPTURE_POST_NS, PAC_PERIOD_NS, profile_for
+from ext_sense_perception.online.window import ContactWindow, WindowConfig, window_from_recording
+from ext_sense_perception.online.windowers import EventWindower
+from ext_sense_perception.profiles import (
+    CAPTURE_LEAD_NS,
+    PAC_PERIOD_NS,
+    Anchor,
+    capture_profile,
+)
 from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_runtime.records import EventBlock
 from ext_sense_runtime.stamps import MS
@@ -133,14 +139,29 @@ def from_sim_dataset(
     )
 
 
-def food_capture_config() -> WindowConfig:
-    """The real food captures' windows: the food profile cut to 0-3 s after the motion start.
+def food_capture_config(anchor: Anchor | str = Anchor.ARM_MOTION) -> WindowConfig:
+    """The real food captures' windows at ``anchor`` (see ``profiles.capture_profile``).
 
     The captures end about 3.1 s after the arm starts moving, so the paper's 2 s to 8 s window
-    does not fit them; a model trained on them records this window in its card.
+    does not fit them; a model trained on them records the window used in its card. Contact
+    windows use ``online.window.FOOD_CONTACT_DETECTOR``.
     """
-    profile = profile_for(Task.FOOD_IDENTIFICATION).with_window(0, FOOD_CAPTURE_POST_NS)
-    return WindowConfig(profile, Sensor.NUSKIN)
+    return WindowConfig.for_profile(capture_profile(anchor), Sensor.NUSKIN)
+
+
+def default_anchor(directory: str | Path) -> Anchor:
+    """``arm_motion`` if every trial of a capture folder has an arm bag, else ``capture_start``."""
+    tacts = [p for p in Path(directory).glob("*_zero_*.tact") if not p.name.endswith("_raw.tact")]
+    has_bags = bool(tacts) and all(p.with_suffix(".bag").is_file() for p in tacts)
+    return Anchor.ARM_MOTION if has_bags else Anchor.CAPTURE_START
+
+
+def _contact_window(config: WindowConfig, events: EventBlock) -> ContactWindow | None:
+    """The first final window the live windower cuts from a whole capture (None: no contact)."""
+    windower = EventWindower(config)
+    windows = windower.feed(events) + windower.flush()
+    final = [w for w in windows if not w.provisional]
+    return final[0] if final else None
 
 
 def from_food_poking(
@@ -148,39 +169,67 @@ def from_food_poking(
     include_empty: bool = False,
     rate_hz: float | None = None,
     policy: InputPolicy | None = None,
+    anchor: Anchor | str | None = None,
 ) -> WindowSet:
-    """Windows of the real NUSkin food-poking captures, from the start of the arm's motion.
+    """Windows of one session of real NUSkin food-poking captures.
 
     Args:
-        directory: ``../shared/data/nuskin_food_poking``.
+        directory: A session folder (``../shared/data/nuskin_food_poking``).
         include_empty: Keep the single ``empty`` trial (excluded by default).
         rate_hz: Per-taxel refractory drop to this rate before binning (None: none).
         policy: Strict (default) or lenient input rules (:mod:`.validation`).
+        anchor: What the onsets are tied to (None: :func:`default_anchor`); ``arm_motion``
+            needs every trial's arm bag.
 
     Returns:
-        The window set (``excluded`` names the trials left out), cut with
-        :func:`food_capture_config`.
+        The window set (``excluded`` names the trials left out, ``anchor`` the anchor used),
+        cut with :func:`food_capture_config`.
+
+    Raises:
+        PerceptionError: No trials, a missing bag for ``arm_motion``, a row breaking a rule, or
+            no trial with a detected contact.
     """
-    recs, excluded = food_poking_trials(directory, include_empty, policy)
-    config = food_capture_config()
-    windows = [
-        window_from_recording(config, rec.motion.start_ns, events=thinned(rec.events, rate_hz))
-        for rec in recs
-    ]
+    anchor = default_anchor(directory) if anchor is None else Anchor.parse(anchor)
+    recs, excluded = food_poking_trials(
+        directory, include_empty, policy, arm_motion=anchor is Anchor.ARM_MOTION
+    )
+    config = food_capture_config(anchor)
+    windows, labels = [], []
+    for rec in recs:
+        events = thinned(rec.events, rate_hz)
+        if anchor is Anchor.CONTACT:
+            window = _contact_window(config, events)
+            if window is None:
+                excluded.append(f"{rec.name} (no contact detected)")
+                continue
+        else:
+            onset = (
+                rec.motion.start_ns
+                if rec.motion is not None
+                else rec.capture_start_ns + CAPTURE_LEAD_NS
+            )
+            window = window_from_recording(config, onset, events=events)
+        windows.append(window)
+        labels.append(rec.label)
+    if not windows:
+        raise PerceptionError(
+            f"No trial of {str(directory)!r} has a window at anchor {anchor.value!r}."
+        )
     files = [
         p
         for p in sorted(Path(directory).glob("*_zero_*"))
         if p.suffix in (".tact", ".bag") and "_raw" not in p.name
     ]
     files = [p for p in files if p.stem.split("_zero_")[0] != "empty" or include_empty]
-    return window_set_of(
+    ws = window_set_of(
         config,
         windows,
-        [r.label for r in recs],
+        labels,
         str(directory),
         file_hash(*files),
         excluded=tuple(excluded),
     )
+    return ws._replace(anchor=anchor.value)
 
 
 def from_preprocessed_npz(
@@ -265,6 +314,7 @@ def load_window_set(
     sensor: str | None = None,
     rate_hz: float | None = None,
     policy: InputPolicy | None = None,
+    anchor: Anchor | str | None = None,
 ) -> WindowSet:
     """Any supported source as a window set, chosen by what ``data`` is.
 
@@ -277,18 +327,26 @@ def load_window_set(
         rate_hz: NUSkin: per-taxel refractory drop to this rate (None: none).
         policy: Strict (default) or lenient input rules of the file readers (bags count their
             malformed messages instead).
+        anchor: Capture folders: what the onsets are tied to (None: :func:`default_anchor`).
+            Other sources hold their own onsets and accept only None.
 
     Returns:
         The window set.
 
     Raises:
-        PerceptionError: when the source is not recognised.
+        PerceptionError: when the source is not recognised, or an anchor is given for a source
+            that has its own onsets.
     """
     path = Path(data)
+    if anchor is not None and not (path.is_dir() and not is_bag(path)):
+        raise PerceptionError(
+            f"The 'anchor' parameter applies to capture folders; {str(path)!r} holds its own "
+            f"onsets (bags: --onsets truth|detected). Got {Anchor.parse(anchor).value!r}."
+        )
     if is_bag(path):
         return window_set_from_bag(path, task, sensor, rate_hz=rate_hz)[0]
     if path.is_dir():
-        return from_food_poking(path, rate_hz=rate_hz, policy=policy)
+        return from_food_poking(path, rate_hz=rate_hz, policy=policy, anchor=anchor)
     if path.suffix == ".npz":
         try:
             with np.load(path, allow_pickle=False) as z:

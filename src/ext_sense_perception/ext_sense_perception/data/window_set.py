@@ -22,7 +22,10 @@ class WindowSet(NamedTuple):
     (regression) or ``<U`` class labels; ``groups`` is the trial (or recording) of each window.
     ``profile`` is the task profile the windows were cut with (None: the task's own, see
     :attr:`task_profile`); a model trained on the set records it in its card, so the live graph
-    cuts the same windows.
+    cuts the same windows. ``sessions`` names the recording session of each window (None: one
+    unnamed session; see :mod:`ext_sense_perception.data.sessions`); ``anchor`` is what the
+    onsets were tied to (food: ``arm_motion``, ``capture_start`` or ``contact``; empty: the
+    source's own onsets).
     """
 
     task: str
@@ -37,11 +40,20 @@ class WindowSet(NamedTuple):
     data_hash: str
     excluded: tuple[str, ...] = ()
     profile: TaskProfile | None = None
+    sessions: np.ndarray | None = None
+    anchor: str = ""
 
     @property
     def task_profile(self) -> TaskProfile:
         """The profile the windows were cut with (the task's own when the source gave none)."""
         return self.profile or profile_for(self.task)
+
+    @property
+    def session_of(self) -> np.ndarray:
+        """The session name of each window (``""`` where the source named none)."""
+        if self.sessions is None:
+            return np.full(len(self.y), "", dtype="<U1")
+        return self.sessions
 
     @property
     def is_regression(self) -> bool:
@@ -55,6 +67,7 @@ class WindowSet(NamedTuple):
             y=self.y[mask],
             groups=self.groups[mask],
             rod_length_m=self.rod_length_m[mask],
+            sessions=None if self.sessions is None else self.sessions[mask],
         )
 
     def crop(self, post_ns: int) -> WindowSet:

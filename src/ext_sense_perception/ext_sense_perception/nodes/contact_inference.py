@@ -4,10 +4,19 @@ Subscribes ``window`` (``ContactWindow``), runs the task's model bundle (``backe
 sklearn, from ``model_path``) and publishes ``contact_estimate`` (``ContactEstimate``) for the
 provisional windows (anytime estimates, ``provisional`` true) and the final one.
 
-Faults never stop the node: a missing or corrupt model is reported as ERROR on
-``/diagnostics`` (windows meanwhile are counted as dropped) and loading is retried every
-``reload_period_s``; a window the model rejects (NaN or inf, wrong shape) is counted and
-reported, and the next window is processed normally.
+Faults never stop the node: a missing or corrupt model, or a bundle whose card is invalid, is
+for another task or sensor, or does not describe its model
+(:func:`~ext_sense_perception.online.predictor.load_model` checks all that before use), is
+refused with one error line and reported as ERROR on ``/diagnostics`` (windows meanwhile are
+counted as dropped); loading is retried every ``reload_period_s``, and a loaded bundle whose
+files change on disk is loaded again (and refused if the new one is bad). A window the model
+rejects (NaN or inf, wrong shape) is counted and reported, and the next window is processed
+normally; any other exception in a callback is caught by the node's callback guard.
+
+An estimate is published with ``degraded`` set, and the reason, when its window was degraded
+(a stall or a late packet in it, marked by the window node) or when it is ready more than
+``deadline_ms`` after its window ended: it is never passed off as a normal estimate. Degraded
+final estimates are counted on ``/diagnostics`` (WARN while recent).
 
 ``compute_latency`` is the wall time from the end of the window (onset + post-onset time, on
 the host clock the driver stamps with) to the estimate being ready. When the window's clock is
@@ -29,8 +38,10 @@ from rclpy.node import Node
 from ext_sense_msgs.msg import ContactEstimate, ContactWindow
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.messages import window_from_msg
+from ext_sense_perception.online.model_card import CARD_FILE, ONNX_FILE, SKLEARN_FILE
 from ext_sense_perception.online.model_store import default_name, locate_model
 from ext_sense_perception.online.predictor import ModelBundle, load_model
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
@@ -49,6 +60,7 @@ class ContactInferenceNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "contact_inference"), **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
         self.task = declare(self, "task", "tap_localization", "Task of the model.", read_only=True)
         self.sensor = declare(self, "sensor", "nuskin", "Sensor of the model.", read_only=True)
         self.backend = declare(
@@ -76,17 +88,33 @@ class ContactInferenceNode(Node):
             high=3600.0,
             read_only=True,
         )
+        self.deadline_ns = round(
+            declare(
+                self,
+                "deadline_ms",
+                500.0,
+                "An estimate ready later than this after its window ended is degraded, ms "
+                "(live windows; a replayed bag's are measured from their arrival).",
+                low=1.0,
+                high=600000.0,
+            )
+            * MS
+        )
         if self.backend not in ("onnx", "sklearn"):
             raise ValueError(
                 f"The 'backend' parameter must be 'onnx' or 'sklearn'. Got {self.backend!r}."
             )
         self.model: ModelBundle | None = None
+        self._stamp: tuple[tuple[str, int, int], ...] = ()
+        self.reloads = 0
         self.model_id = ""
         self.model_error = ""
         self.windows_in = 0
         self.estimates_out = 0
         self.dropped_no_model = 0
         self.dropped_bad_window = 0
+        self.degraded_out = 0
+        self.last_degraded: tuple[int, str] | None = None
         self.last_window_error = ""
         self.last_reject_ns: int | None = None
         self.latencies_ns: deque[int] = deque(maxlen=500)
@@ -101,26 +129,28 @@ class ContactInferenceNode(Node):
         self.create_subscription(
             ContactWindow,
             "window",
-            self._on_window,
+            self.guard(self._on_window),
             WINDOW_QOS,
             event_callbacks=self.qos_events.subscription(),
         )
         self.updater = Updater(hardware_id=self.model_arg or default_name(self.task, self.sensor))
         self.updater.add_check("model", self._check_model)
         self.updater.add_check("inference", self._check_inference)
+        self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
         self._load()
-        self.create_timer(reload_s, self._retry_load)
+        self.create_timer(reload_s, self.guard(self._retry_load))
 
     def _load(self) -> None:
         try:
             # a name is looked up again at every try: a model created meanwhile is found
             self.model_path = locate_model(self.model_arg, self.task, self.sensor)
-            self.model = load_model(self.model_path, self.backend)
+            self._stamp = bundle_stamp(self.model_path, self.backend)
+            self.model = load_model(self.model_path, self.backend, self.task, self.sensor)
         except PerceptionError as err:
-            self.model = None
+            self.model, self.model_id = None, ""
             if str(err) != self.model_error:
-                self.get_logger().error(f"model not loaded: {err}")
+                self.get_logger().error(f"model refused: {err}")
             self.model_error = str(err)
             return
         self.model_id = self.model.model_id
@@ -129,6 +159,12 @@ class ContactInferenceNode(Node):
 
     def _retry_load(self) -> None:
         if self.model is None:
+            self._load()
+        elif self.model_path is not None and (
+            bundle_stamp(self.model_path, self.backend) != self._stamp
+        ):
+            self.get_logger().info(f"model files in {self.model_path} changed: loading again")
+            self.reloads += 1
             self._load()
 
     def _on_window(self, msg: ContactWindow) -> None:
@@ -146,7 +182,17 @@ class ContactInferenceNode(Node):
             end = window.onset_ns + window.post_onset_ns
             live = abs(now - end) < LIVE_CLOCK_TOLERANCE_NS and now >= end
             latency = now - end if live else now - arrived
-            estimate = estimate._replace(compute_latency_ns=latency)
+            reasons = [window.degraded_reason or "degraded window"] if window.degraded else []
+            if latency > self.deadline_ns:
+                reasons.append(
+                    f"late: ready {latency / MS:.0f} ms after the window ended (deadline "
+                    f"{self.deadline_ns / MS:.0f} ms)"
+                )
+            estimate = estimate._replace(
+                compute_latency_ns=latency,
+                degraded=bool(reasons),
+                degraded_reason="; ".join(reasons),
+            )
         except PerceptionError as err:
             self.dropped_bad_window += 1
             self.last_reject_ns = time.monotonic_ns()
@@ -156,6 +202,9 @@ class ContactInferenceNode(Node):
             return
         self.pub.publish(estimate_msg(estimate))
         self.estimates_out += 1
+        if estimate.degraded:
+            self.degraded_out += 1
+            self.last_degraded = (time.monotonic_ns(), estimate.degraded_reason)
         if not estimate.provisional:
             self.latencies_ns.append(latency)
 
@@ -164,9 +213,10 @@ class ContactInferenceNode(Node):
             "model_path": str(self.model_path or self.model_arg),
             "backend": self.backend,
             "model_id": self.model_id,
+            "reloads": self.reloads,
         }
         if self.model is None:
-            return Level.ERROR, f"model not loaded: {self.model_error}", values
+            return Level.ERROR, f"model refused: {self.model_error}", values
         return Level.OK, "loaded", values
 
     def _check_inference(self) -> tuple[Level, str, dict[str, object]]:
@@ -184,9 +234,24 @@ class ContactInferenceNode(Node):
         recent = self.last_reject_ns is not None and (
             time.monotonic_ns() - self.last_reject_ns < 10_000 * MS
         )
+        values["estimates_degraded"] = self.degraded_out
         if recent:
             return Level.WARN, f"windows rejected: {self.last_window_error}", values
+        if self.last_degraded and time.monotonic_ns() - self.last_degraded[0] < 10_000 * MS:
+            return Level.WARN, f"degraded estimates: {self.last_degraded[1]}", values
         return Level.OK, "ok", values
+
+
+def bundle_stamp(directory: Path, backend: str) -> tuple[tuple[str, int, int], ...]:
+    """Name, mtime and size of the card and the backend's model file: changes when rewritten."""
+    out = []
+    for name in (CARD_FILE, ONNX_FILE if backend == "onnx" else SKLEARN_FILE):
+        try:
+            st = (Path(directory) / name).stat()
+        except OSError:
+            continue
+        out.append((name, st.st_mtime_ns, st.st_size))
+    return tuple(out)
 
 
 def estimate_msg(est: Estimate) -> ContactEstimate:
@@ -205,6 +270,7 @@ def estimate_msg(est: Estimate) -> ContactEstimate:
     msg.class_names = list(est.class_names)
     msg.class_probabilities = array.array("d", est.class_probabilities)
     msg.stability_probability = est.stability_probability
+    msg.degraded, msg.degraded_reason = est.degraded, est.degraded_reason
     return msg
 
 

@@ -7,10 +7,26 @@ then the final one. The windowing itself is
 :class:`~ext_sense_perception.online.stage.WindowStage`; the window and the anytime times come
 from the task profile (:mod:`ext_sense_perception.profiles`).
 
-A NUSkin window must close at ``onset + post`` even when no event follows it, so a timer
-advances the stream clock: stream time is the newest event's stamp plus the wall time elapsed
-since it arrived, minus ``advance_slack_ms`` for events still in flight. When no data arrives
-for ``stream_timeout_ms`` the pending windows are flushed (marked truncated).
+Windows close on data: the batch whose events (or, empty, whose stamp) pass ``onset + post``
+cuts the window in the subscription callback. A NUSkin window must also close when no event
+follows it, so one one-shot deadline timer is armed for the moment the stream clock (the newest
+data's stream time plus the wall time since it arrived, minus ``advance_slack_ms`` for events
+still in flight) reaches the next pending window's end, or the liveness status would change,
+or ``stream_timeout_ms`` passes with no data (the pending windows are then flushed, marked
+truncated); see :mod:`ext_sense_perception.online.deadline`. With nothing pending the timer is
+off: an idle node does not wake (a 1 ms polling timer here cost 12 % of a core while idle).
+
+Liveness (:mod:`ext_sense_perception.online.liveness`): the node knows the rate its input
+should have (``expected_rate_hz``) and when it must arrive (BioTac: always; NUSkin: while a
+contact detected in the signal is open; a food window, opened by the arm's motion start, may
+be silent for seconds). Silence then beyond ``stall_warn_ms`` is a stall: WARN on ``/diagnostics``
+(status ``liveness``, naming the silent topic), ERROR beyond ``stall_error_ms``, published at
+once (not at the next 1 Hz tick), cleared when data returns. Every window overlapping a stall
+or holding a packet later than ``late_ms``, or input lost on the way (the driver's word count
+ran ahead of the events received), goes out with ``degraded`` and the reason; a contact
+whose final window a stall spoiled is counted as lost (``contacts_lost_in_stall``). QoS deadline
+events are not used for this: a subscription's deadline is incompatible with the drivers'
+publishers, which offer none, and it would cut the stream instead of reporting it.
 """
 
 from __future__ import annotations
@@ -24,11 +40,14 @@ from rclpy.node import Node
 
 from ext_sense_msgs.msg import BioTacFrame, ContactGroundTruth, ContactWindow, TaxelEventBatch
 from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.online.deadline import next_wake_ns, stall_change_ns
+from ext_sense_perception.online.liveness import StreamLiveness
 from ext_sense_perception.online.messages import window_fields
 from ext_sense_perception.online.model_card import read_card
 from ext_sense_perception.online.model_store import locate_model
 from ext_sense_perception.online.stage import WindowStage
 from ext_sense_perception.online.window import WindowConfig
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.enums import Sensor, Task
@@ -38,12 +57,16 @@ from ext_sense_runtime.qos import COMMAND_QOS, SENSOR_STREAM_QOS, WINDOW_QOS
 from ext_sense_runtime.qos_events import QosEventCounter
 from ext_sense_runtime.stamps import MS, US, fill_stamp, stamp_to_ns
 
+MIN_WAIT_NS = 50_000
+"""Shortest deadline wait: a deadline already passed fires at once, without a zero period."""
+
 
 class ContactWindowNode(Node):
     """Cuts contact windows from the NUSkin event stream or the BioTac frames."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "contact_window"), **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
         task = declare(
             self,
             "task",
@@ -152,18 +175,6 @@ class ContactWindowNode(Node):
             )
             * MS
         )
-        period_s = (
-            declare(
-                self,
-                "advance_period_ms",
-                1.0,
-                "Period of the stream-clock timer, ms.",
-                low=0.1,
-                high=1000.0,
-                read_only=True,
-            )
-            / 1000.0
-        )
         try:
             config = replace(
                 base.with_profile(
@@ -180,6 +191,63 @@ class ContactWindowNode(Node):
         except PerceptionError as err:
             raise ValueError(f"contact_window: {err}") from err
         self.config = config
+        input_topic = self.resolve_topic_name(
+            "events" if config.sensor is Sensor.NUSKIN else "frames"
+        )
+        self.liveness = StreamLiveness(
+            input_topic,
+            declare(
+                self,
+                "expected_rate_hz",
+                1000.0 if config.sensor is Sensor.NUSKIN else 100.0,
+                "Messages per second the input has while streaming (NUSkin: the driver's batches "
+                "during a contact; BioTac: frames), Hz.",
+                low=0.1,
+                high=100000.0,
+                read_only=True,
+            ),
+            warn_ns=round(
+                declare(
+                    self,
+                    "stall_warn_ms",
+                    100.0,
+                    "Silence of the input while streaming that is a stall (WARN, windows "
+                    "across it degraded), ms.",
+                    low=1.0,
+                    high=60000.0,
+                    read_only=True,
+                )
+                * MS
+            ),
+            error_ns=round(
+                declare(
+                    self,
+                    "stall_error_ms",
+                    500.0,
+                    "Silence of the input while streaming that is an ERROR, ms.",
+                    low=1.0,
+                    high=60000.0,
+                    read_only=True,
+                )
+                * MS
+            ),
+            late_ns=round(
+                declare(
+                    self,
+                    "late_ms",
+                    100.0,
+                    "A message arriving this much later than the stream's usual delay is late "
+                    "(its windows degraded), ms.",
+                    low=1.0,
+                    high=60000.0,
+                    read_only=True,
+                )
+                * MS
+            ),
+        )
+        if config.sensor is Sensor.NUSKIN and not config.external_onsets:
+            self.liveness.contact_words = int(config.activity_min_events)
+        self._stall_state = (False, False)
         self._wall_at_data: int | None = None
         self.published = 0
         self.provisional_published = 0
@@ -193,7 +261,7 @@ class ContactWindowNode(Node):
             self.create_subscription(
                 TaxelEventBatch,
                 "events",
-                self._on_events,
+                self.guard(self._on_events),
                 SENSOR_STREAM_QOS,
                 event_callbacks=self.qos_events.subscription(),
             )
@@ -201,21 +269,26 @@ class ContactWindowNode(Node):
             self.create_subscription(
                 BioTacFrame,
                 "frames",
-                self._on_frame,
+                self.guard(self._on_frame),
                 SENSOR_STREAM_QOS,
                 event_callbacks=self.qos_events.subscription(),
             )
         if config.external_onsets:
             self.create_subscription(
-                ContactGroundTruth, "motion_start", self._on_motion_start, COMMAND_QOS
+                ContactGroundTruth, "motion_start", self.guard(self._on_motion_start), COMMAND_QOS
             )
-        self.create_timer(period_s, self._on_timer)
+        # one-shot, re-armed by _arm(); the period given here is replaced before each start
+        self._deadline = self.create_timer(1.0, self.guard(self._on_deadline), autostart=False)
+        self._armed_ns: int | None = None
+        self.wakeups = 0
 
         self.updater = Updater(hardware_id=f"{config.task.label}/{config.sensor.label}")
         self.rate = self.updater.add(
             RateTask("input", min_hz=0.0, max_hz=1e6, clock=time.monotonic_ns, unit="msgs_per_s")
         )
         self.updater.add_check("windows", self._check_windows)
+        self.updater.add_check("liveness", self.liveness.check)
+        self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
         self.get_logger().info(
             f"cutting {config.task.label} windows from {config.sensor.label}: "
@@ -240,10 +313,15 @@ class ContactWindowNode(Node):
                 f"model card {path} is for {card.task}/{card.sensor}: using the task profile"
             )
             return config, "task"
-        return replace(config, profile=card.profile), str(path)
+        return WindowConfig.for_profile(card.profile, config.sensor), str(path)
 
     def _publish(self, windows: list) -> None:
         for win in windows:
+            reason = self.liveness.fault_in(win.start_ns, win.onset_ns + win.post_onset_ns)
+            if reason:
+                win = win._replace(degraded=True, degraded_reason=reason)
+                if not win.provisional and "stall" in reason:
+                    self.liveness.contacts_lost += 1  # its final window missed signal
             f = window_fields(win)
             msg = ContactWindow()
             fill_stamp(msg.header.stamp, f["stamp_ns"])
@@ -256,35 +334,110 @@ class ContactWindowNode(Node):
             msg.data = array.array("f", f["data"].tobytes())  # ~100x faster than from NumPy
             msg.provisional = f["provisional"]
             msg.truncated = f["truncated"]
+            msg.degraded, msg.degraded_reason = f["degraded"], f["degraded_reason"]
             self.pub.publish(msg)
             self.published += 1
             self.provisional_published += int(win.provisional)
 
     def _on_events(self, msg: TaxelEventBatch) -> None:
-        self.rate.tick()
-        self._wall_at_data = time.monotonic_ns()
+        self._arrived(msg)
+        lost = self.liveness.words_lost
+        self.liveness.on_counts(
+            stamp_to_ns(msg.header.stamp), msg.words_total, msg.bad_taxel_words, len(msg.taxel)
+        )
+        if self.liveness.words_lost > lost:
+            self.get_logger().warning(
+                f"lost input: {self.liveness.words_lost - lost} words the driver decoded never "
+                f"reached this node ({self.liveness.words_lost} so far, "
+                f"{self.liveness.contacts_lost} contact(s) lost)",
+                throttle_duration_sec=1.0,
+            )
         self._publish(self.stage.on_events(msg))
+        self._arm(earlier_only=True)
 
     def _on_frame(self, msg: BioTacFrame) -> None:
+        self._arrived(msg)
+        self._publish(self.stage.on_frame(msg))
+        self._arm(earlier_only=True)
+
+    def _arrived(self, msg: TaxelEventBatch | BioTacFrame) -> None:
         self.rate.tick()
         self._wall_at_data = time.monotonic_ns()
-        self._publish(self.stage.on_frame(msg))
+        self.liveness.on_message(stamp_to_ns(msg.header.stamp), time.time_ns())
+        self._report_stall_change()
+
+    def _streaming(self) -> bool:
+        """Whether input must be arriving now: BioTac always, NUSkin during a tap or grasp.
+
+        A NUSkin window opened by an external onset (food: the arm's motion start) is not a
+        contact: the fork moves seconds in it without touching anything, and silence is normal.
+        """
+        if self.config.sensor is Sensor.BIOTAC:
+            return True
+        return bool(self.stage.windower.pending_onsets) and not self.config.external_onsets
+
+    def _report_stall_change(self) -> None:
+        """Publish diagnostics at once when a stall starts, turns ERROR, or ends."""
+        silent = self.liveness.silence_ns() if self.liveness.stalled else 0
+        state = (self.liveness.stalled, silent > self.liveness.error_ns)
+        if state != self._stall_state:
+            self._stall_state = state
+            self.diagnostics.publish()
 
     def _on_motion_start(self, msg: ContactGroundTruth) -> None:
         if self.stage.on_motion_start(stamp_to_ns(msg.header.stamp)):
             self.motion_starts += 1
+        self._arm(earlier_only=True)
 
-    def _on_timer(self) -> None:
+    def _on_deadline(self) -> None:
+        """The stream went quiet past a deadline: stall check, clock-closed windows, timeout.
+
+        The timer is periodic: it ends by re-arming it for the next deadline or cancelling it.
+        """
+        self.wakeups += 1
         last = self.stage.last_data_ns
         if last is None or self._wall_at_data is None:
+            self._arm()
             return
+        self.liveness.update(self._streaming())
+        self._report_stall_change()
         idle = time.monotonic_ns() - self._wall_at_data
         if idle >= self.timeout_ns:
             if self.stage.windower.pending_onsets:
                 self._publish(self.stage.flush())
-            return
-        if self.config.sensor is Sensor.NUSKIN:
+        elif self.config.sensor is Sensor.NUSKIN:
             self._publish(self.stage.advance(last + idle - self.slack_ns))
+        self._arm()
+
+    def _arm(self, earlier_only: bool = False) -> None:
+        """Arm the deadline timer for the next moment a quiet stream needs the node, or stop it.
+
+        Args:
+            earlier_only: Keep an armed deadline unless the new one is earlier (called per
+                message: data only moves the stall and timeout deadlines later, and a deadline
+                that fires early re-arms itself for the rest, so most messages cost no timer
+                call).
+        """
+        streaming = self._streaming()
+        wake = next_wake_ns(
+            data_wall_ns=self._wall_at_data,
+            data_stream_ns=self.stage.last_data_ns,
+            due_ns=self.stage.next_due_ns() if self.config.sensor is Sensor.NUSKIN else None,
+            pending=bool(self.stage.windower.pending_onsets),
+            slack_ns=self.slack_ns,
+            timeout_ns=self.timeout_ns,
+            stall_ns=stall_change_ns(self.liveness, streaming),
+        )
+        if wake is None:
+            if self._armed_ns is not None:
+                self._deadline.cancel()
+                self._armed_ns = None
+            return
+        if earlier_only and self._armed_ns is not None and self._armed_ns <= wake:
+            return
+        self._deadline.timer_period_ns = max(wake - time.monotonic_ns(), MIN_WAIT_NS)
+        self._deadline.reset()
+        self._armed_ns = wake
 
     def _check_windows(self) -> tuple[Level, str, dict[str, object]]:
         wc = self.stage.windower.counters

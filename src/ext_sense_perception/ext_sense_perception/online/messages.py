@@ -30,6 +30,8 @@ def window_fields(win: ContactWindow) -> dict[str, Any]:
         "data": data.reshape(-1),
         "provisional": bool(win.provisional),
         "truncated": bool(win.truncated),
+        "degraded": bool(win.degraded),
+        "degraded_reason": str(win.degraded_reason),
     }
 
 
@@ -58,4 +60,7 @@ def window_from_msg(msg: Any) -> ContactWindow:
         data=data.reshape(shape),
         provisional=bool(msg.provisional),
         truncated=bool(msg.truncated),
+        # absent from messages recorded before the field existed
+        degraded=bool(getattr(msg, "degraded", False)),
+        degraded_reason=str(getattr(msg, "degraded_reason", "")),
     )

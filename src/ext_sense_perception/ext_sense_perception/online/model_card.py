@@ -54,6 +54,13 @@ class ModelCard:
         train_s: Training time, s.
         onnx: What the ONNX graph holds (None when export failed).
         anytime_post_ms: Post-onset times of the anytime bundles beside it, ms.
+        anchor: What the training windows' onsets were tied to (food: ``arm_motion``,
+            ``capture_start`` or ``contact``; empty: the source's own onsets).
+        sessions: The sessions the model was trained on.
+        label_set: The classes decisions are restricted to (a calibrated model: its session's
+            label set; empty: all of ``class_names``).
+        calibration: How the bundle was adapted to a session (``ext-sense calibrate``): the
+            session, trials per class, their weight and the base model's id (empty: none).
         id: The card id (task, sensor, features, model and a hash of the rest).
         schema_version: :data:`SCHEMA_VERSION`.
     """
@@ -77,6 +84,10 @@ class ModelCard:
     train_s: float = 0.0
     onnx: str | None = "whole pipeline (features + scaler + model) in ONNX"
     anytime_post_ms: tuple[float, ...] = ()
+    anchor: str = ""
+    sessions: tuple[str, ...] = ()
+    label_set: tuple[str, ...] = ()
+    calibration: dict[str, Any] = field(default_factory=dict)
     id: str = ""
     schema_version: int = SCHEMA_VERSION
 
@@ -93,6 +104,7 @@ class ModelCard:
                 f"The model card's profile is for {self.profile.task.label!r}, its task is "
                 f"{self.task!r}."
             )
+        _check_semantics(self)
         if not self.id:
             object.__setattr__(self, "id", self._make_id())
 
@@ -111,7 +123,7 @@ class ModelCard:
         out = {f.name: getattr(self, f.name) for f in fields(self)}
         out["profile"] = self.profile.to_dict()
         out["window"] = self.window._asdict()
-        for key in ("class_names", "excluded", "anytime_post_ms"):
+        for key in ("class_names", "excluded", "anytime_post_ms", "sessions", "label_set"):
             out[key] = list(out[key])
         return json.loads(json.dumps(out, default=_jsonable))
 
@@ -132,14 +144,17 @@ class ModelCard:
                 f"The model card must have the fields {sorted(required)}; missing "
                 f"{sorted(missing)}, unknown {sorted(unknown)}."
             )
+        _check_types(values)
         v = dict(values)
         try:
             v["profile"] = TaskProfile.from_dict(v["profile"])
             v["window"] = Geometry(**v["window"])
-            for key in ("class_names", "excluded"):
-                v[key] = tuple(str(n) for n in v.get(key, ()))
+            for key in ("class_names", "excluded", "sessions", "label_set"):
+                v[key] = tuple(v.get(key, ()))
             v["anytime_post_ms"] = tuple(float(p) for p in v.get("anytime_post_ms", ()))
             return cls(**v)
+        except PerceptionError:
+            raise
         except (TypeError, ValueError) as err:
             raise PerceptionError(f"The model card is invalid: {err}") from err
 
@@ -148,6 +163,152 @@ class ModelCard:
         path = Path(directory) / CARD_FILE
         path.write_text(json.dumps(self.to_dict(), indent=2) + "\n")
         return path
+
+
+_FIELD_KINDS: dict[str, tuple[type, ...]] = {
+    "task": (str,),
+    "sensor": (str,),
+    "profile": (dict,),
+    "window": (dict,),
+    "features": (str,),
+    "feature_params": (dict,),
+    "model": (str,),
+    "best_params": (dict,),
+    "rate_hz": (int, float),
+    "class_names": (list,),
+    "metrics": (dict,),
+    "n_train": (int,),
+    "data": (str,),
+    "data_hash": (str,),
+    "model_params": (dict,),
+    "excluded": (list,),
+    "train_s": (int, float),
+    "onnx": (str, type(None)),
+    "anytime_post_ms": (list,),
+    "anchor": (str,),
+    "sessions": (list,),
+    "label_set": (list,),
+    "calibration": (dict,),
+    "id": (str,),
+    "schema_version": (int,),
+}
+"""The JSON kind of each card field: a string is never taken for a list of names."""
+
+_WINDOW_FIELDS = ("n_channels", "n_samples", "period_ns", "pre_ns")
+
+
+def _kind(value: object) -> str:
+    return "a bool" if isinstance(value, bool) else type(value).__name__
+
+
+def _check_types(values: dict[str, Any]) -> None:
+    """The card's JSON values have the kinds of the schema (before any conversion).
+
+    Raises:
+        PerceptionError: The first field of the wrong kind, named with what was expected.
+    """
+    for name, kinds in _FIELD_KINDS.items():
+        if name not in values:
+            continue
+        v = values[name]
+        if isinstance(v, bool) or not isinstance(v, kinds):
+            expected = " or ".join("null" if k is type(None) else k.__name__ for k in kinds)
+            raise PerceptionError(
+                f"The model card's {name!r} must be {expected}. Got {_kind(v)} {v!r} instead."
+            )
+    for name in ("class_names", "excluded", "sessions", "label_set"):
+        for item in values.get(name, ()):
+            if not isinstance(item, str) or not item:
+                raise PerceptionError(
+                    f"The model card's {name!r} must be a list of non-empty strings. Got "
+                    f"{_kind(item)} {item!r} in it instead."
+                )
+    for item in values.get("anytime_post_ms", ()):
+        if isinstance(item, bool) or not isinstance(item, (int, float)):
+            raise PerceptionError(
+                f"The model card's 'anytime_post_ms' must be a list of numbers. Got "
+                f"{_kind(item)} {item!r} in it instead."
+            )
+    window = values["window"]
+    if set(window) - {*_WINDOW_FIELDS, "sensor"}:
+        raise PerceptionError(
+            f"The model card's 'window' must have the fields {[*_WINDOW_FIELDS, 'sensor']}. "
+            f"Got {sorted(window)} instead."
+        )
+    for name in _WINDOW_FIELDS:
+        v = window.get(name)
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise PerceptionError(
+                f"The model card's 'window.{name}' must be an integer. Got {_kind(v)} {v!r} "
+                "instead."
+            )
+    for name, v in values["metrics"].items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise PerceptionError(
+                f"The model card's 'metrics.{name}' must be a number. Got {_kind(v)} {v!r} instead."
+            )
+
+
+def _fail(name: str, expected: str, got: object) -> PerceptionError:
+    expected = expected[4:] if expected.startswith("to: ") else f"be {expected}"
+    return PerceptionError(f"The model card's {name!r} must {expected}. Got {got!r} instead.")
+
+
+def _check_semantics(card: ModelCard) -> None:
+    """Rules that tie the fields together: the kind of model, the window, the periods.
+
+    Raises:
+        PerceptionError: The first rule broken, naming the field, the rule and the value.
+    """
+    task = Task.parse(card.task, PerceptionError)
+    names = card.class_names
+    if isinstance(names, str):
+        raise _fail("class_names", "a list of class names, not one string", names)
+    if task.is_regression and names:
+        raise _fail("class_names", f"empty: {task.label} is a regression task", list(names))
+    if not task.is_regression and (len(names) < 2 or len(set(names)) != len(names)):
+        raise _fail(
+            "class_names",
+            f"at least 2 distinct names: {task.label} is a classification task",
+            list(names),
+        )
+    w, profile = card.window, card.profile
+    for name in ("n_channels", "n_samples", "period_ns"):
+        if int(getattr(w, name)) <= 0:
+            raise _fail(f"window.{name}", "positive", getattr(w, name))
+    if w.sensor != card.sensor:
+        raise _fail("window.sensor", f"the card's sensor {card.sensor!r}", w.sensor)
+    # the window the model accepts must be cut from the windows the profile gives
+    if w.pre_ns > profile.pre_ns:
+        raise _fail("window.pre_ns", f"<= the profile's pre_ns ({profile.pre_ns})", w.pre_ns)
+    if not 0 < w.post_ns <= profile.post_ns:
+        raise _fail(
+            "window",
+            f"to: end within the profile's (0, {profile.post_ns}] ns after the onset",
+            f"an end {w.post_ns} ns after it",
+        )
+    # online windows come at the profile's period: NUSkin bins add up to a coarser model bin,
+    # BioTac samples cannot be resampled on the way
+    period = profile.period_ns(card.sensor)
+    if card.sensor == Sensor.NUSKIN.label:
+        if w.period_ns % period:
+            raise _fail("window.period_ns", f"a multiple of the profile's {period}", w.period_ns)
+    elif w.period_ns != period:
+        raise _fail("window.period_ns", f"the profile's {period}", w.period_ns)
+    if (profile.pre_ns - w.pre_ns) % period:
+        raise _fail("window.pre_ns", f"the profile's pre_ns less a multiple of {period}", w.pre_ns)
+    if not (np.isfinite(card.rate_hz) and card.rate_hz > 0):
+        raise _fail("rate_hz", "a positive number of Hz", card.rate_hz)
+    if card.n_train < 0:
+        raise _fail("n_train", ">= 0", card.n_train)
+    post_ms = w.post_ns / 1e6
+    for p in card.anytime_post_ms:
+        if not (np.isfinite(p) and 0 < p < post_ms):
+            raise _fail(
+                "anytime_post_ms", f"each in (0, {post_ms:g}) ms", list(card.anytime_post_ms)
+            )
+    if set(card.label_set) - set(names):
+        raise _fail("label_set", f"classes of class_names {list(names)}", list(card.label_set))
 
 
 def _jsonable(v: Any) -> Any:

@@ -19,6 +19,7 @@ import numpy as np
 import onnxruntime as ort
 
 from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.online.label_set import restrict
 from ext_sense_perception.online.model_card import (
     ONNX_FILE,
     SKLEARN_FILE,
@@ -26,6 +27,7 @@ from ext_sense_perception.online.model_card import (
     read_card,
 )
 from ext_sense_perception.online.model_input import as_model_input
+from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_runtime.records import Estimate
 
 BACKENDS = ("onnx", "sklearn")
@@ -152,6 +154,8 @@ class ModelBundle:
         p = proba[0]
         if not np.isfinite(p).all():
             raise PerceptionError("The model returned NaN or inf class probabilities.")
+        if self.card.label_set:  # a calibrated bundle decides among its session's classes
+            p = restrict(p[None, :], self.class_names, self.card.label_set)[0]
         idx = int(np.argmax(p))
         stab = (
             float(p[self.class_names.index("stable")])
@@ -168,18 +172,31 @@ class ModelBundle:
         )
 
 
-def load_model(directory: str | Path, backend: str = "onnx") -> ModelBundle:
-    """Load a bundle for inference, with its anytime models.
+def load_model(
+    directory: str | Path,
+    backend: str = "onnx",
+    task: str | None = None,
+    sensor: str | None = None,
+) -> ModelBundle:
+    """Load a bundle for inference, with its anytime models, and check it before use.
+
+    The card is checked against its schema (:func:`~.model_card.read_card`), against the
+    ``task`` and ``sensor`` of whoever loads it, and against the model itself
+    (:func:`check_outputs`): a card that describes another model than the one beside it would
+    otherwise fail at the first window, inside a callback.
 
     Args:
         directory: The bundle directory.
         backend: ``"onnx"`` (ONNX Runtime, CPU, one thread) or ``"sklearn"`` (joblib pipeline).
+        task: The task the caller serves (label or alias); ``None``: any.
+        sensor: The sensor the caller serves; ``None``: any.
 
     Returns:
         The loaded model.
 
     Raises:
-        PerceptionError: when a file is missing or corrupt, or the backend is unknown.
+        PerceptionError: when a file is missing or corrupt, the card is invalid, is for another
+            task or sensor, or does not describe the model; or the backend is unknown.
     """
     d = Path(directory)
     if backend not in BACKENDS:
@@ -187,6 +204,7 @@ def load_model(directory: str | Path, backend: str = "onnx") -> ModelBundle:
             f"The 'backend' parameter must be 'onnx' or 'sklearn'. Got {backend!r} instead."
         )
     card = read_card(d)
+    _check_serves(card, d, task, sensor)
     path = d / (ONNX_FILE if backend == "onnx" else SKLEARN_FILE)
     if not path.is_file():
         raise PerceptionError(
@@ -206,7 +224,82 @@ def load_model(directory: str | Path, backend: str = "onnx") -> ModelBundle:
         raise PerceptionError(
             f"{BACKEND_NAMES[backend]} model {str(path)!r} is corrupt: {err}"
         ) from err
+    check_outputs(card, backend, runner, path)
     anytime = tuple(
-        load_model(d / "anytime" / f"post_{ms:g}ms", backend) for ms in card.anytime_post_ms
+        load_model(d / "anytime" / f"post_{ms:g}ms", backend, card.task, card.sensor)
+        for ms in card.anytime_post_ms
     )
+    for ms, sub in zip(card.anytime_post_ms, anytime, strict=True):
+        if sub.class_names != card.class_names or sub.post_onset_ns != round(ms * 1e6):
+            raise PerceptionError(
+                f"The anytime model {str(d / 'anytime' / f'post_{ms:g}ms')!r} must end {ms:g} ms "
+                f"after the onset with the classes {list(card.class_names)}. Got "
+                f"{sub.post_onset_ns / 1e6:g} ms and {list(sub.class_names)} instead."
+            )
     return ModelBundle(card, backend, runner, anytime)
+
+
+def _check_serves(card: ModelCard, d: Path, task: str | None, sensor: str | None) -> None:
+    """The card is for the caller's task and sensor."""
+    want_task = Task.parse(task, PerceptionError).label if task is not None else card.task
+    want_sensor = Sensor.parse(sensor, PerceptionError).label if sensor is not None else card.sensor
+    if (card.task, card.sensor) != (want_task, want_sensor):
+        raise PerceptionError(
+            f"The model in {str(d)!r} is a {card.task}/{card.sensor} model; this node serves "
+            f"{want_task}/{want_sensor}."
+        )
+
+
+def check_outputs(card: ModelCard, backend: str, runner: Any, path: Path) -> None:
+    """The model answers a probe batch as its card says: regression or the card's classes.
+
+    Two all-zero rows of the card's window size go through the model; what comes back must be
+    one number per row (regression) or one probability per named class (classification), and
+    class labels must be among the card's ``class_names`` (a scikit-learn classifier's
+    ``classes_`` must be them, in order: the estimate's class index is read from them).
+
+    Raises:
+        PerceptionError: naming the model file, what the card says and what the model gave.
+    """
+    n_inputs = card.window.n_channels * card.window.n_samples
+    where = f"The model {str(path)!r}"
+    names = list(card.class_names)
+    said = f"its card names {len(names)} classes {names}" if names else "its card says regression"
+    x = np.zeros((2, n_inputs), np.float32)
+    try:
+        if backend == "onnx":
+            shapes = {i.name: i.shape for i in runner.get_inputs()}
+            width = shapes.get("window", [None])[-1]
+            if "window" not in shapes or (isinstance(width, int) and width != n_inputs):
+                raise PerceptionError(
+                    f"{where} must take an input 'window' of {n_inputs} values (the card's "
+                    f"window, {card.window.n_channels} x {card.window.n_samples}). Got {shapes}."
+                )
+            outs = [np.asarray(o) for o in runner.run(None, {"window": x})]
+            pred, proba = outs[0], (outs[1] if len(outs) > 1 else None)
+        else:
+            classes = getattr(runner, "classes_", None)
+            if classes is not None and [str(c) for c in classes] != names:
+                got = [str(c) for c in classes]
+                raise PerceptionError(f"{where} is a classifier of {got}; {said}.")
+            pred = np.asarray(runner.predict(x))
+            proba = None if classes is None else np.asarray(runner.predict_proba(x))
+    except PerceptionError:
+        raise
+    except Exception as err:  # the runtimes raise their own exception types
+        raise PerceptionError(f"{where} fails on a probe window: {err}") from err
+    if proba is not None and not names:
+        raise PerceptionError(f"{where} gives class probabilities {proba.shape}; {said}.")
+    if names and (proba is None or proba.shape != (2, len(names))):
+        got = "one number per window" if proba is None else f"probabilities of shape {proba.shape}"
+        raise PerceptionError(f"{where} gives {got}; {said}.")
+    if pred.size != 2:
+        raise PerceptionError(f"{where} gives outputs of shape {pred.shape} for 2 windows.")
+    if names and pred.dtype.kind in "USO":
+        # the label must be the name at the most probable column: names in another order fail
+        got = [str(v) for v in pred.ravel()]
+        if got != [names[int(i)] for i in np.argmax(proba, axis=1)]:
+            raise PerceptionError(
+                f"{where} gives labels {got} with probabilities {np.round(proba, 3).tolist()}; "
+                f"{said}, in the order of the probabilities."
+            )

@@ -86,13 +86,15 @@ class WindowStage:
     def on_block(self, events: EventBlock, stamp_ns: int | None = None) -> list[ContactWindow]:
         """Feed a block of decoded events (a driver's, the simulator's); windows that became due.
 
-        ``stamp_ns`` is the batch's stamp: with no events, stream time still reaches it.
+        ``stamp_ns`` is the batch's stamp (the start of the time it covers): with no events,
+        stream time still reaches it, so an empty batch past a window's end closes the window
+        on data, as an event there would (the stream is in order: nothing earlier can follow).
         """
         self._counts["events"] += events.size
         end = int(events.t_ns.max()) if events.size else stamp_ns
         if end is not None:
             self.last_data_ns = end if self.last_data_ns is None else max(self.last_data_ns, end)
-        return self.windower.feed(events)
+        return self.windower.feed(events, now_ns=None if events.size else stamp_ns)
 
     def on_frame(self, msg: Any) -> list[ContactWindow]:
         """Feed one ``BioTacFrame``; frames of several sensors are joined by sequence number.
@@ -140,6 +142,10 @@ class WindowStage:
     def advance(self, now_ns: int) -> list[ContactWindow]:
         """Declare the stream complete up to ``now_ns`` (no more data before it will come)."""
         return self.windower.advance(int(now_ns))
+
+    def next_due_ns(self) -> int | None:
+        """Stream time at which the next pending window becomes due, ns (None: none pending)."""
+        return self.windower.next_due_ns
 
     def flush(self) -> list[ContactWindow]:
         """Close every pending window (the stream stopped); tails are zero-padded."""

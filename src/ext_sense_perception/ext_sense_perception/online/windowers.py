@@ -68,6 +68,21 @@ class WindowerBase:
         """Onsets whose final window is not yet emitted, ns."""
         return tuple(p.onset_ns for p in self._pending)
 
+    @property
+    def next_due_ns(self) -> int | None:
+        """Stream time at which the next window (provisional or final) becomes due, ns.
+
+        ``None`` when no window is pending. The window node arms its deadline timer for it, so
+        that a window whose stream goes quiet still closes on time without a polling timer.
+        """
+        due = [
+            p.onset_ns + post
+            for p in self._pending
+            for post in (*self.config.anytime_post_ns, self.config.post_ns)
+            if post not in p.done
+        ]
+        return min(due) if due else None
+
     def mark_onset(self, onset_ns: int) -> bool:
         """Start a window at an onset known from outside (e.g. the arm's motion start).
 

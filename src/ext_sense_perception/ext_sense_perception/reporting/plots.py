@@ -11,6 +11,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from matplotlib.ticker import NullFormatter, ScalarFormatter
 
+from ext_sense_perception.reporting.scores import pareto_front
+
 
 def plot(
     path: Path,
@@ -22,26 +24,30 @@ def plot(
     logx: bool = False,
     labels: list[str] | None = None,
     pareto_lower: bool | None = None,
+    yerr: list[float] | None = None,
 ) -> None:
     """Score against a time (or rate) axis as a PNG.
 
-    Optionally labelled points and the Pareto front (``pareto_lower``: lower scores are better).
+    Optionally error bars (``yerr``: the score's std over splits), labelled points and the
+    Pareto front (``pareto_lower``: lower scores are better; computed by
+    :func:`~.scores.pareto_front`).
     """
     fig, ax = plt.subplots(figsize=(5, 3.4), dpi=110)
     order = np.argsort(xs)
-    ax.plot(
-        np.asarray(xs)[order], np.asarray(ys)[order], "o-" if labels is None else "o", color="C0"
+    ax.errorbar(
+        np.asarray(xs)[order],
+        np.asarray(ys)[order],
+        yerr=None if yerr is None else np.asarray(yerr)[order],
+        fmt="o-" if labels is None else "o",
+        color="C0",
+        capsize=2,
+        elinewidth=0.8,
     )
     if labels is not None:
         for x, y, s in zip(xs, ys, labels, strict=True):
             ax.annotate(s, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
     if pareto_lower is not None:
-        front, best = [], None
-        for i in order:
-            y = ys[i]
-            if best is None or (y < best if pareto_lower else y > best):
-                best = y
-                front.append(i)
+        front = pareto_front(xs, ys, pareto_lower)
         ax.plot(
             np.asarray(xs)[front],
             np.asarray(ys)[front],

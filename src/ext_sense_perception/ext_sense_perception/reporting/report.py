@@ -28,16 +28,18 @@ from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.reporting.plots import plot
 from ext_sense_perception.reporting.runner import Runner, check_choices
-from ext_sense_perception.reporting.scores import fmt, score
+from ext_sense_perception.reporting.scores import fmt, pareto_front, score, spread
 from ext_sense_perception.reporting.sections import (
     dataset_name,
     gru_row,
     latency_section,
     taxel_section,
 )
+from ext_sense_perception.training.fit_executor import FitExecutor
 from ext_sense_perception.training.gru import torch_available
 from ext_sense_perception.training.models import default_choice
 from ext_sense_perception.training.protocol import EvalResult
+from ext_sense_runtime.stamps import MS
 
 NUSKIN_RATES_HZ = (50, 100, 250, 500, 1000, 2000, 3000, 4000)
 NUSKIN_QUICK_RATES_HZ = (50, 250, 1000, 4000)
@@ -70,7 +72,6 @@ def report_dataset(
     food table always starts with its default ``activity`` features); ``latency=False`` /
     ``taxels=False`` leave out the decision-latency / finger and taxel sections.
     """
-    k = run.k
     name = dataset_name(ws, path)
     lower = ws.is_regression
     feat0, model0 = default_choice(ws.task, ws.sensor)
@@ -84,47 +85,53 @@ def report_dataset(
         feats = ["activity", *feats]
     mods = list(models or (QUICK_MODELS if quick else REPORT_MODELS))
     lines += [
-        f"### Features and models (K = {k} random 90/10 splits, 4-fold grid search)",
+        f"### Features and models (K = {run.k_text} random 90/10 splits, 4-fold grid search)",
         "",
-        "| features | model | score | train s/split | ONNX p50 / p99 ms |",
-        "|---|---|---|---|---|",
+        "| features | model | score | train s/split | ONNX p50 / p99 ms | decision latency ms |",
+        "|---|---|---|---|---|---|",
     ]
-    inf_x, inf_y, inf_lab = [], [], []
+    inf_x, inf_y, inf_lab, inf_err, dec_x = [], [], [], [], []
+    post_ms = ws.geometry.post_ns / MS
     for f in feats:
         for m in mods:
             try:
                 res = run(ws, name, f, m)
                 p50, p99 = run.infer_ms(ws, f, m, res)
             except PerceptionError as err:
-                lines.append(f"| {f} | {m} | failed: {err} | | |")
+                lines.append(f"| {f} | {m} | failed: {err} | | | |")
                 continue
             lines.append(
-                f"| {f} | {m} | {fmt(res)} | {np.mean(res.train_s):.2f} | {p50:.3f} / {p99:.3f} |"
+                f"| {f} | {m} | {fmt(res)} | {np.mean(res.train_s):.2f} | {p50:.3f} / {p99:.3f} "
+                f"| {post_ms + p99:.1f} |"
             )
             inf_x.append(p50)
             inf_y.append(score(res))
+            inf_err.append(spread(res))
             inf_lab.append(f"{f}+{m}")
+            dec_x.append(post_ms + p99)
     if gru_row(ws, gru):
         # the paper's best NUSkin tap model: GRU (16) + MLP on the binned counts
         if not torch_available():
             lines.append(
                 "| baseline | gru | skipped: torch (optional extra, requirements/train.txt) is "
-                "not installed | | |"
+                "not installed | | | |"
             )
         else:
             try:
                 res = run(ws, name, "baseline", "gru", model_params=gru_params)
                 p50, p99 = run.infer_ms(ws, "baseline", "gru", res, gru_params)
             except PerceptionError as err:
-                lines.append(f"| baseline | gru | failed: {err} | | |")
+                lines.append(f"| baseline | gru | failed: {err} | | | |")
             else:
                 lines.append(
                     f"| baseline | gru | {fmt(res)} | {np.mean(res.train_s):.2f} "
-                    f"| {p50:.3f} / {p99:.3f} |"
+                    f"| {p50:.3f} / {p99:.3f} | {post_ms + p99:.1f} |"
                 )
                 inf_x.append(p50)
                 inf_y.append(score(res))
+                inf_err.append(spread(res))
                 inf_lab.append("baseline+gru")
+                dec_x.append(post_ms + p99)
     if inf_x:
         png = out / f"{name}_vs_inference.png"
         plot(
@@ -137,15 +144,19 @@ def report_dataset(
             logx=False,
             labels=inf_lab,
             pareto_lower=lower,
+            yerr=inf_err,
         )
         lines += ["", f"![score vs inference latency]({png.name})", ""]
+        for axis, xs in (("inference latency", inf_x), ("decision latency", dec_x)):
+            front = [inf_lab[i] for i in pareto_front(xs, inf_y, lower)]
+            lines += [f"Pareto front against {axis} (fastest first): {', '.join(front)}.", ""]
 
     g = ws.geometry
     if latency:
         lines += latency_section(ws, run, name, out, feat0, model0)
 
     # sampling rate
-    rx, ry = [], []
+    rx, ry, rerr = [], [], []
     rows = []
     if ws.sensor == "nuskin" and Path(str(path)).suffix == ".npz":
         for r in NUSKIN_QUICK_RATES_HZ if quick else NUSKIN_RATES_HZ:
@@ -153,12 +164,14 @@ def report_dataset(
             rows.append(f"| {r} | {fmt(res)} |")
             rx.append(r)
             ry.append(score(res))
+            rerr.append(spread(res))
     elif ws.sensor == "biotac":
         for r in BIOTAC_RATES_HZ:
             res = run(ws, name, feat0, model0, rate_hz=float(r))
             rows.append(f"| {r} | {fmt(res)} |")
             rx.append(r)
             ry.append(score(res))
+            rerr.append(spread(res))
     if rows:
         png = out / f"{name}_vs_rate.png"
         plot(
@@ -169,6 +182,7 @@ def report_dataset(
             "MAE (cm)" if lower else "accuracy",
             f"{ws.task} {ws.sensor}: score vs sampling rate",
             logx=True,
+            yerr=rerr,
         )
         lines += [
             f"### Sampling rate ({feat0} + {model0}; NUSkin: per-taxel refractory drop; "
@@ -184,7 +198,7 @@ def report_dataset(
 
     # fingers and taxels
     if taxels and ws.sensor == "nuskin" and g.n_channels == 80:
-        lines += taxel_section(ws, run, name, feat0, model0, 2 if quick else 4, k)
+        lines += taxel_section(ws, run, name, feat0, model0, 2 if quick else 4)
     return lines
 
 
@@ -202,6 +216,8 @@ def build_report(
     n_jobs: int = 1,
     latency: bool = True,
     taxels: bool = True,
+    executor: FitExecutor | None = None,
+    full: bool = False,
 ) -> Path:
     """Evaluate every dataset and write ``out/report.md``, PNGs and ``out/report.json``.
 
@@ -221,6 +237,9 @@ def build_report(
         n_jobs: Parallel grid-search jobs per evaluation.
         latency: False leaves out the decision-latency / anytime-calibration sections.
         taxels: False leaves out the two fingers / one finger / one taxel sections.
+        executor: Where the split fits run and are cached (default: here, uncached).
+        full: The paper's tables in full: its K per point (unless ``k`` is given), every
+            feature set and model, the GRU row, every section (``quick`` is refused).
 
     Returns:
         The markdown file.
@@ -230,7 +249,14 @@ def build_report(
             unreadable data.
     """
     features, models = check_choices(features, models)
-    k = k or (2 if quick else 3)
+    if full:
+        if quick or not (latency and taxels) or gru is False:
+            raise PerceptionError(
+                "The '--full' report has every section: leave out --quick, --no-latency, "
+                "--no-taxels and --no-gru."
+            )
+    else:
+        k = k or (2 if quick else 3)
     out.mkdir(parents=True, exist_ok=True)
     lines = [
         "# ext_sense perception report",
@@ -240,7 +266,7 @@ def build_report(
         "",
     ]
     records: list[dict[str, Any]] = []
-    run = Runner(k, seed, records, base_params, n_jobs)
+    run = Runner(k, seed, records, base_params, n_jobs, executor)
     rods: list[tuple[float, str, EvalResult]] = []
     with threadpool_limits(limits=1):
         for done, path in enumerate(datasets, start=1):

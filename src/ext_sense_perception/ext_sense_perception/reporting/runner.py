@@ -13,6 +13,7 @@ from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.maps import FeatureKind
 from ext_sense_perception.training.fit import fit_model
+from ext_sense_perception.training.fit_executor import FitExecutor
 from ext_sense_perception.training.models import MODEL_NAMES, default_feature_grid
 from ext_sense_perception.training.protocol import EvalResult, evaluate, features_for
 from ext_sense_perception.training.timing import measure_inference
@@ -92,22 +93,31 @@ class Runner:
 
     Points shared by several sections (the default model on the full window, the nominal
     rate, both fingers, the rod-length table) are evaluated once and reused; every computed
-    point is appended to ``records`` (report.json).
+    point is appended to ``records`` (report.json). The split fits of each point run on
+    ``executor`` (here by default, or on a Dask cluster) and are cached there, so an
+    interrupted report reruns only what it had not finished.
     """
 
     def __init__(
         self,
-        k: int,
+        k: int | None,
         seed: int,
         records: list[dict[str, Any]],
         base_params: dict[str, Any] | None,
         n_jobs: int,
+        executor: FitExecutor | None = None,
     ) -> None:
         self.k, self.seed, self.records = k, seed, records
         self.base_params = dict(base_params or {})
         self.n_jobs = n_jobs
+        self.executor = executor or FitExecutor()
         self._memo: dict[tuple, EvalResult] = {}
         self._prints: dict[int, tuple[np.ndarray, bytes]] = {}
+
+    @property
+    def k_text(self) -> str:
+        """K as the report states it (None: the paper's K per point)."""
+        return str(self.k) if self.k else "the paper's K: 5 for taps and the GRU, 20 otherwise;"
 
     def feature_params(self, ws: WindowSet, features: str, params: dict[str, Any]) -> dict:
         """Feature parameters: base_params (NUSkin binned features), then params.
@@ -164,6 +174,7 @@ class Runner:
             n_jobs=self.n_jobs,
             feature_grid=grid,
             model_params=model_params,
+            executor=self.executor,
         )
         self.records.append(
             {

@@ -21,6 +21,30 @@ def score(res: EvalResult) -> float:
     return res.mean * 100 if res.metric == "mae_m" else res.mean
 
 
+def spread(res: EvalResult) -> float:
+    """The standard deviation of the score over splits, in the unit plots use (error bars)."""
+    return res.std * 100 if res.metric == "mae_m" else res.std
+
+
+def pareto_front(xs: list[float], ys: list[float], lower: bool) -> list[int]:
+    """Indices of the points no other point beats on both axes, by ascending x.
+
+    x is a cost (latency: lower is better); y is the score (``lower``: an error, else an
+    accuracy). A point is on the front when no other point has x <= its x and a score at least
+    as good, with one of the two strictly better.
+    """
+    sign = 1.0 if lower else -1.0
+    pts = [(float(x), sign * float(y)) for x, y in zip(xs, ys, strict=True)]
+    front = [
+        i
+        for i, (x, y) in enumerate(pts)
+        if not any(
+            (xo <= x and yo <= y) and (xo < x or yo < y) for j, (xo, yo) in enumerate(pts) if j != i
+        )
+    ]
+    return sorted(front, key=lambda i: pts[i][0])
+
+
 def coverage(res: EvalResult) -> float:
     """Fraction of test positions inside the 95% prediction interval (+-1.96 sigma)."""
     return float(np.mean(np.abs(res.y_true - res.y_pred) <= 1.959964 * res.y_std))

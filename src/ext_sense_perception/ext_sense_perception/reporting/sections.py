@@ -10,7 +10,7 @@ from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.reporting.plots import plot
 from ext_sense_perception.reporting.runner import LINEAR_MODEL, Runner
-from ext_sense_perception.reporting.scores import coverage, ece, fmt, score
+from ext_sense_perception.reporting.scores import coverage, ece, fmt, score, spread
 from ext_sense_runtime.stamps import MS
 
 
@@ -37,7 +37,6 @@ def taxel_section(
     feat0: str,
     model0: str,
     n_top: int,
-    k: int,
 ) -> list[str]:
     """Both fingers against one finger against one taxel, default and linear model side by side.
 
@@ -58,8 +57,8 @@ def taxel_section(
     lines = [
         "### Two fingers, one finger, one taxel",
         "",
-        f"K = {k} splits; the linear model weighs each standardised feature on its own, the RBF "
-        "kernel weighs all alike (off-strip taxels dilute it).",
+        f"K = {run.k_text} splits; the linear model weighs each standardised feature on its "
+        "own, the RBF kernel weighs all alike (off-strip taxels dilute it).",
         "",
         f"| taxels | {header} |",
         "|---|" + "---|" * len(cols),
@@ -113,7 +112,7 @@ def latency_section(
         + ("95% PI coverage | PI half-width cm |" if lower else "ECE | Brier |"),
         "|---|---|---|---|",
     ]
-    dx, dy = [], []
+    dx, dy, derr = [], [], []
     for p in posts:
         res = run(ws.crop(p), name, feat0, model0)
         if lower:
@@ -124,6 +123,7 @@ def latency_section(
         lines.append(f"| {p / MS:g} | {fmt(res)} | {cal} |")
         dx.append(p / MS)
         dy.append(score(res))
+        derr.append(spread(res))
     png = out / f"{name}_vs_decision_latency.png"
     plot(
         png,
@@ -133,6 +133,7 @@ def latency_section(
         "MAE (cm)" if lower else "accuracy",
         f"{ws.task} {ws.sensor}: score vs decision latency",
         pareto_lower=lower,
+        yerr=derr,
     )
     lines += ["", f"![score vs decision latency]({png.name})", ""]
     return lines

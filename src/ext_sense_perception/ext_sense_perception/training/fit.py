@@ -89,6 +89,14 @@ def fit_model(
             raise PerceptionError(
                 f"The 'ws' parameter must hold at least 8 windows. Got {n} instead."
             )
+        if not ws.is_regression:
+            names, counts = np.unique(ws.y, return_counts=True)
+            few = names[counts < 2].tolist()
+            if few:
+                raise PerceptionError(
+                    f"Classes {few} have a single window; a model needs at least 2 of each "
+                    "(the probability calibration's folds). Add trials or leave them out."
+                )
         X = ws.X.reshape(n, -1)
         feats = features_for(ws, features, **(feature_params or {}))
         pipe, grid = make_pipeline(feats, model, ws.is_regression, seed)
@@ -166,6 +174,8 @@ def fit_model(
             data_hash=ws.data_hash,
             excluded=tuple(ws.excluded),
             train_s=time.perf_counter() - t0,
+            anchor=ws.anchor,
+            sessions=tuple(sorted({str(s) for s in ws.session_of.tolist()} - {""})),
         )
         return TrainedModel(pipeline, card)
 

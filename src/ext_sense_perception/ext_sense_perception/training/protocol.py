@@ -3,6 +3,8 @@
 
 K times: a random 90/10 split (stratified for classes); a grid search with 4-fold
 cross-validation on the 90%; refit on all of it; score the 10%. Seeded; tqdm progress bar.
+Each split is one task (:mod:`.split_fit`) run here or on a Dask cluster
+(:mod:`.fit_executor`), with the same result either way.
 
 Features without learned state (everything but the autoencoder) are computed once for all
 windows: their maps do not depend on any label or window, so this equals computing them per
@@ -11,19 +13,12 @@ fold. The autoencoder is fitted inside each training fold (it is part of the sea
 
 from __future__ import annotations
 
-import tempfile
-import time
-import warnings
+import sys
 from typing import Any, NamedTuple
 
 import numpy as np
-from joblib import Memory
 from sklearn.base import clone
-from sklearn.calibration import CalibratedClassifierCV
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.metrics import accuracy_score, confusion_matrix, mean_absolute_error
 from sklearn.model_selection import (
-    GridSearchCV,
     KFold,
     ShuffleSplit,
     StratifiedKFold,
@@ -36,7 +31,15 @@ from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.maps import FeatureKind
 from ext_sense_perception.features.transformer import FAMILIES, WindowFeatures, make_features
+from ext_sense_perception.training.fit_executor import FitExecutor
 from ext_sense_perception.training.models import head_of, make_pipeline
+from ext_sense_perception.training.split_fit import (
+    SplitTask,
+    code_digest,
+    data_digest,
+    run_split,
+    split_key,
+)
 
 
 class EvalResult(NamedTuple):
@@ -140,6 +143,7 @@ def evaluate(
     n_jobs: int = 1,
     feature_grid: dict[str, list[Any]] | None = None,
     model_params: dict[str, Any] | None = None,
+    executor: FitExecutor | None = None,
 ) -> EvalResult:
     """Run the protocol.
 
@@ -150,38 +154,20 @@ def evaluate(
         k: Random splits (default :func:`default_k`).
         test_size: Held-out fraction per split.
         seed: Seed of splits, folds and models.
-        progress: Show a tqdm progress bar.
+        progress: Show a tqdm progress bar (in-process runs without an executor).
         n_jobs: Parallel grid-search jobs.
         feature_grid: Feature parameters to search too (keys ``features__<param>``); the
             features are then recomputed inside every fold.
         model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
+        executor: Where the K split fits run and are cached (:mod:`.fit_executor`; default:
+            here, one after the other, uncached). The result does not depend on it.
 
     Returns:
         Scores per split and the pooled test predictions.
 
     Raises:
-        PerceptionError: when there are too few windows or classes.
+        PerceptionError: when there are too few windows or classes, or a fit failed.
     """
-    # BLAS pinned to one thread: small matrices on a shared 2-core machine run up to 20x
-    # slower with threaded BLAS
-    with threadpool_limits(limits=1):
-        return _evaluate(
-            ws, features, model, k, test_size, seed, progress, n_jobs, feature_grid, model_params
-        )
-
-
-def _evaluate(
-    ws: WindowSet,
-    features: WindowFeatures,
-    model: str,
-    k: int | None,
-    test_size: float,
-    seed: int,
-    progress: bool,
-    n_jobs: int,
-    feature_grid: dict[str, list[Any]] | None,
-    model_params: dict[str, Any] | None,
-) -> EvalResult:
     n = len(ws.y)
     if n < 8:
         raise PerceptionError(f"The 'ws' parameter must hold at least 8 windows. Got {n} instead.")
@@ -198,51 +184,41 @@ def _evaluate(
         FeatureKind.parse(features.kind) is not FeatureKind.AUTOENCODER and not feature_grid
     )
     if precompute:
-        F = clone(features).fit(X[:1]).transform(X)
-        search_pipe, search_X = head_of(pipe), F
+        with threadpool_limits(limits=1):
+            search_X = clone(features).fit(X[:1]).transform(X)
+        search_pipe = head_of(pipe)
     else:
         search_pipe, search_X = pipe, X
-    scores, times, params, probas = [], [], [], []
-    y_true, y_pred, y_std = [], [], []
-    labels = list(ws.class_names)
-    conf = np.zeros((len(labels), len(labels)), dtype=np.int64) if labels else None
-    split_iter = _splits(ws, k, test_size, seed)
-    desc = f"{ws.task} {ws.sensor} {features.kind}+{model}"
-    cache = None
-    if not precompute:
-        # the feature step (e.g. the autoencoder) is fitted once per fold, not once per candidate
-        cache = tempfile.TemporaryDirectory(prefix="ext_sense_cv_")
-        search_pipe = clone(search_pipe).set_params(memory=Memory(cache.name, verbose=0))
-    for train, test in tqdm(split_iter, total=k, desc=desc, disable=not progress, leave=False):
-        search = GridSearchCV(
-            clone(search_pipe),
+    labels = tuple(ws.class_names)
+    tasks = [
+        SplitTask(
+            search_pipe,
             grid,
-            cv=inner_cv(ws, ws.y[train], seed),
-            scoring="neg_mean_absolute_error" if ws.is_regression else "accuracy",
-            n_jobs=n_jobs,
-            refit=True,
+            inner_cv(ws, ws.y[train], seed),
+            ws.is_regression,
+            labels,
+            train,
+            test,
+            seed,
+            n_jobs,
+            not precompute,
         )
-        t0 = time.perf_counter()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ConvergenceWarning)
-            search.fit(search_X[train], ws.y[train])
-        times.append(time.perf_counter() - t0)
-        params.append(search.best_params_)
-        pred = search.predict(search_X[test])
-        y_true.append(ws.y[test])
-        y_pred.append(pred)
-        if ws.is_regression:
-            scores.append(mean_absolute_error(ws.y[test], pred))
-            # a spread from the inner CV's best score, for interval calibration studies
-            y_std.append(np.full(len(test), -search.best_score_ * np.sqrt(np.pi / 2)))
-        else:
-            scores.append(accuracy_score(ws.y[test], pred))
-            conf += confusion_matrix(ws.y[test], pred, labels=labels)
-            proba = _calibrated_proba(search, search_X[train], ws.y[train], search_X[test], seed)
-            probas.append(proba)
-            y_std.append(proba.max(axis=1))
-    if cache is not None:
-        cache.cleanup()
+        for train, test in _splits(ws, k, test_size, seed)
+    ]
+    data = data_digest(search_X, ws.y)
+    code = code_digest(sys.modules[type(features).__module__])
+    keys = [split_key(t, data, code) for t in tasks]
+    if executor is None:
+        executor = FitExecutor()
+        desc = f"{ws.task} {ws.sensor} {features.kind}+{model}"
+        bar = tqdm(total=k, desc=desc, disable=not progress, leave=False)
+        splits = []
+        for t, key in zip(tasks, keys, strict=True):
+            splits += executor.map(run_split, [t], [key], X=search_X, y=ws.y)
+            bar.update()
+        bar.close()
+    else:
+        splits = executor.map(run_split, tasks, keys, X=search_X, y=ws.y)
     g = ws.geometry
     return EvalResult(
         task=ws.task,
@@ -250,31 +226,14 @@ def _evaluate(
         features=features.kind,
         model=model,
         metric="mae_m" if ws.is_regression else "accuracy",
-        scores=np.asarray(scores),
-        train_s=np.asarray(times),
-        best_params=params,
-        confusion=conf,
-        class_names=tuple(labels),
-        y_true=np.concatenate(y_true),
-        y_pred=np.concatenate(y_pred),
-        y_std=np.concatenate(y_std),
+        scores=np.asarray([r.score for r in splits]),
+        train_s=np.asarray([r.train_s for r in splits]),
+        best_params=[r.best_params for r in splits],
+        confusion=None if ws.is_regression else np.sum([r.confusion for r in splits], axis=0),
+        class_names=labels,
+        y_true=np.concatenate([ws.y[t.test] for t in tasks]),
+        y_pred=np.concatenate([r.y_pred for r in splits]),
+        y_std=np.concatenate([r.y_std for r in splits]),
         post_ns=int(g.n_samples * g.period_ns - g.pre_ns),
-        proba=np.concatenate(probas) if probas else None,
+        proba=None if ws.is_regression else np.concatenate([r.proba for r in splits]),
     )
-
-
-def _calibrated_proba(search, x_train, y_train, x_test, seed: int) -> np.ndarray:
-    """Test-set class probabilities: the model's own, or Platt-calibrated inside the training set.
-
-    Columns follow the sorted class names.
-    """
-    best = search.best_estimator_
-    if hasattr(best, "predict_proba"):
-        try:
-            return best.predict_proba(x_test)
-        except AttributeError:
-            pass
-    smallest = int(np.min(np.unique(y_train, return_counts=True)[1]))
-    cv = StratifiedKFold(min(3, max(smallest, 2)), shuffle=True, random_state=seed)
-    cal = CalibratedClassifierCV(clone(best), method="sigmoid", cv=cv).fit(x_train, y_train)
-    return cal.predict_proba(x_test)

@@ -119,5 +119,5 @@ def train_bundle(
             failed ONNX export.
     """
     trained, anytime = fit_recipe(ws, recipe)
-    save_bundle(trained, out, anytime)
+    save_bundle(trained, out, anytime, windows=ws)
     return trained.card

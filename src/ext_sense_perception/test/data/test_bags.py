@@ -209,6 +209,22 @@ def test_bag_without_sensor_topic_or_with_a_wrong_type(tmp_path):
         window_set_from_bag(tmp_path / "wrong", sensor="nuskin", topics=BagTopics(events="/other"))
 
 
+def test_a_bag_whose_sensor_messages_all_fail_to_decode_is_refused(tmp_path):
+    from ext_sense_bags import BagWriter, ground_truth
+
+    bag = tmp_path / "undecodable"
+    with BagWriter(bag) as b:
+        b.write(TRUTH, T0, ground_truth(T0, "tap_localization", 0, tap_position_m=0.1))
+        b.write_raw(
+            EVENTS, T0 + 1, b"\x00\x01\x00\x00garbage", "ext_sense_msgs/msg/TaxelEventBatch"
+        )
+    # before: 1 all-zero window cut from the ground truth alone, and training went on
+    with pytest.raises(
+        PerceptionError, match=r"No message on '/extsense/nuskin/events' .* \(1 undecodable\)"
+    ):
+        window_set_from_bag(bag)
+
+
 def test_bad_messages_are_counted_and_dropped(nuskin_run, tmp_path):
     from ext_sense_bags.dataset import dataset_to_bag
 
@@ -290,11 +306,12 @@ def test_cli_train_and_evaluate_read_bags_and_need_labels(nuskin_run, tmp_path):
 
     from ext_sense_bags import BagReader, BagWriter
     from ext_sense_perception import cli
+    from ext_sense_perception.cli.options import load_pooled
 
     parser = argparse.ArgumentParser()
     cli.register(parser.add_subparsers())
     args = parser.parse_args(["evaluate", "--data", str(nuskin_run / "bag")])
-    ws = cli._load(args)
+    ws = load_pooled(args)
     assert (ws.task, ws.sensor, len(ws.y)) == ("tap_localization", "nuskin", 5)
     out = tmp_path / "no_truth"
     with BagReader(nuskin_run / "bag") as a, BagWriter(out) as b:

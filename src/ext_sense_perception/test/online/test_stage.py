@@ -231,3 +231,44 @@ def test_scoreboard_classification_accuracy():
     board.add_estimate(e)
     board.add_estimate(e._replace(onset_ns=T0 + 2000 * MS, stability_probability=0.8))
     assert board.summary().startswith("summary: trials=2 accuracy=0.500 ")
+
+
+def test_scoreboard_lists_a_degraded_final_estimate_and_does_not_score_it():
+    board = Scoreboard("tap_localization")
+    board.add_truth(GroundTruth(trial=0, onset_ns=T0, tap_position_m=0.10))
+    board.add_truth(GroundTruth(trial=1, onset_ns=T0 + 1000 * MS, tap_position_m=0.20))
+    est = Estimate(
+        task="tap_localization",
+        onset_ns=T0,
+        tap_position_m=0.22,
+        compute_latency_ns=3 * MS,
+        degraded=True,
+        degraded_reason="stall: no input on /extsense/nuskin/events for 812 ms inside the window",
+    )
+    (line,) = board.add_estimate(est)
+    assert line == (
+        "trial   0: DEGRADED estimate not scored (stall: no input on /extsense/nuskin/events "
+        "for 812 ms inside the window)"
+    )
+    board.add_estimate(est._replace(onset_ns=T0 + 1000 * MS, degraded=False, degraded_reason=""))
+    assert board.summary() == "summary: taps=1 mae_cm=2.00 compute_p50_ms=3.00 compute_p99_ms=3.00"
+    assert [e.onset_ns for e in board.degraded] == [T0]
+
+
+def test_next_due_is_the_earliest_pending_window_end_and_an_empty_batch_closes_it():
+    config = WindowConfig.for_task("tap_localization", "nuskin")
+    stage = WindowStage(config)
+    assert stage.next_due_ns() is None
+    batches = tap_stream([10.0], 60.0, noise_per_s=0.0)
+    got = _feed(stage, batches)
+    onset = stage.windower.pending_onsets[0]
+    done = {w.post_onset_ns for w in got}
+    assert done == {25 * MS}  # the batches (empty ones too) reached onset + 49 ms
+    assert stage.next_due_ns() == onset + 50 * MS
+    # an empty batch stamped past the final window's end: its stamp is stream time
+    late = taxel_event_batch(onset + 260 * MS, [], [], [], [])
+    closed = stage.on_events(late)
+    assert [w.post_onset_ns for w in closed] == [50 * MS, 100 * MS, 150 * MS, 250 * MS]
+    assert not closed[-1].provisional
+    assert not closed[-1].truncated
+    assert stage.next_due_ns() is None

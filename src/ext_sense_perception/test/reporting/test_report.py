@@ -119,3 +119,39 @@ def test_report_taxel_section_has_both_models_and_a_training_chosen_taxel(
         and r["params"].get("channels") in (None, "all")
     ]
     assert same == [table]  # the both-fingers row reuses the table's point
+
+
+def test_pareto_front_keeps_the_points_nothing_beats():
+    from ext_sense_perception.reporting.scores import pareto_front
+
+    xs, errs = [1.0, 2.0, 3.0, 2.0, 4.0], [5.0, 3.0, 4.0, 3.5, 1.0]
+    assert pareto_front(xs, errs, lower=True) == [0, 1, 4]
+    accs = [0.5, 0.7, 0.6, 0.7, 0.9]
+    assert pareto_front(xs, accs, lower=False) == [0, 1, 3, 4]  # 1 and 3 tie
+    assert pareto_front([1.0, 1.0], [2.0, 2.0], lower=True) == [0, 1]  # ties both stay
+
+
+def test_full_refuses_a_reduced_report(tmp_path, capsys, make_tap_dataset):
+    data = make_tap_dataset(tmp_path / "small.npz", n=20, seed=3)
+    args = ["report", "--data", str(data), "--out", str(tmp_path / "r"), "--full", "--quick"]
+    assert ext_sense(args) == 2
+    assert "'--full' report has every section" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # two small report runs
+def test_an_interrupted_report_resumes_from_its_cached_fits(tmp_path, make_tap_dataset, capsys):
+    data = make_tap_dataset(tmp_path / "small.npz", n=24, seed=3)
+    out = tmp_path / "rep"
+    args = ["report", "--data", str(data), "--out", str(out), "--k", "2", "--features", "fft"]
+    args += ["--models", "svm_rbf", "--no-gru", "--no-latency", "--no-taxels"]
+    assert ext_sense(args) == 0
+    first = json.loads((out / "report.json").read_text())
+    n_fits = sum(1 for _ in (out / "fits").rglob("*.pkl"))
+    assert n_fits >= 2
+    capsys.readouterr()
+    assert ext_sense(args) == 0
+    err = capsys.readouterr().err
+    assert f"{n_fits} of {n_fits} done ({n_fits} cached)" in err  # nothing recomputed
+    again = json.loads((out / "report.json").read_text())
+    strip = lambda recs: [{k: v for k, v in r.items() if k != "eval_s"} for r in recs]  # noqa: E731
+    assert strip(first) == strip(again)

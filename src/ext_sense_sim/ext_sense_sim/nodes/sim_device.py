@@ -10,7 +10,8 @@ With ``mode`` = ``trigger`` the device is silent until a message on ``trigger``
 trials (:func:`ext_sense_sim.streaming.stream_on_trigger`): a behaviour drives the scene, e.g.
 the food probe's ``motion_start`` (``align`` = ``onset``: the trial's motion start is put at
 the probe's) or the handover's ``handover/offer`` (``align`` = ``start``: the person grasps when
-the object is offered). ``labels`` schedules the classes of successive triggers.
+the object is offered). ``labels`` schedules the classes of successive triggers; a trigger's
+own ``class_label``, when set, is the class of its trials instead.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import threading
 from rclpy.node import Node
 
 from ext_sense_msgs.msg import ContactGroundTruth
+from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
@@ -40,6 +42,7 @@ class SimDeviceNode(Node):
 
     def __init__(self, **kwargs: object) -> None:
         super().__init__("sim_device", **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
         device = declare(
             self, "device", "nuskin", "Emulated sensor: nuskin or biotac.", read_only=True
         )
@@ -136,6 +139,7 @@ class SimDeviceNode(Node):
         self._stop = threading.Event()
         updater = Updater(self.port)
         updater.add_check("stream", self._check)
+        self.guard.attach(updater)
         self.diagnostics = DiagnosticsPublisher(self, updater)
         self.triggers: queue.Queue[Trigger] = queue.Queue()
         self.played = 0
@@ -167,7 +171,12 @@ class SimDeviceNode(Node):
             self.create_subscription(
                 ContactGroundTruth,
                 "trigger",
-                lambda m: self.triggers.put(Trigger(stamp_to_ns(m.header.stamp))),
+                self.guard.wrap(
+                    lambda m: self.triggers.put(
+                        Trigger(stamp_to_ns(m.header.stamp), m.class_label)
+                    ),
+                    name="trigger",
+                ),
                 COMMAND_QOS,
             )
         self.get_logger().info(f"streaming scene {self.scene.name} on {self.port}")

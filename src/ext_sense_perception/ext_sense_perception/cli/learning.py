@@ -1,5 +1,5 @@
 # ruff: noqa: N806  (X / F for sample matrices, as in scikit-learn)
-"""``ext-sense features|train|evaluate|report``: learning from recordings.
+"""``ext-sense features|train|evaluate|report``: learning from sessions of recordings.
 
 Heavy imports (scikit-learn, ONNX Runtime, matplotlib) live inside the handlers so
 ``ext-sense --help`` stays fast.
@@ -9,48 +9,26 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ext_sense_perception.cli.options import (
+    add_cluster_options,
+    add_data_options,
+    cache_dir,
+    fail,
+    load_pooled,
+    load_sessions,
+)
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_runtime.stamps import MS
 
 if TYPE_CHECKING:  # the handlers import these lazily: ``ext-sense --help`` stays fast
-    from ext_sense_perception.data.window_set import WindowSet
     from ext_sense_perception.training.recipe import Recipe
 
 
 def _common(p: argparse.ArgumentParser, *, need_task: bool = True) -> None:
-    p.add_argument(
-        "--task",
-        required=need_task,
-        help="tap_localization, handover_stability or food_identification (a bag or a "
-        "simulator dataset names its own)",
-    )
-    p.add_argument("--sensor", required=need_task, help="nuskin or biotac")
-    p.add_argument(
-        "--data",
-        required=True,
-        help="simulator dataset.npz, the paper's preprocessed .npz, a food-poking capture "
-        "directory, a rosbag2 bag (directory, .mcap or .db3), "
-        "or (features only) one recording (.tact / BioTac .csv)",
-    )
-    bag = p.add_argument_group("bags (--data a rosbag2 bag)")
-    bag.add_argument(
-        "--onsets",
-        choices=("auto", "truth", "detected"),
-        default="auto",
-        help="window onsets: the ground-truth stamps, or detected from the signal as live and "
-        "labelled by the nearest ground truth (default: truth when the bag has any)",
-    )
-    bag.add_argument(
-        "--events-topic", default="/extsense/nuskin/events", help="TaxelEventBatch topic"
-    )
-    bag.add_argument("--frames-topic", default="/extsense/biotac/frames", help="BioTacFrame topic")
-    bag.add_argument(
-        "--truth-topic", default="/extsense/ground_truth", help="ContactGroundTruth topic"
-    )
+    add_data_options(p, need_task=need_task)
     p.add_argument(
         "--features",
         default=None,
@@ -62,15 +40,6 @@ def _common(p: argparse.ArgumentParser, *, need_task: bool = True) -> None:
         help="svm_linear, svm_rbf, svm, mlp, gru, random_forest, taxel_svr (default: best)",
     )
     p.add_argument(
-        "--post-ms", type=float, default=None, help="post-contact window used, ms (default: all)"
-    )
-    p.add_argument(
-        "--rate-hz",
-        type=float,
-        default=None,
-        help="reduced sampling rate, Hz (NUSkin refractory / BioTac decimation)",
-    )
-    p.add_argument(
         "--channels", default=None, help="all, left, right, taxel:N or ids:a,b,c (default all)"
     )
     p.add_argument(
@@ -80,13 +49,6 @@ def _common(p: argparse.ArgumentParser, *, need_task: bool = True) -> None:
         help="NUSkin feature bin, ms (default: the task profile's, 5; handover 2; food 50)",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument(
-        "--lenient",
-        action="store_true",
-        help="drop and count input rows and trials that break a rule (non-finite or out-of-range "
-        "times, taxels outside 1..80, values outside their field, time going backwards, empty "
-        "trials) instead of stopping at the first one; the counts are printed",
-    )
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -128,8 +90,32 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--k", type=int, default=None, help="splits (default: 5 for tap and RNNs, else 20)"
     )
+    p.add_argument(
+        "--protocol",
+        choices=("paper", "cross-session"),
+        default="paper",
+        help="paper: K random splits over the pooled windows (default); cross-session: leave "
+        "one --data session out, scored on the classes the others know, decisions restricted to "
+        "its label set",
+    )
+    p.add_argument(
+        "--calibration-trials",
+        default=None,
+        help="cross-session: also the calibration curve, e.g. 0,1,2,3 trials per class of the "
+        "held-out session added to training (see ext-sense calibrate)",
+    )
+    p.add_argument(
+        "--draws", type=int, default=5, help="random draws of calibration trials (default 5)"
+    )
+    p.add_argument(
+        "--weight",
+        type=int,
+        default=None,
+        help="repeats of each calibration trial (default: ext-sense calibrate's)",
+    )
     p.add_argument("--json", default=None, help="write the result as JSON here")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_cluster_options(p, default_cache="none")
     p.set_defaults(func=_cmd_evaluate)
 
     p = subparsers.add_parser(
@@ -141,6 +127,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="output directory (report.md and PNGs)")
     p.add_argument("--k", type=int, default=None, help="splits per point (default 3; quick)")
     p.add_argument("--quick", action="store_true", help="fewer points, for a smoke run")
+    p.add_argument(
+        "--full",
+        action="store_true",
+        help="the paper's tables in full: its K per point (5 for taps and the GRU, 20 "
+        "otherwise), every feature set and model, the GRU row, every section",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
         "--bin-ms",
@@ -176,54 +168,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--jobs", type=int, default=1, help="parallel grid-search jobs per evaluation (default 1)"
     )
+    add_cluster_options(p, default_cache="OUT/fits")
     p.set_defaults(func=_cmd_report)
-
-
-def _load(args: argparse.Namespace, *, need_labels: bool = True) -> WindowSet:
-    from ext_sense_perception.data.bags import BagTopics, is_bag, window_set_from_bag
-    from ext_sense_perception.data.recordings import from_recording
-    from ext_sense_perception.data.sources import load_window_set
-    from ext_sense_perception.data.validation import InputPolicy
-
-    path = Path(args.data)
-    policy = InputPolicy(lenient=args.lenient)
-    # NUSkin refractory drop on events; BioTac decimates in the features
-    nuskin_rate = args.rate_hz if args.sensor != "biotac" else None
-    if is_bag(path):
-        topics = BagTopics(args.events_topic, args.frames_topic, args.truth_topic)
-        ws, counts = window_set_from_bag(
-            path,
-            args.task,
-            args.sensor,
-            topics=topics,
-            onsets=args.onsets,
-            rate_hz=args.rate_hz,
-            require_labels=need_labels,
-        )
-        print(
-            f"{path}: " + ", ".join(f"{k} {v}" for k, v in counts._asdict().items()),
-            file=sys.stderr,
-        )
-    elif path.suffix in (".tact", ".csv"):
-        if not (args.task and args.sensor):
-            raise PerceptionError(
-                f"The '--task' and '--sensor' options are needed for a recording ({path.name}). "
-                "Got none."
-            )
-        ws = from_recording(
-            path,
-            args.task,
-            args.sensor,
-            essentials=getattr(args, "essentials", None),
-            policy=policy,
-        )
-    else:
-        ws = load_window_set(path, args.task, args.sensor, rate_hz=nuskin_rate, policy=policy)
-    if args.lenient:
-        print(f"{path}: {policy.summary()}", file=sys.stderr)
-    if args.post_ms is not None:
-        ws = ws.crop(round(args.post_ms * MS))
-    return ws
 
 
 def _recipe(args: argparse.Namespace, anytime_post_ns: tuple[int, ...] | None = None) -> Recipe:
@@ -241,11 +187,6 @@ def _recipe(args: argparse.Namespace, anytime_post_ns: tuple[int, ...] | None = 
     )
 
 
-def _fail(err: Exception) -> int:
-    print(f"ext-sense: error: {err}", file=sys.stderr)
-    return 2
-
-
 def _cmd_features(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -253,13 +194,13 @@ def _cmd_features(args: argparse.Namespace) -> int:
     from ext_sense_perception.training.recipe import resolve
 
     try:
-        ws = _load(args, need_labels=False)
+        ws = load_pooled(args, need_labels=False)
         features, _, params, _ = resolve(ws, _recipe(args))
         tf = features_for(ws, features, **params)
         X = ws.X.reshape(len(ws.X), -1)
         F = tf.fit(X).transform(X)
     except PerceptionError as err:
-        return _fail(err)
+        return fail(err)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     np.save(out, F.astype(np.float32))
@@ -274,10 +215,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from ext_sense_perception.training.recipe import train_bundle
 
     try:
-        ws = _load(args)
+        ws = load_pooled(args)
         card = train_bundle(ws, args.out, _recipe(args, _anytime_posts(args.anytime_ms)))
     except PerceptionError as err:
-        return _fail(err)
+        return fail(err)
     if card.anytime_post_ms:
         print(f"anytime models for {list(card.anytime_post_ms)} ms post-contact")
     print(
@@ -303,17 +244,36 @@ def _anytime_posts(text: str | None) -> tuple[int, ...] | None:
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from ext_sense_perception.training.evaluation import evaluation_record
+    from ext_sense_perception.training.fit_executor import fit_executor
     from ext_sense_perception.training.recipe import resolve
 
+    if args.protocol == "cross-session":
+        from ext_sense_perception.cli.sessions import cross_session_command
+
+        return cross_session_command(args, load_sessions(args), _recipe(args))
     try:
-        ws = _load(args)
+        ws = load_pooled(args)
         recipe = _recipe(args)
         features, model, params, grid = resolve(ws, recipe)
-        rec = evaluation_record(
-            ws, features, model, params, grid, args.k, args.seed, not args.no_progress, args.rate_hz
-        )
+        cache = cache_dir(args.cache, None)
+        distributed = args.workers or args.scheduler or cache is not None
+        with fit_executor(
+            args.scheduler, args.workers, cache, progress=not args.no_progress
+        ) as executor:
+            rec = evaluation_record(
+                ws,
+                features,
+                model,
+                params,
+                grid,
+                args.k,
+                args.seed,
+                not args.no_progress,
+                args.rate_hz,
+                executor=executor if distributed else None,
+            )
     except PerceptionError as err:
-        return _fail(err)
+        return fail(err)
     unit = "m" if rec["metric"] == "mae_m" else ""
     print(
         f"{rec['task']} {rec['sensor']} {features}+{model}: {rec['metric']} {rec['mean']:.4f} +- "
@@ -341,6 +301,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 def _cmd_report(args: argparse.Namespace) -> int:
     from ext_sense_perception.reporting.report import build_report
+    from ext_sense_perception.training.fit_executor import fit_executor
 
     def names(value: str | None) -> list[str] | None:
         return None if value is None else [v.strip() for v in value.split(",") if v.strip()]
@@ -349,21 +310,25 @@ def _cmd_report(args: argparse.Namespace) -> int:
         if args.jobs < 1:
             raise PerceptionError(f"The '--jobs' option must be >= 1. Got {args.jobs} instead.")
         params = {"bin_ns": round(args.bin_ms * MS)} if args.bin_ms else None
-        path = build_report(
-            [Path(d) for d in args.data],
-            Path(args.out),
-            k=args.k,
-            quick=args.quick,
-            seed=args.seed,
-            base_params=params,
-            gru=False if args.no_gru else None,
-            features=names(args.features),
-            models=names(args.models),
-            n_jobs=args.jobs,
-            latency=not args.no_latency,
-            taxels=not args.no_taxels,
-        )
+        cache = cache_dir(args.cache, Path(args.out) / "fits")
+        with fit_executor(args.scheduler, args.workers, cache, progress=True) as executor:
+            path = build_report(
+                [Path(d) for d in args.data],
+                Path(args.out),
+                k=args.k,
+                quick=args.quick,
+                seed=args.seed,
+                base_params=params,
+                gru=False if args.no_gru else None,
+                features=names(args.features),
+                models=names(args.models),
+                n_jobs=args.jobs,
+                latency=not args.no_latency,
+                taxels=not args.no_taxels,
+                executor=executor,
+                full=args.full,
+            )
     except PerceptionError as err:
-        return _fail(err)
+        return fail(err)
     print(f"report written to {path}")
     return 0

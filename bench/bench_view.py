@@ -1,0 +1,162 @@
+"""CPU cost of the live view: the tap graph with ``view:=true`` beside the same graph without it.
+
+    python bench/bench_view.py            # 15 s warm-up, 30 s measured per configuration
+    python bench/bench_view.py --quick    # 8 s and 10 s
+
+The ``tap_localization`` graph on the emulated NUSkin (``trials:=0``: taps until stopped) is
+started by ``ext-sense run`` three times: without the view; with ``view:=true`` and no client
+(the view draws only for subscribed channels); with ``view:=true`` and a Foxglove protocol
+client subscribed to every channel (``test/foxglove_client.py``, what the Foxglove app does).
+For each, the CPU time (user + system) of every process of the graph over the measured span,
+as % of one core, the view node's own share, and the frames the client received per second.
+The model is ``--model``, else the demo's (trained into a temporary directory when missing,
+as bench_runtime does).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import psutil
+
+os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))  # foxglove_client
+
+GRAPH = "tap_localization"
+
+
+def _model(model: str, tmp: Path, train_taps: int) -> Path:
+    from ext_sense.commands.demo import ensure_model
+    from ext_sense_perception.errors import PerceptionError
+    from ext_sense_perception.online.model_store import find_model
+
+    if model:
+        return Path(model).resolve()
+    try:
+        return find_model("", GRAPH, "nuskin")
+    except PerceptionError:
+        pass
+    out = tmp / "model"
+    if ensure_model(out, "nuskin", train_taps, log=sys.stderr):
+        raise SystemExit("bench_view: training the demo's model failed")
+    return out
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _node_name(proc: psutil.Process) -> str:
+    try:
+        cmd = proc.cmdline()
+    except psutil.Error:
+        return "?"
+    if len(cmd) >= 4 and cmd[2] == "ext_sense.runner":
+        try:
+            return json.loads(cmd[3])["spec"]["name"]
+        except (ValueError, KeyError):
+            return "?"
+    return "runner"
+
+
+def _cpu(procs: list[psutil.Process]) -> dict[int, float]:
+    out = {}
+    for p in procs:
+        try:
+            t = p.cpu_times()
+            out[p.pid] = t.user + t.system
+        except psutil.Error:
+            continue
+    return out
+
+
+def measure(model: Path, tmp: Path, view: bool, client: bool, warm_s: float, span_s: float) -> dict:
+    """One configuration: CPU % of one core of the graph and of the view node, frames/s."""
+    port = _free_port()
+    args = [sys.executable, "-m", "ext_sense.cli", "run", GRAPH, "trials:=0", f"model:={model}"]
+    args += [f"port:={tmp / f'pty_{view}_{client}'}"]
+    if view:
+        args += ["view:=true", f"view_port:={port}"]
+    proc = subprocess.Popen(
+        args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
+    fg = None
+    try:
+        if client:
+            from foxglove_client import FoxgloveClient
+
+            fg = FoxgloveClient(f"ws://127.0.0.1:{port}", connect_timeout_s=60)
+        time.sleep(warm_s)
+        root = psutil.Process(proc.pid)
+        procs = [root, *root.children(recursive=True)]
+        names = {p.pid: _node_name(p) for p in procs}
+        n0 = len(fg.messages()) if fg else 0
+        c0, t0 = _cpu(procs), time.monotonic()
+        time.sleep(span_s)
+        c1, t1 = _cpu(procs), time.monotonic()
+        n1 = len(fg.messages()) if fg else 0
+    finally:
+        if fg is not None:
+            fg.close()
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    wall = t1 - t0
+    per = {names[p]: 100 * (c1[p] - c0[p]) / wall for p in c1 if p in c0}
+    return {
+        "graph_pct": sum(per.values()),
+        "view_pct": per.get("foxglove_view", 0.0),
+        "msgs_per_s": (n1 - n0) / wall,
+        "nodes": len(per),
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="a small version in seconds")
+    parser.add_argument("--model", default="", help="tap model bundle (default: the demo's)")
+    args = parser.parse_args()
+    warm_s, span_s = (8.0, 10.0) if args.quick else (15.0, 30.0)
+    with tempfile.TemporaryDirectory(prefix="bench_view_") as tmp_name:
+        tmp = Path(tmp_name)
+        model = _model(args.model, tmp, 100 if args.quick else 300)
+        print(
+            f"tap_localization graph on the emulated NUSkin, {span_s:g} s measured after "
+            f"{warm_s:g} s; CPU as % of one core (user + system), {os.cpu_count()} cores"
+        )
+        rows = (
+            ("view off", False, False),
+            ("view:=true, no client", True, False),
+            ("view:=true, client on every channel", True, True),
+        )
+        base = None
+        for label, view, client in rows:
+            r = measure(model, tmp, view, client, warm_s, span_s)
+            base = r["graph_pct"] if base is None else base
+            extra = f"  +{r['graph_pct'] - base:5.1f} vs off" if view else ""
+            msgs = f"  client {r['msgs_per_s']:.1f} msgs/s" if client else ""
+            print(
+                f"  {label:38s} graph {r['graph_pct']:6.1f} %  view node {r['view_pct']:5.1f} %"
+                f"{extra}{msgs}",
+                flush=True,
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

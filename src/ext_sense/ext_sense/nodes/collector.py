@@ -1,0 +1,156 @@
+"""``collector``: the ROS side of ``ext-sense collect``: records a session and hands events on.
+
+Raw subscriptions write the sensor stream and the arm and gripper state topics into the
+session's bag (receive time as log time, as the recorder node does); the contact windows,
+estimates, motion starts, handover offers and any independent truth (the simulator's ground
+truth, renamed so it cannot be taken for the session's labels, or a motion-capture
+``geometry_msgs/PoseStamped``) are also decoded and put on :attr:`events` for the command's
+main loop, which decides with :mod:`ext_sense.collect_session` what becomes a label. Labels are
+written by :meth:`write_label` as ``ContactGroundTruth`` on ``/extsense/ground_truth``, stamped
+with the trial's onset. Against the simulator in scripted mode it also triggers each simulated
+grasp (:meth:`trigger_sim`) with the class the pending answer names.
+
+Not a graph node and so not a console script (unlike ``bag_player`` and ``estimate_monitor``,
+which ``ext-sense run`` and the launch files start as processes): like the recorder of
+``ext-sense bag record``, it lives in the command's process, because it hands its bag writer
+and its event queue to the operator's loop there; a process of its own would need a protocol
+between the two for nothing.
+"""
+
+from __future__ import annotations
+
+import queue
+import time
+from typing import Any
+
+from geometry_msgs.msg import PoseStamped
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from std_msgs.msg import Bool, String
+
+from ext_sense.collect_graph import SIM_TRIGGER_TOPIC, SIM_TRUTH_TOPIC
+from ext_sense.nodes.bag_player import message_class
+from ext_sense.nodes.recorder import subscription_qos
+from ext_sense_bags import BagError, BagWriter, ground_truth
+from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth, ContactWindow
+from ext_sense_runtime.callback_guard import CallbackGuard
+from ext_sense_runtime.qos import COMMAND_QOS
+from ext_sense_runtime.stamps import fill_stamp
+
+TRUTH_TOPIC = "/extsense/ground_truth"
+DECODED = {
+    "/extsense/contact_window": ContactWindow,
+    "/extsense/contact_estimate": ContactEstimate,
+    "/extsense/motion_start": ContactGroundTruth,
+    "/extsense/handover/offer": ContactGroundTruth,
+    SIM_TRUTH_TOPIC: ContactGroundTruth,
+    "/food/decision": String,
+    "/handover/decision": String,
+}
+STATE_HINTS = ("arm/state", "gripper/status", "joint_states", "robot_state")
+"""Topics whose names end so are the arm and gripper state, recorded when the graph has them."""
+
+
+class CollectorNode(Node):
+    """Records a session's topics and queues the events the operator is asked about."""
+
+    def __init__(
+        self,
+        writer: BagWriter,
+        stream_topic: str,
+        mocap_topic: str = "",
+        **kwargs: Any,
+    ) -> None:
+        super().__init__("collector", **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
+        self.writer = writer
+        self.events: queue.Queue[tuple[str, Any]] = queue.Queue()
+        self.received: dict[str, int] = {}
+        self.skipped: set[str] = set()
+        self.failed = ""
+        self._record(stream_topic, message_class(writer.specs[stream_topic].msgtype))
+        for topic, cls in DECODED.items():
+            self._record(topic, cls, decode=cls)
+        if mocap_topic:
+            self._record(mocap_topic, PoseStamped, decode=PoseStamped, kind="mocap")
+        self.food_start = self.create_publisher(Bool, "/food/start", COMMAND_QOS)
+        self.sim_trigger = self.create_publisher(ContactGroundTruth, SIM_TRIGGER_TOPIC, COMMAND_QOS)
+        self.create_timer(0.5, self.guard(self._discover))
+        self.create_timer(0.1, self.guard(self._flush))
+
+    def _record(self, topic: str, cls: type, decode: type | None = None, kind: str = "") -> None:
+        msgtype = cls.__module__.split(".")[0] + "/msg/" + cls.__name__
+        try:
+            self.writer.add_topic(topic, msgtype)
+        except BagError as err:  # e.g. a type outside the bag's typestore: noted once
+            self.skipped.add(topic)
+            self.get_logger().warning(f"not recording {topic}: {err}")
+            return
+        self.received[topic] = 0
+
+        def callback(data: bytes, topic: str = topic) -> None:
+            if not self.failed:
+                try:
+                    self.writer.write_raw(topic, time.time_ns(), data)
+                except BagError as err:
+                    self.failed = str(err)
+            self.received[topic] += 1
+            if decode is not None:
+                self.events.put((kind or topic, deserialize_message(data, decode)))
+
+        self.create_subscription(
+            cls,
+            topic,
+            self.guard.wrap(callback, name=f"collect {topic}"),
+            subscription_qos(topic),
+            raw=True,
+        )
+
+    def _discover(self) -> None:
+        """Record the arm and gripper state topics the graph has (found by name, typed by it)."""
+        for topic, types in self.get_topic_names_and_types():
+            seen = topic in self.received or topic in self.skipped
+            if seen or not topic.endswith(STATE_HINTS) or not types:
+                continue
+            try:
+                self._record(topic, message_class(types[0]))
+            except Exception as err:  # a type outside the bag's typestore: noted, not fatal
+                self.skipped.add(topic)
+                self.get_logger().warning(f"not recording {topic}: {err}")
+
+    def _flush(self) -> None:
+        if not self.failed:
+            try:
+                self.writer.flush_if_due()
+            except BagError as err:
+                self.failed = str(err)
+
+    def write_label(self, task: str, trial: int, onset_ns: int, label: str, rod_m: float) -> None:
+        """Write one trial's label into the bag as ``ContactGroundTruth`` stamped at its onset."""
+        tap = task == "tap_localization"
+        msg = ground_truth(
+            onset_ns,
+            task,
+            trial,
+            tap_position_m=float(label) if tap else float("nan"),
+            rod_length_m=rod_m if tap else float("nan"),
+            class_label="" if tap else label,
+            frame_id="collect",
+        )
+        self.writer.write(TRUTH_TOPIC, max(onset_ns, time.time_ns()), msg)
+
+    def subscribers(self, topic: str) -> set[str]:
+        """Names of the nodes subscribed to ``topic`` (to know who will hear a trigger)."""
+        return {info.node_name for info in self.get_subscriptions_info_by_topic(topic)}
+
+    def trigger_sim(self, task: str, label: str) -> None:
+        """Have the simulated device play its next grasp now, as ``label`` (``""``: its draw)."""
+        msg = ContactGroundTruth(
+            task=task, tap_position_m=float("nan"), rod_length_m=float("nan"), class_label=label
+        )
+        fill_stamp(msg.header.stamp, time.time_ns())
+        self.sim_trigger.publish(msg)
+
+    def start_probe(self) -> None:
+        """Ask the food behaviour for one probe (``/food/start``)."""
+        self.food_start.publish(Bool(data=True))

@@ -1,0 +1,376 @@
+"""``foxglove_view`` node: a live Foxglove view of the sensor, the windows and the estimates.
+
+Runs a Foxglove WebSocket server (``foxglove-sdk``) in this node's own process and sends, at
+``display_rate_hz``: the taxel grid (:mod:`ext_sense.view.taxels`), the event rate per finger or
+the BioTac PAC trace, the latest contact window as a raster, the latest estimate drawn and in
+numbers, and the diagnostics summary; the graph's estimates, ground truths, windows and
+``/diagnostics`` go through unchanged as CDR (:mod:`ext_sense.view.channels`), as a bag holds
+them. Connect the Foxglove app to ``ws://HOST:PORT`` and open the shipped layout
+(docs/view.md).
+
+Why its own process, and what it cannot do to perception: the raw stream is subscribed best
+effort like every other reader of it, so a slow view loses batches of its own, never the
+publisher's; the events callback only counts (a ``bincount``); drawing happens at display rate,
+and only for channels a client has subscribed.
+
+The server listens on ``host`` (default ``127.0.0.1``): the protocol has no authentication,
+so anyone who reaches the port sees every channel.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections import deque
+from typing import Any
+
+import foxglove
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
+from ext_sense_bags.typestore import make_typestore
+from foxglove import Channel, Schema
+from foxglove.channels import RawImageChannel
+from foxglove.messages import RawImage, Timestamp
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+
+from ext_sense.view import channels as ch
+from ext_sense.view.estimate import (
+    diagnostics_message,
+    estimate_image,
+    estimate_message,
+    matching_truth,
+)
+from ext_sense.view.images import Image
+from ext_sense.view.pacing import DisplayPacer
+from ext_sense.view.raster import raster_image
+from ext_sense.view.taxels import ElectrodeActivity, TaxelActivity, biotac_grid, nuskin_grid
+from ext_sense.view.traces import PacTrace, rates_message
+from ext_sense_msgs.msg import (
+    BioTacFrame,
+    ContactEstimate,
+    ContactGroundTruth,
+    ContactWindow,
+    TaxelEventBatch,
+)
+from ext_sense_runtime.callback_guard import CallbackGuard
+from ext_sense_runtime.diagnostics import Level, Updater
+from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
+from ext_sense_runtime.node_main import run_node
+from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.qos import (
+    DIAGNOSTICS_QOS,
+    ESTIMATE_QOS,
+    GROUND_TRUTH_QOS,
+    SENSOR_STREAM_QOS,
+    WINDOW_QOS,
+)
+from ext_sense_runtime.records import estimate_of, truth_of
+from ext_sense_runtime.stamps import split_ns
+
+PASSED = {  # graph topic (relative, remapped by the graph) -> (channel, type, QoS)
+    "contact_estimate": ("/extsense/contact_estimate", ContactEstimate, ESTIMATE_QOS),
+    "ground_truth": ("/extsense/ground_truth", ContactGroundTruth, GROUND_TRUTH_QOS),
+    "window": ("/extsense/contact_window", ContactWindow, WINDOW_QOS),
+    "/diagnostics": ("/diagnostics", DiagnosticArray, DIAGNOSTICS_QOS),
+}
+
+
+class FoxgloveViewNode(Node):
+    """Draws the graph's topics at display rate and serves them to Foxglove over WebSocket."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(kwargs.pop("node_name", "foxglove_view"), **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
+        self.sensor = declare(
+            self, "sensor", "nuskin", "Sensor drawn: 'nuskin' or 'biotac'.", read_only=True
+        )
+        if self.sensor not in ("nuskin", "biotac"):
+            raise ValueError(
+                f"The 'sensor' parameter must be 'nuskin' or 'biotac'. Got '{self.sensor}' instead."
+            )
+        host = declare(
+            self,
+            "host",
+            "127.0.0.1",
+            "Address the WebSocket server listens on. The protocol has no authentication: "
+            "anything but a loopback address shows every channel to whoever reaches the port.",
+            read_only=True,
+        )
+        port = declare(
+            self,
+            "port",
+            8765,
+            "TCP port of the server; 0: any free port.",
+            low=0,
+            high=65535,
+            read_only=True,
+        )
+        rate_hz = declare(
+            self,
+            "display_rate_hz",
+            15.0,
+            "Frames sent per second, 1/s.",
+            low=1.0,
+            high=30.0,
+            read_only=True,
+        )
+        tau_s = declare(
+            self,
+            "rate_tau_s",
+            0.5,
+            "Smoothing time constant of the taxel rates, s.",
+            low=0.05,
+            high=10.0,
+            read_only=True,
+        )
+        dead_s = declare(
+            self,
+            "dead_after_s",
+            10.0,
+            "A taxel silent this long while its finger fires is marked dead, s.",
+            low=1.0,
+            high=3600.0,
+            read_only=True,
+        )
+        sat_hz = declare(
+            self,
+            "saturation_hz",
+            3800.0,
+            "A taxel at or above this rate is marked saturated, events/s.",
+            low=1.0,
+            high=100000.0,
+            read_only=True,
+        )
+        self.top_hz = declare(
+            self,
+            "top_rate_hz",
+            4000.0,
+            "Rate at the top of the colour scale, events/s.",
+            low=1.0,
+            high=100000.0,
+            read_only=True,
+        )
+        self.rod_m = declare(
+            self,
+            "rod_length_m",
+            0.3,
+            "Rod drawn under a tap estimate when no ground truth gives its length, m.",
+            low=0.01,
+            high=5.0,
+            read_only=True,
+        )
+        self.tolerance_ns = int(
+            declare(
+                self,
+                "match_tolerance_ms",
+                300.0,
+                "Largest onset difference between an estimate and its trial's truth, ms.",
+                low=1.0,
+                high=10000.0,
+                read_only=True,
+            )
+            * 1e6
+        )
+        self.taxels = TaxelActivity(tau_s, dead_s, sat_hz)
+        self.electrodes = ElectrodeActivity()
+        self.pac = PacTrace()
+        self.pacer = DisplayPacer(rate_hz)
+        self.truths: deque = deque(maxlen=200)
+        self.statuses: dict[str, tuple[int, str]] = {}
+        self._window: Image | None = None
+        self._estimate: tuple[Image, dict[str, Any]] | None = None
+        self._diag_dirty = False
+        self.events_seen = 0
+
+        # Every channel is created before the server starts listening, never after: a channel
+        # added while a client is connected is advertised to it before foxglove-sdk (0.30) files
+        # it under that client, so a client that subscribes at once (the Foxglove app, the
+        # tests' client) can be refused with "Unknown channel ID" and never get that channel's
+        # messages. Channels already there when a client connects are filed before its first
+        # advertise is sent, so this order leaves no such window, however early the Foxglove
+        # app (which retries every few seconds) or a test connects.
+        self.context_fg = foxglove.Context()
+        self.images = {t: RawImageChannel(t, context=self.context_fg) for t in ch.IMAGES}
+        own = set(ch.view_channels(self.sensor))
+        self.json = {
+            t: Channel(
+                t,
+                schema=Schema(name=name, encoding="jsonschema", data=_json_bytes(schema)),
+                message_encoding="json",
+                context=self.context_fg,
+            )
+            for t, (name, schema) in ch.JSON_SCHEMAS.items()
+            if t in own
+        }
+        store = make_typestore()
+        self.passed = {}
+        for topic, type_name in ch.PASSED_THROUGH.items():
+            text, _ = store.generate_msgdef(type_name, ros_version=2)
+            self.passed[topic] = Channel(
+                topic,
+                schema=Schema(name=type_name, encoding="ros2msg", data=text.encode()),
+                message_encoding="cdr",
+                context=self.context_fg,
+            )
+        self.server = foxglove.start_server(
+            name=f"ext_sense {self.get_name()}", host=host, port=port, context=self.context_fg
+        )
+        for rel, (topic, msg_type, qos) in PASSED.items():
+            self.create_subscription(
+                msg_type, rel, self.guard(self._passer(topic, msg_type)), qos, raw=True
+            )
+        if self.sensor == "nuskin":
+            self.create_subscription(
+                TaxelEventBatch, "events", self.guard(self._on_events), SENSOR_STREAM_QOS
+            )
+        else:
+            self.create_subscription(
+                BioTacFrame, "frames", self.guard(self._on_frame_msg), SENSOR_STREAM_QOS
+            )
+        self.create_timer(1.0 / rate_hz, self.guard(self._on_tick))
+        self.updater = Updater(hardware_id=f"ws://{host}:{self.server.port}")
+        self.updater.add_check("view", self._check)
+        self.guard.attach(self.updater)
+        self.diagnostics = DiagnosticsPublisher(self, self.updater)
+        self.get_logger().info(
+            f"Foxglove view on ws://{host}:{self.server.port} "
+            f"(open the layout {ch.NS} panels; docs/view.md)"
+        )
+
+    @property
+    def port(self) -> int:
+        """The server's TCP port (the one chosen when ``port`` is 0)."""
+        return int(self.server.port)
+
+    # -- input: cheap, at the stream's rate ------------------------------------------------
+
+    def _on_events(self, msg: TaxelEventBatch) -> None:
+        taxel = np.asarray(msg.taxel, dtype=np.int64)
+        self.events_seen += taxel.size
+        self.taxels.add(taxel)
+
+    def _on_frame_msg(self, msg: BioTacFrame) -> None:
+        self.electrodes.add(int(msg.sensor_id), np.asarray(msg.electrodes))
+        self.pac.add(int(msg.sensor_id), np.asarray(msg.pac))
+        self.events_seen += 1
+
+    def _passer(self, topic: str, msg_type: type) -> Any:
+        channel = self.passed[topic]
+
+        def on_raw(data: bytes) -> None:
+            channel.log(bytes(data), log_time=self._now_ns())
+            msg = deserialize_message(data, msg_type)
+            if msg_type is ContactGroundTruth:
+                self.truths.append(truth_of(msg))
+            elif msg_type is ContactWindow:
+                self._on_window(msg)
+            elif msg_type is ContactEstimate:
+                self._on_estimate(msg)
+            else:
+                self._on_diagnostics(msg)
+
+        return on_raw
+
+    def _on_window(self, msg: ContactWindow) -> None:
+        if not self.images[ch.WINDOW].has_sinks():
+            return
+        shape = tuple(int(x) for x in msg.shape)
+        data = np.asarray(msg.data, dtype=np.float32).reshape(shape)
+        self._window = raster_image(
+            data,
+            int(msg.pre_onset_ns),
+            int(msg.sample_period_ns),
+            provisional=bool(msg.provisional),
+            finger_rows=40 if self.sensor == "nuskin" else 0,
+        )
+
+    def _on_estimate(self, msg: ContactEstimate) -> None:
+        est = estimate_of(msg)
+        truth = matching_truth(est, self.truths, self.tolerance_ns)
+        self._estimate = (estimate_image(est, truth, self.rod_m), estimate_message(est, truth))
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            raw = status.level  # a ``byte`` field: bytes of length 1 in rclpy
+            level = raw[0] if isinstance(raw, (bytes, bytearray)) else int(raw)
+            self.statuses[status.name] = (int(level), str(status.message))
+        self._diag_dirty = True
+
+    # -- output: at display rate -----------------------------------------------------------
+
+    def _on_tick(self) -> None:
+        now = time.monotonic_ns()
+        if not self.pacer.ready(now):
+            return
+        stamp = self._now_ns()
+        if self.sensor == "nuskin":
+            rates = self.taxels.update(now)
+            if self.images[ch.TAXELS].has_sinks():
+                grid = nuskin_grid(
+                    rates, self.taxels.dead(now), self.taxels.saturated(), top_hz=self.top_hz
+                )
+                self._send_image(ch.TAXELS, grid, stamp)
+            self.json[ch.RATES].log(
+                rates_message(self.taxels.finger_rates(), self.taxels.rejected), log_time=stamp
+            )
+        else:
+            if self.images[ch.TAXELS].has_sinks():
+                self._send_image(ch.TAXELS, biotac_grid(self.electrodes), stamp)
+            if self.json[ch.PAC].has_sinks():
+                self.json[ch.PAC].log(self.pac.message(), log_time=stamp)
+        if self._window is not None:
+            self._send_image(ch.WINDOW, self._window, stamp)
+            self._window = None
+        if self._estimate is not None:
+            image, numbers = self._estimate
+            self._send_image(ch.ESTIMATE, image, stamp)
+            self.json[ch.ESTIMATE_INFO].log(numbers, log_time=stamp)
+            self._estimate = None
+        if self._diag_dirty:
+            self.json[ch.DIAGNOSTICS].log(diagnostics_message(self.statuses), log_time=stamp)
+            self._diag_dirty = False
+
+    def _send_image(self, topic: str, img: Image, stamp_ns: int) -> None:
+        sec, nsec = split_ns(stamp_ns)
+        height, width = img.shape[:2]
+        self.images[topic].log(
+            RawImage(
+                timestamp=Timestamp(sec, nsec),
+                frame_id="extsense_view",
+                width=width,
+                height=height,
+                encoding="rgb8",
+                step=width * 3,
+                data=img.tobytes(),
+            ),
+            log_time=stamp_ns,
+        )
+
+    def _now_ns(self) -> int:
+        return int(self.get_clock().now().nanoseconds)
+
+    def _check(self) -> tuple[Level, str, dict[str, object]]:
+        values = {
+            "frames": self.pacer.frames,
+            "events_seen": self.events_seen,
+            "rejected_events": self.taxels.rejected,
+            "port": self.port,
+        }
+        return Level.OK, "serving", values
+
+    def destroy_node(self) -> None:
+        """Stop the WebSocket server with the node (clients see the connection close)."""
+        try:
+            self.server.stop()
+        finally:
+            super().destroy_node()
+
+
+def _json_bytes(schema: dict[str, Any]) -> bytes:
+    return json.dumps(schema).encode()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node (``ros2 run ext_sense foxglove_view``)."""
+    return run_node(FoxgloveViewNode, args)

@@ -1,0 +1,113 @@
+"""The Robotiq 2F in the units of ``control_msgs`` gripper actions, and when a goal is done.
+
+MoveIt, ``ros2_control``'s ``GripperActionController`` and most user code command a gripper
+through ``control_msgs/action/GripperCommand`` (goal ``command.position``: the gap between the
+fingers in metres; ``command.max_effort`` in newtons) or ``ParallelGripperCommand`` (a
+``sensor_msgs/JointState``). The Robotiq registers count 0 (open) .. 255 (closed) for position,
+speed and force; :class:`GripperScale` converts between the two, linearly over the stroke (the
+real finger gap is close to linear in gPO on the 2F-85 and 2F-140). :func:`goal_outcome` decides
+from one status read whether a goal is finished, with the result fields the actions report:
+``stalled`` (the fingers stopped on an object, gOBJ 1 or 2: object detection) and
+``reached_goal`` (gOBJ 3). Both count as success, as ``GripperActionController`` does with
+``allow_stalling``: stopping on the object is the point of a grasp.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from ext_sense_behaviours.errors import BehaviourError
+from ext_sense_drivers.robotiq import GripperStatus, ObjectStatus
+from ext_sense_drivers.robotiq.registers import fault_name
+
+COUNTS = 255
+
+
+@dataclass(frozen=True)
+class GripperScale:
+    """Register counts <-> SI units for one gripper model.
+
+    Attributes:
+        stroke_m: Finger gap when fully open (gPO 0), metres; 0.085 for the 2F-85, 0.140 for
+            the 2F-140. gPO 255 is a gap of 0.
+        max_force_n: Grip force at rFR 255, newtons (2F-85: 235 N).
+        max_speed_m_s: Finger speed at rSP 255, metres per second (2F-85: 0.15 m/s).
+    """
+
+    stroke_m: float = 0.085
+    max_force_n: float = 235.0
+    max_speed_m_s: float = 0.15
+
+    def __post_init__(self) -> None:
+        for name in ("stroke_m", "max_force_n", "max_speed_m_s"):
+            value = getattr(self, name)
+            if not value > 0.0:
+                raise BehaviourError(f"The '{name}' parameter must be > 0. Got {value!r} instead.")
+
+    def gap_m(self, counts: int) -> float:
+        """Finger gap for a position count (gPO or gPR)."""
+        return self.stroke_m * (1.0 - min(max(counts, 0), COUNTS) / COUNTS)
+
+    def position_counts(self, gap_m: float) -> int:
+        """The rPR count for a requested gap, clipped to the stroke."""
+        fraction = 1.0 - min(max(gap_m, 0.0), self.stroke_m) / self.stroke_m
+        return round(fraction * COUNTS)
+
+    def force_counts(self, effort_n: float, default: int) -> int:
+        """The rFR count for a maximum effort; ``default`` for 0 or less (not given)."""
+        if not effort_n > 0.0:
+            return default
+        return round(min(effort_n / self.max_force_n, 1.0) * COUNTS)
+
+    def speed_counts(self, velocity_m_s: float | None, default: int) -> int:
+        """The rSP count for a finger speed; ``default`` when none (or 0 or less) is given."""
+        if velocity_m_s is None or not velocity_m_s > 0.0:
+            return default
+        return round(min(velocity_m_s / self.max_speed_m_s, 1.0) * COUNTS)
+
+
+class GoalOutcome(NamedTuple):
+    """A finished goal, in the fields both gripper actions report.
+
+    Attributes:
+        succeeded: The fingers stopped at the target or on an object.
+        position_m: Finger gap at the end, metres.
+        effort_n: The force the fingers exert: the requested force while stopped on an object
+            (the Robotiq holds with it), 0 otherwise (the 2F reports no force).
+        stalled: Stopped on an object (gOBJ 1 or 2).
+        reached_goal: At the requested position (gOBJ 3).
+        reason: Why, in words (a fault's name when it failed).
+    """
+
+    succeeded: bool
+    position_m: float
+    effort_n: float
+    stalled: bool
+    reached_goal: bool
+    reason: str
+
+
+def goal_outcome(
+    status: GripperStatus, target: int, scale: GripperScale, force_n: float
+) -> GoalOutcome | None:
+    """Whether the goal to position count ``target`` has finished, judged from one status.
+
+    Returns:
+        ``None`` while the gripper has not taken up the target (gPR differs: an older status
+        read before the command was written) or is still moving; else the outcome.
+    """
+    position_m = scale.gap_m(status.position)
+    if status.fault:
+        return GoalOutcome(
+            False, position_m, 0.0, False, False, f"gripper fault {fault_name(status.fault)}"
+        )
+    if not status.ready:
+        return GoalOutcome(False, position_m, 0.0, False, False, "gripper not activated")
+    if status.position_request != target or not status.go_to:
+        return None
+    if status.object == ObjectStatus.MOVING:
+        return None
+    stalled = status.object in (ObjectStatus.DETECTED_OPENING, ObjectStatus.DETECTED_CLOSING)
+    reason = "stopped on an object" if stalled else "at the requested position"
+    return GoalOutcome(True, position_m, force_n if stalled else 0.0, stalled, not stalled, reason)

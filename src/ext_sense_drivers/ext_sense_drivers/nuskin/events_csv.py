@@ -1,0 +1,56 @@
+"""The NUSkin event CSV of ``ext-sense nuskin decode``: one row per word, the flag as received.
+
+Header ``word,polarity,taxel,value,flag``. ``flag`` is bit 0 of byte 1 of the receiver word,
+written exactly as it arrived (the lab's own decoding writes it as its first column); ``polarity``
+is the decoder's interpretation of it (``--flag-polarity``, docs/nuskin.md), kept in its own
+column so that a wire bit is never lost to a choice of meaning. ``flag`` is last so that the
+columns before it keep the positions they had before it existed.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, TextIO
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+
+CSV_HEADER = "word,polarity,taxel,value,flag"
+
+
+def write_rows(
+    out: TextIO,
+    first_word: int,
+    polarity: npt.ArrayLike,
+    taxel: npt.ArrayLike,
+    value: npt.ArrayLike,
+    flag: npt.ArrayLike,
+) -> int:
+    """Append one CSV row per event (no header), words numbered from ``first_word``.
+
+    Args:
+        out: Text stream to write to.
+        first_word: Number of the first row's word (valid words counted from 0).
+        polarity: ``(n,)`` int.
+        taxel: ``(n,)`` int.
+        value: ``(n,)`` int.
+        flag: ``(n,)`` 0/1, as received.
+
+    Returns:
+        Rows written.
+
+    Raises:
+        ValueError: The arrays differ in length.
+    """
+    import numpy as np  # here: ``ext-sense --help`` imports this module for CSV_HEADER
+
+    columns = [np.asarray(a, dtype=np.int64).ravel() for a in (polarity, taxel, value, flag)]
+    n = columns[0].shape[0]
+    if any(c.shape[0] != n for c in columns):
+        raise ValueError(
+            "The 'polarity', 'taxel', 'value' and 'flag' arrays must have one length. "
+            f"Got {[c.shape[0] for c in columns]} instead."
+        )
+    if n:
+        rows = np.column_stack((np.arange(first_word, first_word + n), *columns))
+        np.savetxt(out, rows, fmt="%d", delimiter=",")
+    return n

@@ -1,0 +1,17 @@
+"""The perception commands of ``ext-sense``.
+
+Learning (:mod:`.learning`: ``features``, ``train``, ``evaluate``, ``report``) and sessions
+(:mod:`.sessions`: ``score``, ``calibrate``, the cross-session protocol).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from ext_sense_perception.cli import learning, sessions
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``features``, ``train``, ``evaluate``, ``report``, ``score`` and ``calibrate``."""
+    learning.register(subparsers)
+    sessions.register(subparsers)

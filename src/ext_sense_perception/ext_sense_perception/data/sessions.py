@@ -1,0 +1,226 @@
+"""Sessions: the unit of data, each a recording with its metadata kept beside it (no ROS).
+
+A session is one capture folder, one bag or one simulator run, recorded on one day with one
+sensor. Its metadata (date, sensor and its id, robot, label set, notes, a baseline capture with
+nothing touched) lives in ``session.json`` beside the data: inside a capture folder or a bag
+directory, or as ``<file>.session.json`` beside a single-file bag or dataset. Where there is no
+such file (the read-only captures in ``../shared``), the metadata is inferred: the date from the
+first capture's host clock, the label set from the data's classes, the baseline from a
+``zero.tact`` in the folder.
+
+The label set is what the operator declares the session can hold (the foods on today's plate);
+:mod:`ext_sense_perception.training.scoring` restricts a model's decisions to it.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ext_sense_perception.data.bags import is_bag
+from ext_sense_perception.data.sources import load_window_set
+from ext_sense_perception.data.validation import InputPolicy
+from ext_sense_perception.data.window_set import WindowSet
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.profiles import Anchor
+
+SESSION_FILE = "session.json"
+
+
+@dataclass(frozen=True)
+class SessionInfo:
+    """A session's metadata.
+
+    Attributes:
+        name: Short name (default: the folder or file name).
+        date: Day of the recording, ``YYYY-MM-DD`` (empty: unknown).
+        sensor: Sensor kind (``nuskin``, ``biotac``).
+        sensor_id: The physical sensor's id (serial number, empty: unknown).
+        robot: Arm and gripper used.
+        labels: The classes the session may hold (empty: the data's own, or regression).
+        notes: Free text.
+        baseline: A capture with nothing touched, relative to the session path (empty: none).
+        inferred: Whether the metadata was inferred rather than read from a file.
+    """
+
+    name: str
+    date: str = ""
+    sensor: str = ""
+    sensor_id: str = ""
+    robot: str = ""
+    labels: tuple[str, ...] = ()
+    notes: str = ""
+    baseline: str = ""
+    inferred: bool = field(default=False, compare=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready values (``session.json``, reports)."""
+        out = asdict(self)
+        out["labels"] = list(self.labels)
+        out.pop("inferred")
+        return out
+
+
+class Session(NamedTuple):
+    """A session's metadata and its windows."""
+
+    info: SessionInfo
+    path: str
+    windows: WindowSet
+
+
+def metadata_file(path: str | Path) -> Path:
+    """Where a session's ``session.json`` lives for data at ``path``."""
+    p = Path(path)
+    return p / SESSION_FILE if p.is_dir() else p.with_name(p.name + "." + SESSION_FILE)
+
+
+def read_info(path: str | Path) -> SessionInfo | None:
+    """The metadata file of the session at ``path`` (None: there is none).
+
+    Raises:
+        PerceptionError: A file that is not a JSON object of known fields.
+    """
+    meta = metadata_file(path)
+    if not meta.is_file():
+        return None
+    try:
+        values = json.loads(meta.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise PerceptionError(f"Cannot read session metadata {str(meta)!r}: {err}") from err
+    known = {f for f in SessionInfo.__dataclass_fields__ if f != "inferred"}
+    if not isinstance(values, dict) or not set(values) <= known:
+        got = sorted(set(values) - known) if isinstance(values, dict) else type(values).__name__
+        raise PerceptionError(
+            f"Session metadata {str(meta)!r} must be an object with fields among "
+            f"{sorted(known)}. Got {got} instead."
+        )
+    values.setdefault("name", _default_name(path))
+    values["labels"] = tuple(str(v) for v in values.get("labels", ()))
+    return SessionInfo(**values)
+
+
+def write_info(path: str | Path, info: SessionInfo) -> Path:
+    """Write ``info`` as the metadata of the session at ``path``; returns the file."""
+    meta = metadata_file(path)
+    meta.write_text(json.dumps(info.to_dict(), indent=2) + "\n")
+    return meta
+
+
+def _default_name(path: str | Path) -> str:
+    p = Path(path)
+    return p.name if p.is_dir() else p.stem
+
+
+def infer_info(path: str | Path, ws: WindowSet) -> SessionInfo:
+    """Metadata inferred from the data itself (no ``session.json``)."""
+    p = Path(path)
+    date = ""
+    baseline = ""
+    if p.is_dir() and not is_bag(p):
+        first = sorted(p.glob("*_zero_*.tact"))
+        if first:
+            date = _capture_date(first[0])
+        if (p / "zero.tact").is_file():
+            baseline = "zero.tact"
+    return SessionInfo(
+        name=_default_name(p),
+        date=date,
+        sensor=ws.sensor,
+        labels=tuple(ws.class_names),
+        baseline=baseline,
+        inferred=True,
+    )
+
+
+def _capture_date(tact: Path) -> str:
+    """The UTC day of a capture's first line (host epoch seconds), ``""`` if unreadable."""
+    try:
+        with open(tact, encoding="ascii", errors="replace") as fh:
+            t = float(fh.readline().split()[3])
+        return dt.datetime.fromtimestamp(t, tz=dt.timezone.utc).date().isoformat()
+    except (OSError, IndexError, ValueError, OverflowError):
+        return ""
+
+
+def load_session(
+    path: str | Path,
+    task: str | None = None,
+    sensor: str | None = None,
+    rate_hz: float | None = None,
+    policy: InputPolicy | None = None,
+    anchor: Anchor | str | None = None,
+) -> Session:
+    """One session's windows (each window named by the session) and its metadata.
+
+    Args:
+        path: The session's data (see :func:`~.sources.load_window_set`).
+        task: Task (needed for preprocessed files).
+        sensor: Sensor (needed for preprocessed files).
+        rate_hz: NUSkin: per-taxel refractory drop to this rate (None: none).
+        policy: Strict (default) or lenient input rules.
+        anchor: Capture folders: what the onsets are tied to (None: the source's default).
+
+    Returns:
+        The session.
+
+    Raises:
+        PerceptionError: Unreadable data or metadata, or metadata naming another sensor.
+    """
+    ws = load_window_set(path, task, sensor, rate_hz=rate_hz, policy=policy, anchor=anchor)
+    info = read_info(path) or infer_info(path, ws)
+    if info.sensor and info.sensor != ws.sensor:
+        raise PerceptionError(
+            f"Session {info.name!r} says sensor {info.sensor!r}, but its data is {ws.sensor!r}."
+        )
+    ws = ws._replace(sessions=np.full(len(ws.y), info.name))
+    return Session(info, str(path), ws)
+
+
+def pooled(sessions: list[Session]) -> WindowSet:
+    """The windows of several sessions as one set (trial groups kept apart per session).
+
+    Raises:
+        PerceptionError: No sessions, two sessions of one name, or sessions whose task,
+            sensor, window geometry or anchor differ.
+    """
+    if not sessions:
+        raise PerceptionError("The 'sessions' parameter must name at least one session.")
+    names = [s.info.name for s in sessions]
+    if len(set(names)) != len(names):
+        raise PerceptionError(f"Session names must differ. Got {names} instead.")
+    sets = [s.windows for s in sessions]
+    first = sets[0]
+    for s, ws in zip(sessions[1:], sets[1:], strict=True):
+        for what in ("task", "sensor", "anchor", "geometry"):
+            if getattr(ws, what) != getattr(first, what):
+                raise PerceptionError(
+                    f"Session {s.info.name!r} has {what} {getattr(ws, what)!r}; "
+                    f"{names[0]!r} has {getattr(first, what)!r}. Pool sessions cut alike"
+                    + (" (give --anchor)." if what == "anchor" else ".")
+                )
+    if len(sets) == 1:
+        return first
+    y_all = np.concatenate([ws.y for ws in sets])
+    names_all = () if first.is_regression else tuple(sorted(set(y_all.tolist()) - {""}))
+    offset, groups = 0, []
+    for ws in sets:
+        g = np.unique(ws.groups, return_inverse=True)[1]
+        groups.append(g + offset)
+        offset += int(g.max()) + 1 if len(g) else 0
+    return first._replace(
+        X=np.concatenate([ws.X for ws in sets]),
+        y=y_all,
+        class_names=names_all,
+        groups=np.concatenate(groups),
+        rod_length_m=np.concatenate([ws.rod_length_m for ws in sets]),
+        source=" + ".join(ws.source for ws in sets),
+        data_hash="+".join(ws.data_hash for ws in sets),
+        excluded=tuple(f"{n}/{e}" for n, ws in zip(names, sets, strict=True) for e in ws.excluded),
+        sessions=np.concatenate([ws.session_of for ws in sets]),
+    )

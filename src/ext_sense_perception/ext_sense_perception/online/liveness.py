@@ -1,0 +1,247 @@
+"""Liveness of the window node's input stream: stalls, late packets, and the windows they spoil.
+
+A stopped driver (``kill -STOP``), a stalled executor or a blocked link looks, downstream, like
+silence followed by a burst; a window cut across it silently misses signal and the estimate of
+it is wrong (measured: onset +209 ms, 12 cm off) while every status says OK. This module is
+the window node's account of it, with no ROS and an injectable clock:
+
+- *Streaming* is when input must arrive: always for BioTac (frames come at 100 Hz whatever
+  touches the finger), and for NUSkin only while a contact is open (an event sensor is silent
+  when nothing touches it; the driver's own link status covers an idle NUSkin). The node says
+  which through :meth:`StreamLiveness.check`'s ``streaming`` argument.
+- A *stall* is silence while streaming longer than ``warn_ns`` (WARN), then ``error_ns``
+  (ERROR). It stays reported until data returns, even once the contact has been flushed, and
+  is kept as an interval of stream time, so that every window overlapping it is marked.
+- A *late packet* arrived more than ``late_ns`` after the stream's usual delay (the smallest
+  ``arrival - stamp`` seen recently: a constant clock offset, as in a replayed bag, is not
+  lateness).
+- *Lost input*: NUSkin batches carry the driver's running word count; words the driver decoded
+  that never reached this node (a best-effort stream dropped them while this node was stopped
+  or starved) show as a count that grew by more than the events that arrived
+  (:meth:`StreamLiveness.on_counts`). Batches split from one drain share their count, so a
+  shortfall is judged only once the count moves on.
+
+Windows overlapping a stall or holding a late packet get a reason from :meth:`fault_in`; the
+node publishes them with ``degraded`` set.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, field
+
+from ext_sense_runtime.diagnostics import Clock, Level
+from ext_sense_runtime.stamps import MS
+
+BASELINE_MESSAGES = 2000
+"""Messages over which the stream's usual delay (smallest arrival - stamp) is taken."""
+RECENT_NS = 10_000 * MS
+"""Lost input keeps the status at WARN this long."""
+KEEP_FAULTS_NS = 120_000 * MS
+"""Faults older than this (stream time) are forgotten: no window reaches that far back."""
+
+
+@dataclass
+class Fault:
+    """A stall (``start_ns`` to ``end_ns``, stream time) or a late packet (one instant).
+
+    ``late_ns`` is how much later than usual a late packet arrived, ``lost_words`` how many
+    words a lost-input gap misses (0 for a stall).
+    """
+
+    start_ns: int
+    end_ns: int | None
+    reason: str
+    late_ns: int = 0
+    lost_words: int = 0
+
+
+@dataclass
+class StreamLiveness:
+    """Tracks one input stream's arrivals and says when it stalls or runs late.
+
+    Args:
+        stream: The stream's name in messages (its topic).
+        expected_rate_hz: Messages per second while streaming (shown, and the unit of the
+            default thresholds).
+        warn_ns: Silence while streaming that is a stall (WARN).
+        error_ns: Silence while streaming that is an ERROR.
+        late_ns: Extra delay over the stream's usual one that makes a packet late.
+        clock: Monotonic integer nanoseconds; injectable so tests never sleep.
+    """
+
+    stream: str
+    expected_rate_hz: float
+    warn_ns: int
+    error_ns: int
+    late_ns: int
+    clock: Clock = time.monotonic_ns
+    messages: int = 0
+    stalls: int = 0
+    late_packets: int = 0
+    contacts_lost: int = 0
+    degraded_windows: int = 0
+    last_arrival_ns: int | None = None
+    last_stamp_ns: int | None = None
+    stalled_since_ns: int | None = None
+    """Monotonic time the current stall began (the last arrival), ``None`` when not stalled."""
+    longest_stall_ns: int = 0
+    faults: list[Fault] = field(default_factory=list)
+    words_lost: int = 0
+    contact_words: int = 0
+    """Lost words that count as (at least) one lost contact: the onset detector's activity
+    threshold; 0: lost input is not counted as contacts."""
+    last_loss_ns: int | None = None
+    """Monotonic time input was last found lost (WARN for :data:`RECENT_NS` after)."""
+    _count_base: int | None = None
+    _last_total: int | None = None
+    _events_seen: int = 0
+    _count_stamp_ns: int = 0
+    _before_count_ns: int = 0
+    _delays: deque[int] = field(default_factory=lambda: deque(maxlen=BASELINE_MESSAGES))
+
+    def on_message(self, stamp_ns: int, wall_ns: int) -> None:
+        """Count one message: ``stamp_ns`` its header stamp, ``wall_ns`` the host time now.
+
+        Ends a stall in progress (its interval closes at this stamp) and records a late packet.
+        """
+        now = self.clock()
+        if self.stalled_since_ns is not None:
+            silent = now - self.stalled_since_ns
+            self.longest_stall_ns = max(self.longest_stall_ns, silent)
+            for fault in self.faults:
+                if fault.end_ns is None:
+                    fault.end_ns = stamp_ns
+                    fault.reason = (
+                        f"stall: no input on {self.stream} for {silent / MS:.0f} ms inside the "
+                        "window"
+                    )
+            self.stalled_since_ns = None
+        delay = wall_ns - stamp_ns
+        usual = min(self._delays) if self._delays else delay
+        self._delays.append(delay)
+        if delay - usual > self.late_ns:
+            self.late_packets += 1
+            self.faults.append(Fault(stamp_ns, stamp_ns, "late packet", delay - usual))
+        self.messages += 1
+        self.last_arrival_ns, self.last_stamp_ns = now, stamp_ns
+        self._forget(stamp_ns)
+
+    def on_counts(self, stamp_ns: int, words_total: int, bad_words: int, n_events: int) -> None:
+        """Check the driver's running word count against the events received (NUSkin).
+
+        Args:
+            stamp_ns: The batch's stamp.
+            words_total: Words the driver decoded so far (``words_total``).
+            bad_words: Of those, words it dropped (``bad_taxel_words``).
+            n_events: Events in this batch.
+        """
+        good = int(words_total) - int(bad_words)
+        last = self._last_total
+        if last is not None and good < last:  # the driver restarted its count
+            self._count_base = None
+        elif last is not None and good != last:
+            if self._count_base is None:  # the first complete count: the check starts here
+                self._count_base, self._events_seen = last, 0
+            else:
+                short = last - self._count_base - self._events_seen
+                if short > 0:
+                    self.words_lost += short
+                    self.last_loss_ns = self.clock()
+                    if self.contact_words and short >= self.contact_words:
+                        self.contacts_lost += 1  # enough events lost to have been a contact
+                    self.faults.append(
+                        Fault(
+                            self._before_count_ns,  # from the batch before the short count
+                            self._count_stamp_ns,  # to its last batch
+                            "lost input",
+                            lost_words=short,
+                        )
+                    )
+                self._count_base += max(short, 0)
+                if short < 0:  # more events than words: not a one-event-per-word stream
+                    self._count_base, self._events_seen = last, 0
+        if self._count_base is not None:
+            self._events_seen += int(n_events)
+        if good != last:
+            self._before_count_ns = self._count_stamp_ns
+        self._last_total = good
+        self._count_stamp_ns = stamp_ns
+
+    def silence_ns(self) -> int:
+        """Time since the last message (0 before the first)."""
+        return 0 if self.last_arrival_ns is None else self.clock() - self.last_arrival_ns
+
+    def update(self, streaming: bool) -> None:
+        """Start a stall when the stream has been silent past ``warn_ns`` while streaming."""
+        if self.stalled_since_ns is not None or self.last_arrival_ns is None:
+            return
+        if streaming and self.silence_ns() > self.warn_ns:
+            self.stalls += 1
+            self.stalled_since_ns = self.last_arrival_ns
+            start = self.last_stamp_ns if self.last_stamp_ns is not None else 0
+            self.faults.append(
+                Fault(start, None, f"stall: no input on {self.stream} (still silent)")
+            )
+
+    @property
+    def stalled(self) -> bool:
+        """Whether a stall is in progress."""
+        return self.stalled_since_ns is not None
+
+    def fault_in(self, start_ns: int, end_ns: int) -> str:
+        """Why a window spanning ``[start_ns, end_ns]`` (stream time) is degraded, or ``""``."""
+        inside = [
+            f
+            for f in self.faults
+            if f.start_ns <= end_ns and (f.end_ns is None or f.end_ns >= start_ns)
+        ]
+        if not inside:
+            return ""
+        self.degraded_windows += 1
+        reasons = list(dict.fromkeys(f.reason for f in inside if not (f.late_ns or f.lost_words)))
+        lost = [f.lost_words for f in inside if f.lost_words]
+        if lost:
+            reasons.append(
+                f"lost input: {sum(lost)} words the driver decoded never reached this node "
+                f"({len(lost)} gap(s))"
+            )
+        late = [f.late_ns for f in inside if f.late_ns]
+        if late:  # a backlog drained is many late packets: one reason for them all
+            reasons.append(
+                f"{len(late)} late packet(s) on {self.stream}, up to {max(late) / MS:.0f} ms "
+                "later than usual"
+            )
+        return "; ".join(reasons)
+
+    def check(self) -> tuple[Level, str, dict[str, object]]:
+        """The diagnostics check: ERROR or WARN during a stall (naming the stream), else OK."""
+        values: dict[str, object] = {
+            "stream": self.stream,
+            "expected_rate_hz": self.expected_rate_hz,
+            "silence_ms": f"{self.silence_ns() / MS:.0f}",
+            "stalls": self.stalls,
+            "longest_stall_ms": f"{self.longest_stall_ns / MS:.0f}",
+            "late_packets": self.late_packets,
+            "degraded_windows": self.degraded_windows,
+            "contacts_lost_in_stall": self.contacts_lost,
+            "words_lost": self.words_lost,
+            "warn_ms": self.warn_ns / MS,
+            "error_ms": self.error_ns / MS,
+        }
+        if self.stalled_since_ns is not None:
+            silent = self.clock() - self.stalled_since_ns
+            level = Level.ERROR if silent > self.error_ns else Level.WARN
+            lost = f", {self.contacts_lost} contact(s) lost" if self.contacts_lost else ""
+            return level, f"stall: no input on {self.stream} for {silent / MS:.0f} ms{lost}", values
+        if self.last_loss_ns is not None and self.clock() - self.last_loss_ns < RECENT_NS:
+            return Level.WARN, f"lost input: {self.words_lost} words on {self.stream}", values
+        if self.last_arrival_ns is None:
+            return Level.OK, f"waiting for {self.stream}", values
+        return Level.OK, "streaming", values
+
+    def _forget(self, now_stamp_ns: int) -> None:
+        self.faults = [
+            f for f in self.faults if f.end_ns is None or now_stamp_ns - f.end_ns < KEEP_FAULTS_NS
+        ]

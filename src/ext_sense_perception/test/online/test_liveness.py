@@ -1,0 +1,127 @@
+from __future__ import annotations
+
+from ext_sense_perception.online.liveness import StreamLiveness
+from ext_sense_runtime.diagnostics import Level
+from ext_sense_runtime.stamps import MS
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.ns = 1_000 * MS
+
+    def __call__(self) -> int:
+        return self.ns
+
+
+def _liveness() -> tuple[StreamLiveness, FakeClock]:
+    clock = FakeClock()
+    live = StreamLiveness(
+        "/extsense/nuskin/events", 1000.0, 100 * MS, 500 * MS, 100 * MS, clock=clock
+    )
+    return live, clock
+
+
+def _stream(live: StreamLiveness, clock: FakeClock, n: int, stamp0: int) -> int:
+    """``n`` messages 1 ms apart, arriving 2 ms after their stamp; returns the next stamp."""
+    for i in range(n):
+        live.on_message(stamp0 + i * MS, stamp0 + i * MS + 2 * MS)
+        clock.ns += MS
+    return stamp0 + n * MS
+
+
+def test_a_stall_while_streaming_is_warn_then_error_naming_the_stream_and_clears():
+    live, clock = _liveness()
+    stamp = _stream(live, clock, 50, 10**18)
+    assert live.check()[0] == Level.OK
+    clock.ns += 150 * MS
+    live.update(streaming=True)
+    level, message, values = live.check()
+    assert level == Level.WARN
+    assert message.startswith("stall: no input on /extsense/nuskin/events for 15")
+    clock.ns += 400 * MS
+    live.update(streaming=True)
+    assert live.check()[0] == Level.ERROR
+    live.contacts_lost += 1
+    assert "1 contact(s) lost" in live.check()[1]
+    stamp += 550 * MS
+    _stream(live, clock, 1, stamp)  # data returns
+    level, message, values = live.check()
+    assert (level, message) == (Level.OK, "streaming")
+    assert values["stalls"] == 1
+    assert values["contacts_lost_in_stall"] == 1
+    assert int(values["longest_stall_ms"]) >= 550
+
+
+def test_silence_while_not_streaming_is_no_stall():
+    live, clock = _liveness()
+    _stream(live, clock, 10, 10**18)
+    clock.ns += 5_000 * MS
+    live.update(streaming=False)  # an event sensor with nothing touching it
+    assert live.check()[0] == Level.OK
+    assert live.stalls == 0
+
+
+def test_windows_overlapping_a_stall_are_degraded_the_others_not():
+    live, clock = _liveness()
+    t0 = 10**18
+    stamp = _stream(live, clock, 100, t0)
+    clock.ns += 300 * MS
+    live.update(streaming=True)
+    # a window closed during the stall overlaps it
+    assert live.fault_in(t0 + 50 * MS, t0 + 400 * MS).startswith("stall: no input on")
+    stamp += 300 * MS
+    _stream(live, clock, 100, stamp)
+    reason = live.fault_in(t0 + 50 * MS, t0 + 400 * MS)
+    assert "for 30" in reason
+    assert "inside the window" in reason
+    assert live.fault_in(t0, t0 + 90 * MS) == ""  # before it
+    assert live.fault_in(stamp + 10 * MS, stamp + 90 * MS) == ""  # after it
+    assert live.degraded_windows == 2
+
+
+def test_a_late_packet_degrades_its_window_but_a_constant_offset_does_not():
+    live, _ = _liveness()
+    t0 = 10**18
+    for i in range(50):  # a replayed bag: every stamp an hour old, 1 ms apart
+        live.on_message(t0 + i * MS, t0 + 3_600_000 * MS + i * MS)
+    assert live.late_packets == 0
+    live.on_message(t0 + 50 * MS, t0 + 3_600_000 * MS + 50 * MS + 250 * MS)
+    assert live.late_packets == 1
+    reason = live.fault_in(t0 + 40 * MS, t0 + 60 * MS)
+    assert reason == "1 late packet(s) on /extsense/nuskin/events, up to 250 ms later than usual"
+    assert live.fault_in(t0, t0 + 49 * MS) == ""
+
+
+def test_words_the_driver_counted_but_never_arrived_degrade_the_windows_across_them():
+    live, clock = _liveness()
+    t0 = 10**18
+    total = 0
+    for i in range(10):  # 5 events per batch, the count moving with them
+        total += 5
+        live.on_counts(t0 + i * MS, total, 0, 5)
+    # one drain split in two messages: the count leads the first part, no loss
+    total += 8
+    live.on_counts(t0 + 10 * MS, total, 0, 4)
+    live.on_counts(t0 + 10 * MS, total, 0, 4)
+    total += 5
+    live.on_counts(t0 + 11 * MS, total, 0, 5)
+    assert live.words_lost == 0
+    # 3 batches (15 words) dropped on the way, 2 bad words counted by the driver
+    total += 15 + 2 + 5
+    live.on_counts(t0 + 15 * MS, total, 2, 5)
+    total += 5
+    live.on_counts(t0 + 16 * MS, total, 2, 5)
+    assert live.words_lost == 15
+    reason = live.fault_in(t0 + 12 * MS, t0 + 14 * MS)
+    assert reason == "lost input: 15 words the driver decoded never reached this node (1 gap(s))"
+    assert live.fault_in(t0, t0 + 10 * MS) == ""
+    level, message, values = live.check()
+    assert (level, message) == (Level.WARN, "lost input: 15 words on /extsense/nuskin/events")
+    assert values["words_lost"] == 15
+    live.on_counts(t0 + 17 * MS, 5, 0, 5)  # a restarted driver counts from 0 again
+    live.on_counts(t0 + 18 * MS, 10, 0, 5)
+    live.on_counts(t0 + 19 * MS, 15, 0, 5)
+    assert live.words_lost == 15
+    clock.ns += 10_001 * MS
+    live.on_message(t0 + 20 * MS, t0 + 22 * MS)
+    assert live.check()[0] == Level.OK

@@ -1,0 +1,172 @@
+"""One guard for every node callback: an exception is caught, counted, logged once, diagnosed.
+
+An exception escaping a subscription, timer or service callback reaches the executor, which
+ends the node's spin (``[FATAL] Exception in 'subscriptions' callback``) and with it the graph:
+one malformed message or one bad model card would stop a whole session. The guard wraps each
+callback so that the exception stays inside it: it is counted per callback, logged once per
+callback and exception type with its cause (type, message, where it was raised), and shown on
+``/diagnostics`` through the node's :class:`~ext_sense_runtime.diagnostics.Updater`: ERROR
+while exceptions are recent, WARN once they stop, OK when there were none. The callback's next
+call runs normally.
+
+No rclpy here: the node hands in its logger's ``error`` method, so the guard is plain Python
+and testable without ROS. Usage in a node::
+
+    self.guard = CallbackGuard(self.get_logger().error)
+    self.create_subscription(Msg, "topic", self.guard(self._on_msg), qos)
+    self.create_timer(0.1, self.guard(self._tick))
+    self.guard.attach(self.updater)  # a "callbacks" status on /diagnostics
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import threading
+import time
+import traceback
+from collections import Counter
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+from ext_sense_runtime.diagnostics import Clock, Level, StatusTask, Updater
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+RECENT_NS = 10_000_000_000
+"""An exception younger than this (10 s) keeps the status at ERROR; older ones leave a WARN."""
+
+
+class CallbackGuard:
+    """Wraps callbacks so that an exception is caught, counted, logged once and diagnosed.
+
+    Args:
+        log: Where the first exception of each (callback, exception type) is written, e.g. a
+            node's ``get_logger().error``.
+        clock: Monotonic integer nanoseconds; injectable so tests never sleep.
+        recent_ns: How long after the last exception the status stays ERROR.
+    """
+
+    def __init__(
+        self,
+        log: Callable[[str], object],
+        clock: Clock = time.monotonic_ns,
+        recent_ns: int = RECENT_NS,
+    ) -> None:
+        self._log = log
+        self._clock = clock
+        self._recent_ns = int(recent_ns)
+        self._lock = threading.Lock()
+        self._logged: set[tuple[str, str]] = set()
+        self.counts: Counter[str] = Counter()
+        """Exceptions caught per callback name."""
+        self.last_cause = ""
+        """The last exception caught, as ``"<callback>: <Type>: <message> (at file:line)"``."""
+        self.last_ns: int | None = None
+        """When the last exception was caught (``clock`` time), ``None`` before."""
+
+    @property
+    def total(self) -> int:
+        """Exceptions caught so far, over all callbacks."""
+        return sum(self.counts.values())
+
+    def __call__(self, fn: F) -> F:
+        """Same as :meth:`wrap` with the function's own name (usable as a decorator)."""
+        return self.wrap(fn)
+
+    def wrap(
+        self,
+        fn: F,
+        name: str | None = None,
+        fallback: Callable[[Exception], Any] | None = None,
+    ) -> F:
+        """Return ``fn`` guarded: its exceptions are caught and reported, it returns ``None``.
+
+        Coroutine functions get an async wrapper (rclpy awaits them). ``BaseException``s that
+        are not ``Exception``s (``KeyboardInterrupt``, ``SystemExit``) pass: they are stops,
+        not faults.
+
+        Args:
+            fn: The callback.
+            name: Its name in the log and on ``/diagnostics``; default ``fn.__name__``.
+            fallback: Gives the return value after an exception, for callbacks whose caller
+                needs one (an on-set-parameters callback must return a
+                ``SetParametersResult``: ``lambda err: SetParametersResult(successful=False,
+                reason=str(err))``); default ``None``.
+        """
+        label = name or getattr(fn, "__name__", None) or repr(fn)
+        if inspect.iscoroutinefunction(fn):
+
+            @functools.wraps(fn)
+            async def guarded_async(*args: Any, **kwargs: Any) -> Any:
+                try:
+                    return await fn(*args, **kwargs)
+                except Exception as err:
+                    self.caught(label, err)
+                    return None if fallback is None else fallback(err)
+
+            return guarded_async  # type: ignore[return-value]
+
+        @functools.wraps(fn)
+        def guarded(*args: Any, **kwargs: Any) -> Any:
+            try:
+                return fn(*args, **kwargs)
+            except Exception as err:
+                self.caught(label, err)
+                return None if fallback is None else fallback(err)
+
+        return guarded  # type: ignore[return-value]
+
+    def caught(self, callback: str, err: BaseException) -> None:
+        """Count, and log the first of its kind, an exception caught in ``callback``.
+
+        Public so that a node with its own ``try`` (e.g. around a device read) can report an
+        unexpected exception the same way.
+        """
+        cause = f"{callback}: {describe(err)}"
+        key = (callback, type(err).__name__)
+        with self._lock:
+            self.counts[callback] += 1
+            self.last_cause = cause
+            self.last_ns = self._clock()
+            first = key not in self._logged
+            self._logged.add(key)
+        if first:
+            self._log(
+                f"exception in callback {cause}; the node goes on, further "
+                f"{type(err).__name__}s of {callback} are only counted on /diagnostics"
+            )
+
+    def check(self) -> tuple[Level, str, dict[str, object]]:
+        """The diagnostics check: ERROR while exceptions are recent, WARN after, OK if none."""
+        with self._lock:
+            counts = dict(self.counts)
+            last_ns, cause = self.last_ns, self.last_cause
+        total = sum(counts.values())
+        values: dict[str, object] = {"exceptions_total": total, "last_exception": cause}
+        values.update({f"exceptions_{name}": n for name, n in sorted(counts.items())})
+        if last_ns is None:
+            return Level.OK, "no exception in callbacks", values
+        age_ns = self._clock() - last_ns
+        values["last_exception_age_s"] = f"{age_ns / 1e9:.1f}"
+        if age_ns < self._recent_ns:
+            return Level.ERROR, f"{total} exception(s) in callbacks, last {cause}", values
+        return Level.WARN, f"{total} exception(s) in callbacks, none recently", values
+
+    def attach(self, updater: Updater, name: str = "callbacks") -> StatusTask:
+        """Add this guard's status to a node's diagnostics updater and return the task."""
+        return updater.add_check(name, self.check)
+
+
+def describe(err: BaseException) -> str:
+    """``"<Type>: <message> (at <file>:<line> in <function>)"``: the cause in one line.
+
+    The place is the innermost frame of the traceback, where the exception was raised.
+    """
+    text = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
+    frames = traceback.extract_tb(err.__traceback__) if err.__traceback__ else []
+    if frames:
+        last = frames[-1]
+        file = last.filename.rsplit("/", 1)[-1]
+        text += f" (at {file}:{last.lineno} in {last.name})"
+    return text

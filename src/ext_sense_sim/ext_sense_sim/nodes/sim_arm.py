@@ -1,0 +1,267 @@
+"""``sim_arm``: a simulated Panda / FR3 behind franka_ros2's interfaces, for the food probe.
+
+Speaks exactly what a franka_ros2 robot offers the food behaviour's adapter
+(``ext_sense_behaviours.nodes.franka_adapter``), under franka_ros2's default names:
+
+- ``/franka_robot_state_broadcaster/robot_state`` (``franka_msgs/msg/FrankaRobotState``, at
+  ``rate_hz``): header, measured joints, ``o_t_ee``, external force ``o_f_ext_hat_k``, collision
+  indicators, robot mode (move, idle or reflex), current errors (``cartesian_reflex``);
+- ``/service_server/set_full_collision_behavior`` (``franka_msgs/srv/SetFullCollisionBehavior``);
+- ``/fr3_arm_controller/follow_joint_trajectory`` (``control_msgs/action/FollowJointTrajectory``,
+  as ``joint_trajectory_controller``: a new goal preempts the running one, a cancel holds the
+  position, a reflex aborts);
+- ``/action_server/error_recovery`` (``franka_msgs/action/ErrorRecovery``): leaves reflex mode.
+
+The physics is :class:`~ext_sense_sim.devices.franka_arm.SimFrankaArm`, stepped at ``rate_hz``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from control_msgs.action import FollowJointTrajectory
+from franka_msgs.action import ErrorRecovery
+from franka_msgs.msg import FrankaRobotState
+from franka_msgs.srv import SetFullCollisionBehavior
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+
+from ext_sense_behaviours.panda_kinematics import Q_MAX, Q_MIN
+from ext_sense_runtime.callback_guard import CallbackGuard
+from ext_sense_runtime.diagnostics import Level, Updater
+from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
+from ext_sense_runtime.node_main import run_node
+from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.stamps import fill_stamp, stamp_to_ns
+from ext_sense_sim.devices.franka_arm import (
+    DEFAULT_THRESHOLDS,
+    SimFrankaArm,
+    SurfaceModel,
+    TrajectoryState,
+    start_pose,
+)
+
+_MODE_IDLE, _MODE_MOVE, _MODE_REFLEX = 1, 2, 4
+_ERROR_CODE = {TrajectoryState.ABORTED: -4}  # PATH_TOLERANCE_VIOLATED, as the controller reports
+
+
+class SimArmNode(Node):
+    """The simulated robot (see module docstring)."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(kwargs.pop("node_name", "sim_arm"), **kwargs)
+        self.guard = CallbackGuard(self.get_logger().error)
+
+        def d(name: str, default: Any, text: str, low: Any = None, high: Any = None) -> Any:
+            return declare(self, name, default, text, low=low, high=high, read_only=True)
+
+        surface_z = d("surface_z_m", 0.152, "Food surface height, m (< 0: none).", -1.0, 2.0)
+        surface = SurfaceModel(
+            surface_z_m=surface_z if surface_z >= 0 else None,
+            stiffness_n_per_m=d("stiffness_n_per_m", 1000.0, "Surface stiffness, N/m.", 1.0, 1e6),
+            noise_n=d("force_noise_n", 0.05, "Force estimate noise (1 sd per axis), N.", 0.0, 10.0),
+        )
+        q0 = start_pose(
+            d("start_x_m", 0.45, "End-effector start x, m (base frame).", 0.2, 0.7),
+            d("start_z_m", 0.16, "End-effector start height, m (base frame).", 0.02, 0.8),
+        )
+        rate_hz = d("rate_hz", 100.0, "State rate and physics step, Hz.", 1.0, 1000.0)
+        prefix = d("joint_prefix", "fr3", "Joint names are <prefix>_joint1..7.")
+        self.joint_names = [f"{prefix}_joint{i}" for i in range(1, 8)]
+        self.arm = SimFrankaArm(
+            q0, surface, self._now_ns(), seed=d("seed", 0, "Noise seed.", 0, 2**31 - 1)
+        )
+        self._goal: tuple[ServerGoalHandle, Future] | None = None
+        self.goals = {"accepted": 0, "rejected": 0, "succeeded": 0, "canceled": 0, "aborted": 0}
+        self.threshold_requests = 0
+        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self.state_pub = self.create_publisher(
+            FrankaRobotState,
+            d("state_topic", "/franka_robot_state_broadcaster/robot_state", "State topic."),
+            qos,
+        )
+        self.create_service(
+            SetFullCollisionBehavior,
+            d(
+                "collision_service",
+                "/service_server/set_full_collision_behavior",
+                "SetFullCollisionBehavior service.",
+            ),
+            self.guard(self._on_thresholds),
+        )
+        self.trajectory_server = ActionServer(
+            self,
+            FollowJointTrajectory,
+            d(
+                "trajectory_action",
+                "/fr3_arm_controller/follow_joint_trajectory",
+                "FollowJointTrajectory action of the simulated joint_trajectory_controller.",
+            ),
+            self._execute_trajectory,
+            goal_callback=self._on_goal,
+            cancel_callback=self._on_cancel,
+        )
+        self.recovery_server = ActionServer(
+            self,
+            ErrorRecovery,
+            d("error_recovery_action", "/action_server/error_recovery", "ErrorRecovery action."),
+            self._execute_recovery,
+        )
+        self.create_timer(1.0 / rate_hz, self.guard(self._tick))
+        self.updater = Updater(hardware_id="sim_arm")
+        self.updater.add_check("arm", self._check)
+        self.guard.attach(self.updater)
+        self.diagnostics = DiagnosticsPublisher(self, self.updater)
+
+    def _now_ns(self) -> int:
+        return self.get_clock().now().nanoseconds
+
+    def _on_thresholds(self, request: Any, response: Any) -> Any:
+        self.threshold_requests += 1
+        values = {name: list(getattr(request, name)) for name in DEFAULT_THRESHOLDS}
+        response.error = self.arm.set_thresholds(values)
+        response.success = not response.error
+        if response.error:
+            self.get_logger().error(f"collision thresholds refused: {response.error}")
+        return response
+
+    def _on_goal(self, request: Any) -> GoalResponse:
+        """Refuse what the controller refuses: unknown joints, positions beyond the limits."""
+        trajectory = request.trajectory
+        if sorted(trajectory.joint_names) != sorted(self.joint_names) or not trajectory.points:
+            self.goals["rejected"] += 1
+            self.get_logger().error(f"trajectory refused: joints {list(trajectory.joint_names)}")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _on_cancel(self, handle: ServerGoalHandle) -> CancelResponse:
+        """Stop at once (as the controller does on its next cycle), not at the next state tick."""
+        goal = self._goal
+        if goal is not None and goal[0] is handle:
+            self.arm.cancel(self._now_ns())
+        return CancelResponse.ACCEPT
+
+    async def _execute_trajectory(self, handle: ServerGoalHandle) -> Any:
+        trajectory = handle.request.trajectory
+        order = [list(trajectory.joint_names).index(n) for n in self.joint_names]
+        points = np.array([[p.positions[i] for i in order] for p in trajectory.points])
+        times = np.array([stamp_to_ns(p.time_from_start) / 1e9 for p in trajectory.points])
+        result = FollowJointTrajectory.Result()
+        if np.any(points < Q_MIN - 1e-9) or np.any(points > Q_MAX + 1e-9):
+            why = "positions beyond the joint limits"
+        else:
+            why = self.arm.follow(times, points, self._now_ns())
+        if why:
+            self.goals["aborted"] += 1
+            handle.abort()
+            result.error_code, result.error_string = -1, why  # INVALID_GOAL
+            return result
+        self.goals["accepted"] += 1
+        previous, done = self._goal, Future()
+        self._goal = (handle, done)
+        if previous is not None:
+            previous[1].set_result("preempted by a new goal")
+        reason = await done
+        state = self.arm.trajectory_state if reason is None else TrajectoryState.ABORTED
+        if handle.is_cancel_requested and state != TrajectoryState.SUCCEEDED:
+            state = TrajectoryState.CANCELED
+        self.goals[state] = self.goals.get(state, 0) + 1
+        if state == TrajectoryState.SUCCEEDED:
+            handle.succeed()
+        elif state == TrajectoryState.CANCELED:
+            handle.canceled()
+        else:
+            handle.abort()
+            result.error_code = _ERROR_CODE[TrajectoryState.ABORTED]
+            result.error_string = reason or self.arm.abort_reason
+        return result
+
+    async def _execute_recovery(self, handle: ServerGoalHandle) -> Any:
+        self.arm.recover()
+        self.get_logger().info("error recovery: reflex cleared")
+        handle.succeed()
+        return ErrorRecovery.Result()
+
+    def _tick(self) -> None:
+        now = self._now_ns()
+        goal = self._goal
+        if goal is not None and goal[0].is_cancel_requested:
+            self.arm.cancel(now)
+        else:
+            self.arm.step(now)
+        if goal is not None and self.arm.trajectory_state != TrajectoryState.RUNNING:
+            self._goal = None
+            if not goal[1].done():
+                goal[1].set_result(None)
+        self.state_pub.publish(self._state_msg(now))
+
+    def _state_msg(self, now_ns: int) -> FrankaRobotState:
+        arm = self.arm
+        msg = FrankaRobotState()
+        fill_stamp(msg.header.stamp, now_ns)
+        msg.header.frame_id = "base"
+        joints = msg.measured_joint_state
+        joints.header = msg.header
+        joints.name = self.joint_names
+        joints.position, joints.velocity = arm.q.tolist(), arm.dq.tolist()
+        joints.effort = [0.0] * 7
+        pose = arm.pose
+        ee = msg.o_t_ee
+        ee.header = msg.header
+        ee.pose.position.x, ee.pose.position.y, ee.pose.position.z = pose[:3, 3].tolist()
+        w, x, y, z = _quaternion(pose[:3, :3])
+        ee.pose.orientation.w, ee.pose.orientation.x = w, x
+        ee.pose.orientation.y, ee.pose.orientation.z = y, z
+        wrench = msg.o_f_ext_hat_k
+        wrench.header = msg.header
+        f = wrench.wrench.force
+        f.x, f.y, f.z = arm.force_n.tolist()
+        flags = msg.collision_indicators
+        c, k = flags.is_cartesian_linear_contact, flags.is_cartesian_linear_collision
+        c.x, c.y, c.z = (float(v) for v in arm.contact)
+        k.x, k.y, k.z = (float(v) for v in arm.collision)
+        moving = arm.trajectory_state == TrajectoryState.RUNNING
+        msg.robot_mode = _MODE_REFLEX if arm.reflex else _MODE_MOVE if moving else _MODE_IDLE
+        msg.current_errors.cartesian_reflex = arm.reflex
+        return msg
+
+    def _check(self) -> tuple[Level, str, dict[str, object]]:
+        arm = self.arm
+        level = Level.WARN if arm.reflex else Level.OK
+        text = "reflex: waiting for error recovery" if arm.reflex else arm.trajectory_state
+        return (
+            level,
+            text,
+            {
+                "z_m": f"{arm.pose[2, 3]:.4f}",
+                "force_z_n": f"{arm.force_n[2]:.2f}",
+                "threshold_requests": self.threshold_requests,
+                **{f"goals_{k}": v for k, v in self.goals.items()},
+            },
+        )
+
+
+def _quaternion(r: np.ndarray) -> tuple[float, float, float, float]:
+    """(w, x, y, z) of a rotation matrix (Shepperd's method, the largest pivot)."""
+    w2 = np.array([1 + np.trace(r), 1 + r[0, 0] - r[1, 1] - r[2, 2]])
+    w2 = np.append(w2, [1 - r[0, 0] + r[1, 1] - r[2, 2], 1 - r[0, 0] - r[1, 1] + r[2, 2]])
+    i = int(np.argmax(w2))
+    s = 2.0 * np.sqrt(max(w2[i], 1e-12))
+    if i == 0:
+        q = (s / 4, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s)
+    elif i == 1:
+        q = ((r[2, 1] - r[1, 2]) / s, s / 4, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s)
+    elif i == 2:
+        q = ((r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, s / 4, (r[1, 2] + r[2, 1]) / s)
+    else:
+        q = ((r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, s / 4)
+    return tuple(float(v) for v in q)  # type: ignore[return-value]
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node."""
+    return run_node(SimArmNode, args)
