@@ -132,7 +132,7 @@ def test_collect_food_session_interrupted_resumed_labels_are_the_simulated_foods
     sim = _truths(bag, "/extsense/sim/ground_truth")
     for stamp, _, label in labels:
         sim_stamp, _, sim_label = _nearest(stamp, sim)
-        assert sim_stamp == stamp, (stamp, sim_stamp)
+        assert sim_stamp == stamp, (stamp, sim_stamp, labels, sim)
         assert sim_label == label, (label, sim_label)
     _trains(bag, tmp_path / "food_bundle")
 

@@ -59,6 +59,8 @@ class Collector(Protocol):
 
     def subscribers(self, topic: str) -> set[str]: ...  # noqa: D102
 
+    def publishers(self, topic: str) -> set[str]: ...  # noqa: D102
+
     def start_probe(self) -> None: ...  # noqa: D102
 
     def trigger_sim(self, task: str, label: str) -> None: ...  # noqa: D102
@@ -248,6 +250,15 @@ class TrialLoop:
             missing = sorted(nodes - self.node.subscribers(topic))
             raise CollectError(f"{', '.join(missing)} did not subscribe to {topic} within 90 s")
 
+    def _wait_for_publisher(self, topic: str, node: str) -> None:
+        """Wait until ``node`` publishes ``topic`` as this process sees the graph.
+
+        Raises:
+            CollectError: Not within 90 s.
+        """
+        if not self.pump(lambda: node in self.node.publishers(topic), 90.0):
+            raise CollectError(f"{node} did not publish {topic} within 90 s")
+
     def _start_probe(self, m: int, d: int) -> None:
         """Ask for a probe; again while the behaviour ignores the request.
 
@@ -268,6 +279,10 @@ class TrialLoop:
         # the first probe (by name: other nodes of the graph may listen too)
         need = {"contact_window", "sim_device"} if self.args.source_is_sim else {"contact_window"}
         self._wait_for("/extsense/motion_start", need)
+        if self.args.source_is_sim:
+            # and the recording hears the simulator's truth of the first probe (it was lost
+            # when the first probe started before the collector had found the simulator)
+            self._wait_for_publisher("/extsense/sim/ground_truth", "sim_device")
         if self.food_note:
             print(f"[collect] note: {self.food_note}", flush=True)
         while not st.done:

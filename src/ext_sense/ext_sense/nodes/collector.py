@@ -143,6 +143,10 @@ class CollectorNode(Node):
         """Names of the nodes subscribed to ``topic`` (to know who will hear a trigger)."""
         return {info.node_name for info in self.get_subscriptions_info_by_topic(topic)}
 
+    def publishers(self, topic: str) -> set[str]:
+        """Names of the nodes publishing ``topic`` (to know the recording will hear them)."""
+        return {info.node_name for info in self.get_publishers_info_by_topic(topic)}
+
     def trigger_sim(self, task: str, label: str) -> None:
         """Have the simulated device play its next grasp now, as ``label`` (``""``: its draw)."""
         msg = ContactGroundTruth(

@@ -170,6 +170,11 @@ class FrankaArmAdapter:
             )
             self.stop()
 
+    @property
+    def trajectory_ready(self) -> bool:
+        """Whether the trajectory controller's action server is discovered (motions can start)."""
+        return bool(self._trajectory.server_is_ready())
+
     def read_state(self) -> ArmState | None:
         """The newest state not returned before, else ``None``."""
         reading = self.reading

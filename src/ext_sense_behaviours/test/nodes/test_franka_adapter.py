@@ -62,6 +62,7 @@ def test_adapter_reads_state_sets_thresholds_descends_and_stops_on_the_contact_f
     assert state.z_m == pytest.approx(0.16, abs=1e-5)
     assert state.force_n == pytest.approx((-0.5, 0.4, -0.5))
     # descent through FollowJointTrajectory at 1 cm/s
+    assert spin_until(executor, lambda: adapter.trajectory_ready)
     adapter.move_down(0.01)
     assert spin_until(executor, lambda: adapter.reading.state.z_m < 0.157)
     assert adapter.reading.state.velocity_z_mps == pytest.approx(-0.01, rel=0.05)
@@ -88,6 +89,7 @@ def test_adapter_reads_state_sets_thresholds_descends_and_stops_on_the_contact_f
 def test_software_stop_before_the_flag_cancels_and_holds(rig):
     sim, adapter, executor = rig
     assert spin_until(executor, lambda: adapter.read_state() is not None)
+    assert spin_until(executor, lambda: adapter.trajectory_ready)  # discovery takes a moment
     adapter.move_down(0.02)
     assert spin_until(executor, lambda: adapter.reading.state.z_m < 0.158)
     adapter.stop()  # the behaviour's own stop (e.g. its 10 N threshold, or the preset height)
