@@ -47,6 +47,8 @@ MATCH_NS = 150_000_000
 """A detected contact and an independent truth (simulator, mocap) closer than this are one."""
 START_TRIES = 10
 """Food: ``/food/start`` requests, 2 s apart, before collect gives up on a probe."""
+MATCH_SETTLE_S = 1.0
+"""After a publisher shows in the graph, how long its connection to our subscription may take."""
 GRASP_SETTLE_S = 1.5
 """After a grasp's end decision, how long its last windows may still be in flight (the 0.25 s
 post-contact window, inference, two cores under load) before the grasp is judged."""
@@ -258,6 +260,7 @@ class TrialLoop:
         """
         if not self.pump(lambda: node in self.node.publishers(topic), 90.0):
             raise CollectError(f"{node} did not publish {topic} within 90 s")
+        self.pump(lambda: False, MATCH_SETTLE_S)  # seen in the graph is not yet matched
 
     def _start_probe(self, m: int, d: int) -> None:
         """Ask for a probe; again while the behaviour ignores the request.

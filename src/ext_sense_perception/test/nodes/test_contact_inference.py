@@ -95,17 +95,17 @@ def test_a_bad_bundle_is_refused_and_a_fixed_one_loaded_without_a_restart(good_b
         assert "model refused: " in p.statuses[-1].message
         time.sleep(0.3)  # discovery
         p.windows.publish(_window())
-        assert wait_for(lambda: node.dropped_no_model == 1, 3.0)  # alive, counting
+        assert wait_for(lambda: node.dropped_no_model == 1, 10.0)  # alive, counting
         card_file.write_text(good_card)  # fixed: the retry loads it
-        assert wait_for(lambda: node.model is not None, 3.0)
+        assert wait_for(lambda: node.model is not None, 10.0)
         p.windows.publish(_window())
-        assert wait_for(lambda: len(p.estimates) == 1, 3.0)
+        assert wait_for(lambda: len(p.estimates) == 1, 10.0)
         assert np.isfinite(p.estimates[0].tap_position_m)
         # the bundle rewritten for another sensor: seen as a change, refused
         bad_card = json.loads(good_card)
         bad_card["sensor"] = bad_card["window"]["sensor"] = "biotac"
         card_file.write_text(json.dumps(bad_card))
-        assert wait_for(lambda: node.model is None, 3.0)
+        assert wait_for(lambda: node.model is None, 10.0)
         assert node.reloads == 1
         assert "'window.period_ns' must be the profile's 454545" in node.model_error
         assert node.guard.total == 0
