@@ -11,7 +11,9 @@ import pytest
 pytestmark = pytest.mark.ros
 
 rclpy = pytest.importorskip("rclpy")
-pytest.importorskip("franka_msgs")
+pytest.importorskip(
+    "franka_msgs", reason="franka_msgs is not built into this venv: make setup builds interfaces/"
+)
 
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
