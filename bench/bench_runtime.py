@@ -8,21 +8,32 @@ The nodes are started as ``ext-sense run`` starts them: the ``tap_localization``
 ``ext_sense.runner.run_graph`` (``graph_runs.py``), with the nodes this bench does not need
 left out of the graph (the bench itself is their source).
 
-1. Latency: the graph's ``contact_window`` and ``contact_inference`` (``source:=bag`` without
-   its bag player, ``monitor:=false``); this process publishes synthetic taps (80 taxels firing
-   at 4 kHz for 40 ms, plus background events) on ``/extsense/nuskin/events`` in 1 ms batches
-   stamped with the host clock, at real-time pace. Per final estimate it measures the wall time
-   from the end of the window (onset + 250 ms, the window's last possible event) to the
-   estimate arriving here, beside the model's own compute on the same windows (features + ONNX
-   here, ``latency_figures.py``). Targets (#16): p50 <= compute + 1 ms, p99 <= 5 ms. Each
-   ``--hot-path`` value (default both: the nodes in processes of their own, then in one) and a
-   ``--baseline`` source tree are measured in turn in one run. The model is ``--model``, else
-   the demo's (``tap_localization_nuskin``, found as the graphs find it); when that is missing
-   the demo's training (``ext_sense.commands.demo.ensure_model``) trains one into a temporary
+1. Latency: the graph's ``contact_window`` and ``contact_inference`` (``monitor:=false``); this
+   process is the sensor: synthetic taps (80 taxels firing at 4 kHz for 40 ms, over a
+   receiver's idle stream of 540 words/s) at real-time pace, stamped with the host clock.
+   ``--input packets`` (the default) publishes them as ``nuskin_driver`` does: its encoding and
+   options, its ``PacketPacker`` and message code, one ``SensorPacket`` per 1 ms drain holding
+   that ms's reads (4 per ms), none when nothing was read, on ``/extsense/nuskin/packets``
+   (``source:=serial`` without the driver: the window node decodes the packets as live);
+   ``--input decoded`` publishes ``TaxelEventBatch`` per ms on ``/extsense/nuskin/events`` as
+   before packets (``source:=bag`` with an empty bag: the window node reads decoded batches).
+   Per final estimate it measures the wall time from the end of the window (onset + 250 ms) to
+   the estimate arriving here, beside the model's own compute on the same windows (features +
+   ONNX here, ``latency_figures.py``). Targets (#16): p50 <= compute + 1 ms, p99 <= 5 ms quiet,
+   <= 25 ms with both cores loaded. Every ``--load`` (``quiet``; ``hog``: one busy-looping
+   process per core, started before the graph and stopped after it), ``--input``, ``--hot-path``
+   (the nodes in processes of their own, or in one) and a ``--baseline`` source tree are
+   measured in turn in one run, then printed side by side with the load average before each.
+   ``--hops`` also subscribes to the windows and splits the latency: window end -> the first
+   input past it published (``wait``), -> window received (``window_node``), -> estimate ready
+   (``inference``), -> estimate received (``estimate``). The model is ``--model``, else the
+   demo's (``tap_localization_nuskin``, found as the graphs find it); when that is missing the
+   demo's training (``ext_sense.commands.demo.ensure_model``) trains one into a temporary
    directory first.
 2. Worst case: 80 taxels at 4 kHz (320k events/s) as receiver words over a pty into the graph's
    ``nuskin_driver`` (``source:=serial``), then its ``contact_window``; events sent vs events
-   the window node counted.
+   the window node counted, packets the driver published vs the window node got and lost by
+   ``seq``.
 3. Replay: a bag of worst-case batches published flat out by ``ext-sense replay --flat-out``;
    messages/s and events/s, and how many a subscriber here received.
 """
@@ -39,14 +50,24 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any
 
 import numpy as np
+from bench_arrival import start_hog, stop_hog
 from graph_runs import start_graph, stop_graph
-from latency_figures import model_compute, pct, print_latency
+from latency_figures import (
+    Final,
+    Source,
+    hops,
+    latency_model,
+    node_work,
+    pct,
+    print_latency,
+    print_table,
+    tap_batches,
+)
 from source_tree import baseline_path
 
-from ext_sense_runtime.records import EventBlock
 from ext_sense_runtime.stamps import MS
 
 os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
@@ -78,142 +99,90 @@ def _spin_in_background(node: object) -> Callable[[], None]:
 
 
 # ---------------------------------------------------------------- 1. latency
-class Batch(NamedTuple):
-    """One 1 ms batch of the synthetic stream: its start from the stream's, and its events."""
-
-    stamp_ns: int
-    events: EventBlock  # t_ns: offset from the batch's stamp
-
-
-def tap_batches(
-    onsets_ms: list[float],
-    duration_ms: float,
-    *,
-    rate_hz: float = 4000.0,
-    taxels: int = 80,
-    burst_ms: float = 40.0,
-    noise_per_s: float = 200.0,
-    seed: int = 7,
-) -> list[Batch]:
-    """1 ms batches of NUSkin events: background noise plus a burst of ``taxels`` at each onset.
-
-    During a burst every taxel fires at ``rate_hz`` (the 80-taxel, 4 kHz worst case).
-    """
-    rng = np.random.default_rng(seed)
-    n_noise = rng.poisson(noise_per_s * duration_ms / 1000)
-    times = [rng.integers(0, int(duration_ms * MS), n_noise)]
-    tax = [rng.integers(1, 81, n_noise)]
-    period = int(1e9 / rate_hz)
-    for onset in onsets_ms:
-        start = int(onset * MS)
-        ticks = np.arange(start, start + int(burst_ms * MS), period)
-        times.append(np.repeat(ticks, taxels))
-        tax.append(np.tile(np.arange(1, taxels + 1), len(ticks)))
-    t = np.concatenate(times).astype(np.int64)
-    order = np.argsort(t, kind="stable")
-    t, k = t[order], np.concatenate(tax)[order]
-    pol = np.where(rng.random(len(t)) < 0.5, 1, -1)
-    val = rng.integers(0, 1024, len(t))
-    everything = EventBlock.of(t, k, pol, val)
-    edges = np.searchsorted(t, np.arange(0, int(duration_ms * MS) + MS, MS))
-    out = []
-    for i in range(len(edges) - 1):
-        block = everything.select(slice(edges[i], edges[i + 1]))
-        out.append(Batch(i * MS, block._replace(t_ns=block.t_ns - i * MS)))
-    return out
-
-
-def latency_model(model: str, train_taps: int, tmp: Path) -> tuple[Path, str]:
-    """The bundle to serve and how it was found: ``--model``, the demo's, or trained here."""
-    from ext_sense.commands.demo import ensure_model
-    from ext_sense_perception.errors import PerceptionError
-    from ext_sense_perception.online.model_store import find_model
-
-    if model:
-        path = Path(model).resolve()
-        if not (path / "model_card.json").is_file():
-            raise SystemExit(f"bench_runtime: --model {model}: no model_card.json there")
-        return path, str(path)
-    try:
-        default = find_model("", GRAPH, "nuskin")
-        return default, f"{default} (the demo's)"
-    except PerceptionError as err:
-        missing = str(err)
-    out = tmp / "model"
-    t0 = time.monotonic()
-    if ensure_model(out, "nuskin", train_taps, log=sys.stderr):
-        raise SystemExit("bench_runtime: training the demo's model failed")
-    return out, (
-        f"the demo's, trained here on {train_taps} streamed taps in "
-        f"{time.monotonic() - t0:.0f} s ({missing})"
-    )
-
-
 def bench_latency(
     taps: int,
     model: str,
     train_taps: int,
     tmp: Path,
-    hot_path: str = "",
+    run: dict[str, str],
     pythonpath: str | None = None,
+    trace_hops: bool = False,
 ) -> dict:
+    """One latency run: ``run`` gives its ``input``, ``load`` and ``hot_path``."""
     import rclpy
     from rclpy.node import Node
 
-    from ext_sense.graphs import TOPIC_ESTIMATE, TOPIC_EVENTS
-    from ext_sense_msgs.msg import ContactEstimate, TaxelEventBatch
+    from ext_sense.graphs import TOPIC_ESTIMATE, TOPIC_WINDOW
+    from ext_sense_msgs.msg import ContactEstimate, ContactWindow
     from ext_sense_perception.online.model_card import read_card
-    from ext_sense_runtime.qos import ESTIMATE_QOS, SENSOR_STREAM_QOS
-    from ext_sense_runtime.stamps import fill_stamp, stamp_to_ns
+    from ext_sense_runtime.qos import ESTIMATE_QOS, SENSOR_STREAM_QOS, WINDOW_QOS
+    from ext_sense_runtime.stamps import stamp_to_ns
 
     model_dir, how = latency_model(model, train_taps, tmp)
     card = read_card(model_dir)
-    # the bench is the event source: source:=bag without its bag player leaves the perception
-    # nodes exactly as the graph describes them
-    overrides = {"sensor": "nuskin", "source": "bag", "monitor": "false", "model": str(model_dir)}
-    if hot_path:
-        overrides["hot_path"] = hot_path
-    graph = start_graph(GRAPH, overrides, ("contact_window", "contact_inference"), pythonpath)
-    rclpy.init(args=[])
-    node = Node("bench_latency")
-    pub = node.create_publisher(TaxelEventBatch, TOPIC_EVENTS, SENSOR_STREAM_QOS)
+    overrides = {"sensor": "nuskin", "monitor": "false", "model": str(model_dir)}
+    if run["input"] == "packets":
+        # the bench is the driver: source:=serial without nuskin_driver; the window node
+        # reads packets as it does live
+        overrides.update(source="serial", port=str(tmp / "bench_runtime.pty"))
+    else:
+        # the bench is the bag player of a bag recorded before packets: an empty ``bag``
+        # makes the window node read decoded batches
+        overrides.update(source="bag")
+    overrides["hot_path"] = run["hot_path"]
+    load_before = os.getloadavg()[0]
+    hog = start_hog(os.cpu_count() or 2) if run["load"] == "hog" else []
+    graph = None
     got: list[tuple[int, ContactEstimate]] = []
-    node.create_subscription(
-        ContactEstimate, TOPIC_ESTIMATE, lambda m: got.append((time.time_ns(), m)), ESTIMATE_QOS
-    )
-    halt = _spin_in_background(node)
+    windows: dict[tuple[int, int], int] = {}
+    published: list[tuple[int, int]] = []
+    spacing = 700.0
+    onsets = [200.0 + i * spacing for i in range(taps)]
+    batches = tap_batches(onsets, onsets[-1] + 600.0)
+    source = Source(run["input"], batches)
+    sent: list[Any] = []
     try:
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
-        while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
-            time.sleep(0.05)
-        if graph.poll() is not None or pub.get_subscription_count() < 1:
-            raise SystemExit("bench_runtime: the graph's contact_window did not come up")
-        time.sleep(5.0)  # let the inference node load the model
-        spacing = 700.0
-        onsets = [200.0 + i * spacing for i in range(taps)]
-        batches = tap_batches(onsets, onsets[-1] + 600.0)
-        base = time.time_ns() + 50 * MS
-        for b in batches:
-            stamp = base + b.stamp_ns
-            delay = (stamp + MS - time.time_ns()) / 1e9  # a batch is sent when its ms is over
-            if delay > 0:
-                time.sleep(delay)
-            msg = TaxelEventBatch()
-            fill_stamp(msg.header.stamp, stamp)
-            ev = b.events
-            msg.taxel, msg.polarity, msg.value, msg.offset_ns = (
-                ev.taxel,
-                ev.polarity,
-                ev.value,
-                ev.t_ns,
-            )
-            pub.publish(msg)
-        time.sleep(1.0)
+        graph = start_graph(GRAPH, overrides, ("contact_window", "contact_inference"), pythonpath)
+        rclpy.init(args=[])
+        node = Node("bench_latency")
+        pub = node.create_publisher(source.type, source.topic, SENSOR_STREAM_QOS)
+        node.create_subscription(
+            ContactEstimate, TOPIC_ESTIMATE, lambda m: got.append((time.time_ns(), m)), ESTIMATE_QOS
+        )
+        if trace_hops:
+
+            def on_window(m: ContactWindow) -> None:
+                if not m.provisional:
+                    windows[(stamp_to_ns(m.header.stamp), m.post_onset_ns)] = time.time_ns()
+
+            node.create_subscription(ContactWindow, TOPIC_WINDOW, on_window, WINDOW_QOS)
+        halt = _spin_in_background(node)
+        try:
+            deadline = time.monotonic() + STARTUP_TIMEOUT_S
+            while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+                time.sleep(0.05)
+            if graph.poll() is not None or pub.get_subscription_count() < 1:
+                raise SystemExit("bench_runtime: the graph's contact_window did not come up")
+            time.sleep(5.0)  # let the inference node load the model
+            base = time.time_ns() + 50 * MS
+            for i, b in enumerate(batches):
+                stamp = base + b.stamp_ns
+                delay = (stamp + MS - time.time_ns()) / 1e9  # a batch is sent when its ms is over
+                if delay > 0:
+                    time.sleep(delay)
+                for msg, end in source.messages(i, stamp):
+                    pub.publish(msg)
+                    published.append((time.time_ns(), end))
+                    sent.append(msg)
+            time.sleep(1.0)
+        finally:
+            halt()
+            node.destroy_node()
+            rclpy.try_shutdown()
     finally:
-        halt()
-        node.destroy_node()
-        rclpy.try_shutdown()
-        stop_graph(graph)
+        if graph is not None:
+            stop_graph(graph)
+        stop_hog(hog)
     finals = [(t, m) for t, m in got if not m.provisional]
     e2e = [
         (t - (stamp_to_ns(m.header.stamp) + stamp_to_ns(m.post_contact_used))) / MS
@@ -222,17 +191,23 @@ def bench_latency(
     field = [stamp_to_ns(m.compute_latency) / MS for _, m in finals]
     p50, p99 = pct(e2e)
     f50, f99 = pct(field)
-    c50, c99 = pct(model_compute(model_dir, batches))
-    return {
-        "hot_path": hot_path or "processes",
+    work = node_work(model_dir, sent if run["input"] == "packets" else batches, run["input"])
+    c50, c99 = pct(work.compute)
+    cut50, cut99 = pct(work.cut)
+    out = {
+        **run,
         "tree": "baseline" if pythonpath else "this tree",
+        "load_average_before": load_before,
         "load_average_1min": os.getloadavg()[0],
         "model_compute_p50_ms": c50,
         "model_compute_p99_ms": c99,
+        "cut_p50_ms": cut50,
+        "cut_p99_ms": cut99,
         "model": how,
         "model_id": card.id,
         "model_kind": f"{card.features} + {card.model}, {card.n_train} training windows",
         "taps": taps,
+        "messages_published": len(published),
         "final_estimates": len(finals),
         "provisional_estimates": len(got) - len(finals),
         "window_end_to_estimate_received_p50_ms": p50,
@@ -244,8 +219,18 @@ def bench_latency(
             :5
         ],
         "target_p50_ms": c50 + 1.0,  # issue #16: the model's own compute + 1 ms
-        "target_p99_ms": 5.0,
+        "target_p99_ms": 5.0 if run["load"] == "quiet" else 25.0,
     }
+    if trace_hops:
+        matched = []
+        for t, m in finals:
+            onset, post = stamp_to_ns(m.header.stamp), stamp_to_ns(m.post_contact_used)
+            if (onset, post) in windows:
+                end = onset + post
+                ready = end + stamp_to_ns(m.compute_latency)
+                matched.append(Final(end, windows[(onset, post)], ready, t))
+        out["hops"] = hops(matched, published)
+    return out
 
 
 # ---------------------------------------------------------------- 2. worst case
@@ -299,7 +284,7 @@ def bench_worst_case(seconds: float) -> dict:
         os.close(master)
         os.close(slave)
     win = diag.get("contact_window: windows", {})
-    inputs = diag.get("contact_window: input", {})
+    link = diag.get("nuskin_driver: link", {})
     drv = {k: v for k, v in diag.items() if k.startswith("nuskin_driver")}
     received = int(win.get("events_total", -1))
     return {
@@ -308,10 +293,12 @@ def bench_worst_case(seconds: float) -> dict:
         "events_sent": sent,
         "events_at_window_node": received,
         "dropped": sent - received if received >= 0 else None,
-        "batches_published_by_driver": int(
-            diag.get("nuskin_driver: link", {}).get("batches_published", -1)
-        ),
-        "batches_at_window_node": int(inputs.get("events_total", -1)),
+        # the packet path: the driver publishes SensorPacket, the window node decodes them and
+        # counts seq gaps (its decoder's counters, packet_* in its windows status)
+        "packets_published_by_driver": int(link.get("packets_published", -1)),
+        "packets_at_window_node": int(win.get("packet_packets", -1)),
+        "packets_lost_by_seq": int(win.get("packet_lost_packets", -1)),
+        "bad_packets": int(win.get("packet_bad_packets", -1)),
         "window_node": win,
         "driver_status": drv,
     }
@@ -376,6 +363,11 @@ def bench_replay(seconds: float, tmp: Path) -> dict:
     }
 
 
+def _listed(text: str) -> list[str]:
+    """The comma-separated values of an option."""
+    return [v for v in text.split(",") if v]
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a small version in seconds")
@@ -392,32 +384,58 @@ def main() -> int:
         help="latency: the graph's hot_path values to measure, comma separated (side by side)",
     )
     parser.add_argument(
+        "--input",
+        default="packets",
+        help="latency: what the bench publishes, comma separated: packets (SensorPacket, as "
+        "the driver; the window node decodes) and/or decoded (TaxelEventBatch, as before)",
+    )
+    parser.add_argument(
+        "--load",
+        default="quiet,hog",
+        help="latency: quiet and/or hog (one busy-looping process per core, started and "
+        "stopped here), comma separated",
+    )
+    parser.add_argument(
+        "--hops",
+        action="store_true",
+        help="latency: also subscribe to the windows and split the latency into its hops",
+    )
+    parser.add_argument(
         "--baseline",
         type=Path,
         help="latency: also measure an older source tree (its package directories as src/ "
-        "holds them), one process per node, in the same run",
+        "holds them), with the same inputs, loads and hot paths, in the same run",
     )
     args = parser.parse_args()
     taps, worst_s, replay_s = (8, 5.0, 3.0) if args.quick else (60, 60.0, 20.0)
     train_taps = 100 if args.quick else 300  # the demo trains on 300 (--train-trials)
-    results: dict[str, dict] = {}
+    results: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
         if args.only in (None, "latency"):
-            runs = [("", baseline_path(args.baseline))] if args.baseline else []
-            runs += [(h, None) for h in args.hot_path.split(",") if h]
+            trees = [("", None)]
+            if args.baseline:
+                trees.insert(0, ("baseline", baseline_path(args.baseline)))
             results["latency"] = []
-            for hot_path, path in runs:
-                r = bench_latency(taps, args.model, train_taps, Path(tmp), hot_path, path)
-                results["latency"].append(r)
-                print_latency(r, taps)
+            for load in _listed(args.load):
+                for kind in _listed(args.input):
+                    for hot_path in _listed(args.hot_path):
+                        for _, path in trees:
+                            run = {"input": kind, "load": load, "hot_path": hot_path}
+                            r = bench_latency(
+                                taps, args.model, train_taps, Path(tmp), run, path, args.hops
+                            )
+                            results["latency"].append(r)
+                            print_latency(r, taps)
+            print_table(results["latency"])
         if args.only in (None, "worst"):
             results["worst_case"] = r = bench_worst_case(worst_s)
             print(
                 f"[worst] 80 taxels x 4 kHz for {worst_s:g} s over a pty: sent "
                 f"{r['events_sent']} events, window node counted "
-                f"{r['events_at_window_node']}, dropped {r['dropped']}; batches: driver "
-                f"published {r['batches_published_by_driver']}, window node got "
-                f"{r['batches_at_window_node']}",
+                f"{r['events_at_window_node']}, dropped {r['dropped']}; packets: driver "
+                f"published {r['packets_published_by_driver']}, window node got "
+                f"{r['packets_at_window_node']}, lost by seq {r['packets_lost_by_seq']}, "
+                f"bad {r['bad_packets']}",
                 flush=True,
             )
         if args.only in (None, "replay"):

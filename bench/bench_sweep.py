@@ -3,16 +3,20 @@
 Prints, side by side in one run, the wall time of one grid (feature sets x models x K splits on
 synthetic NUSkin taps, every fit a task) run in this process, with ``--workers 1`` and with
 ``--workers 2`` (each cluster started and stopped inside the timing, as ``ext-sense report
---workers N`` does), the speed-up of 2 workers over 1 and over the single process, and that the
-three runs give identical scores. No cache: every fit is computed each time.
+--workers N`` does), the speed-ups, and that every run gives identical scores. The clusters get
+the grid as ``ext-sense report`` now sends it, every point's fits submitted together; ``--workers
+2`` also runs it point by point (each point's K fits awaited before the next point: the former
+way), to show what submitting together gains. No cache: every fit is computed each time. The
+load average before and after is printed: on a shared machine, rerun it when the machine is quiet.
 
-    python bench/bench_sweep.py            # 300 taps, fft + baseline x svm_linear + svm_rbf, K 4
-    python bench/bench_sweep.py --quick    # 120 taps, fft x svm_rbf + svm_linear, K 2
+    python bench/bench_sweep.py          # 300 taps, fft, baseline, est x svm_linear, svm_rbf, K 4
+    python bench/bench_sweep.py --quick  # 120 taps, fft x svm_rbf + svm_linear, K 2
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -20,21 +24,45 @@ from bench_perception import synthetic_taps
 
 from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.training.fit_executor import fit_executor
-from ext_sense_perception.training.protocol import evaluate, features_for
+from ext_sense_perception.training.protocol import (
+    assemble,
+    evaluate,
+    features_for,
+    plan_evaluation,
+)
 
 
 def run_grid(
-    ws: WindowSet, features: list[str], models: list[str], k: int, workers: int | None
+    ws: WindowSet,
+    features: list[str],
+    models: list[str],
+    k: int,
+    workers: int | None,
+    together: bool = True,
 ) -> tuple[np.ndarray, float]:
-    """Scores of every (features, model) point and the wall time, s."""
+    """Scores of every (features, model) point and the wall time, s.
+
+    ``together``: every point's fits in one submission (``Runner.flush``, as the report does);
+    else one point after the other (``evaluate``).
+    """
     t0 = time.perf_counter()
+    points = [(f, m) for f in features for m in models]
     with fit_executor(workers=workers) as ex:
-        scores = [
-            evaluate(ws, features_for(ws, f), m, k=k, executor=ex, progress=False).scores
-            for f in features
-            for m in models
-        ]
+        if together:
+            plans = [plan_evaluation(ws, features_for(ws, f), m, k=k) for f, m in points]
+            outcomes = ex.run_jobs([p.job() for p in plans])
+            scores = [assemble(p, r).scores for p, r in zip(plans, outcomes, strict=True)]
+        else:
+            scores = [
+                evaluate(ws, features_for(ws, f), m, k=k, executor=ex, progress=False).scores
+                for f, m in points
+            ]
     return np.concatenate(scores), time.perf_counter() - t0
+
+
+def load() -> str:
+    """The 1-minute load average and the core count."""
+    return f"load {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores"
 
 
 def main() -> None:
@@ -44,21 +72,27 @@ def main() -> None:
     n, feats, models, k = (
         (120, ["fft"], ["svm_rbf", "svm_linear"], 2)
         if args.quick
-        else (300, ["fft", "baseline"], ["svm_linear", "svm_rbf"], 4)
+        else (300, ["fft", "baseline", "est"], ["svm_linear", "svm_rbf"], 4)
     )
     ws = synthetic_taps(n)
     n_fits = len(feats) * len(models) * k
+    print(f"before: {load()}")
     alone, t_alone = run_grid(ws, feats, models, k, None)
     one, t_one = run_grid(ws, feats, models, k, 1)
     two, t_two = run_grid(ws, feats, models, k, 2)
-    same = np.array_equal(alone, one) and np.array_equal(alone, two)
+    by_point, t_by_point = run_grid(ws, feats, models, k, 2, together=False)
+    same = all(np.array_equal(alone, s) for s in (one, two, by_point))
     print(f"grid: {n} taps, {'+'.join(feats)} x {'+'.join(models)}, K {k}: {n_fits} fits")
-    print(f"  one process        {t_alone:7.1f} s")
-    print(f"  --workers 1        {t_one:7.1f} s (cluster start and stop included)")
-    print(f"  --workers 2        {t_two:7.1f} s")
+    print(f"  one process                     {t_alone:7.1f} s")
+    print(f"  --workers 1                     {t_one:7.1f} s (cluster start and stop included)")
     print(
-        f"  speed-up 2 workers: {t_one / t_two:.2f}x over 1 worker, {t_alone / t_two:.2f}x over "
-        f"one process; identical scores: {same}"
+        f"  --workers 2                     {t_two:7.1f} s (every point's fits submitted together)"
+    )
+    print(f"  --workers 2, point by point     {t_by_point:7.1f} s (the former submission)")
+    print(
+        f"  speed-up of 2 workers: {t_one / t_two:.2f}x over 1 worker, {t_alone / t_two:.2f}x "
+        f"over one process, {t_by_point / t_two:.2f}x over point by point; identical scores: "
+        f"{same}"
     )
     # one point with more splits: how long each fit takes alone and two at a time
     k8 = 4 if args.quick else 8
@@ -73,6 +107,7 @@ def main() -> None:
             f"  one point (fft + svm_rbf, K {k8}), {where}: {time.perf_counter() - t0:.1f} s; "
             f"per fit {res.train_s.min():.2f}-{res.train_s.max():.2f} s"
         )
+    print(f"after: {load()}")
 
 
 if __name__ == "__main__":

@@ -1,26 +1,180 @@
-"""Latency figures of the runtime benchmark (``bench_runtime.py``): model compute, the lines.
+"""The latency benchmark's pure parts (``bench_runtime.py``): stream, packets, figures, lines.
 
-Printed beside the end-to-end latency, so the latency's target (issue #16: p50 at most the
-model's compute + 1 ms) is read against the same model on the same machine in the same run.
+The synthetic tap stream, as decoded 1 ms batches and as the NUSkin driver's raw packets of the
+same words; the model's own compute, printed beside the end-to-end latency so that the target
+(issue #16: p50 at most the model's compute + 1 ms) is read against the same model on the same
+machine in the same run; and the split of the latency into its hops (``--hops``).
 """
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
+from ext_sense_runtime.records import EventBlock
 from ext_sense_runtime.stamps import MS
 
+READS_PER_MS = 4
+"""Reads per 1 ms drain in the packet stream: the driver's reader returns as bytes arrive."""
+BAUD = 4_000_000
+"""The graphs' NUSkin link rate (the packets' ``baud`` option, as the driver sets it)."""
+IDLE_WORDS_PER_S = 540.0
+"""Background words/s: a powered NUSkin receiver's idle stream (``ext_sense_drivers.liveness``)."""
 
-def model_compute(model_dir: Path, batches: list[Any]) -> list[float]:
-    """The model's own compute per final window, ms: features + ONNX Runtime in this process.
 
-    The windows are cut from the same batches by the window node's core
-    (:class:`~ext_sense_perception.online.stage.WindowStage`) with the model card's profile;
-    three warm-up predictions are not counted.
+class Batch(NamedTuple):
+    """One 1 ms batch of the synthetic stream: its start from the stream's, and its events."""
+
+    stamp_ns: int
+    events: EventBlock  # t_ns: offset from the batch's stamp
+
+
+def tap_batches(
+    onsets_ms: list[float],
+    duration_ms: float,
+    *,
+    rate_hz: float = 4000.0,
+    taxels: int = 80,
+    burst_ms: float = 40.0,
+    noise_per_s: float = IDLE_WORDS_PER_S,
+    seed: int = 7,
+) -> list[Batch]:
+    """1 ms batches of NUSkin events: background noise plus a burst of ``taxels`` at each onset.
+
+    During a burst every taxel fires at ``rate_hz`` (the 80-taxel, 4 kHz worst case).
+    """
+    rng = np.random.default_rng(seed)
+    n_noise = rng.poisson(noise_per_s * duration_ms / 1000)
+    times = [rng.integers(0, int(duration_ms * MS), n_noise)]
+    tax = [rng.integers(1, 81, n_noise)]
+    period = int(1e9 / rate_hz)
+    for onset in onsets_ms:
+        start = int(onset * MS)
+        ticks = np.arange(start, start + int(burst_ms * MS), period)
+        times.append(np.repeat(ticks, taxels))
+        tax.append(np.tile(np.arange(1, taxels + 1), len(ticks)))
+    t = np.concatenate(times).astype(np.int64)
+    order = np.argsort(t, kind="stable")
+    t, k = t[order], np.concatenate(tax)[order]
+    pol = np.where(rng.random(len(t)) < 0.5, 1, -1)
+    val = rng.integers(0, 1024, len(t))
+    everything = EventBlock.of(t, k, pol, val)
+    edges = np.searchsorted(t, np.arange(0, int(duration_ms * MS) + MS, MS))
+    out = []
+    for i in range(len(edges) - 1):
+        block = everything.select(slice(edges[i], edges[i + 1]))
+        out.append(Batch(i * MS, block._replace(t_ns=block.t_ns - i * MS)))
+    return out
+
+
+def batch_reads(batch: Batch) -> list[tuple[int, bytes]]:
+    """A batch as the driver's reader would have read it: ``(return offset ns, words)`` each.
+
+    The ms is cut into :data:`READS_PER_MS` reads, each returning at the end of its part with
+    the receiver words (``encode_words``, flag 0 as real receivers send) of the events in it;
+    parts with no event give no read (the packer keeps empty reads out too).
+    """
+    from ext_sense_drivers.nuskin.wire import encode_words
+
+    ev, step = batch.events, MS // READS_PER_MS
+    edges = np.searchsorted(ev.t_ns, np.arange(0, MS + 1, step), side="left")
+    return [
+        ((i + 1) * step, encode_words(ev.taxel[lo:hi], ev.value[lo:hi]))
+        for i, (lo, hi) in enumerate(zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True))
+        if hi > lo
+    ]
+
+
+def latency_model(model: str, train_taps: int, tmp: Path) -> tuple[Path, str]:
+    """The bundle to serve and how it was found: ``--model``, the demo's, or trained here."""
+    from ext_sense.commands.demo import ensure_model
+    from ext_sense_perception.errors import PerceptionError
+    from ext_sense_perception.online.model_store import find_model
+
+    if model:
+        path = Path(model).resolve()
+        if not (path / "model_card.json").is_file():
+            raise SystemExit(f"bench_runtime: --model {model}: no model_card.json there")
+        return path, str(path)
+    try:
+        default = find_model("", "tap_localization", "nuskin")
+        return default, f"{default} (the demo's)"
+    except PerceptionError as err:
+        missing = str(err)
+    out = tmp / "model"
+    t0 = time.monotonic()
+    if ensure_model(out, "nuskin", train_taps, log=sys.stderr):
+        raise SystemExit("bench_runtime: training the demo's model failed")
+    return out, (
+        f"the demo's, trained here on {train_taps} streamed taps in "
+        f"{time.monotonic() - t0:.0f} s ({missing})"
+    )
+
+
+class Source:
+    """The bench as the sensor driver: the stream's messages, built when each is due.
+
+    ``packets``: as ``nuskin_driver`` publishes (``SensorPacket``, its encoding and options,
+    its packer and message code; one packet per 1 ms drain with the reads of that ms, none when
+    nothing was read). ``decoded``: ``TaxelEventBatch`` per ms (the path before packets).
+    """
+
+    def __init__(self, kind: str, batches: list[Batch]) -> None:
+        from ext_sense.graphs import TOPIC_EVENTS
+        from ext_sense.topics import SENSOR_PACKETS
+        from ext_sense_drivers.nodes.nuskin_driver import packet_encoding
+        from ext_sense_drivers.nuskin.driver_config import DriverConfig
+        from ext_sense_drivers.packets import PacketPacker
+        from ext_sense_msgs.msg import SensorPacket, TaxelEventBatch
+
+        self.kind, self.batches = kind, batches
+        if kind == "packets":
+            self.type, self.topic = SensorPacket, SENSOR_PACKETS["nuskin"]
+            self.packer = PacketPacker(*packet_encoding(DriverConfig(baud=BAUD)))
+            self.reads = [batch_reads(b) for b in batches]
+        else:
+            self.type, self.topic = TaxelEventBatch, TOPIC_EVENTS
+
+    def messages(self, i: int, stamp_ns: int) -> list[tuple[Any, int]]:
+        """Batch ``i`` (starting at wall ``stamp_ns``): ``(message, stream time it completes)``."""
+        from ext_sense_drivers.nodes.link_node import packet_message
+        from ext_sense_drivers.transports.base import Chunk
+        from ext_sense_runtime.stamps import fill_stamp
+
+        if self.kind == "packets":
+            chunks = [(1, Chunk(data, stamp_ns + t)) for t, data in self.reads[i]]
+            return [
+                (packet_message(p, "nuskin"), p.end_ns) for p in self.packer.pack(chunks, False)
+            ]
+        msg = self.type()
+        fill_stamp(msg.header.stamp, stamp_ns)
+        ev = self.batches[i].events
+        msg.taxel, msg.polarity, msg.value, msg.offset_ns = ev.taxel, ev.polarity, ev.value, ev.t_ns
+        end = stamp_ns + (int(ev.t_ns.max()) if ev.size else 0)
+        return [(msg, end)]
+
+
+class NodeWork(NamedTuple):
+    """Per final window, ms, measured in this process on the same stream."""
+
+    cut: list[float]
+    """The window node's core on the input that closed the window (decode + cut)."""
+    compute: list[float]
+    """The model: features + ONNX Runtime on the window."""
+
+
+def node_work(model_dir: Path, inputs: list[Any], feed: str) -> NodeWork:
+    """The nodes' own work per final window, replayed here on the run's inputs.
+
+    The windows are cut by the window node's core
+    (:class:`~ext_sense_perception.online.stage.WindowStage`, the model card's profile) from
+    ``inputs``: ``SensorPacket`` messages (``feed`` ``"packets"``, ``on_packet``: decode and
+    cut) or :class:`Batch` es (``"decoded"``, ``on_block``); three warm-up predictions are not
+    counted.
     """
     from ext_sense_perception.online.model_card import read_card
     from ext_sense_perception.online.predictor import load_model
@@ -30,20 +184,27 @@ def model_compute(model_dir: Path, batches: list[Any]) -> list[float]:
 
     card = read_card(model_dir)
     stage = WindowStage(WindowConfig.for_profile(card.profile, Sensor.NUSKIN))
-    windows = []
-    for b in batches:
-        ev = b.events
-        windows += stage.on_block(ev._replace(t_ns=ev.t_ns + b.stamp_ns), b.stamp_ns)
-    finals = [w for w in windows if not w.provisional]
+    finals, cut = [], []
+    for item in inputs:
+        t0 = time.perf_counter_ns()
+        if feed == "packets":
+            windows = stage.on_packet(item)
+        else:
+            ev = item.events
+            windows = stage.on_block(ev._replace(t_ns=ev.t_ns + item.stamp_ns), item.stamp_ns)
+        spent = (time.perf_counter_ns() - t0) / MS
+        done = [w for w in windows if not w.provisional]
+        finals += done
+        cut += [spent] * len(done)
     model = load_model(model_dir, "onnx", card.task, "nuskin")
     for w in finals[:3]:
         model.predict(w)
-    out = []
+    compute = []
     for w in finals:
         t0 = time.perf_counter_ns()
         model.predict(w)
-        out.append((time.perf_counter_ns() - t0) / MS)
-    return out
+        compute.append((time.perf_counter_ns() - t0) / MS)
+    return NodeWork(cut, compute)
 
 
 def pct(values: list[float]) -> tuple[float, float]:
@@ -54,13 +215,65 @@ def pct(values: list[float]) -> tuple[float, float]:
     return float(np.percentile(a, 50)), float(np.percentile(a, 99))
 
 
+class Final(NamedTuple):
+    """One final estimate as the bench saw it, wall ns (the driver's clock)."""
+
+    end_ns: int
+    """Window end: onset + post-onset time."""
+    window_received_ns: int
+    """The window reached the bench's subscriber (beside ``contact_inference``'s)."""
+    ready_ns: int
+    """The estimate was ready: ``end_ns`` + its ``compute_latency``."""
+    received_ns: int
+    """The estimate reached the bench."""
+
+
+def hops(finals: list[Final], published: list[tuple[int, int]]) -> dict[str, object]:
+    """Split window end -> estimate received into its hops (p50, p99 ms each).
+
+    Args:
+        finals: The final estimates matched with their windows.
+        published: ``(publish wall ns, stream time the input completes ns)`` of every input
+            message, in publish order.
+
+    Returns:
+        ``wait``: window end -> the first input past it published (windows closed on data);
+        ``window_node``: that input published -> window received (its hop, decode, cut,
+        publish, the window's hop); ``window``: window end -> window received (every window,
+        also those the deadline timer closed); ``inference``: window received -> estimate ready
+        (the window's hop to ``contact_inference``, features + ONNX); ``estimate``: ready ->
+        received; and the share of windows the deadline timer closed.
+    """
+    pub = np.asarray([p for p, _ in published], np.int64)
+    done = np.maximum.accumulate(np.asarray([c for _, c in published], np.int64))
+    parts: dict[str, list[float]] = {
+        k: [] for k in ("wait", "window_node", "window", "inference", "estimate")
+    }
+    by_deadline = 0
+    for f in finals:
+        i = int(np.searchsorted(done, f.end_ns, side="left"))
+        closer = int(pub[i]) if i < pub.size else None
+        if closer is None or closer > f.window_received_ns:
+            by_deadline += 1
+        else:
+            parts["wait"].append((closer - f.end_ns) / MS)
+            parts["window_node"].append((f.window_received_ns - closer) / MS)
+        parts["window"].append((f.window_received_ns - f.end_ns) / MS)
+        parts["inference"].append((f.ready_ns - f.window_received_ns) / MS)
+        parts["estimate"].append((f.received_ns - f.ready_ns) / MS)
+    out: dict[str, object] = {k: pct(v) for k, v in parts.items()}
+    out["closed_by_deadline"] = f"{by_deadline} of {len(finals)}"
+    return out
+
+
 def print_latency(r: dict, taps: int) -> None:
-    """The latency lines, the issue's one (``window end -> estimate received``) included."""
-    tag = f"[latency {r['tree']}, hot_path:={r['hot_path']}]"
+    """The latency lines of one run, the issue's one (``window end -> estimate received``)."""
+    tag = f"[latency {r['tree']}, {r['input']}, {r['load']}, hot_path:={r['hot_path']}]"
     print(
         f"{tag} model: {r['model']}: {r['model_id']} ({r['model_kind']}); "
         f"{r['final_estimates']} final + {r['provisional_estimates']} provisional "
-        f"estimates for {taps} taps; load average {r['load_average_1min']:.2f}"
+        f"estimates for {taps} taps; load average {r['load_average_1min']:.2f} "
+        f"(before the run {r['load_average_before']:.2f})"
     )
     print(
         f"{tag} window end -> estimate received: p50 "
@@ -72,4 +285,34 @@ def print_latency(r: dict, taps: int) -> None:
         f"compute_latency p50 {r['compute_latency_field_p50_ms']:.2f} ms, p99 "
         f"{r['compute_latency_field_p99_ms']:.2f} ms"
     )
-    print(f"{tag} slowest compute_latency (ms, tap): {r['slowest_taps_ms']}", flush=True)
+    print(
+        f"{tag} window node's core on the input that closed a window (this tree's code, "
+        f"replayed here): p50 "
+        f"{r['cut_p50_ms']:.2f} ms, p99 {r['cut_p99_ms']:.2f} ms; slowest compute_latency "
+        f"(ms, tap): {r['slowest_taps_ms']}",
+        flush=True,
+    )
+    if "hops" in r:
+        h = r["hops"]
+        spans = ", ".join(
+            f"{k} {h[k][0]:.2f} / {h[k][1]:.2f}"
+            for k in ("wait", "window_node", "window", "inference", "estimate")
+        )
+        print(
+            f"{tag} hops p50 / p99 ms: {spans}; closed by the deadline timer: "
+            f"{h['closed_by_deadline']}",
+            flush=True,
+        )
+
+
+def print_table(results: list[dict]) -> None:
+    """Every latency run side by side: one row each."""
+    print("[latency] side by side: tree | input | load | hot_path | p50 | p99 | compute p50 | load")
+    for r in results:
+        print(
+            f"[latency] {r['tree']} | {r['input']} | {r['load']} | {r['hot_path']} | "
+            f"{r['window_end_to_estimate_received_p50_ms']:.2f} ms | "
+            f"{r['window_end_to_estimate_received_p99_ms']:.2f} ms | "
+            f"{r['model_compute_p50_ms']:.2f} ms | {r['load_average_before']:.2f}",
+            flush=True,
+        )

@@ -83,7 +83,7 @@ build_interfaces() {  # name source-dir python-import-check
 }
 [ -f "$VENV/.stamp-msgs" ] || rm -f "$VENV"/.stamp-msgs-*  # the wheels changed: rebuild all
 build_interfaces ext_sense_msgs "$ROOT/src/ext_sense_msgs" \
-  "from ext_sense_msgs.msg import BioTacFrame, TaxelEventBatch, ContactWindow, ContactEstimate, ContactGroundTruth"
+  "from ext_sense_msgs.msg import BioTacFrame, TaxelEventBatch, ContactWindow, ContactEstimate, ContactGroundTruth, SensorPacket"
 build_interfaces control_msgs "$ROOT/interfaces/control_msgs" \
   "from control_msgs.action import FollowJointTrajectory, GripperCommand, ParallelGripperCommand"
 build_interfaces franka_msgs "$ROOT/interfaces/franka_msgs" \

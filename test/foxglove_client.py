@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import base64
 import json
+import socket
 import struct
 import threading
 import time
@@ -18,6 +19,13 @@ from typing import Any, NamedTuple
 
 SUBPROTOCOL = "foxglove.sdk.v1"
 _DATA = struct.Struct("<BIQ")
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 free right now, for a view server under test."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
 
 
 class Received(NamedTuple):

@@ -16,6 +16,8 @@ import threading
 import time
 from pathlib import Path
 
+from ext_sense.cli import NOT_STARTED
+
 EXE = [sys.executable, "-m", "ext_sense.cli"]
 """The ``ext-sense`` command of this interpreter, for the graphs the system tests start."""
 
@@ -69,7 +71,7 @@ def stop_problems(proc: subprocess.Popen, stdout: str, stderr: str) -> list[str]
     if proc.returncode != 0:
         problems.append(f"runner exited with {proc.returncode}")
     codes = child_exit_codes(stderr)
-    if not codes:
+    if not codes and NOT_STARTED not in stderr:
         problems.append("the runner reported no exit codes of its nodes")
     problems += [f"{name} exited with {code}" for name, code in codes.items() if code != 0]
     problems += [
@@ -138,12 +140,12 @@ launch's grace period (SIGTERM after 5 s, SIGKILL 5 s later) once the runner's o
 fallback is counted (it must never be needed: a killed node reports -9)."""
 
 
-class Graph:
-    """``ext-sense run GRAPH`` in its own process group, its output read as it comes."""
+class Command:
+    """``ext-sense ARGS`` in its own process group, its output read as it comes."""
 
-    def __init__(self, *args: str, graph: str = "tap_localization") -> None:
+    def __init__(self, *args: str) -> None:
         self.proc = subprocess.Popen(
-            [*EXE, "run", graph, *args],
+            [*EXE, *args],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -162,6 +164,35 @@ class Graph:
     def _read(stream, lines: list[str]) -> None:
         for line in stream:
             lines.append(line)
+
+    def printed(self, text: str) -> bool:
+        """Whether a line of its standard output holds ``text``."""
+        return any(text in line for line in self.out)
+
+    def output(self) -> str:
+        """Everything it printed so far, standard output then standard error."""
+        return "".join(self.out) + "".join(self.err)
+
+    def interrupt(self, timeout: float = 20.0) -> int:
+        """SIGINT to the process group (as Ctrl-C in a terminal), SIGKILL after ``timeout`` s;
+        its exit code."""
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGINT)
+        try:
+            self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait()
+        for r in self.readers:
+            r.join(timeout=5)
+        return self.proc.returncode
+
+
+class Graph(Command):
+    """``ext-sense run GRAPH`` in its own process group, its output read as it comes."""
+
+    def __init__(self, *args: str, graph: str = "tap_localization") -> None:
+        super().__init__("run", graph, *args)
 
     def wait_for_tap(self, timeout: float) -> bool:
         """Whether the monitor printed an estimate (every node up and working) in time."""

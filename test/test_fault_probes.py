@@ -119,14 +119,16 @@ def test_sigstop_of_the_window_node_degrades_the_windows_it_gets_late(tap_model,
     # what it missed is said: its windows flagged, or the input lost (and the taps in it)
     assert degraded or lost
     assert all(
-        "late packet(s) on /extsense/nuskin/events" in x
-        or "words the driver decoded never reached this node" in x
-        or "stall: no input on /extsense/nuskin/events" in x
+        "late packet(s) on /extsense/nuskin/packets" in x
+        or "packet(s) missing on /extsense/nuskin/packets (seq gap)" in x
+        or "stall: no input on /extsense/nuskin/packets" in x
         for x in degraded
     )
-    if lost:
+    if lost:  # the raw packets it never got, by their seq, and the taps in them
         assert re.search(
-            r"contact_window\]: lost input: \d+ words .* [1-9]\d* contact\(s\) lost", lost[0]
+            r"contact_window\]: lost input: \d+ packet\(s\) missing .* [1-9]\d* contact\(s\) "
+            "lost",
+            lost[0],
         )
     scored = [float(m.group(1)) for x in after if (m := LATENCY.search(x.strip()))]
     assert scored

@@ -79,7 +79,9 @@ def test_garbage_and_port_reopen_keep_nodes_alive_and_recording_complete(tmp_pat
                 parameter_overrides=_params(transport="serial", port=str(link)),
                 cli_args=remap,
             ),
-            lambda context: ContactWindowNode(context=context, cli_args=remap),
+            lambda context: ContactWindowNode(
+                context=context, parameter_overrides=_params(input="decoded"), cli_args=remap
+            ),
             lambda context: RecorderNode(
                 context=context, parameter_overrides=_params(bag=str(bag), topics=[EVENTS])
             ),

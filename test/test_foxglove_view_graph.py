@@ -1,19 +1,24 @@
 """The tap graph with ``view:=true``: a Foxglove protocol client sees and decodes every channel,
-and the display rate stays bounded while all 80 taxels fire at 4 kHz (issue 19's Show).
+and the display rate stays bounded while all 80 taxels fire at 4 kHz (issue 19's Show); the
+handover graph on the BioTac: its electrode grid and PAC panels on a running graph.
+
+Both graphs are the defaults: the drivers publish raw packets only (no ``decoded:=true``), so
+the view draws the sensor from the packets it decodes itself.
 """
 
 from __future__ import annotations
 
-import socket
+import signal
 import threading
 import time
+from collections import Counter
 
 import numpy as np
 import pytest
-from foxglove_client import FoxgloveClient
+from foxglove_client import FoxgloveClient, free_port
 from rosutil import spinning, wait_for
 from sim_models import Graph, stop_problems, train_sim_model
-from synthetic import event_batch_msg, tap_stream
+from synthetic import tap_stream
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -29,15 +34,19 @@ def tap_model(tmp_path_factory):
     return model
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+FLOOD_CONNECTION = 1000
+"""The flood's link connection: not the driver's (1, 2, ...), so the view decodes the two
+packet streams on the topic apart (ext_sense.view.feed) and neither breaks the other's."""
 
 
 def _flood(stop: threading.Event, sent: list[int]) -> None:
-    """Every taxel at 4 kHz on /extsense/nuskin/events, 1 ms batches paced by the wall clock."""
-    from ext_sense_msgs.msg import TaxelEventBatch
+    """Every taxel at 4 kHz as raw packets on /extsense/nuskin/packets, where the driver's
+    packets go and the view reads: 1 ms packets of receiver words, paced by the wall clock."""
+    from ext_sense_drivers.nodes.link_node import packet_message
+    from ext_sense_drivers.nuskin.wire import encode_words
+    from ext_sense_drivers.packets import NUSKIN_WORDS_V1, PacketPacker
+    from ext_sense_drivers.transports.base import Chunk
+    from ext_sense_msgs.msg import SensorPacket
     from ext_sense_runtime.qos import SENSOR_STREAM_QOS
 
     def source(**kw):
@@ -46,16 +55,20 @@ def _flood(stop: threading.Event, sent: list[int]) -> None:
         return Node("view_flood", **kw)
 
     batches = tap_stream([0.0], 100, taxels=80, burst_ms=100, noise_per_s=0)  # 100 x 320 events
+    words = [(encode_words(b.taxel, b.value), b.taxel.size) for b in batches]
+    packer = PacketPacker(NUSKIN_WORDS_V1, "baud=4000000;flag_polarity=ignore")
     with spinning(source) as (node,):
-        pub = node.create_publisher(TaxelEventBatch, "/extsense/nuskin/events", SENSOR_STREAM_QOS)
+        pub = node.create_publisher(SensorPacket, "/extsense/nuskin/packets", SENSOR_STREAM_QOS)
         start = time.monotonic()
         k = 0
         while not stop.is_set():
             due = int((time.monotonic() - start) * 1000)
             while k < due:
-                batch = batches[k % len(batches)]
-                pub.publish(event_batch_msg(batch, stamp_ns=time.time_ns()))
-                sent[0] += batch.taxel.size
+                data, n = words[k % len(words)]
+                chunk = Chunk(data, time.time_ns())
+                [packet] = packer.pack([(FLOOD_CONNECTION, chunk)], link_down=False)
+                pub.publish(packet_message(packet, "nuskin"))
+                sent[0] += n
                 k += 1
             time.sleep(0.0005)
 
@@ -64,7 +77,7 @@ def _flood(stop: threading.Event, sent: list[int]) -> None:
 def test_view_serves_every_channel_and_holds_its_rate_under_a_full_flood(tap_model, tmp_path):
     from ext_sense.view import channels as ch
 
-    port = _free_port()
+    port = free_port()
     graph = Graph(
         "trials:=0",
         f"model:={tap_model}",
@@ -84,11 +97,11 @@ def test_view_serves_every_channel_and_holds_its_rate_under_a_full_flood(tap_mod
 
         ok = wait_for(lambda: not missing(), timeout=90, step=0.2)
         if not ok:
-            print(__import__("collections").Counter(m.topic for m in client.messages()))
+            print(Counter(m.topic for m in client.messages()))
             print(client.topics())
         assert ok, (
             f"no message on {sorted(missing())}",
-            __import__("collections").Counter(m.topic for m in client.messages()),
+            Counter(m.topic for m in client.messages()),
             client.statuses,
             "".join(graph.out)[-1500:],
             "".join(graph.err)[-3000:],
@@ -116,7 +129,7 @@ def test_view_serves_every_channel_and_holds_its_rate_under_a_full_flood(tap_mod
     finally:
         if client is not None:
             client.close()
-        graph.stop([(0.0, __import__("signal").SIGINT)])
+        graph.stop([(0.0, signal.SIGINT)])
     span = t1 - t0 - 1.0
     fps = len(frames) / span
     peak = max(r["total_events_per_s"] for r in rates)
@@ -130,5 +143,117 @@ def test_view_serves_every_channel_and_holds_its_rate_under_a_full_flood(tap_mod
     grid = client.decode(frames[-1])
     img = np.frombuffer(grid.data, np.uint8).reshape(grid.height, grid.width, 3)
     assert (img == 255).all(axis=2).sum() > 40 * 24  # saturated taxels framed white
+    problems = stop_problems(graph.proc, "".join(graph.out), "".join(graph.err))
+    assert not [p for p in problems if "foxglove_view" in p], problems
+
+
+@pytest.fixture(scope="module")
+def handover_biotac_model(tmp_path_factory):
+    """A handover model for the BioTac plate scene, trained as the demo trains (no NUSkin
+    delivery step: BioTac frames carry no polarity)."""
+    from ext_sense_perception.data.sources import from_sim_dataset
+    from ext_sense_perception.training.recipe import train_bundle
+    from ext_sense_sim.run import run_scene
+    from ext_sense_sim.scene import load_scene
+
+    root = tmp_path_factory.mktemp("view_biotac_model")
+    run_scene(load_scene("handover_plate_biotac"), root / "data", 16, 11, formats=("npz",))
+    train_bundle(from_sim_dataset(root / "data" / "dataset.npz"), root / "model")
+    return root / "model"
+
+
+@pytest.mark.timeout(300)
+def test_view_draws_the_biotac_panels_on_the_handover_graph(handover_biotac_model, tmp_path):
+    """The BioTac panels on a running graph: the electrode grid (both sensors, 19 electrodes
+    each, coloured by their departure from rest) and the PAC plot (the last second of each
+    sensor), with the window raster, the estimate panels (stability), the truth and the
+    diagnostics beside them."""
+    from ext_sense.topics import TOPIC_ESTIMATE, TOPIC_GROUND_TRUTH, TOPIC_WINDOW
+    from ext_sense.view import channels as ch
+
+    port = free_port()
+    graph = Graph(
+        "sensor:=biotac",
+        "trials:=0",
+        f"model:={handover_biotac_model}",
+        f"port:={tmp_path / 'biotac.pty'}",
+        "view:=true",
+        f"view_port:={port}",
+        f"view_rate:={RATE_HZ:g}",
+        graph="handover",
+    )
+    client = None
+    try:
+        client = FoxgloveClient(f"ws://127.0.0.1:{port}", connect_timeout_s=60)
+        wanted = set(ch.view_channels("biotac"))
+        assert wait_for(lambda: wanted <= set(client.topics()), timeout=30), client.topics()
+        assert ch.PAC in wanted
+        assert ch.RATES not in client.topics()
+
+        def heard() -> set[str]:
+            return {m.topic for m in client.messages()}
+
+        def pac_moving() -> bool:  # a trial's vibration in the last second of PAC
+            for m in client.messages(ch.PAC)[-5:]:
+                pac = client.decode(m)
+                if all(np.ptp(pac.get(f"pac_{s}", [0])) > 0 for s in (0, 1)):
+                    return True
+            return False
+
+        ok = wait_for(lambda: wanted <= heard() and pac_moving(), timeout=120, step=0.5)
+        assert ok, (
+            f"no message on {sorted(wanted - heard())}",
+            Counter(m.topic for m in client.messages()),
+            client.statuses,
+            "".join(graph.err)[-3000:],
+        )
+        grids = [client.decode(m) for m in client.messages(ch.TAXELS)]
+        pacs = [client.decode(m) for m in client.messages(ch.PAC)]
+        window = client.decode(client.messages(TOPIC_WINDOW)[-1])
+        raster = client.decode(client.messages(ch.WINDOW)[-1])
+        truth = client.decode(client.messages(TOPIC_GROUND_TRUTH)[-1])
+        diagnostics = client.decode(client.messages(ch.DIAGNOSTICS)[-1])
+        estimate = client.decode(client.messages(TOPIC_ESTIMATE)[-1])
+        info = client.decode(client.messages(ch.ESTIMATE_INFO)[-1])
+        panel = client.decode(client.messages(ch.ESTIMATE)[-1])
+    finally:
+        if client is not None:
+            client.close()
+        graph.stop([(0.0, signal.SIGINT)])
+
+    # the electrode grid: two sensors side by side, 4 x 5 cells of 24 px with an 8 px margin
+    grid = grids[-1]
+    assert grid.encoding == "rgb8"
+    assert (grid.width, grid.height) == (2 * 5 * 24 + 24 + 2 * 8, 4 * 24 + 2 * 8)
+    img = np.frombuffer(grid.data, np.uint8).reshape(grid.height, grid.width, 3)
+    background = img[0, 0]
+    centres = [
+        (8 + r * 24 + 12, 8 + s * (5 * 24 + 24) + c * 24 + 12)
+        for s in (0, 1)
+        for r in range(4)
+        for c in range(5)
+        if r * 5 + c < 19
+    ]
+    assert all((img[y, x] != background).any() for y, x in centres)  # every electrode drawn
+    assert len({bytes(g.data) for g in grids}) > 1  # the colours follow the electrodes
+    # the PAC plot: up to the last second of each sensor (every 2nd sample of 2200 Hz)
+    pac = pacs[-1]
+    assert pac["sensor_ids"] == [0, 1]
+    assert 0 < len(pac["pac_0"]) <= 1100
+    assert 0 < len(pac["pac_1"]) <= 1100
+    # the window raster and the passed-through topics
+    assert raster.encoding == "rgb8"
+    assert raster.width > 0
+    assert raster.height > 0
+    assert len(window.shape) == 2
+    assert truth.task == "handover_stability"
+    assert "worst_level" in diagnostics
+    # the estimates of both fingers' windows (the emulated bridge streams between trials, so
+    # the window node closes each window on the frames that follow it)
+    assert (estimate.task, estimate.sensor) == ("handover_stability", "biotac")
+    assert 0.0 <= estimate.stability_probability <= 1.0
+    assert info["task"] == "handover_stability"
+    assert 0.0 <= info["stability_probability"] <= 1.0  # shown to 4 decimals
+    assert panel.encoding == "rgb8"
     problems = stop_problems(graph.proc, "".join(graph.out), "".join(graph.err))
     assert not [p for p in problems if "foxglove_view" in p], problems

@@ -51,6 +51,63 @@ def _tap_bag(path: Path) -> Path:
     return path
 
 
+def _tap_packet_bag(path: Path) -> tuple[Path, int]:
+    """The same taps as the driver records them by default: receiver words in raw packets,
+    one per 1 ms batch, and no decoded arrays. Returns the bag and its events."""
+    from ext_sense_bags.messages import header, make_message
+    from ext_sense_bags.writer import BagWriter
+
+    from ext_sense_drivers.nuskin.wire import encode_words
+    from ext_sense_drivers.packets import NUSKIN_WORDS_V1, PacketPacker
+    from ext_sense_drivers.transports.base import Chunk
+
+    packer = PacketPacker(NUSKIN_WORDS_V1)
+    events = 0
+    with BagWriter(path) as bag:
+        for b in tap_stream(ONSETS_MS, 2000, taxels=20, burst_ms=30):
+            chunk = Chunk(encode_words(b.taxel, b.value), b.stamp_ns + MS)
+            for p in packer.pack([(1, chunk)], link_down=False):
+                msg = make_message(
+                    "ext_sense_msgs/msg/SensorPacket",
+                    header=header(p.stamp_ns, "nuskin"),
+                    seq=p.seq,
+                    encoding=p.encoding,
+                    encoding_options=p.options,
+                    time_base=p.time_base,
+                    connection=p.connection,
+                    end_of_stream=p.end_of_stream,
+                    read_end=p.read_end,
+                    read_offset_ns=p.read_offset_ns,
+                    data=np.frombuffer(p.data, np.uint8),
+                )
+                bag.write("/extsense/nuskin/packets", p.stamp_ns, msg)
+            events += len(b.taxel)
+        for k, onset in enumerate(ONSETS_MS):
+            stamp = T0 + int(onset * MS)
+            bag.write("/extsense/ground_truth", stamp, _truth(stamp, k))
+    return path, events
+
+
+def _truth(stamp: int, k: int):
+    from ext_sense_bags.messages import ground_truth
+
+    return ground_truth(stamp, "tap_localization", k, tap_position_m=TRUE_M[k], rod_length_m=0.3)
+
+
+def test_plot_a_packet_bag_decodes_the_drivers_bytes(tmp_path: Path) -> None:
+    """A bag recorded by default holds raw packets only: plotted from them, every event kept."""
+    from ext_sense.view.sessions import load_session
+
+    bag, events = _tap_packet_bag(tmp_path / "packets")
+    session = load_session(bag)
+    assert session.sensor == "nuskin"
+    assert len(session.events.t_ns) == events
+    assert [c.truth.trial for c in session.contacts] == [0, 1, 2]
+    out = cli("plot", str(bag), "--out", str(tmp_path / "png"), timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "3 contacts" in out.stdout
+
+
 def _png_size(path: Path) -> tuple[int, int]:
     head = path.read_bytes()[:24]
     assert head[:8] == b"\x89PNG\r\n\x1a\n", path

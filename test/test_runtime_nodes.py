@@ -98,7 +98,9 @@ def test_window_and_inference_nodes_give_provisional_then_final(monkeypatch, tmp
     monkeypatch.setattr(contact_inference, "load_model", lambda p, b, *_: CountingModel())
     probes = []
     with spinning(
-        lambda context: ContactWindowNode(context=context),
+        lambda context: ContactWindowNode(
+            context=context, parameter_overrides=_params(input="decoded")
+        ),
         lambda context: ContactInferenceNode(
             context=context, parameter_overrides=_params(model_path=str(tmp_path))
         ),
@@ -266,7 +268,9 @@ def test_a_stall_mid_contact_is_diagnosed_within_a_second_and_degrades_the_windo
     probes = []
     windows: list = []
     with spinning(
-        lambda context: ContactWindowNode(context=context),
+        lambda context: ContactWindowNode(
+            context=context, parameter_overrides=_params(input="decoded")
+        ),
         lambda context: ContactInferenceNode(
             context=context, parameter_overrides=_params(model_path=str(tmp_path))
         ),
@@ -374,7 +378,12 @@ def test_a_quiet_stream_closes_the_window_by_deadline_and_an_idle_node_stops_wak
 
     probes = []
     windows: list = []
-    with spinning(lambda context: ContactWindowNode(context=context), _probe_factory(probes)) as (
+    with spinning(
+        lambda context: ContactWindowNode(
+            context=context, parameter_overrides=_params(input="decoded")
+        ),
+        _probe_factory(probes),
+    ) as (
         window_node,
         _,
     ):

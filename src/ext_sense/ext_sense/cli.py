@@ -24,6 +24,9 @@ COMMAND_MODULES: tuple[str, ...] = (
     "ext_sense_perception.cli",  # features, train, evaluate, report
 )
 
+NOT_STARTED = "[run] stopped before any node started"
+"""What ``ext-sense run`` prints when Ctrl-C lands before it started a node."""
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser with every package's subcommands."""
@@ -46,9 +49,27 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``ext-sense``; returns the process exit code."""
-    parser = build_parser()
+    """Run ``ext-sense``; returns the process exit code.
+
+    Ctrl-C ends a command with 130, except ``run``: stopping a graph with Ctrl-C is its normal
+    end, also when it lands before any node started (while this process still imports), so it
+    ends with 0 and one line instead of a ``KeyboardInterrupt`` traceback.
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        return _dispatch(argv)
+    except KeyboardInterrupt:
+        if argv[:1] == ["run"]:
+            print(NOT_STARTED, file=sys.stderr)
+            return 0
+        print("ext-sense: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # e.g. piped into `head`
+        return 0
+
+
+def _dispatch(argv: list[str]) -> int:
+    parser = build_parser()
     # `name:=value` launch arguments may stand anywhere, as with `ros2 launch`, which argparse
     # cannot express next to options; they are taken out here and handed to the subcommands
     # that declare `accepts_assignments`.
@@ -57,12 +78,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if assignments and not getattr(args, "accepts_assignments", False):
         parser.error(f"unrecognized arguments: {' '.join(assignments)}")
     args.assignments = assignments
-    try:
-        return int(args.func(args) or 0)
-    except KeyboardInterrupt:
-        return 130
-    except BrokenPipeError:  # e.g. piped into `head`
-        return 0
+    return int(args.func(args) or 0)
 
 
 if __name__ == "__main__":

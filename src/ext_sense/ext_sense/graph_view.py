@@ -2,14 +2,22 @@
 
 Kept out of :mod:`ext_sense.graphs` (its build functions call :func:`view_nodes`), so both front
 ends (``ext-sense run`` and the launch files, which read the same description) take
-``view:=true`` with no change of their own.
+``view:=true`` with no change of their own. ``ext-sense replay BAG view:=true`` starts the same
+node from the same arguments through :func:`replay_view_graph`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ext_sense.graph import ArgumentSpec, NodeSpec, as_bool
+from ext_sense.graph import ArgumentSpec, GraphSpec, NodeSpec, as_bool
+from ext_sense.topics import (
+    SENSOR_PACKETS,
+    SENSOR_STREAMS,
+    TOPIC_ESTIMATE,
+    TOPIC_GROUND_TRUTH,
+    TOPIC_WINDOW,
+)
 
 VIEW_ARGUMENTS: tuple[ArgumentSpec, ...] = (
     ArgumentSpec(
@@ -42,9 +50,13 @@ VIEW_ARGUMENTS: tuple[ArgumentSpec, ...] = (
 def view_nodes(args: Mapping[str, str], stream: tuple[str, str]) -> tuple[NodeSpec, ...]:
     """The ``foxglove_view`` node when ``view:=true``, else nothing.
 
+    The view reads the driver's raw packets (always published) and decodes them itself, so it
+    asks nothing of the driver; it also reads the decoded ``stream`` for a bag recorded before
+    packets existed (the rule: :mod:`ext_sense.view.feed`).
+
     Args:
         args: The graph's resolved arguments.
-        stream: The driver's relative output topic and its absolute name.
+        stream: The driver's relative decoded topic and its absolute name.
     """
     if not as_bool(args.get("view", "false")):
         return ()
@@ -62,10 +74,26 @@ def view_nodes(args: Mapping[str, str], stream: tuple[str, str]) -> tuple[NodeSp
                 "display_rate_hz": float(args["view_rate"]),
             },
             remappings=(
+                ("packets", SENSOR_PACKETS[sensor]),
                 stream,
-                ("contact_estimate", "/extsense/contact_estimate"),
-                ("ground_truth", "/extsense/ground_truth"),
-                ("window", "/extsense/contact_window"),
+                ("contact_estimate", TOPIC_ESTIMATE),
+                ("ground_truth", TOPIC_GROUND_TRUTH),
+                ("window", TOPIC_WINDOW),
             ),
         ),
+    )
+
+
+def replay_view_graph(sensor: str) -> GraphSpec:
+    """The view alone as a graph, for ``ext-sense replay BAG view:=true``.
+
+    Its arguments are :data:`VIEW_ARGUMENTS`, checked as every graph checks its own, and its one
+    node is the one :func:`view_nodes` builds for a graph of ``sensor``: the replayed bag's
+    topics reach it under the names a live graph's do.
+    """
+    return GraphSpec(
+        name="replay",
+        description="The live Foxglove view of a replayed bag.",
+        arguments=VIEW_ARGUMENTS,
+        build=lambda values: view_nodes({**values, "sensor": sensor}, SENSOR_STREAMS[sensor]),
     )

@@ -14,46 +14,36 @@ The functions here only describe; :mod:`ext_sense.launch_support` turns a descri
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Mapping
 from dataclasses import replace
-from pathlib import Path
 
 from ext_sense.graph import (
     ArgumentSpec,
-    GraphError,
     GraphSpec,
     NodeSpec,
     ParameterValue,
     as_bool,
 )
 from ext_sense.graph_process import PROCESS_ARGUMENTS, place_hot_path
+from ext_sense.graph_sources import DEFAULT_SCENES as DEFAULT_SCENES
+from ext_sense.graph_sources import PACKET_ARGUMENTS, needed_files, source_nodes, window_input
+from ext_sense.graph_sources import SIM_TRIGGERS as SIM_TRIGGERS
 from ext_sense.graph_view import VIEW_ARGUMENTS, view_nodes
-
-NS = "/extsense"
-TOPIC_EVENTS = f"{NS}/nuskin/events"
-TOPIC_FRAMES = f"{NS}/biotac/frames"
-TOPIC_WINDOW = f"{NS}/contact_window"
-TOPIC_ESTIMATE = f"{NS}/contact_estimate"
-TOPIC_GROUND_TRUTH = f"{NS}/ground_truth"
-TOPIC_TAP_MARKER = f"{NS}/tap_marker"
-TOPIC_MOTION_START = f"{NS}/motion_start"
-TOPIC_HANDOVER_OFFER = f"{NS}/handover/offer"
+from ext_sense.topics import (
+    SENSOR_PACKETS,
+    TOPIC_ESTIMATE,
+    TOPIC_EVENTS,
+    TOPIC_FRAMES,
+    TOPIC_GROUND_TRUTH,
+    TOPIC_HANDOVER_OFFER,
+    TOPIC_MOTION_START,
+    TOPIC_TAP_MARKER,
+    TOPIC_WINDOW,
+)
 
 SENSORS = ("nuskin", "biotac")
-STARTUP_SPARE_TRIALS = 3
-"""Extra simulated trials: those streamed while the graph is still starting are lost."""
 SOURCES = ("sim", "serial", "can", "bag")
 BACKENDS = ("onnx", "sklearn")
-
-DEFAULT_SCENES = {
-    ("tap_localization", "nuskin"): "tap_rod30_nuskin",
-    ("tap_localization", "biotac"): "tap_rod30_biotac",
-    ("handover_stability", "nuskin"): "handover_rod_nuskin",
-    ("handover_stability", "biotac"): "handover_plate_biotac",
-    ("food_identification", "nuskin"): "food_fork_nuskin",
-    ("food_identification", "biotac"): "food_fork_biotac",
-}
 
 
 def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
@@ -127,6 +117,7 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
             "lifecycle manager (e.g. nav2_lifecycle_manager, `ros2 lifecycle set`).",
             ("true", "false"),
         ),
+        *PACKET_ARGUMENTS,
         *VIEW_ARGUMENTS,
         *PROCESS_ARGUMENTS,
     )
@@ -137,133 +128,10 @@ def _sensor_topic(sensor: str) -> tuple[str, str]:
     return ("events", TOPIC_EVENTS) if sensor == "nuskin" else ("frames", TOPIC_FRAMES)
 
 
-def _port(task: str, args: Mapping[str, str]) -> str:
-    return args["port"] or f"/tmp/ext_sense_{task}_{args['sensor']}.pty"
-
-
-def _needed_files(task: str) -> Callable[[Mapping[str, str]], None]:
-    """The graph's check of the files its source needs (:meth:`GraphSpec.check_files`).
-
-    A serial device is not checked: one plugged in after the start must work (the driver
-    retries); the model is checked by :mod:`ext_sense.graph_model`.
-    """
-
-    def check(args: Mapping[str, str]) -> None:
-        source, bag, scene = args["source"], args["bag"], args["scene"]
-        if source == "bag" and not (bag and Path(bag).exists()):
-            got = f"'{bag}': no such file or directory" if bag else "nothing"
-            raise GraphError(
-                f"The 'bag' argument must name an existing rosbag2 directory or .mcap/.db3 file "
-                f"with source:=bag. Got {got}."
-            )
-        if source != "sim":
-            return
-        if not args["can_channel"]:
-            port = Path(_port(task, args))
-            if not (port.parent.is_dir() and os.access(port.parent, os.W_OK | os.X_OK)):
-                raise GraphError(
-                    f"The 'port' argument must be a path in an existing, writable directory (the "
-                    f"simulated device links its pty there). Got '{port}': {port.parent} is not."
-                )
-        if scene.endswith((".yaml", ".yml")) and not Path(scene).is_file():
-            raise GraphError(
-                f"The 'scene' argument must be a scene name or an existing YAML "
-                f"file. Got '{scene}': no such file."
-            )
-
-    return check
-
-
-def _source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
-    """The device emulator or bag player, and the driver."""
-    sensor, source = args["sensor"], args["source"]
-    rel, topic = _sensor_topic(sensor)
-    nodes: list[NodeSpec] = []
-    if source == "bag":
-        return (
-            NodeSpec(
-                package="ext_sense",
-                executable="bag_player",
-                name="bag_player",
-                plugin="ext_sense.nodes.bag_player:BagPlayerNode",
-                # start_delay_s: after its own subscribers appear, let the nodes downstream
-                # (inference loading its model) come up before the first trial
-                parameters={"bag": args["bag"], "rate": 1.0, "start_delay_s": 4.0},
-                remappings=((rel, topic), ("ground_truth", TOPIC_GROUND_TRUTH)),
-            ),
-        )
-    over_can = source == "can" or (source == "sim" and bool(args["can_channel"]))
-    if source == "sim":
-        trials = int(args["trials"])
-        # the device streams from start-up, like a real one: trials sent before the driver has
-        # the port are lost, so spare ones keep N scored trials
-        stream: dict[str, ParameterValue] = {
-            "trials": trials + STARTUP_SPARE_TRIALS if trials > 0 else 0
-        }
-        remaps: tuple[tuple[str, str], ...] = (("ground_truth", TOPIC_GROUND_TRUTH),)
-        if as_bool(args["behaviours"]) and task in SIM_TRIGGERS:
-            # the behaviour drives the scene: nothing streams before it asks, nothing is lost
-            trigger_topic, align = SIM_TRIGGERS[task]
-            stream = {
-                "trials": trials,
-                "mode": "trigger",
-                "align": align,
-                "labels": args["sim_labels"],
-                "trials_per_trigger": int(args.get("grasp_trials", "1")),
-            }
-            remaps = (*remaps, ("trigger", trigger_topic))
-        nodes.append(
-            NodeSpec(
-                package="ext_sense_sim",
-                executable="sim_device",
-                name="sim_device",
-                plugin="ext_sense_sim.nodes.sim_device:SimDeviceNode",
-                parameters={
-                    "device": sensor,
-                    "scene": args["scene"] or DEFAULT_SCENES[(task, sensor)],
-                    "link": "can" if over_can else "pty",
-                    "port_link": _port(task, args),
-                    "can_channel": args["can_channel"],
-                    **stream,
-                    "seed": int(args["seed"]),
-                },
-                remappings=remaps,
-            )
-        )
-    driver = "nuskin_driver" if sensor == "nuskin" else "biotac_driver"
-    driver_class = "NuskinDriverNode" if sensor == "nuskin" else "BioTacDriverNode"
-    nodes.append(
-        NodeSpec(
-            package="ext_sense_drivers",
-            executable=driver,
-            name=driver,
-            plugin=f"ext_sense_drivers.nodes.{driver}:{driver_class}",
-            parameters={
-                "transport": "can" if over_can else "serial",
-                "port": _port(task, args),
-                "baud": int(args["baud"]),
-                "can_interface": "virtual" if source == "sim" else args["can_interface"],
-                "can_channel": args["can_channel"],
-                **(
-                    {"frame_id": "nuskin"} if sensor == "nuskin" else {"frame_id_prefix": "biotac_"}
-                ),
-                # a lifecycle node: the front end (or an external manager) drives it
-                "autostart": False,
-                # the emulated devices send nothing between trials (a real NUSkin receiver
-                # sends its idle stream, a BioTac bridge 100 frames/s): no stall check on them
-                **({"expected_rate_hz": 0.0} if source == "sim" else {}),
-            },
-            remappings=((rel, topic),),
-            lifecycle=True,
-            manage=as_bool(args["manage_drivers"]),
-        )
-    )
-    return tuple(nodes)
-
-
 def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     sensor = args["sensor"]
     rel, topic = _sensor_topic(sensor)
+    packets = ("packets", SENSOR_PACKETS[sensor])
     # Food windows start at the arm's motion start (contact_window's ``motion_start``): the
     # simulator and bags carry it as the ground truth's stamp; on the robot the food behaviour
     # publishes it on /extsense/motion_start.
@@ -280,8 +148,19 @@ def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...
             name="contact_window",
             plugin="ext_sense_perception.nodes.contact_window:ContactWindowNode",
             # the window node cuts the windows of the model card's task profile
-            parameters={"task": task, "sensor": sensor, "model_path": args["model"]},
-            remappings=((rel, topic), ("window", TOPIC_WINDOW), ("motion_start", motion)),
+            # and reads the driver's raw packets (live and offline decode the same bytes)
+            parameters={
+                "task": task,
+                "sensor": sensor,
+                "model_path": args["model"],
+                "input": window_input(args),
+            },
+            remappings=(
+                (rel, topic),
+                packets,
+                ("window", TOPIC_WINDOW),
+                ("motion_start", motion),
+            ),
         ),
         NodeSpec(
             package="ext_sense_perception",
@@ -361,14 +240,6 @@ def _tap_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     )
 
 
-SIM_TRIGGERS = {
-    "handover_stability": (TOPIC_HANDOVER_OFFER, "start"),
-    "food_identification": (TOPIC_MOTION_START, "onset"),
-}
-"""behaviours:=true with source sim: the topic on which each task's behaviour drives the
-simulated device, and how a trial is aligned to it (a grasp starts when the object is offered;
-a food trial's motion start is put at the probe's)."""
-
 SIM_FOOD_ARM = {"start_z_m": 0.16, "surface_z_m": 0.152}
 """The simulated arm (``sim_arm``, franka_ros2's interfaces) against the food scene
 (``food_fork_nuskin``): the tines touch the food 8 mm below the start (the scene draws 4..12 mm);
@@ -434,7 +305,7 @@ def _chain(
 
     def build(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
         return place_hot_path(
-            _source_nodes(task, args)
+            source_nodes(task, args)
             + _perception_nodes(task, args)
             + (behaviours(args) if as_bool(args["behaviours"]) else ())
             + _monitor_nodes(task, args)
@@ -451,7 +322,7 @@ GRAPHS: dict[str, GraphSpec] = {
         description="Where was the held rod tapped? Tap position on /extsense/contact_estimate.",
         arguments=_common_arguments("30"),
         build=_chain("tap_localization", _tap_behaviours),
-        files=_needed_files("tap_localization"),
+        files=needed_files("tap_localization"),
     ),
     "handover": GraphSpec(
         name="handover",
@@ -478,7 +349,7 @@ GRAPHS: dict[str, GraphSpec] = {
             ),
         ),
         build=_chain("handover_stability", _handover_behaviours),
-        files=_needed_files("handover_stability"),
+        files=needed_files("handover_stability"),
     ),
     "food_identification": GraphSpec(
         name="food_identification",
@@ -494,6 +365,6 @@ GRAPHS: dict[str, GraphSpec] = {
             ),
         ),
         build=_chain("food_identification", _food_behaviours),
-        files=_needed_files("food_identification"),
+        files=needed_files("food_identification"),
     ),
 }

@@ -84,7 +84,9 @@ def run_one(spec: NodeSpec, use_sim_time: bool) -> int:
     """Start one node in this process and spin it until shutdown (the child side)."""
     from ext_sense_runtime.node_main import install_stop_handlers, run_node
 
-    if install_stop_handlers().requested():  # a stop held while starting (see spawn_node)
+    stop = install_stop_handlers()
+    if stop.requested():  # a stop held while starting (see spawn_node)
+        stop.ignore_further()  # the runner's forwarded SIGINT may still come, during exit
         return 0
     node_class = spec.node_class()
     return run_node(lambda: _make_node(spec, node_class, use_sim_time), args=[])
@@ -105,7 +107,9 @@ def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence
     """
     from ext_sense_runtime.node_main import install_stop_handlers, run_nodes
 
-    if install_stop_handlers().requested():  # a stop held while starting (see spawn_node)
+    stop = install_stop_handlers()
+    if stop.requested():  # a stop held while starting (see spawn_node)
+        stop.ignore_further()  # the runner's forwarded SIGINT may still come, during exit
         return 0
     classes = [(spec, spec.node_class()) for spec in nodes]
     return run_nodes(

@@ -14,6 +14,8 @@ class TopicSpec(NamedTuple):
 
 
 STANDARD_TOPICS: dict[str, TopicSpec] = {
+    "/extsense/nuskin/packets": TopicSpec("ext_sense_msgs/msg/SensorPacket", False, 1000),
+    "/extsense/biotac/packets": TopicSpec("ext_sense_msgs/msg/SensorPacket", False, 1000),
     "/extsense/nuskin/events": TopicSpec("ext_sense_msgs/msg/TaxelEventBatch", False, 1000),
     "/extsense/biotac/frames": TopicSpec("ext_sense_msgs/msg/BioTacFrame", False, 1000),
     "/extsense/contact_window": TopicSpec("ext_sense_msgs/msg/ContactWindow", True, 20),
@@ -21,4 +23,7 @@ STANDARD_TOPICS: dict[str, TopicSpec] = {
     "/extsense/ground_truth": TopicSpec("ext_sense_msgs/msg/ContactGroundTruth", True, 1000),
     "/diagnostics": TopicSpec("diagnostic_msgs/msg/DiagnosticArray", True, 10),
 }
-"""Topic name -> spec, as in docs/conventions.md; sensor streams are best effort."""
+"""Topic name -> spec, as in docs/conventions.md; sensor streams are best effort. The drivers'
+raw packets come first: ``ext-sense record`` records every topic here by default, and the
+packets are what makes a bag lossless (a decoder fix re-decodes them); the decoded arrays are
+recorded when a driver publishes them (``decoded:=true``, bags from before packets)."""

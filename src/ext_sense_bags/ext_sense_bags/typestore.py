@@ -24,6 +24,7 @@ EXT_SENSE_TYPES: tuple[str, ...] = (
     "ext_sense_msgs/msg/ContactEstimate",
     "ext_sense_msgs/msg/ContactGroundTruth",
     "ext_sense_msgs/msg/ContactWindow",
+    "ext_sense_msgs/msg/SensorPacket",
     "ext_sense_msgs/msg/TaxelEventBatch",
 )
 """Every message type of ``ext_sense_msgs``."""

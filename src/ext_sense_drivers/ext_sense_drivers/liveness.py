@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from ext_sense_runtime.diagnostics import Clock, Level
+from ext_sense_runtime.stalls import StallCounts, StallTracker
 from ext_sense_runtime.stamps import MS, S
 
 NUSKIN_IDLE_WORDS_PER_S = 540.0
@@ -34,7 +35,7 @@ MIN_INTERVALS = 3
 
 
 @dataclass
-class StreamWatch:
+class StreamWatch(StallCounts):
     """The silence of one stream that must keep arriving while the link is up.
 
     Args:
@@ -52,13 +53,11 @@ class StreamWatch:
     error_ns: int
     clock: Clock = time.monotonic_ns
     items: int = 0
-    stalls: int = 0
-    longest_stall_ns: int = 0
     last_data_ns: int | None = None
     streaming_since_ns: int | None = None
     """When streaming last began (link up and node active), ``None`` while not streaming."""
-    stalled_since_ns: int | None = None
-    """Start of the silence of the stall in progress, ``None`` when not stalled."""
+    stall: StallTracker = field(init=False)
+    """The stall in progress (its silence's start) and the stalls so far."""
 
     def __post_init__(self) -> None:
         if not self.expected_rate_hz >= 0:  # also refuses NaN
@@ -75,6 +74,7 @@ class StreamWatch:
             floor = round(MIN_INTERVALS * S / self.expected_rate_hz)
             self.warn_ns = max(self.warn_ns, floor)
             self.error_ns = max(self.error_ns, self.warn_ns)
+        self.stall = StallTracker(self.warn_ns, self.error_ns)
 
     @property
     def checked(self) -> bool:
@@ -88,9 +88,7 @@ class StreamWatch:
         t = self.clock() if t_ns is None else int(t_ns)
         self.items += int(n)
         self.last_data_ns = t if self.last_data_ns is None else max(self.last_data_ns, t)
-        if self.stalled_since_ns is not None:
-            self.longest_stall_ns = max(self.longest_stall_ns, t - self.stalled_since_ns)
-            self.stalled_since_ns = None
+        self.stall.end(t)
 
     def set_streaming(self, streaming: bool) -> None:
         """Whether data must be arriving now (link connected, node active).
@@ -101,14 +99,13 @@ class StreamWatch:
         """
         if not streaming:
             self.streaming_since_ns = None
-            self.stalled_since_ns = None
+            self.stall.drop()
             return
         now = self.clock()
         if self.streaming_since_ns is None:
             self.streaming_since_ns = now
-        if self.checked and self.stalled_since_ns is None and self.silence_ns() > self.warn_ns:
-            self.stalls += 1
-            self.stalled_since_ns = now - self.silence_ns()
+        if self.checked and not self.stall.stalled and self.silence_ns() > self.warn_ns:
+            self.stall.begin(now - self.silence_ns())
 
     def silence_ns(self) -> int:
         """Time since the last data or the start of streaming (0 while not streaming)."""
@@ -121,9 +118,7 @@ class StreamWatch:
 
     def level(self) -> Level:
         """OK, WARN (silent past ``warn_ns``) or ERROR (past ``error_ns``) while streaming."""
-        if self.stalled_since_ns is None:
-            return Level.OK
-        return Level.ERROR if self.silence_ns() > self.error_ns else Level.WARN
+        return self.stall.level(self.clock())
 
 
 class DriverLiveness:

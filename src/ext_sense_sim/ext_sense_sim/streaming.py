@@ -24,7 +24,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ext_sense_runtime.enums import Sensor
 from ext_sense_runtime.records import GroundTruth
+from ext_sense_sim.bridge_line import BridgeLine
 from ext_sense_sim.errors import SceneError
 from ext_sense_sim.links import open_link
 from ext_sense_sim.scene import Scene
@@ -76,6 +78,9 @@ def stream(
     rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
     plans = plan_trials(scene, seed)
     upcoming: PlannedTrial | None = next(plans)
+    line, bridge = _device_line(scene, write, clock, stats)
+    if bridge is not None:
+        bridge.prime(b"".join(c[1] for c in upcoming.chunks[:4]))
     while upcoming is not None:
         plan = upcoming
         if stop.is_set() or (trials and plan.trial >= trials):
@@ -85,16 +90,50 @@ def stream(
         t0 = start + plan.trial * period_ns
         if clock() > t0:
             stats.late_trials += 1
-        _play(plan, t0, write, stats, scene, rod, on_onset, stop, clock, sleep)
+        _play(plan, t0, line.write, stats, scene, rod, on_onset, stop, clock, sleep)
         stats.trials += 1
         last = bool(trials) and plan.trial + 1 >= trials
         # Simulate the next trial now, in the idle time before it is due: simulating it at
         # its start made it ~0.1 s late, so its first ~0.1 s of bytes (the tap itself) went
         # out in one burst, squeezing the tap's events into a few ms on the driver's clock.
         upcoming = None if last or stop.is_set() else next(plans)
-        while not stop.is_set() and clock() < t0 + period_ns and not last:
-            sleep(min(0.01, max(0.0, (t0 + period_ns - clock()) / 1e9)))
+        # the bridge keeps sending through the last period too: the last window closes on data
+        while not stop.is_set() and clock() < t0 + period_ns and (not last or bridge is not None):
+            line.idle()
+            sleep(min(0.005, max(0.0, (t0 + period_ns - clock()) / 1e9)))
     return stats
+
+
+class _Line(NamedTuple):
+    """What the stream writes trials with, and what it calls while it waits between them."""
+
+    write: Callable[[bytes], object]
+    idle: Callable[[], object]
+
+
+def _device_line(
+    scene: Scene, write: Callable[[bytes], object], clock: Callable[[], int], stats: StreamStats
+) -> tuple[_Line, BridgeLine | None]:
+    """How a scene's trials reach the link.
+
+    A BioTac scene streams through a :class:`~ext_sense_sim.bridge_line.BridgeLine` (rest
+    frames between trials, as the bridge sends them); a NUSkin one writes its trials as they are
+    (the emulated receiver is silent when idle). A scene that corrupts its wire on purpose
+    (``wire_faults``) is written as it is: its frames are not decoded again.
+    """
+    faults = any(name == "wire_faults" for name, _ in scene.effects)
+    if scene.sensor is not Sensor.BIOTAC or faults:
+        return _Line(write, lambda: None), None
+    line = BridgeLine(write, clock)
+
+    def idle() -> None:
+        written = line.idle()
+        if written:
+            stats.bytes += written
+            stats.writes += 1
+            stats.extra["rest_frames"] = line.rest_frames
+
+    return _Line(line.write, idle), line
 
 
 LATE_WRITE_NS = 2_000_000
@@ -128,11 +167,14 @@ def _next_like(plans: Iterator[PlannedTrial], label: str, scene: Scene) -> Plann
     )
 
 
-def _wait_trigger(triggers: queue.Queue[Trigger], stop: threading.Event) -> Trigger | None:
-    """The next trigger, or ``None`` once ``stop`` is set."""
+def _wait_trigger(
+    triggers: queue.Queue[Trigger], stop: threading.Event, idle: Callable[[], object]
+) -> Trigger | None:
+    """The next trigger, or ``None`` once ``stop`` is set; ``idle`` runs every 5 ms meanwhile."""
     while not stop.is_set():
+        idle()
         try:
-            return triggers.get(timeout=0.05)
+            return triggers.get(timeout=0.005)
         except queue.Empty:
             continue
     return None
@@ -204,13 +246,18 @@ def stream_on_trigger(
     plans = plan_trials(scene, seed)
     labels = list(labels or [])
     played = 0
+    line, bridge = _device_line(scene, write, clock, stats)
+    primed = False
     while not stop.is_set() and not (trials and played >= trials):
         # simulated before the trigger comes, so it can start at once
         label = labels[stats.extra["triggers"] % len(labels)] if labels else ""
         plan = _next_like(plans, label, scene)
+        if bridge is not None and not primed:
+            bridge.prime(b"".join(c[1] for c in plan.chunks[:4]))
+            primed = True
         if on_ready is not None:
             on_ready()
-        trigger = _wait_trigger(triggers, stop)
+        trigger = _wait_trigger(triggers, stop, line.idle)
         if trigger is None:
             break
         stats.extra["triggers"] += 1
@@ -223,7 +270,7 @@ def stream_on_trigger(
             _play(
                 plan,
                 start,
-                write,
+                line.write,
                 stats,
                 scene,
                 rod,
@@ -244,7 +291,13 @@ def stream_on_trigger(
                 same = labels or trigger.label
                 plan = _next_like(plans, plan.class_label if same else "", scene)
                 while not stop.is_set() and clock() < start + period_ns:
-                    sleep(min(0.01, max(0.0, (start + period_ns - clock()) / 1e9)))
+                    line.idle()
+                    sleep(min(0.005, max(0.0, (start + period_ns - clock()) / 1e9)))
+    if bridge is not None and played:  # the last window closes on data (see stream)
+        end = clock() + period_ns
+        while not stop.is_set() and clock() < end:
+            line.idle()
+            sleep(0.005)
     return stats
 
 

@@ -9,6 +9,13 @@
   left (no footer, no ``metadata.yaml``) as a complete bag, and prints what it recovered.
 - ``replay BAG [--rate R | --flat-out]`` publishes the bag's graph inputs (sensor streams and
   ground truth) as recorded bytes, at recorded pace or flat out, and prints the throughput.
+  ``view:=true`` (with ``view_host``, ``view_port``, ``view_rate``: the arguments and the
+  ``foxglove_view`` node of every graph, :mod:`ext_sense.graph_view`) also starts the live view
+  in a process of its own, plays what the view reads (the sensor's raw packets, or its decoded
+  stream for a bag recorded before packets; ground truth, windows, estimates, ``/diagnostics``;
+  :func:`ext_sense.view.channels.view_inputs`) and keeps
+  the view up after the bag until Ctrl-C: the channels a live graph's view serves, with the
+  recorded session's data.
 - ``replay BAG --offline`` drives the graph's core directly, without ROS: the same
   :class:`~ext_sense_perception.online.stage.WindowStage` and model the nodes run, fed in
   log-time order, so two runs on one bag give identical estimates (``--json`` writes them).
@@ -20,17 +27,24 @@ import argparse
 import json
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ext_sense.offline_replay import bag_task_sensor as bag_task_sensor
+from ext_sense.offline_replay import offline_estimates as offline_estimates
+
 if TYPE_CHECKING:  # imported by the handlers: ``ext-sense --help`` stays fast
-    from ext_sense_perception.online.predictor import ModelBundle
-    from ext_sense_perception.online.window import WindowConfig
+    from ext_sense.graph import NodeSpec
     from ext_sense_runtime.node_main import StopRequest
     from ext_sense_runtime.records import Estimate
 
-DEFAULT_INPUTS = ("/extsense/nuskin/events", "/extsense/biotac/frames", "/extsense/ground_truth")
+DEFAULT_INPUTS = (
+    "/extsense/nuskin/packets",
+    "/extsense/biotac/packets",
+    "/extsense/nuskin/events",
+    "/extsense/biotac/frames",
+    "/extsense/ground_truth",
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -84,8 +98,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rep = subparsers.add_parser(
         "replay",
         help="play a bag into the graph, or run the graph's core on it offline",
+        usage="ext-sense replay [-h] [options] BAG [view:=true view_port:=N ...]",
         description="Publish a bag's sensor streams and ground truth (recorded pace or flat "
-        "out), or with --offline run windowing and the model on it deterministically.",
+        "out), or with --offline run windowing and the model on it deterministically. "
+        "view:=true (and view_host, view_port, view_rate, as for `ext-sense run`) starts the "
+        "live Foxglove view beside the player, plays what it reads (the sensor's raw packets, "
+        "or its decoded stream in a bag without packets; ground truth, windows, estimates, "
+        "/diagnostics; unless --topics says otherwise), and "
+        "keeps the view up after the bag until Ctrl-C (docs/view.md).",
     )
     rep.add_argument("bag", type=Path, help="bag directory or .mcap/.db3 file")
     pace = rep.add_mutually_exclusive_group()
@@ -103,7 +123,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="no ROS: run windowing and the model on the bag directly (deterministic)",
     )
     rep.add_argument("--task", default="", help="offline: task (default: from the bag)")
-    rep.add_argument("--sensor", default="", help="offline: sensor (default: from the bag)")
+    rep.add_argument(
+        "--sensor", default="", help="offline and view:=true: sensor (default: from the bag)"
+    )
     rep.add_argument(
         "--model",
         default="",
@@ -113,7 +135,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rep.add_argument("--backend", choices=("onnx", "sklearn"), default="onnx")
     rep.add_argument("--json", type=Path, help="offline: write every estimate to this file")
     rep.add_argument("--quiet", action="store_true", help="offline: only the summary")
-    rep.set_defaults(func=_replay)
+    rep.set_defaults(func=_replay, accepts_assignments=True)
 
 
 def _init_rclpy() -> StopRequest:
@@ -225,23 +247,75 @@ def _bag_recover(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
+    from ext_sense.graph import GraphError
     from ext_sense_bags import BagError
 
     try:
         if args.offline:
+            if args.assignments:
+                raise GraphError(
+                    f"--offline starts no node: {' '.join(args.assignments)} is for a live replay."
+                )
             return _replay_offline_cli(args)
-        return _replay_live(args)
-    except BagError as err:
+        return _replay_live(args, _replay_view(args))
+    except (BagError, GraphError) as err:
         print(f"ext-sense replay: {err}", file=sys.stderr)
         return 2
 
 
-def _replay_live(args: argparse.Namespace) -> int:
+def _replay_view(args: argparse.Namespace) -> NodeSpec | None:
+    """The ``foxglove_view`` node that ``view:=true`` asks for, else ``None``.
+
+    Raises:
+        GraphError: An argument that is not a view argument, or a value out of its range.
+        BagError: The bag does not tell its sensor and ``--sensor`` does not either.
+    """
+    from ext_sense.graph import GraphError, as_bool, parse_assignments
+    from ext_sense.graph_view import replay_view_graph
+    from ext_sense.topics import SENSOR_STREAMS
+
+    overrides = parse_assignments(args.assignments)
+    # the arguments are checked before the bag is read (the sensor does not change them)
+    if not as_bool(replay_view_graph("nuskin").resolve(overrides)["view"]):
+        return None
+    sensor = args.sensor or bag_task_sensor(args.bag)[1]
+    if sensor not in SENSOR_STREAMS:
+        raise GraphError(f"--sensor must be one of {', '.join(SENSOR_STREAMS)}. Got '{sensor}'.")
+    return replay_view_graph(sensor).nodes(overrides)[0]
+
+
+def _view_inputs(bag: Path, sensor: str) -> list[str]:
+    """What to play for the view: the bag's packets, else its decoded stream (an older bag).
+
+    Says so when the bag holds neither: the view's sensor panels then stay empty.
+    """
+    from ext_sense.topics import SENSOR_PACKETS, SENSOR_STREAMS
+    from ext_sense.view.channels import view_inputs
+    from ext_sense_bags import BagReader
+
+    with BagReader(bag) as reader:
+        spec = reader.topics.get(SENSOR_PACKETS[sensor])
+        packets = spec is not None and spec.count > 0
+        decoded = SENSOR_STREAMS[sensor][1]
+        if not packets and decoded not in reader.topics:
+            print(
+                f"note: {bag} holds neither {SENSOR_PACKETS[sensor]} nor {decoded}: the view's "
+                "sensor panels stay empty",
+                file=sys.stderr,
+            )
+    return list(view_inputs(sensor, packets=packets))
+
+
+def _replay_live(args: argparse.Namespace, view: NodeSpec | None = None) -> int:
+    """Play the bag; with ``view`` also run the view in its own process, up until Ctrl-C."""
+    import subprocess
+
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from rclpy.parameter import Parameter
 
     from ext_sense.nodes.bag_player import BagPlayerNode
+    from ext_sense.runner import exit_status, spawn_node, stop_nodes
     from ext_sense_runtime.executor import make_executor
 
     rate = 0.0 if args.flat_out else float(args.rate)
@@ -250,19 +324,36 @@ def _replay_live(args: argparse.Namespace) -> int:
         Parameter("rate", value=rate),
         Parameter("start_delay_s", value=float(args.start_delay)),
     ]
-    if args.topics:
-        overrides.append(Parameter("topics", value=list(args.topics)))
+    topics = list(args.topics or ())
+    if view is not None and not topics:  # what the view reads: the session as recorded
+        topics = _view_inputs(args.bag, str(view.parameters["sensor"]))
+    if topics:
+        overrides.append(Parameter("topics", value=topics))
     stop = _init_rclpy()
     node = executor = None
+    procs: dict[str, subprocess.Popen[bytes]] = {}
     rc = 0
+
+    def view_gone() -> bool:
+        return any(p.poll() is not None for p in procs.values())
+
     try:
+        if view is not None:
+            procs[view.name] = spawn_node(view, use_sim_time=False)
+            where = f"ws://{view.parameters['host']}:{view.parameters['port']}"
+            if view.parameters["port"] == 0:
+                where += " (any free port: the view's log names it)"
+            print(f"[replay] started {view.name}: the Foxglove view on {where}", flush=True)
         node = BagPlayerNode(parameter_overrides=overrides)
         executor = make_executor()
         executor.add_node(node)
-        while rclpy.ok() and not stop.requested() and not node.finished.is_set():
+        while (
+            rclpy.ok() and not stop.requested() and not node.finished.is_set() and not view_gone()
+        ):
             executor.spin_once(timeout_sec=0.05)
-        if stop.requested():
-            print(f"stopped after {node.published} messages", flush=True)
+        if stop.requested() or view_gone():
+            why = ": the view exited" if view_gone() and not stop.requested() else ""
+            print(f"stopped after {node.published} messages{why}", flush=True)
         elif node.error:
             print(f"ext-sense replay: {node.error}", file=sys.stderr)
             rc = 2
@@ -273,6 +364,10 @@ def _replay_live(args: argparse.Namespace) -> int:
                 f"({node.published / seconds:.0f} msg/s)",
                 flush=True,
             )
+            if procs:
+                print("[replay] the bag is played; the view stays up until Ctrl-C", flush=True)
+                while rclpy.ok() and not stop.requested() and not view_gone():
+                    executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
@@ -280,84 +375,14 @@ def _replay_live(args: argparse.Namespace) -> int:
             executor.shutdown()
         if node is not None:
             node.destroy_node()
+        codes = stop_nodes(procs, sys.stderr)
         rclpy.try_shutdown()
         stop.ignore_further()
+    for name, code in codes.items():
+        if code != 0:
+            print(f"ext-sense replay: {name} exited with {code}", file=sys.stderr)
+            rc = rc or exit_status(code)
     return rc
-
-
-def bag_task_sensor(path: Path) -> tuple[str, str]:
-    """Task and sensor of a bag: its ``custom_data`` (``task``, ``sensor``), else guessed.
-
-    The guess takes the sensor from the stream topic present and the task from the first
-    ground-truth message.
-
-    Raises:
-        BagError: Neither can be told.
-    """
-    from ext_sense_bags import BagError, BagReader
-
-    with BagReader(path) as bag:
-        custom = bag.custom_data
-        topics = bag.topics
-        task, sensor = custom.get("task", ""), custom.get("sensor", "")
-        if not sensor:
-            if "/extsense/nuskin/events" in topics:
-                sensor = "nuskin"
-            elif "/extsense/biotac/frames" in topics:
-                sensor = "biotac"
-        if not task and "/extsense/ground_truth" in topics:
-            for _, msg in bag.messages(["/extsense/ground_truth"]):
-                task = str(msg.task)
-                break
-    if not task or not sensor:
-        raise BagError(f"Cannot tell the task/sensor of {path}: give --task and --sensor.")
-    return task, sensor
-
-
-def offline_estimates(
-    bag_path: Path, config: WindowConfig, model: ModelBundle
-) -> Iterator[tuple[str, Any]]:
-    """Run the graph's core on a bag: yields ``("estimate", Estimate)`` and ``("truth", msg)``.
-
-    Sensor messages feed :class:`~ext_sense_perception.online.stage.WindowStage` in log-time
-    order, cutting the windows of ``config`` (the model card's task profile, as the window node
-    does); each window goes through ``model.predict``, as in the inference node. Compute
-    latency is measured per window (feature + model time, no transport) and is the only field
-    that differs between runs. For food the ground-truth stamps mark the motion start, as
-    ``motion_start`` does in the graph.
-    """
-    from ext_sense_bags import BagReader
-    from ext_sense_perception.errors import PerceptionError
-    from ext_sense_perception.online.stage import WindowStage
-    from ext_sense_runtime.enums import Sensor
-    from ext_sense_runtime.stamps import stamp_to_ns
-
-    stage = WindowStage(config)
-    nuskin = config.sensor is Sensor.NUSKIN
-    stream = "/extsense/nuskin/events" if nuskin else "/extsense/biotac/frames"
-
-    def run(windows: list) -> Iterator[tuple[str, Any]]:
-        for win in windows:
-            try:
-                estimate = model.predict(win)
-            except PerceptionError as err:
-                yield "rejected", str(err)
-                continue
-            yield "estimate", estimate
-
-    with BagReader(bag_path) as bag:
-        wanted = [t for t in (stream, "/extsense/ground_truth") if t in bag.topics]
-        for rec, msg in bag.messages(wanted):
-            if rec.topic == "/extsense/ground_truth":
-                if config.external_onsets:
-                    stage.on_motion_start(stamp_to_ns(msg.header.stamp))
-                yield "truth", msg
-                continue
-            windows = stage.on_events(msg) if nuskin else stage.on_frame(msg)
-            yield from run(windows)
-        if stage.last_data_ns is not None:
-            yield from run(stage.advance(stage.last_data_ns + config.post_ns))
-        yield from run(stage.flush())
 
 
 def _replay_offline_cli(args: argparse.Namespace) -> int:

@@ -34,6 +34,7 @@ from ext_sense.collect_session import (
     tap_sequence,
     window_note,
 )
+from ext_sense.topics import SENSOR_PACKETS
 
 FOOD_WINDOW_END_S = 8.0
 """The food behaviour's ``window_end_s`` when the graph does not set it (its default)."""
@@ -174,7 +175,9 @@ def _run(args: argparse.Namespace) -> int:
     truth_mode = truth_mode or "prompt"
     args.source_is_sim = source == "sim"
     sensor = next(s.parameters.get("sensor") for s in nodes if "sensor" in s.parameters)
-    stream = "/extsense/nuskin/events" if sensor == "nuskin" else "/extsense/biotac/frames"
+    # the driver's raw packets, as `ext-sense record` keeps them: lossless and re-decodable,
+    # what the window node reads and `train --data BAG` decodes
+    stream = SENSOR_PACKETS[str(sensor)]
     try:
         writer = _open_bag(out, args.resume)
     except BagError as err:

@@ -8,10 +8,16 @@ numbers, and the diagnostics summary; the graph's estimates, ground truths, wind
 them. Connect the Foxglove app to ``ws://HOST:PORT`` and open the shipped layout
 (docs/view.md).
 
+The sensor comes from the driver's raw packets (``packets``, decoded here with the drivers'
+decoder library, so a default graph and a default bag, which carry no decoded arrays, are drawn),
+or from its decoded arrays (``events`` or ``frames``) while no packet has arrived (a bag recorded
+before packets): the rule and the decoding live in :mod:`ext_sense.view.feed`, this node only
+subscribes. A packet that cannot be read is a counted drop on the view's ``/diagnostics``.
+
 Why its own process, and what it cannot do to perception: the raw stream is subscribed best
-effort like every other reader of it, so a slow view loses batches of its own, never the
-publisher's; the events callback only counts (a ``bincount``); drawing happens at display rate,
-and only for channels a client has subscribed.
+effort like every other reader of it, so a slow view loses packets of its own, never the
+publisher's; the input callbacks only decode and count (a ``bincount``); drawing happens at
+display rate, and only for channels a client has subscribed.
 
 The server listens on ``host`` (default ``127.0.0.1``): the protocol has no authentication,
 so anyone who reaches the port sees every channel.
@@ -34,6 +40,7 @@ from foxglove.messages import RawImage, Timestamp
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
+from ext_sense.topics import TOPIC_DIAGNOSTICS, TOPIC_ESTIMATE, TOPIC_GROUND_TRUTH, TOPIC_WINDOW
 from ext_sense.view import channels as ch
 from ext_sense.view.estimate import (
     diagnostics_message,
@@ -41,6 +48,7 @@ from ext_sense.view.estimate import (
     estimate_message,
     matching_truth,
 )
+from ext_sense.view.feed import SensorFeed
 from ext_sense.view.images import Image
 from ext_sense.view.pacing import DisplayPacer
 from ext_sense.view.raster import raster_image
@@ -51,6 +59,7 @@ from ext_sense_msgs.msg import (
     ContactEstimate,
     ContactGroundTruth,
     ContactWindow,
+    SensorPacket,
     TaxelEventBatch,
 )
 from ext_sense_runtime.callback_guard import CallbackGuard
@@ -69,10 +78,10 @@ from ext_sense_runtime.records import estimate_of, truth_of
 from ext_sense_runtime.stamps import split_ns
 
 PASSED = {  # graph topic (relative, remapped by the graph) -> (channel, type, QoS)
-    "contact_estimate": ("/extsense/contact_estimate", ContactEstimate, ESTIMATE_QOS),
-    "ground_truth": ("/extsense/ground_truth", ContactGroundTruth, GROUND_TRUTH_QOS),
-    "window": ("/extsense/contact_window", ContactWindow, WINDOW_QOS),
-    "/diagnostics": ("/diagnostics", DiagnosticArray, DIAGNOSTICS_QOS),
+    "contact_estimate": (TOPIC_ESTIMATE, ContactEstimate, ESTIMATE_QOS),
+    "ground_truth": (TOPIC_GROUND_TRUTH, ContactGroundTruth, GROUND_TRUTH_QOS),
+    "window": (TOPIC_WINDOW, ContactWindow, WINDOW_QOS),
+    TOPIC_DIAGNOSTICS: (TOPIC_DIAGNOSTICS, DiagnosticArray, DIAGNOSTICS_QOS),
 }
 
 
@@ -181,7 +190,7 @@ class FoxgloveViewNode(Node):
         self._window: Image | None = None
         self._estimate: tuple[Image, dict[str, Any]] | None = None
         self._diag_dirty = False
-        self.events_seen = 0
+        self.feed = SensorFeed(self.sensor, self.taxels, self.electrodes, self.pac)
 
         # Every channel is created before the server starts listening, never after: a channel
         # added while a client is connected is advertised to it before foxglove-sdk (0.30) files
@@ -213,20 +222,30 @@ class FoxgloveViewNode(Node):
                 message_encoding="cdr",
                 context=self.context_fg,
             )
-        self.server = foxglove.start_server(
-            name=f"ext_sense {self.get_name()}", host=host, port=port, context=self.context_fg
-        )
+        try:
+            self.server = foxglove.start_server(
+                name=f"ext_sense {self.get_name()}", host=host, port=port, context=self.context_fg
+            )
+        except RuntimeError as err:  # foxglove-sdk's error: the address is taken or not ours
+            raise ValueError(
+                f"foxglove_view cannot listen on ws://{host}:{port}: {err}. Another program "
+                f"holds the port, or the host is not an address of this machine: choose another "
+                f"with view_port:=N (0: any free port) or view_host:=ADDRESS."
+            ) from err
         for rel, (topic, msg_type, qos) in PASSED.items():
             self.create_subscription(
                 msg_type, rel, self.guard(self._passer(topic, msg_type)), qos, raw=True
             )
-        if self.sensor == "nuskin":
+        self.create_subscription(
+            SensorPacket, "packets", self.guard(self._on_packet), SENSOR_STREAM_QOS
+        )
+        if self.sensor == "nuskin":  # drawn until a packet arrives (ext_sense.view.feed)
             self.create_subscription(
-                TaxelEventBatch, "events", self.guard(self._on_events), SENSOR_STREAM_QOS
+                TaxelEventBatch, "events", self.guard(self.feed.on_events), SENSOR_STREAM_QOS
             )
         else:
             self.create_subscription(
-                BioTacFrame, "frames", self.guard(self._on_frame_msg), SENSOR_STREAM_QOS
+                BioTacFrame, "frames", self.guard(self.feed.on_frame), SENSOR_STREAM_QOS
             )
         self.create_timer(1.0 / rate_hz, self.guard(self._on_tick))
         self.updater = Updater(hardware_id=f"ws://{host}:{self.server.port}")
@@ -245,15 +264,13 @@ class FoxgloveViewNode(Node):
 
     # -- input: cheap, at the stream's rate ------------------------------------------------
 
-    def _on_events(self, msg: TaxelEventBatch) -> None:
-        taxel = np.asarray(msg.taxel, dtype=np.int64)
-        self.events_seen += taxel.size
-        self.taxels.add(taxel)
-
-    def _on_frame_msg(self, msg: BioTacFrame) -> None:
-        self.electrodes.add(int(msg.sensor_id), np.asarray(msg.electrodes))
-        self.pac.add(int(msg.sensor_id), np.asarray(msg.pac))
-        self.events_seen += 1
+    def _on_packet(self, msg: SensorPacket) -> None:
+        bad = self.feed.counters.bad_packets
+        self.feed.on_packet(msg)
+        if self.feed.counters.bad_packets > bad:
+            self.get_logger().warning(
+                f"dropped a packet: {self.feed.last_packet_error}", throttle_duration_sec=5.0
+            )
 
     def _passer(self, topic: str, msg_type: type) -> Any:
         channel = self.passed[topic]
@@ -351,18 +368,23 @@ class FoxgloveViewNode(Node):
         return int(self.get_clock().now().nanoseconds)
 
     def _check(self) -> tuple[Level, str, dict[str, object]]:
+        level, why, fed = self.feed.status()
+        c = self.feed.counters
         values = {
             "frames": self.pacer.frames,
-            "events_seen": self.events_seen,
+            "events_seen": c.events + c.frames,
             "rejected_events": self.taxels.rejected,
             "port": self.port,
+            **fed,
         }
-        return Level.OK, "serving", values
+        return level, "serving" if level == Level.OK else why, values
 
     def destroy_node(self) -> None:
         """Stop the WebSocket server with the node (clients see the connection close)."""
         try:
-            self.server.stop()
+            server = getattr(self, "server", None)  # absent when it could not start
+            if server is not None:
+                server.stop()
         finally:
             super().destroy_node()
 

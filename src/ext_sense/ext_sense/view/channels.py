@@ -14,7 +14,18 @@ from __future__ import annotations
 
 from typing import Any
 
-NS = "/extsense/view"
+from ext_sense.topics import NS as GRAPH_NS
+from ext_sense.topics import (
+    SENSOR_PACKETS,
+    SENSOR_STREAMS,
+    TOPIC_DIAGNOSTICS,
+    TOPIC_ESTIMATE,
+    TOPIC_GROUND_TRUTH,
+    TOPIC_WINDOW,
+)
+from ext_sense_bags import STANDARD_TOPICS
+
+NS = f"{GRAPH_NS}/view"
 TAXELS = f"{NS}/taxels"
 RATES = f"{NS}/rates"
 PAC = f"{NS}/pac"
@@ -27,12 +38,11 @@ IMAGES = (TAXELS, WINDOW, ESTIMATE)
 """Channels of ``foxglove.RawImage`` (``rgb8``)."""
 
 PASSED_THROUGH: dict[str, str] = {
-    "/extsense/contact_estimate": "ext_sense_msgs/msg/ContactEstimate",
-    "/extsense/ground_truth": "ext_sense_msgs/msg/ContactGroundTruth",
-    "/extsense/contact_window": "ext_sense_msgs/msg/ContactWindow",
-    "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+    topic: STANDARD_TOPICS[topic].msgtype
+    for topic in (TOPIC_ESTIMATE, TOPIC_GROUND_TRUTH, TOPIC_WINDOW, TOPIC_DIAGNOSTICS)
 }
-"""ROS topic -> message type of the topics the view sends on unchanged (CDR)."""
+"""ROS topic -> message type of the topics the view sends on unchanged (CDR); names from
+:mod:`ext_sense.topics`, types from the bags' standard table, as the recorder writes them."""
 
 
 def _number() -> dict[str, Any]:
@@ -112,3 +122,14 @@ def view_channels(sensor: str) -> tuple[str, ...]:
         DIAGNOSTICS,
     )
     return (*own, *PASSED_THROUGH)
+
+
+def view_inputs(sensor: str, packets: bool = True) -> tuple[str, ...]:
+    """The graph topics the view draws a sensor from; what a replay plays for the view.
+
+    The driver's raw packets (``packets``, what graphs publish and bags record by default) or
+    else its decoded stream (NUSkin events, BioTac frames: a bag recorded before packets), then
+    the topics passed through.
+    """
+    stream = SENSOR_PACKETS[sensor] if packets else SENSOR_STREAMS[sensor][1]
+    return (stream, *PASSED_THROUGH)

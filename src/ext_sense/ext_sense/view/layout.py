@@ -20,6 +20,7 @@ from pathlib import Path
 
 import foxglove.layouts as fl
 
+from ext_sense.topics import TOPIC_DIAGNOSTICS, TOPIC_ESTIMATE, TOPIC_GROUND_TRUTH
 from ext_sense.view import channels as ch
 
 LAYOUT_PATH = Path(__file__).with_name("foxglove_layout.json")
@@ -70,8 +71,8 @@ def build_layout() -> fl.Layout:
         title="Tap position: estimate vs truth, m",
         config=fl.PlotConfig(
             paths=[
-                fl.PlotSeries(value="/extsense/contact_estimate.tap_position_m", label="estimate"),
-                fl.PlotSeries(value="/extsense/ground_truth.tap_position_m", label="truth"),
+                fl.PlotSeries(value=f"{TOPIC_ESTIMATE}.tap_position_m", label="estimate"),
+                fl.PlotSeries(value=f"{TOPIC_GROUND_TRUTH}.tap_position_m", label="truth"),
             ],
         ),
     )
@@ -80,7 +81,7 @@ def build_layout() -> fl.Layout:
     )
     diagnostics = fl.DiagnosticsSummaryPanel(
         title="Diagnostics",
-        config=fl.DiagnosticsSummaryConfig(topic_to_render="/diagnostics", sort_by_level=True),
+        config=fl.DiagnosticsSummaryConfig(topic_to_render=TOPIC_DIAGNOSTICS, sort_by_level=True),
     )
     plots = fl.SplitContainer(
         direction="row",

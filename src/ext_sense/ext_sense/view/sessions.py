@@ -11,20 +11,21 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
+from ext_sense.topics import SENSOR_PACKETS
+from ext_sense.topics import TOPIC_ESTIMATE as ESTIMATES
+from ext_sense.topics import TOPIC_EVENTS as EVENTS
+from ext_sense.topics import TOPIC_FRAMES as FRAMES
+from ext_sense.topics import TOPIC_GROUND_TRUTH as TRUTHS
+from ext_sense.topics import TOPIC_WINDOW as WINDOWS
 from ext_sense.view.errors import ViewError
 from ext_sense.view.estimate import matching_truth
 from ext_sense_runtime.records import Estimate, EventBlock, GroundTruth, estimate_of, truth_of
 from ext_sense_runtime.stamps import MS, S, stamp_to_ns
 
-EVENTS = "/extsense/nuskin/events"
-FRAMES = "/extsense/biotac/frames"
-WINDOWS = "/extsense/contact_window"
-ESTIMATES = "/extsense/contact_estimate"
-TRUTHS = "/extsense/ground_truth"
 MATCH_NS = 300 * MS
 TRIAL_GAP_NS = S // 2
 """Space between two capture trials laid end to end, ns."""
@@ -107,13 +108,20 @@ def from_bag(path: Path) -> PlotSession:
     estimates: list[Estimate] = []
     truths: list[GroundTruth] = []
     sensor = "nuskin"
+    decoders: dict[tuple[str, str, int], Any] = {}
     try:
         with BagReader(path) as bag:
             have = bag.topics
-            sensor = "biotac" if FRAMES in have and EVENTS not in have else "nuskin"
-            wanted = [t for t in (EVENTS, FRAMES, WINDOWS, ESTIMATES, TRUTHS) if t in have]
+            sensor = _bag_sensor(have)
+            # the driver's raw packets when the bag has them (recorded by default), decoded with
+            # the library decoder as the live nodes do; else the decoded arrays of older bags
+            packets = SENSOR_PACKETS[sensor]
+            streams = (packets,) if packets in have and have[packets].count else (EVENTS, FRAMES)
+            wanted = [t for t in (*streams, WINDOWS, ESTIMATES, TRUTHS) if t in have]
             for rec, msg in bag.messages(wanted):
-                if rec.topic == EVENTS:
+                if rec.topic == packets:
+                    blocks += _packet_blocks(msg, decoders)
+                elif rec.topic == EVENTS:
                     t0 = stamp_to_ns(msg.header.stamp)
                     blocks.append(
                         EventBlock.of(np.asarray(msg.offset_ns, np.int64) + t0, msg.taxel)
@@ -157,6 +165,38 @@ def from_bag(path: Path) -> PlotSession:
         name = f"trial {truth.trial}" if truth is not None else f"contact {k + 1}"
         contacts.append(Contact(onset, start, end, name, est, truth))
     return PlotSession(path.name, task, sensor, events, contacts)
+
+
+def _bag_sensor(have: Any) -> str:
+    """The bag's sensor: BioTac when it holds BioTac packets or frames and no NUSkin stream."""
+    nuskin = any(t in have for t in (EVENTS, SENSOR_PACKETS["nuskin"]))
+    biotac = any(t in have for t in (FRAMES, SENSOR_PACKETS["biotac"]))
+    return "biotac" if biotac and not nuskin else "nuskin"
+
+
+def _packet_blocks(msg: Any, decoders: dict[tuple[str, str, int], Any]) -> list[EventBlock]:
+    """One raw packet as plotted events (BioTac: one per frame, valued by its PAC range).
+
+    Raises:
+        ViewError: A packet the decoder library refuses (named with its ``seq``).
+    """
+    from ext_sense_drivers.packets import PacketError, make_decoder
+
+    key = (str(msg.encoding), str(msg.encoding_options), int(msg.connection))
+    try:
+        if key not in decoders:
+            decoders[key] = make_decoder(key[0], key[1])
+        decoded = decoders[key].decode(msg)
+    except PacketError as err:
+        raise ViewError(f"Cannot decode packet seq {msg.seq}: {err}") from err
+    if hasattr(decoded, "frames"):
+        return [
+            EventBlock.of(
+                [f.stamp_ns], [f.sensor_id + 1], value=[int(np.ptp(np.asarray(f.pac, np.int64)))]
+            )
+            for f in decoded.frames
+        ]
+    return [decoded.events]
 
 
 def from_capture_folder(path: Path) -> PlotSession:

@@ -1,32 +1,33 @@
-"""``biotac_driver`` node: BioTac bridge bytes in, one ``BioTacFrame`` message per frame out.
+"""``biotac_driver`` node: BioTac bridge bytes in, ``SensorPacket`` (and ``BioTacFrame``) out.
 
 A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the link (serial, CAN
-or a capture file) and reconnects with exponential backoff; a timer drains what arrived, decodes
-it with :class:`~ext_sense_drivers.biotac.decoder.BridgeDecoder` and publishes every frame as it
-came: 22 raw PAC samples per message, never averaged. Words failing parity or BioTac error
-replies are flagged in ``invalid_word_mask`` and counted; corrupt bytes are counted, never fatal.
-``header.stamp`` is the first PAC sample's time from the per-sensor
-:class:`~ext_sense_drivers.biotac.clock.FrameClock`. ``/diagnostics`` carries the link state,
-frames/s per expected sensor, the decode counters and the liveness of every expected sensor:
-a bridge sends each sensor's frames at 100 Hz whatever touches it, so a sensor silent while
-the link is up is a stall (WARN, then ERROR, naming the sensor).
+or a capture file) and reconnects with exponential backoff; a timer drains what arrived and
+publishes it on ``packets`` as one ``SensorPacket`` (encoding ``biotac-bridge-v1``). The node
+decodes its own packets with the library decoder every consumer uses
+(:class:`~ext_sense_drivers.packets.BioTacPacketDecoder`, around
+:class:`~ext_sense_drivers.biotac.decoder.BridgeDecoder`): at 100 frames/s per sensor that is
+cheap, and it is how the driver watches each expected sensor's frame rate and liveness. With
+``publish_decoded`` (default true; the graphs turn it off unless something wants arrays) every
+frame also goes out on ``frames`` as it came: 22 raw PAC samples per message, never averaged.
+Words failing parity or BioTac error replies are flagged in ``invalid_word_mask`` and counted;
+corrupt bytes are counted, never fatal. ``header.stamp`` is the first PAC sample's time from the
+per-sensor :class:`~ext_sense_drivers.biotac.clock.FrameClock`. ``/diagnostics`` carries the
+link state, frames/s per expected sensor, the decode counters and the liveness of every expected
+sensor: a bridge sends each sensor's frames at 100 Hz whatever touches it, so a sensor silent
+while the link is up is a stall (WARN, then ERROR, naming the sensor).
 """
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
-import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.lifecycle import LifecycleNode
 from rclpy.node import Node
 
-from ext_sense_drivers.biotac.clock import FRAME_RATE_HZ, PAC_PERIOD_NS, FrameClock
-from ext_sense_drivers.biotac.decoder import BridgeDecoder
+from ext_sense_drivers.biotac.clock import FRAME_RATE_HZ
 from ext_sense_drivers.biotac.driver_config import BioTacDriverConfig
-from ext_sense_drivers.biotac.frame_layout import MAX_SENSORS, STANDARD_FRAME_SIZE
-from ext_sense_drivers.biotac.frames import BridgeFrames
+from ext_sense_drivers.biotac.frame_layout import MAX_SENSORS
 from ext_sense_drivers.liveness import DriverLiveness, StreamWatch
 from ext_sense_drivers.nodes.link_node import (
     ManagedLink,
@@ -35,13 +36,22 @@ from ext_sense_drivers.nodes.link_node import (
     declare_backoff,
     declare_link_parameters,
     declare_liveness,
+    declare_publish_decoded,
     link_status,
     monotonic_to_ros_ns,
+    packet_message,
     stop_reader,
 )
+from ext_sense_drivers.packets import (
+    BIOTAC_BRIDGE_V1,
+    BioTacPacketDecoder,
+    DecodedFrame,
+    PacketPacker,
+    format_options,
+)
 from ext_sense_drivers.transports.base import LinkState
-from ext_sense_drivers.transports.reader import Backoff, StreamReader
-from ext_sense_msgs.msg import BioTacFrame
+from ext_sense_drivers.transports.reader import Backoff
+from ext_sense_msgs.msg import BioTacFrame, SensorPacket
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
@@ -143,17 +153,25 @@ class BioTacDriverNode(ManagedLink, LifecycleNode):
             )
         )
 
-        self.decoder = BridgeDecoder()
-        self.clocks: list[FrameClock] = [self.config.make_clock() for _ in range(MAX_SENSORS)]
-        self.reader = StreamReader(self.config.make_transport(), backoff=backoff)
+        options = format_options(
+            {
+                "lead_ns": self.config.lead_ns,
+                "clock_window_frames": self.config.clock_window_frames,
+            }
+        )
+        self.packer = PacketPacker(BIOTAC_BRIDGE_V1, options)
+        self.packet_decoder = BioTacPacketDecoder(BIOTAC_BRIDGE_V1, options)
+        self.decoder = self.packet_decoder.decoder  # the bridge decoder and its counters
+        self.reader = self.config.make_reader(backoff)
         self._mono_to_ros_ns = monotonic_to_ros_ns(self)
-        self._last_arrival_ns = time.monotonic_ns()
-        self._bytes_fed = 0  # stream position of the next byte given to the decoder
-        self._dropped = [0] * MAX_SENSORS
-        self._parity = [0] * MAX_SENSORS
-        self._errors = [0] * MAX_SENSORS
         self.frames_published = 0
-        self._pub, self._qos_events = create_stream_publisher(self, BioTacFrame, "frames")
+        self.frames_decoded = 0
+        self.packets_published = 0
+        self._failures_logged = 0
+        self._packet_pub, self._qos_events = create_stream_publisher(self, SensorPacket, "packets")
+        self._pub = None
+        if declare_publish_decoded(self, "BioTacFrame on frames"):
+            self._pub, self._decoded_qos = create_stream_publisher(self, BioTacFrame, "frames")
         self._updater = Updater(self.config.hardware_id)
         self._updater.add_check("link", self._check_link)
         self._rates: dict[int, RateTask] = {}
@@ -186,67 +204,58 @@ class BioTacDriverNode(ManagedLink, LifecycleNode):
         return SetParametersResult(successful=True)
 
     def _tick(self) -> None:
-        """Drain the reader, decode, publish every frame.
+        """Drain the reader, publish the packets, decode them and publish every frame.
 
         A reconnection needs no flush: the old link's cut-off frame fails its CRC against the
         new bytes and the decoder resynchronises, while a complete frame still queued from the
-        old link is kept. The state is read before draining, so an exhausted file's last chunks
-        are decoded before the held-back bytes are flushed.
+        old link is kept. The state is read before draining: a packet after which the link is
+        down or the file exhausted ends the stream, and the bytes held back are flushed.
         """
-        exhausted = self.reader.state == LinkState.EXHAUSTED
-        chunks = self.reader.drain()
-        if chunks:
-            # One decoder call per tick (its fixed cost dominates at a frame or two per chunk);
-            # each frame keeps the arrival time of the chunk that completed it.
-            ends = self._bytes_fed + np.cumsum([len(c.data) for c in chunks])
-            times = np.array([c.t_ns for c in chunks], dtype=np.int64)
-            frames = self.decoder.feed(b"".join(c.data for c in chunks))
-            self._bytes_fed = int(ends[-1])
-            self._last_arrival_ns = int(times[-1])
-            done = np.searchsorted(ends, frames.offset + STANDARD_FRAME_SIZE, side="left")
-            self._publish(frames, times[np.minimum(done, len(chunks) - 1)])
-        if exhausted and self.decoder.pending_bytes:
-            frames = self.decoder.flush()
-            self._publish(frames, np.full(frames.n, self._last_arrival_ns, dtype=np.int64))
+        link_down = self.reader.state != LinkState.CONNECTED
+        tagged = self.reader.drain_tagged()
+        for packet in self.packer.pack(tagged, link_down, self._mono_to_ros_ns):
+            # one link carries every sensor slot: the packet's frame is the prefix's ("biotac")
+            frame = self.config.frame_id_prefix.rstrip("_") or "biotac"
+            self._packet_pub.publish(packet_message(packet, frame))
+            self.packets_published += 1
+            decoded = self.packet_decoder.decode(packet)
+            failures = self.packet_decoder.counters.decode_failures
+            if failures > self._failures_logged:
+                self._failures_logged = failures
+                self.get_logger().error(self.packet_decoder.last_error, throttle_duration_sec=1.0)
+            self._publish(decoded.frames)
 
-    def _publish(self, frames: BridgeFrames, arrival_ns: np.ndarray) -> None:
-        """One message per frame, stamped with the first PAC sample's ROS time.
-
-        Args:
-            frames: Decoded frames.
-            arrival_ns: ``(n,)`` monotonic host arrival time of each frame, integer ns.
-        """
-        arrivals = (arrival_ns + np.int64(self._mono_to_ros_ns)).tolist()
-        for k in range(frames.n):
-            s = int(frames.sensor_id[k])
-            gap = int(frames.gap[k])
-            first_ns = self.clocks[s].update(arrivals[k], gap, bool(frames.seq_reset[k]))
-            self._dropped[s] += gap
-            self._parity[s] += int(frames.parity_errors[k])
-            self._errors[s] += int(frames.error_replies[k])
-            msg = BioTacFrame()
-            fill_stamp(msg.header.stamp, first_ns)
-            msg.header.frame_id = self.config.frame_id(s)
-            msg.sensor_id = s
-            msg.sequence = int(frames.seq[k])
-            msg.pac_sample_period_ns = PAC_PERIOD_NS
-            msg.pac = frames.pac[k]
-            msg.electrodes = frames.electrodes[k]
-            msg.pdc = int(frames.pdc[k])
-            msg.tac = int(frames.tac[k])
-            msg.tdc = int(frames.tdc[k])
-            msg.invalid_word_mask = int(frames.invalid_mask[k])
-            msg.dropped_frames = min(self._dropped[s], 0xFFFFFFFF)
-            msg.parity_errors = min(self._parity[s], 0xFFFFFFFF)
-            msg.error_replies = min(self._errors[s], 0xFFFFFFFF)
-            self._pub.publish(msg)
+    def _publish(self, frames: list[DecodedFrame]) -> None:
+        """Watch each expected sensor; one message per frame when ``publish_decoded``."""
+        for f in frames:
+            if self._pub is not None:
+                msg = BioTacFrame()
+                fill_stamp(msg.header.stamp, f.stamp_ns)
+                msg.header.frame_id = self.config.frame_id(f.sensor_id)
+                msg.sensor_id = f.sensor_id
+                msg.sequence = f.sequence
+                msg.pac_sample_period_ns = f.pac_sample_period_ns
+                msg.pac = f.pac
+                msg.electrodes = f.electrodes
+                msg.pdc, msg.tac, msg.tdc = f.pdc, f.tac, f.tdc
+                msg.invalid_word_mask = f.invalid_word_mask
+                msg.dropped_frames = f.dropped_frames
+                msg.parity_errors = f.parity_errors
+                msg.error_replies = f.error_replies
+                self._pub.publish(msg)
+                self.frames_published += 1
+            s = f.sensor_id
             if s in self._rates:
                 self._rates[s].tick()
-                self._watches[s].on_data(1, int(arrival_ns[k]))
-        self.frames_published += frames.n
+                self._watches[s].on_data(1, f.arrival_ns - self._mono_to_ros_ns)
+        self.frames_decoded += len(frames)
 
     def _check_link(self) -> tuple[Level, str, dict[str, object]]:
-        values = {"frames_published": self.frames_published, **self._qos_events.as_values()}
+        values = {
+            "packets_published": self.packets_published,
+            "frames_published": self.frames_published,
+            **self._qos_events.as_values(),
+        }
         return link_status(self.reader, "link", values)
 
     def _check_decode(self) -> tuple[Level, str, dict[str, object]]:

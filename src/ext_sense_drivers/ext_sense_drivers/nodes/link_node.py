@@ -9,24 +9,32 @@ the reader. What each sensor decodes, stamps and publishes stays in its own node
 
 from __future__ import annotations
 
+import array
 import time
 from collections.abc import Mapping
 from typing import Any
 
+import numpy as np
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 
 from ext_sense_drivers.liveness import DriverLiveness
+from ext_sense_drivers.packets import Packet
 from ext_sense_drivers.transports.base import LinkState
-from ext_sense_drivers.transports.link_config import LinkConfig
+from ext_sense_drivers.transports.link_config import (
+    READER_PRIORITY_DESCRIPTION,
+    READER_PRIORITY_RANGE,
+    LinkConfig,
+)
 from ext_sense_drivers.transports.reader import Backoff, StreamReader
+from ext_sense_msgs.msg import SensorPacket
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import SENSOR_STREAM_QOS
 from ext_sense_runtime.qos_events import QosEventCounter
-from ext_sense_runtime.stamps import MS
+from ext_sense_runtime.stamps import MS, fill_stamp
 
 LIVENESS_PERIOD_S = 0.1
 """How often the liveness of the stream is judged: a stall is on ``/diagnostics`` at most this
@@ -43,6 +51,7 @@ LINK_DESCRIPTIONS: Mapping[str, str] = {
     "can_extended_id": "29-bit extended id.",
     "file_path": "Capture file (transport file).",
     "file_loop": "Replay the file for ever.",
+    "reader_priority": READER_PRIORITY_DESCRIPTION,
 }
 """Descriptions of the link parameters a node does not word for its sensor (``baud`` and
 ``file_bytes_per_s`` it always words itself)."""
@@ -51,6 +60,7 @@ _RANGES: Mapping[str, tuple[float, float]] = {
     "baud": (1200, 100_000_000),
     "can_arbitration_id": (0, 0x1FFFFFFF),
     "file_bytes_per_s": (0.0, 1e9),
+    "reader_priority": READER_PRIORITY_RANGE,
 }
 
 _LINK_PARAMETERS = (
@@ -64,6 +74,7 @@ _LINK_PARAMETERS = (
     "file_path",
     "file_bytes_per_s",
     "file_loop",
+    "reader_priority",
 )
 
 
@@ -208,6 +219,44 @@ def create_stream_publisher(
     return pub, qos_events
 
 
+def declare_publish_decoded(node: Node, what: str) -> bool:
+    """Declare ``publish_decoded``: decoded arrays beside the raw packets.
+
+    Args:
+        node: The driver node.
+        what: The decoded message and topic, for the description.
+    """
+    return declare(
+        node,
+        "publish_decoded",
+        True,
+        f"Also decode the packets here and publish {what}, for tools that want arrays "
+        "(ros2 topic echo, plots, the live view). The graphs set it false on the hot path: "
+        "contact_window decodes the packets itself with the same library (docs/runtime.md, "
+        "Raw packets).",
+        read_only=True,
+    )
+
+
+def packet_message(packet: Packet, frame_id: str) -> SensorPacket:
+    """A ``SensorPacket`` from a :class:`~ext_sense_drivers.packets.Packet`.
+
+    The arrays are set as ``array.array`` from bytes: NumPy arrays make rclpy check every
+    element in Python.
+    """
+    msg = SensorPacket()
+    fill_stamp(msg.header.stamp, packet.stamp_ns)
+    msg.header.frame_id = frame_id
+    msg.seq = packet.seq
+    msg.encoding, msg.encoding_options = packet.encoding, packet.options
+    msg.time_base, msg.connection = packet.time_base, packet.connection
+    msg.end_of_stream = packet.end_of_stream
+    msg.read_end = array.array("I", packet.read_end.astype(np.uint32).tobytes())
+    msg.read_offset_ns = array.array("q", packet.read_offset_ns.astype(np.int64).tobytes())
+    msg.data = packet.data
+    return msg
+
+
 def link_status(
     reader: StreamReader, lost: str, values: Mapping[str, object]
 ) -> tuple[Level, str, dict[str, object]]:
@@ -230,6 +279,7 @@ def link_status(
         "bytes_total": reader.bytes_total,
         "dropped_bytes": reader.dropped_bytes,
         "last_error": reader.last_error,
+        "reader_scheduling": reader.scheduling.describe() if reader.scheduling else "",
         **values,
     }
     if state == LinkState.CONNECTED:
@@ -390,8 +440,11 @@ class ManagedLink:
         if self.liveness.changed():
             self._diagnostics.publish()
             level, message, _ = self.liveness.check()
-            log = self.get_logger().info if level == Level.OK else self.get_logger().warning
-            log(f"liveness {level.name}: {message}")
+            # one call site per severity: rclpy refuses a severity change at one call site
+            if level == Level.OK:
+                self.get_logger().info(f"liveness {level.name}: {message}")
+            else:
+                self.get_logger().warning(f"liveness {level.name}: {message}")
 
     def _watch_link(self: Any) -> None:
         """Console lines for a device that is missing, lost, or back."""

@@ -1,13 +1,16 @@
-"""``nuskin_driver`` node: NUSkin receiver bytes in, ``TaxelEventBatch`` messages out.
+"""``nuskin_driver`` node: NUSkin receiver bytes in, ``SensorPacket`` (and ``TaxelEventBatch``) out.
 
 A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the port (serial, CAN
 or a capture file) and reconnects with exponential backoff; a timer every ``batch_period_s``
-drains what arrived, decodes it (receiver words, or the ACES line in ``aces_line`` mode) and
-publishes one batch with every event decoded since the previous tick. Bad bytes are counted,
-never fatal. ``/diagnostics`` carries the link state, the event rate, the decode counters and
-the stream's liveness: a powered receiver sends words all the time (its idle stream), so
-silence while the link is up is a stall (WARN, then ERROR, naming the stream). Each event's
-flag bit goes out as received in the batch's ``flag`` array.
+drains what arrived and publishes it on ``packets`` as one ``SensorPacket`` (encoding
+``nuskin-words-v1``, or ``aces-line-v1`` in ``aces_line`` mode): the bytes and when each read
+returned, numbered by ``seq``. With ``publish_decoded`` (default true; the graphs turn it off on
+the hot path) the node also decodes its own packets with the library decoder every consumer
+uses (:mod:`ext_sense_drivers.packets`) and publishes the events on ``events``, each event's
+flag bit as received in the batch's ``flag`` array. Bad bytes are counted, never fatal.
+``/diagnostics`` carries the link state, the rate, the decode counters (when decoding) and the
+stream's liveness: a powered receiver sends words all the time (its idle stream), so silence
+while the link is up is a stall (WARN, then ERROR, naming the stream).
 """
 
 from __future__ import annotations
@@ -28,15 +31,24 @@ from ext_sense_drivers.nodes.link_node import (
     declare_backoff,
     declare_link_parameters,
     declare_liveness,
+    declare_publish_decoded,
     link_status,
     monotonic_to_ros_ns,
+    packet_message,
     stop_reader,
 )
 from ext_sense_drivers.nuskin.driver_config import DriverConfig, Mode
-from ext_sense_drivers.nuskin.streams import BatchCounters, FlaggedEvents
+from ext_sense_drivers.nuskin.streams import BatchCounters, EventStream
+from ext_sense_drivers.packets import (
+    ACES_LINE_V1,
+    NUSKIN_WORDS_V1,
+    NuskinPacketDecoder,
+    Packet,
+    PacketPacker,
+    format_options,
+)
 from ext_sense_drivers.transports.base import LinkState
-from ext_sense_drivers.transports.reader import StreamReader
-from ext_sense_msgs.msg import TaxelEventBatch
+from ext_sense_msgs.msg import SensorPacket, TaxelEventBatch
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
@@ -119,6 +131,14 @@ def _fill_batch(
     msg.taxel, msg.polarity, msg.value, msg.offset_ns, msg.flag = out
 
 
+def packet_encoding(config: DriverConfig) -> tuple[str, str]:
+    """The packets' ``encoding`` and ``encoding_options`` for the driver's settings."""
+    if config.mode_kind == Mode.WORDS:
+        options = {"baud": int(config.baud), "flag_polarity": config.flag_polarity.lower()}
+        return NUSKIN_WORDS_V1, format_options(options)
+    return ACES_LINE_V1, format_options({"threshold": float(config.aces_threshold)})
+
+
 def _declare_liveness(node: Node, config: DriverConfig, stream: str) -> DriverLiveness:
     """The stall check: receiver words (mode words) or line samples (aces_line) on ``stream``."""
     rate, warn_ns, error_ns = declare_liveness(
@@ -174,14 +194,20 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             )
         )
 
-        self.stream = self.config.make_stream()
-        self.reader = StreamReader(self.config.make_transport(), backoff=backoff)
+        self.config.make_stream()  # checks mode and flag_polarity now, with a clear error
+        encoding, options = packet_encoding(self.config)
+        self.packer = PacketPacker(encoding, options)
+        decoded = declare_publish_decoded(self, "TaxelEventBatch on events")
+        self.decoder = NuskinPacketDecoder(encoding, options) if decoded else None
+        self.reader = self.config.make_reader(backoff)
         self._mono_to_ros_ns = monotonic_to_ros_ns(self)
-        self._connection = 0
-        self._finished = False
         self.batches_published = 0
-        self.decode_failures = 0
-        self._pub, self._qos_events = create_stream_publisher(self, TaxelEventBatch, "events")
+        self.packets_published = 0
+        self._failures_logged = 0
+        self._packet_pub, self._qos_events = create_stream_publisher(self, SensorPacket, "packets")
+        self._pub = None
+        if self.decoder is not None:
+            self._pub, self._decoded_qos = create_stream_publisher(self, TaxelEventBatch, "events")
         self._updater = Updater(self.config.hardware_id)
         self._rate = RateTask("events", 0.0, MAX_WORD_RATE_HZ, unit="words_per_s")
         self._updater.add(self._rate)
@@ -209,47 +235,57 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
                 self.frame_id = str(p.value)
         return SetParametersResult(successful=True)
 
-    def _tick(self) -> None:
-        """Drain the reader, decode, publish.
+    @property
+    def stream(self) -> EventStream | None:
+        """The byte decoder of the node's own packets (``None`` without ``publish_decoded``)."""
+        return None if self.decoder is None else self.decoder.stream
 
-        Each chunk carries the connection it came on, so a reconnect finishes the old stream
-        (:meth:`restart`) exactly between the last old chunk and the first new one. When the link
-        is down the old stream is finished at once (the ACES decoder then releases its last
-        events); the state is read before draining, so every chunk of the lost connection is in
-        this drain.
+    @stream.setter
+    def stream(self, stream: EventStream) -> None:
+        if self.decoder is not None:
+            self.decoder.stream = stream
+
+    @property
+    def decode_failures(self) -> int:
+        """Reads whose decoding raised (each cost that read, never the node)."""
+        return 0 if self.decoder is None else self.decoder.counters.decode_failures
+
+    def _tick(self) -> None:
+        """Drain the reader, publish the packets, and decode them when asked to.
+
+        Each chunk carries the connection it came on, so a packet never spans a reconnect and a
+        decoder restarts its stream exactly between the last old read and the first new one.
+        When the link is down the packet ends the stream (``end_of_stream``: the ACES decoder
+        then releases its last events); the state is read before draining, so every chunk of
+        the lost connection is in this drain. Bytes show the device alive (words, or the ACES
+        line's 2-byte samples): the driver does not decode to judge its link.
         """
         link_down = self.reader.state != LinkState.CONNECTED
-        parts: list[FlaggedEvents] = []
+        tagged = self.reader.drain_tagged()
         watch = self.liveness.watches[0]
-        for connection, chunk in self.reader.drain_tagged():
-            if connection != self._connection:
-                if self._connection and not self._finished:  # the old stream ended
-                    parts.append(FlaggedEvents(self.stream.restart(), None))
-                self._connection, self._finished = connection, False
-            try:
-                part = self.stream.feed_flagged(chunk)
-            except Exception as err:  # a decoder bug must cost a chunk, not the node
-                self.decode_failures += 1
-                self.get_logger().error(
-                    f"decoding failed, chunk of {len(chunk.data)} bytes dropped: {err!r}",
-                    throttle_duration_sec=1.0,
-                )
-                parts.append(FlaggedEvents(self.stream.restart(), None))
-                continue
-            parts.append(part)
-            # words: only decoded words show the device alive (garbage is not its idle stream);
-            # the ACES line (no flag bit): every 2-byte line sample does
-            watch.on_data(
-                len(chunk.data) // 2 if part.flag is None else part.events.size, chunk.t_ns
-            )
-        if link_down and self._connection and not self._finished:
-            parts.append(FlaggedEvents(self.stream.restart(), None))
-            self._finished = True
-        block, flag = FlaggedEvents.concat(parts)
+        per_item = 4 if self.config.mode_kind == Mode.WORDS else 2
+        for _, chunk in tagged:
+            watch.on_data(len(chunk.data) // per_item, chunk.t_ns)
+            if self.decoder is None and per_item == 4:
+                self._rate.add(len(chunk.data) // per_item)
+        for packet in self.packer.pack(tagged, link_down, self._mono_to_ros_ns):
+            self._packet_pub.publish(packet_message(packet, self.frame_id))
+            self.packets_published += 1
+            if self.decoder is not None:
+                self._publish_decoded(packet)
+
+    def _publish_decoded(self, packet: Packet) -> None:
+        """Decode one of the node's own packets and publish its events in batches."""
+        decoded = self.decoder.decode(packet)
+        failures = self.decode_failures
+        if failures > self._failures_logged:
+            self._failures_logged = failures
+            self.get_logger().error(self.decoder.last_error, throttle_duration_sec=1.0)
+        block, flag = decoded.events, decoded.flag
         if block.size == 0:
             return
         self._rate.add(block.size)
-        c = self.stream.batch_counters
+        c = self.decoder.stream.batch_counters
         step = self.max_batch_events
         for lo in range(0, block.size, step):
             part_block = EventBlock(*(column[lo : lo + step] for column in block))
@@ -258,7 +294,7 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
     def _publish(self, block: EventBlock, flag: np.ndarray | None, counters: BatchCounters) -> None:
         first_ns = int(block.t_ns.min())
         msg = TaxelEventBatch()
-        fill_stamp(msg.header.stamp, first_ns + self._mono_to_ros_ns)
+        fill_stamp(msg.header.stamp, first_ns)
         msg.header.frame_id = self.frame_id
         _fill_batch(msg, block, first_ns, flag)
         msg.words_total, msg.resyncs = counters.words_total, counters.resyncs
@@ -267,11 +303,21 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         self.batches_published += 1
 
     def _check_link(self) -> tuple[Level, str, dict[str, object]]:
-        values = {"batches_published": self.batches_published, **self._qos_events.as_values()}
+        values = {
+            "packets_published": self.packets_published,
+            "batches_published": self.batches_published,
+            **self._qos_events.as_values(),
+        }
         return link_status(self.reader, "port", values)
 
     def _check_decode(self) -> tuple[Level, str, dict[str, object]]:
-        values = {**self.stream.diagnostics(), "decode_failures": self.decode_failures}
+        if self.decoder is None:
+            return (
+                Level.OK,
+                "not decoding here (publish_decoded false): the consumers of packets decode",
+                {"encoding": self.packer.encoding, "packets_published": self.packets_published},
+            )
+        values = {**self.decoder.diagnostics(), "decode_failures": self.decode_failures}
         failed, self._last_failures = (
             self.decode_failures - self._last_failures,
             self.decode_failures,

@@ -150,6 +150,10 @@ class AcesLineStream:
         self._kwargs = decoder_kwargs
         self._decoder = None
         self._probe = LineDecoder(**decoder_kwargs)  # validates the arguments now
+        self.samples_before = 0
+        """Line samples sent on this connection before the next chunk fed, when the stream is
+        joined late (a packet's ``time_base``): the origin is put that much earlier. Used and
+        reset by the first chunk of each connection."""
         # Totals over every connection; the last three say what the decoder withheld or could
         # not separate (overloaded stretches, detections the residual test rejected, bursts).
         self._done = dict.fromkeys(
@@ -171,7 +175,8 @@ class AcesLineStream:
         from ext_sense_drivers.aces.wire import BYTES_PER_SAMPLE
 
         if self._decoder is None:
-            n = len(chunk.data) // BYTES_PER_SAMPLE
+            n = self.samples_before + len(chunk.data) // BYTES_PER_SAMPLE
+            self.samples_before = 0
             rate = self._probe.bank.sample_rate_hz
             t0 = int(chunk.t_ns) - int(sample_to_ns(np.int64(n), rate))
             self._decoder = self._factory(t0_ns=t0, **self._kwargs)

@@ -10,10 +10,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 from ext_sense_drivers.transports.base import Transport
 from ext_sense_drivers.transports.errors import TransportError
+
+if TYPE_CHECKING:
+    from ext_sense_drivers.transports.reader import Backoff, StreamReader
+
+READER_PRIORITY_RANGE = (0, 99)
+"""Range of the ``reader_priority`` parameter (Linux SCHED_FIFO priorities, 0 = leave as is)."""
+READER_PRIORITY_DESCRIPTION = (
+    "SCHED_FIFO priority of the thread that reads and stamps the device (1-99; 0 leaves the "
+    "OS default). Refused (no CAP_SYS_NICE, ulimit -r 0) it falls back to nice -10 or "
+    "nothing; what it got is logged once. See docs/runtime.md, Real-time priority."
+)
+"""Wording of ``reader_priority`` for the driver nodes' parameter descriptor."""
 
 
 class TransportKind(IntEnum):
@@ -45,6 +57,7 @@ class LinkConfig:
     file_path: str = ""
     file_bytes_per_s: float = 0.0
     file_loop: bool = False
+    reader_priority: int = 0
 
     @property
     def transport_kind(self) -> TransportKind:
@@ -82,6 +95,24 @@ class LinkConfig:
     def file_rate(self) -> float | None:
         """Replay rate of a file in bytes/s: ``file_bytes_per_s`` if > 0, else ``None`` (flat)."""
         return float(self.file_bytes_per_s) if self.file_bytes_per_s > 0 else None
+
+    def make_reader(self, backoff: Backoff | None = None) -> StreamReader:
+        """A reader thread (not started) for the configured source, at ``reader_priority``.
+
+        Raises:
+            error: ``reader_priority`` out of range, or what :meth:`make_transport` raises.
+        """
+        from ext_sense_drivers.transports.reader import StreamReader
+
+        low, high = READER_PRIORITY_RANGE
+        if not low <= int(self.reader_priority) <= high:
+            raise self.error(
+                f"The 'reader_priority' parameter must be in [{low}, {high}]. "
+                f"Got {self.reader_priority} instead."
+            )
+        return StreamReader(
+            self.make_transport(), backoff=backoff, priority=int(self.reader_priority)
+        )
 
     def make_transport(self) -> Transport:
         """The configured byte source (not opened yet).

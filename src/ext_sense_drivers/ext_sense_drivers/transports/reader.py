@@ -7,6 +7,7 @@ node's diagnostics task without locking (each is a single int or enum, written b
 
 from __future__ import annotations
 
+import logging
 import threading
 from collections import deque
 from collections.abc import Callable
@@ -14,6 +15,12 @@ from dataclasses import dataclass
 
 from ext_sense_drivers.transports.base import Chunk, LinkState, Transport
 from ext_sense_drivers.transports.errors import TransportError
+from ext_sense_drivers.transports.scheduling import Scheduling, raise_thread_priority
+
+_log = logging.getLogger(__name__)
+
+DRAINER_STEP = 10
+"""The thread that starts (and drains) a reader runs this many FIFO steps below the reader."""
 
 
 @dataclass(frozen=True)
@@ -66,6 +73,16 @@ class StreamReader:
         on_data: Called from the reader thread after each queued chunk (e.g. to wake an
             executor); must be quick and must not raise. Public (:attr:`on_data`): a node
             sets it once its timer exists.
+        priority: SCHED_FIFO priority the thread asks for when it starts (1-99; 0 leaves it
+            as it is). Refused, it takes a raised nice or nothing
+            (:func:`~ext_sense_drivers.transports.scheduling.raise_thread_priority`); what it
+            got is in :attr:`scheduling`, and a refusal is logged once (``logging``, WARNING).
+            The words carry no time, so how soon this thread runs after a read returns is
+            the stamp's error (issue #16, ``bench/bench_arrival.py``). The thread that calls
+            :meth:`start` (the node's executor, which drains this reader) is raised too,
+            :data:`DRAINER_STEP` lower (:attr:`drainer_scheduling`): both take Python's GIL,
+            and a real-time reader behind a drainer that the load preempts while it holds the
+            GIL waits for it, which measured worse than no priority at all.
     """
 
     def __init__(
@@ -76,12 +93,18 @@ class StreamReader:
         read_timeout_s: float = 0.2,
         max_pending_bytes: int = 16 << 20,
         on_data: Callable[[], None] | None = None,
+        priority: int = 0,
     ) -> None:
         self.transport = transport
         self.backoff = backoff or Backoff()
         self.read_timeout_s = float(read_timeout_s)
         self.max_pending_bytes = int(max_pending_bytes)
         self.on_data = on_data
+        self.priority = int(priority)
+        self.scheduling: Scheduling | None = None
+        """What the reader thread got (None until it started)."""
+        self.drainer_scheduling: Scheduling | None = None
+        """What the thread that called :meth:`start` got (None: not asked, priority 0)."""
         self._queue: deque[tuple[int, Chunk]] = deque()
         self._pending = 0
         self._lock = threading.Lock()
@@ -105,9 +128,13 @@ class StreamReader:
         return self.transport.description
 
     def start(self) -> None:
-        """Start the thread (once)."""
+        """Start the thread (once); with a priority, raise the calling thread too (see above)."""
         if self._thread is not None:
             return
+        if self.priority > 0:
+            got = raise_thread_priority(max(1, self.priority - DRAINER_STEP))
+            self.drainer_scheduling = got
+            self._report("draining thread", got)
         self._stop.clear()
         self._thread = threading.Thread(
             target=self._run, name=f"reader {self.description}", daemon=True
@@ -150,6 +177,7 @@ class StreamReader:
         return self._thread is not None and self._thread.is_alive()
 
     def _run(self) -> None:
+        self._schedule()
         while not self._stop.is_set():
             self.state = LinkState.CONNECTING
             try:
@@ -171,6 +199,18 @@ class StreamReader:
                 self.state = LinkState.EXHAUSTED
                 return
         self.transport.close()
+
+    def _schedule(self) -> None:
+        """Take the scheduling asked for, in the thread itself; log a refusal once."""
+        got = raise_thread_priority(self.priority)
+        self.scheduling = got
+        self._report("reader thread", got)
+
+    def _report(self, which: str, got: Scheduling) -> None:
+        if got.requested and not got.granted:
+            _log.warning("%s of %s: %s", which, self.description, got.describe())
+        elif got.requested:
+            _log.info("%s of %s: %s", which, self.description, got.describe())
 
     def _pump(self) -> None:
         while not self._stop.is_set():

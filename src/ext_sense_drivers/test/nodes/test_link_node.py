@@ -20,6 +20,7 @@ def _reader(state, last_error=""):
         bytes_total=960,
         dropped_bytes=0,
         last_error=last_error,
+        scheduling=None,  # reader_priority 0: nothing asked
     )
 
 
@@ -46,11 +47,13 @@ def test_link_status_in_every_state(state, level, message):
         "bytes_total",
         "dropped_bytes",
         "last_error",
+        "reader_scheduling",
         "frames_published",
         "qos_deadline_missed",
     ]
     assert values["port_state"] == state.name.lower()
     assert values["frames_published"] == 7
+    assert values["reader_scheduling"] == ""
 
 
 def test_link_status_names_what_vanished():

@@ -386,3 +386,41 @@ def test_the_drain_timer_stops_while_the_link_is_silent_and_data_restarts_it(gra
         # the queue drained: the timer stops again until the next bytes
         assert spin_until(executor, lambda: driver._drain_timer.is_canceled(), 2.0)
         assert driver.reader.queued_chunks == 0
+
+
+def test_reader_priority_is_asked_for_and_reported_on_the_link_status(tmp_path):
+    """``reader_priority`` reaches the reader thread, and ``/diagnostics`` says what the OS gave
+    (SCHED_FIFO where CAP_SYS_NICE or an rtprio limit allows it, else the fallback and why)."""
+    device = FakeDevice(tmp_path / "nuskin.pty")
+    device.plug()
+    caller = os.sched_getscheduler(0), os.sched_getparam(0)
+    seen = []
+
+    def scheduled(_batches, driver):
+        seen.append(driver.reader.scheduling)
+        return seen[-1] is not None
+
+    try:
+        ok, _, _ = _run_driver(
+            [
+                Parameter("port", Parameter.Type.STRING, str(device.link)),
+                Parameter("reader_priority", Parameter.Type.INTEGER, 15),
+            ],
+            until=scheduled,
+        )
+        assert ok, "the reader thread never reported its scheduling"
+        got = seen[-1]
+        assert got.requested == 15
+        line = got.describe()
+        assert line == "SCHED_FIFO 15" if got.granted else "asked SCHED_FIFO 15" in line, line
+    finally:
+        # the thread that starts the reader is raised too (the node's executor): this test's
+        os.sched_setscheduler(0, *caller)  # thread goes back to what it was
+        device.unplug()
+
+
+def test_reader_priority_shows_on_diagnostics(graph):
+    _device, _driver, executor, got = graph
+    assert spin_until(executor, lambda: _diag_values(got, "link")[0] is not None, 5.0)
+    _, values = _diag_values(got, "link")
+    assert values["reader_scheduling"] == "default scheduling (reader_priority 0: left as is)"

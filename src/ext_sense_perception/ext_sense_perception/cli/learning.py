@@ -81,6 +81,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(default: the task profile's, 25,50,100,150 for tap and handover, none for food; "
         "'none' for none)",
     )
+    p.add_argument(
+        "--arrival-jitter",
+        type=float,
+        default=None,
+        help="fraction of NUSkin training windows re-stamped with the live reader's measured "
+        "arrival jitter, 0..1 (default: the task's, 0.5 for handover, 0 otherwise; "
+        "docs/perception.md 'Arrival jitter')",
+    )
     p.set_defaults(func=_cmd_train)
 
     p = subparsers.add_parser(
@@ -168,6 +176,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--jobs", type=int, default=1, help="parallel grid-search jobs per evaluation (default 1)"
     )
+    p.add_argument(
+        "--plan",
+        action="store_true",
+        help="fit and write nothing: print how many fits the report would run per data set, "
+        "how many of them are in the cache and how many are to do",
+    )
     add_cluster_options(p, default_cache="OUT/fits")
     p.set_defaults(func=_cmd_report)
 
@@ -184,6 +198,7 @@ def _recipe(args: argparse.Namespace, anytime_post_ns: tuple[int, ...] | None = 
         rate_hz=args.rate_hz,
         anytime_post_ns=anytime_post_ns,
         seed=args.seed,
+        arrival_jitter=getattr(args, "arrival_jitter", None),  # a train option
     )
 
 
@@ -306,12 +321,14 @@ def _cmd_report(args: argparse.Namespace) -> int:
     def names(value: str | None) -> list[str] | None:
         return None if value is None else [v.strip() for v in value.split(",") if v.strip()]
 
+    plan: list[dict] | None = [] if args.plan else None
     try:
         if args.jobs < 1:
             raise PerceptionError(f"The '--jobs' option must be >= 1. Got {args.jobs} instead.")
         params = {"bin_ns": round(args.bin_ms * MS)} if args.bin_ms else None
         cache = cache_dir(args.cache, Path(args.out) / "fits")
-        with fit_executor(args.scheduler, args.workers, cache, progress=True) as executor:
+        where = (None, None) if args.plan else (args.scheduler, args.workers)
+        with fit_executor(*where, cache, progress=not args.plan) as executor:
             path = build_report(
                 [Path(d) for d in args.data],
                 Path(args.out),
@@ -327,8 +344,35 @@ def _cmd_report(args: argparse.Namespace) -> int:
                 taxels=not args.no_taxels,
                 executor=executor,
                 full=args.full,
+                plan=plan,
             )
     except PerceptionError as err:
         return fail(err)
+    if plan is not None:
+        _print_plan(plan, cache)
+        return 0
     print(f"report written to {path}")
     return 0
+
+
+def _print_plan(plan: list[dict], cache: Path | None) -> None:
+    """``report --plan``: one line per data set and the total."""
+    from collections import Counter
+
+    total: Counter = Counter()
+    by_model: Counter = Counter()
+    for row in plan:
+        print(
+            f"{row['data']}: {row['points']} points, {row['fits']} fits ({row['cached']} "
+            f"cached, {row['to_do']} to do: "
+            + ", ".join(f"{m} {n}" for m, n in row["to_do_by_model"].items())
+            + f"); {row['final_fits']} deployed-model fits for latency (in-process)"
+        )
+        total.update({k: row[k] for k in ("points", "fits", "cached", "to_do", "final_fits")})
+        by_model.update(row["to_do_by_model"])
+    print(
+        f"total: {total['points']} points, {total['fits']} fits ({total['cached']} cached in "
+        f"{cache or 'no cache'}, {total['to_do']} to do: "
+        + ", ".join(f"{m} {n}" for m, n in sorted(by_model.items()))
+        + f"); {total['final_fits']} deployed-model fits for latency (in-process)"
+    )

@@ -1,8 +1,11 @@
 """Labelled windows from a rosbag2 bag, cut by the live graph's own windowing code (no ROS).
 
-A bag (mcap or sqlite3, as :mod:`ext_sense_bags` reads them) holds the driver stream
-(``TaxelEventBatch`` or ``BioTacFrame``) and, when recorded with the simulator or a labelled
-session, ``ContactGroundTruth``. The sensor messages go, in log-time order, through
+A bag (mcap or sqlite3, as :mod:`ext_sense_bags` reads them) holds the driver stream and, when
+recorded with the simulator or a labelled session, ``ContactGroundTruth``. The driver stream is
+its raw packets (``SensorPacket``, what ``ext-sense record`` keeps by default), or, in bags
+recorded before packets existed or written by tools, its decoded arrays (``TaxelEventBatch`` or
+``BioTacFrame``); packets are preferred when a bag has both, as the live window node reads
+them. The sensor messages go, in log-time order, through
 :class:`ext_sense_perception.online.stage.WindowStage`, the core of the ``contact_window``
 node, so the windows are the ones the graph cuts from the same messages. Onsets:
 
@@ -42,6 +45,7 @@ from ext_sense_runtime.stamps import MS, S, stamp_to_ns
 
 EVENTS_TYPE = "ext_sense_msgs/msg/TaxelEventBatch"
 FRAMES_TYPE = "ext_sense_msgs/msg/BioTacFrame"
+PACKETS_TYPE = "ext_sense_msgs/msg/SensorPacket"
 TRUTH_TYPE = "ext_sense_msgs/msg/ContactGroundTruth"
 ONSET_MODES = ("auto", "truth", "detected")
 MARK_AHEAD_NS = 1 * S
@@ -57,6 +61,14 @@ class BagTopics(NamedTuple):
     events: str = "/extsense/nuskin/events"
     frames: str = "/extsense/biotac/frames"
     truth: str = "/extsense/ground_truth"
+    nuskin_packets: str = "/extsense/nuskin/packets"
+    biotac_packets: str = "/extsense/biotac/packets"
+
+    def streams(self, sensor: Sensor) -> tuple[str, str]:
+        """The sensor's ``(packets, decoded)`` topics."""
+        if sensor is Sensor.NUSKIN:
+            return self.nuskin_packets, self.events
+        return self.biotac_packets, self.frames
 
 
 class BagCounts(NamedTuple):
@@ -114,17 +126,16 @@ def _check_type(topics: dict[str, Any], topic: str, expected: str) -> None:
 
 
 def _infer_sensor(topics: dict[str, Any], names: BagTopics, custom: dict[str, str]) -> Sensor:
-    have = [
-        s for s, t in ((Sensor.NUSKIN, names.events), (Sensor.BIOTAC, names.frames)) if t in topics
-    ]
+    have = [s for s in (Sensor.NUSKIN, Sensor.BIOTAC) if any(t in topics for t in names.streams(s))]
     if "sensor" in custom:
         return Sensor.parse(custom["sensor"], PerceptionError)
     if len(have) == 1:
         return have[0]
     if not have:
         raise PerceptionError(
-            f"The bag has no sensor topic: expected {names.events!r} (TaxelEventBatch) or "
-            f"{names.frames!r} (BioTacFrame). Got topics {sorted(topics)} instead."
+            f"The bag has no sensor topic: expected packets ({names.nuskin_packets!r}, "
+            f"{names.biotac_packets!r}) or decoded arrays ({names.events!r}, TaxelEventBatch; "
+            f"{names.frames!r}, BioTacFrame). Got topics {sorted(topics)} instead."
         )
     raise PerceptionError("The bag holds both sensors' streams: give --sensor nuskin or biotac.")
 
@@ -165,10 +176,21 @@ class _Refractory:
         return events.select(keep)
 
 
-def _sensor_ids(bag: Any, topic: str) -> tuple[int, ...]:
+def _sensor_ids(bag: Any, topic: str, packets: bool) -> tuple[int, ...]:
+    """The BioTac sensor ids among the first frames (decoded from packets when ``packets``)."""
+    from ext_sense_drivers.packets import PacketError, make_decoder
+
     ids: set[int] = set()
+    decoder = None
     for k, msg in enumerate(_decoded(bag, topic, [0])):
-        ids.add(int(msg.sensor_id))
+        if packets:
+            try:
+                decoder = decoder or make_decoder(str(msg.encoding), str(msg.encoding_options))
+                ids.update(int(f.sensor_id) for f in decoder.decode(msg).frames)
+            except PacketError:
+                pass  # counted when the windows are cut
+        else:
+            ids.add(int(msg.sensor_id))
         if k >= SENSOR_ID_PEEK:
             break
     return tuple(sorted(ids)) or (0,)
@@ -227,13 +249,16 @@ def window_set_from_bag(
             if sensor
             else _infer_sensor(have, topics, bag.custom_data)
         )
-        stream = topics.events if sensor_e is Sensor.NUSKIN else topics.frames
+        packets, decoded = topics.streams(sensor_e)
+        use_packets = packets in have and have[packets].count > 0
+        stream = packets if use_packets else decoded
         if stream not in have or have[stream].count == 0:
             raise PerceptionError(
-                f"The bag has no {sensor_e.label} messages on {stream!r}. Got topics "
-                f"{ {t: s.count for t, s in have.items()} } instead."
+                f"The bag has no {sensor_e.label} messages on {packets!r} or {decoded!r}. Got "
+                f"topics { {t: s.count for t, s in have.items()} } instead."
             )
-        _check_type(have, stream, EVENTS_TYPE if sensor_e is Sensor.NUSKIN else FRAMES_TYPE)
+        expected = EVENTS_TYPE if sensor_e is Sensor.NUSKIN else FRAMES_TYPE
+        _check_type(have, stream, PACKETS_TYPE if use_packets else expected)
         drops = [0]
         truths: list[GroundTruth] = []
         truth_task = ""
@@ -268,7 +293,7 @@ def window_set_from_bag(
             )
         config = config.with_profile(anytime_post_ns=())  # final windows only
         if sensor_e is Sensor.BIOTAC and sensor_ids is None:
-            sensor_ids = _sensor_ids(bag, stream)
+            sensor_ids = _sensor_ids(bag, stream, use_packets)
         stage = WindowStage(config, sensor_ids or (0,))
         # truth onsets are marked just ahead of their data: a few pending windows, not all
         marks = np.sort([g.onset_ns - config.pre_ns for g in truths]) if mode == "truth" else []
@@ -283,8 +308,10 @@ def window_set_from_bag(
             while next_mark < len(marks) and marks[next_mark] <= horizon:
                 stage.on_motion_start(int(marks[next_mark]) + config.pre_ns)
                 next_mark += 1
-            events = events_of(msg) if thin is not None else None
-            if events is not None:
+            events = events_of(msg) if thin is not None and not use_packets else None
+            if use_packets:
+                windows.extend(stage.on_packet(msg, thin))
+            elif events is not None:
                 windows.extend(stage.on_block(thin(events), stamp_to_ns(msg.header.stamp)))
             elif sensor_e is Sensor.NUSKIN:
                 windows.extend(stage.on_events(msg))
@@ -300,7 +327,7 @@ def window_set_from_bag(
         if stage.last_data_ns is not None:
             windows.extend(stage.advance(stage.last_data_ns + config.post_ns))
         windows.extend(stage.flush())
-        bad = int(stage.counters.bad_messages)
+        bad = int(stage.counters.bad_messages + stage.counters.bad_packets)
     finally:
         bag.close()
     finals = [w for w in windows if not w.provisional]

@@ -1,7 +1,13 @@
 """``contact_window`` node: sensor stream in, contact windows (provisional and final) out.
 
-Subscribes ``events`` (``TaxelEventBatch``, NUSkin) or ``frames`` (``BioTacFrame``) and, for
-food, ``motion_start`` (``ContactGroundTruth``; its stamp is the arm's motion start). Publishes
+Subscribes ``packets`` (``SensorPacket``, the driver's raw bytes: ``input`` packets, the default)
+and decodes them with the drivers' library decoder, or the decoded ``events``
+(``TaxelEventBatch``, NUSkin) or ``frames`` (``BioTacFrame``) (``input`` decoded: bags recorded
+before packets); and, for food, ``motion_start`` (``ContactGroundTruth``; its stamp is the arm's
+motion start). Packets are the default so that the live node and the offline replay of a bag
+decode the same bytes with the same code: identical windows (docs/runtime.md, Raw packets). A
+``seq`` gap is lost input (counted, on ``/diagnostics``, the windows across it degraded); a
+packet that cannot be read is counted and dropped with the reason logged. Publishes
 ``window`` (``ContactWindow``): provisional windows at the configured shorter post-onset times,
 then the final one. The windowing itself is
 :class:`~ext_sense_perception.online.stage.WindowStage`; the window and the anytime times come
@@ -33,20 +39,25 @@ from __future__ import annotations
 
 import array
 import time
-from dataclasses import replace
 from typing import Any
 
 from rclpy.node import Node
 
-from ext_sense_msgs.msg import BioTacFrame, ContactGroundTruth, ContactWindow, TaxelEventBatch
+from ext_sense_msgs.msg import (
+    BioTacFrame,
+    ContactGroundTruth,
+    ContactWindow,
+    SensorPacket,
+    TaxelEventBatch,
+)
 from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.nodes.window_parameters import (
+    declare_input_liveness,
+    declare_window_config,
+)
 from ext_sense_perception.online.deadline import next_wake_ns, stall_change_ns
-from ext_sense_perception.online.liveness import StreamLiveness
 from ext_sense_perception.online.messages import window_fields
-from ext_sense_perception.online.model_card import read_card
-from ext_sense_perception.online.model_store import locate_model
 from ext_sense_perception.online.stage import WindowStage
-from ext_sense_perception.online.window import WindowConfig
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
@@ -55,7 +66,7 @@ from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import COMMAND_QOS, SENSOR_STREAM_QOS, WINDOW_QOS
 from ext_sense_runtime.qos_events import QosEventCounter
-from ext_sense_runtime.stamps import MS, US, fill_stamp, stamp_to_ns
+from ext_sense_runtime.stamps import MS, fill_stamp, stamp_to_ns
 
 MIN_WAIT_NS = 50_000
 """Shortest deadline wait: a deadline already passed fires at once, without a zero period."""
@@ -67,92 +78,7 @@ class ContactWindowNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "contact_window"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        task = declare(
-            self,
-            "task",
-            "tap_localization",
-            "Task: tap_localization, handover_stability or food_identification.",
-            read_only=True,
-        )
-        sensor = declare(self, "sensor", "nuskin", "Sensor: nuskin or biotac.", read_only=True)
-        model_path = declare(
-            self,
-            "model_path",
-            "",
-            "Model bundle whose card's task profile cuts the windows: a directory, or a model "
-            "name looked up as contact_inference does (empty: the task's default model, "
-            "<task>_<sensor>); without a readable card, the task's own profile.",
-            read_only=True,
-        )
-        base, profile_source = self._base_config(task, sensor, model_path)
-        pre_ms = declare(
-            self,
-            "pre_onset_ms",
-            base.pre_ns / MS,
-            "Signal kept before the onset, ms (negative: the window starts after it).",
-            low=-60000.0,
-            high=10000.0,
-            read_only=True,
-        )
-        post_ms = declare(
-            self,
-            "post_onset_ms",
-            base.post_ns / MS,
-            "Signal after the onset in the final window, ms.",
-            low=1.0,
-            high=60000.0,
-            read_only=True,
-        )
-        sample_us = declare(
-            self,
-            "sample_us",
-            base.profile.sample_ns / US,
-            "NUSkin window sample (bin of signed event counts), microseconds.",
-            low=10.0,
-            high=1_000_000.0,
-            read_only=True,
-        )
-        prov = declare(
-            self,
-            "anytime_post_ms",
-            [p / MS for p in base.anytime_post_ns],
-            "Post-onset times of the provisional (anytime) windows, ms; empty: none.",
-            read_only=True,
-        )
-        debounce_ms = declare(
-            self,
-            "debounce_ms",
-            base.debounce_ns / MS,
-            "Minimum time between two onsets, ms.",
-            low=0.0,
-            high=60000.0,
-            read_only=True,
-        )
-        min_events = declare(
-            self,
-            "activity_min_events",
-            base.activity_min_events,
-            "NUSkin onset: events within activity_window_ms that mean contact.",
-            low=1,
-            high=100000,
-            read_only=True,
-        )
-        act_ms = declare(
-            self,
-            "activity_window_ms",
-            base.activity_window_ns / MS,
-            "NUSkin onset: sliding window events are counted in, ms.",
-            low=0.01,
-            high=1000.0,
-            read_only=True,
-        )
-        sensor_ids = declare(
-            self,
-            "sensor_ids",
-            [0],
-            "BioTac sensor slots joined into one window (channels in this order).",
-            read_only=True,
-        )
+        config, sensor_ids, profile_source = declare_window_config(self)
         self.slack_ns = int(
             declare(
                 self,
@@ -176,77 +102,47 @@ class ContactWindowNode(Node):
             * MS
         )
         try:
-            config = replace(
-                base.with_profile(
-                    pre_ns=round(pre_ms * MS),
-                    post_ns=round(post_ms * MS),
-                    sample_ns=round(sample_us * US),
-                    anytime_post_ns=tuple(round(p * MS) for p in prov),
-                    debounce_ns=round(debounce_ms * MS),
-                ),
-                activity_min_events=int(min_events),
-                activity_window_ns=round(act_ms * MS),
-            )
-            self.stage = WindowStage(config, tuple(int(s) for s in sensor_ids))
+            self.stage = WindowStage(config, sensor_ids)
         except PerceptionError as err:
             raise ValueError(f"contact_window: {err}") from err
         self.config = config
+        self.input = declare(
+            self,
+            "input",
+            "packets",
+            "What to cut windows from: packets (the driver's raw SensorPacket on packets, decoded "
+            "here: live and offline see the same bytes) or decoded (TaxelEventBatch on events, "
+            "BioTacFrame on frames: bags recorded before packets).",
+            read_only=True,
+        )
+        if self.input not in ("packets", "decoded"):
+            raise ValueError(
+                f"The 'input' parameter must be one of ['packets', 'decoded']. "
+                f"Got {self.input!r} instead."
+            )
+        decoded_topic = "events" if config.sensor is Sensor.NUSKIN else "frames"
         input_topic = self.resolve_topic_name(
-            "events" if config.sensor is Sensor.NUSKIN else "frames"
+            "packets" if self.input == "packets" else decoded_topic
         )
-        self.liveness = StreamLiveness(
-            input_topic,
-            declare(
-                self,
-                "expected_rate_hz",
-                1000.0 if config.sensor is Sensor.NUSKIN else 100.0,
-                "Messages per second the input has while streaming (NUSkin: the driver's batches "
-                "during a contact; BioTac: frames), Hz.",
-                low=0.1,
-                high=100000.0,
-                read_only=True,
-            ),
-            warn_ns=round(
+        self.liveness = declare_input_liveness(self, config, input_topic)
+        if self.input == "packets":
+            # a read waits in the driver up to its batch period before its packet goes out: a
+            # deadline closing a window sooner would miss bytes the offline replay has
+            self.slack_ns += round(
                 declare(
                     self,
-                    "stall_warn_ms",
-                    100.0,
-                    "Silence of the input while streaming that is a stall (WARN, windows "
-                    "across it degraded), ms.",
-                    low=1.0,
-                    high=60000.0,
+                    "packet_batch_ms",
+                    1.0,
+                    "The driver's batch period (batch_period_s, publish_period_s), ms: added to "
+                    "advance_slack_ms when reading packets, so that a window the deadline closes "
+                    "holds every byte read before its end.",
+                    low=0.0,
+                    high=1000.0,
                     read_only=True,
                 )
                 * MS
-            ),
-            error_ns=round(
-                declare(
-                    self,
-                    "stall_error_ms",
-                    500.0,
-                    "Silence of the input while streaming that is an ERROR, ms.",
-                    low=1.0,
-                    high=60000.0,
-                    read_only=True,
-                )
-                * MS
-            ),
-            late_ns=round(
-                declare(
-                    self,
-                    "late_ms",
-                    100.0,
-                    "A message arriving this much later than the stream's usual delay is late "
-                    "(its windows degraded), ms.",
-                    low=1.0,
-                    high=60000.0,
-                    read_only=True,
-                )
-                * MS
-            ),
-        )
-        if config.sensor is Sensor.NUSKIN and not config.external_onsets:
-            self.liveness.contact_words = int(config.activity_min_events)
+            )
+        self._first_packet = True
         self._stall_state = (False, False)
         self._wall_at_data: int | None = None
         self.published = 0
@@ -257,7 +153,15 @@ class ContactWindowNode(Node):
         self.pub = self.create_publisher(
             ContactWindow, "window", WINDOW_QOS, event_callbacks=self.qos_events.publisher()
         )
-        if config.sensor is Sensor.NUSKIN:
+        if self.input == "packets":
+            self.create_subscription(
+                SensorPacket,
+                "packets",
+                self.guard(self._on_packet),
+                SENSOR_STREAM_QOS,
+                event_callbacks=self.qos_events.subscription(),
+            )
+        elif config.sensor is Sensor.NUSKIN:
             self.create_subscription(
                 TaxelEventBatch,
                 "events",
@@ -295,25 +199,6 @@ class ContactWindowNode(Node):
             f"{config.pre_ns / MS:g} ms before to {config.post_ns / MS:g} ms after onset "
             f"(profile of {profile_source})"
         )
-
-    def _base_config(self, task: str, sensor: str, model_path: str) -> tuple[WindowConfig, str]:
-        """The window configuration of the model's card, else of the task; and where from."""
-        try:
-            config = WindowConfig.for_task(task, sensor)
-        except PerceptionError as err:
-            raise ValueError(f"contact_window: {err}") from err
-        try:
-            path = locate_model(model_path, task, sensor)
-            card = read_card(path)
-        except PerceptionError as err:
-            self.get_logger().info(f"task profile of {task} (no model card: {err})")
-            return config, "task"
-        if card.task != config.task.label or card.sensor != config.sensor.label:
-            self.get_logger().warning(
-                f"model card {path} is for {card.task}/{card.sensor}: using the task profile"
-            )
-            return config, "task"
-        return WindowConfig.for_profile(card.profile, config.sensor), str(path)
 
     def _publish(self, windows: list) -> None:
         for win in windows:
@@ -355,12 +240,43 @@ class ContactWindowNode(Node):
         self._publish(self.stage.on_events(msg))
         self._arm(earlier_only=True)
 
+    def _on_packet(self, msg: SensorPacket) -> None:
+        if self._first_packet:
+            self._first_packet = False
+            late = f": joined late, {msg.seq} earlier packets were not seen" if msg.seq else ""
+            self.get_logger().info(
+                f"first packet on {self.liveness.stream}: seq {msg.seq}, {msg.encoding}{late}"
+            )
+        previous_ns = self.liveness.last_stamp_ns
+        self._arrived(msg)
+        bad = self.stage.counters.bad_packets
+        windows = self.stage.on_packet(msg)
+        if self.stage.counters.bad_packets > bad:
+            self.get_logger().error(
+                f"dropped a packet ({self.stage.counters.bad_packets} so far): "
+                f"{self.stage.last_packet_error}",
+                throttle_duration_sec=1.0,
+            )
+        lost = self.stage.last_lost_packets
+        if lost:
+            stamp = stamp_to_ns(msg.header.stamp)
+            self.liveness.on_lost_packets(previous_ns or stamp, stamp, lost)
+            self.get_logger().warning(
+                f"lost input: {lost} packet(s) missing before seq {msg.seq} "
+                f"({self.liveness.packets_lost} so far, {self.liveness.contacts_lost} contact(s) "
+                "lost)",
+                throttle_duration_sec=1.0,
+            )
+            self.diagnostics.publish()
+        self._publish(windows)
+        self._arm(earlier_only=True)
+
     def _on_frame(self, msg: BioTacFrame) -> None:
         self._arrived(msg)
         self._publish(self.stage.on_frame(msg))
         self._arm(earlier_only=True)
 
-    def _arrived(self, msg: TaxelEventBatch | BioTacFrame) -> None:
+    def _arrived(self, msg: TaxelEventBatch | BioTacFrame | SensorPacket) -> None:
         self.rate.tick()
         self._wall_at_data = time.monotonic_ns()
         self.liveness.on_message(stamp_to_ns(msg.header.stamp), time.time_ns())
@@ -456,8 +372,14 @@ class ContactWindowNode(Node):
             "frames_unjoined": sc.frames_unjoined,
             "frames_wrong_sensor": sc.frames_wrong_sensor,
             "pending_onsets": len(self.stage.windower.pending_onsets),
+            "input": self.input,
             **self.qos_events.as_values(),
         }
+        if self.stage.decoder is not None:
+            values.update({f"packet_{k}": v for k, v in self.stage.decoder.diagnostics().items()})
+            values["dropped_bad_packets"] = sc.bad_packets
+        if sc.bad_packets:
+            return Level.WARN, f"dropped bad packets: {self.stage.last_packet_error}", values
         if sc.bad_messages or self.qos_events.counts["incompatible_qos"]:
             return Level.WARN, "dropped malformed input", values
         if self.config.task is Task.FOOD_IDENTIFICATION and not self.motion_starts:

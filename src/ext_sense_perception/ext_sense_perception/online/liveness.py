@@ -32,6 +32,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from ext_sense_runtime.diagnostics import Clock, Level
+from ext_sense_runtime.stalls import StallCounts, StallTracker
 from ext_sense_runtime.stamps import MS
 
 BASELINE_MESSAGES = 2000
@@ -58,7 +59,7 @@ class Fault:
 
 
 @dataclass
-class StreamLiveness:
+class StreamLiveness(StallCounts):
     """Tracks one input stream's arrivals and says when it stalls or runs late.
 
     Args:
@@ -78,17 +79,15 @@ class StreamLiveness:
     late_ns: int
     clock: Clock = time.monotonic_ns
     messages: int = 0
-    stalls: int = 0
     late_packets: int = 0
     contacts_lost: int = 0
     degraded_windows: int = 0
     last_arrival_ns: int | None = None
     last_stamp_ns: int | None = None
-    stalled_since_ns: int | None = None
-    """Monotonic time the current stall began (the last arrival), ``None`` when not stalled."""
-    longest_stall_ns: int = 0
     faults: list[Fault] = field(default_factory=list)
     words_lost: int = 0
+    packets_lost: int = 0
+    """Packets missing by their ``seq`` (raw packets input, :meth:`on_lost_packets`)."""
     contact_words: int = 0
     """Lost words that count as (at least) one lost contact: the onset detector's activity
     threshold; 0: lost input is not counted as contacts."""
@@ -100,6 +99,16 @@ class StreamLiveness:
     _count_stamp_ns: int = 0
     _before_count_ns: int = 0
     _delays: deque[int] = field(default_factory=lambda: deque(maxlen=BASELINE_MESSAGES))
+    stall: StallTracker = field(init=False)
+    """The stall in progress (from the last arrival) and the stalls so far."""
+
+    def __post_init__(self) -> None:
+        self.stall = StallTracker(self.warn_ns, self.error_ns)
+
+    @property
+    def stalled_since_ns(self) -> int | None:
+        """Monotonic time the current stall began (the last arrival), ``None`` when not."""
+        return self.stall.stalled_since_ns
 
     def on_message(self, stamp_ns: int, wall_ns: int) -> None:
         """Count one message: ``stamp_ns`` its header stamp, ``wall_ns`` the host time now.
@@ -107,9 +116,8 @@ class StreamLiveness:
         Ends a stall in progress (its interval closes at this stamp) and records a late packet.
         """
         now = self.clock()
-        if self.stalled_since_ns is not None:
-            silent = now - self.stalled_since_ns
-            self.longest_stall_ns = max(self.longest_stall_ns, silent)
+        silent = self.stall.end(now)
+        if silent is not None:
             for fault in self.faults:
                 if fault.end_ns is None:
                     fault.end_ns = stamp_ns
@@ -117,7 +125,6 @@ class StreamLiveness:
                         f"stall: no input on {self.stream} for {silent / MS:.0f} ms inside the "
                         "window"
                     )
-            self.stalled_since_ns = None
         delay = wall_ns - stamp_ns
         usual = min(self._delays) if self._delays else delay
         self._delays.append(delay)
@@ -169,17 +176,39 @@ class StreamLiveness:
         self._last_total = good
         self._count_stamp_ns = stamp_ns
 
+    def on_lost_packets(self, before_ns: int, stamp_ns: int, n: int) -> None:
+        """``n`` packets are missing between the packet stamped ``before_ns`` and this one.
+
+        Their bytes are gone: the windows across the gap are degraded, and the status is WARN
+        for :data:`RECENT_NS`. A driver publishes a packet only for reads that returned bytes,
+        so each lost packet held at least one word: ``n`` is a lower bound of the lost words,
+        and, as for a shortfall in the word count (:meth:`on_counts`), a gap of at least
+        ``contact_words`` counts as (at least) one lost contact.
+        """
+        if n <= 0:
+            return
+        self.packets_lost += int(n)
+        self.last_loss_ns = self.clock()
+        if self.contact_words and n >= self.contact_words:
+            self.contacts_lost += 1
+        self.faults.append(
+            Fault(
+                int(before_ns),
+                int(stamp_ns),
+                f"lost input: {n} packet(s) missing on {self.stream} (seq gap)",
+            )
+        )
+
     def silence_ns(self) -> int:
         """Time since the last message (0 before the first)."""
         return 0 if self.last_arrival_ns is None else self.clock() - self.last_arrival_ns
 
     def update(self, streaming: bool) -> None:
         """Start a stall when the stream has been silent past ``warn_ns`` while streaming."""
-        if self.stalled_since_ns is not None or self.last_arrival_ns is None:
+        if self.stall.stalled or self.last_arrival_ns is None:
             return
         if streaming and self.silence_ns() > self.warn_ns:
-            self.stalls += 1
-            self.stalled_since_ns = self.last_arrival_ns
+            self.stall.begin(self.last_arrival_ns)
             start = self.last_stamp_ns if self.last_stamp_ns is not None else 0
             self.faults.append(
                 Fault(start, None, f"stall: no input on {self.stream} (still silent)")
@@ -188,7 +217,7 @@ class StreamLiveness:
     @property
     def stalled(self) -> bool:
         """Whether a stall is in progress."""
-        return self.stalled_since_ns is not None
+        return self.stall.stalled
 
     def fault_in(self, start_ns: int, end_ns: int) -> str:
         """Why a window spanning ``[start_ns, end_ns]`` (stream time) is degraded, or ``""``."""
@@ -227,15 +256,21 @@ class StreamLiveness:
             "degraded_windows": self.degraded_windows,
             "contacts_lost_in_stall": self.contacts_lost,
             "words_lost": self.words_lost,
+            "packets_lost": self.packets_lost,
             "warn_ms": self.warn_ns / MS,
             "error_ms": self.error_ns / MS,
         }
         if self.stalled_since_ns is not None:
             silent = self.clock() - self.stalled_since_ns
-            level = Level.ERROR if silent > self.error_ns else Level.WARN
+            level = self.stall.level(self.clock())
             lost = f", {self.contacts_lost} contact(s) lost" if self.contacts_lost else ""
             return level, f"stall: no input on {self.stream} for {silent / MS:.0f} ms{lost}", values
         if self.last_loss_ns is not None and self.clock() - self.last_loss_ns < RECENT_NS:
+            if self.packets_lost:
+                what = f"{self.packets_lost} packets (seq gaps)"
+                if self.words_lost:
+                    what += f", {self.words_lost} words"
+                return Level.WARN, f"lost input: {what} on {self.stream}", values
             return Level.WARN, f"lost input: {self.words_lost} words on {self.stream}", values
         if self.last_arrival_ns is None:
             return Level.OK, f"waiting for {self.stream}", values

@@ -4,11 +4,17 @@ The node only moves messages; everything it decides happens here, so that the of
 (``ext-sense replay --offline``), training from bags and device streams drive the very same code
 and two runs on one bag give identical windows. Messages are duck-typed: rclpy messages and
 rosbags messages have the same field names.
+
+Raw packets (``SensorPacket``, :meth:`WindowStage.on_packet`) are decoded here with the drivers'
+library decoder (:func:`ext_sense_drivers.packets.make_decoder`): the live node and the offline
+replay of a packet bag decode the same bytes with the same code, so their windows are
+bit-identical.
 """
 
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -41,6 +47,9 @@ class StageCounters(NamedTuple):
     frames_unjoined: int = 0
     frames_wrong_sensor: int = 0
     bad_messages: int = 0
+    packets: int = 0
+    lost_packets: int = 0
+    bad_packets: int = 0
 
 
 class WindowStage:
@@ -64,6 +73,12 @@ class WindowStage:
         self._join: OrderedDict[int, dict[int, Any]] = OrderedDict()
         self.last_data_ns: int | None = None
         """Stream time of the newest data fed, ns (None before any)."""
+        self.decoder: Any = None
+        """The packet decoder, made from the first packet's encoding (None before any)."""
+        self.last_packet_error = ""
+        """Why the last refused packet was refused ('' when none was)."""
+        self.last_lost_packets = 0
+        """Packets missing just before the last packet fed (its ``seq`` gap)."""
 
     @property
     def counters(self) -> StageCounters:
@@ -83,18 +98,68 @@ class WindowStage:
             return []
         return self.on_block(events, stamp_to_ns(msg.header.stamp))
 
-    def on_block(self, events: EventBlock, stamp_ns: int | None = None) -> list[ContactWindow]:
+    def on_block(
+        self, events: EventBlock, stamp_ns: int | None = None, complete_ns: int | None = None
+    ) -> list[ContactWindow]:
         """Feed a block of decoded events (a driver's, the simulator's); windows that became due.
 
         ``stamp_ns`` is the batch's stamp (the start of the time it covers): with no events,
         stream time still reaches it, so an empty batch past a window's end closes the window
         on data, as an event there would (the stream is in order: nothing earlier can follow).
+
+        Args:
+            events: The events.
+            stamp_ns: The batch's stamp (the start of the time it covers).
+            complete_ns: For a decoded packet, the stream time up to which every event is out
+                (the last read's return): stream time reaches it, events or none.
         """
         self._counts["events"] += events.size
-        end = int(events.t_ns.max()) if events.size else stamp_ns
+        now = complete_ns if complete_ns is not None else (None if events.size else stamp_ns)
+        end = int(events.t_ns.max()) if events.size else now
+        if now is not None and end is not None:
+            end = max(end, now)
         if end is not None:
             self.last_data_ns = end if self.last_data_ns is None else max(self.last_data_ns, end)
-        return self.windower.feed(events, now_ns=None if events.size else stamp_ns)
+        return self.windower.feed(events, now_ns=now)
+
+    def on_packet(
+        self, msg: Any, thin: Callable[[EventBlock], EventBlock] | None = None
+    ) -> list[ContactWindow]:
+        """Feed one ``SensorPacket`` (rclpy, rosbags or a ``Packet``); windows that became due.
+
+        ``thin`` (NUSkin, offline only) reduces the decoded events before windowing, e.g. a
+        refractory drop to a lower rate.
+
+        The decoder is made from the packet's ``encoding`` and ``encoding_options``, and made
+        again when they change (a driver restarted with other settings). A packet that cannot
+        be read (its arrays disagree, an unknown encoding) is counted in ``bad_packets`` and
+        dropped, with the reason in :attr:`last_packet_error`; a ``seq`` gap is counted in
+        ``lost_packets`` (:attr:`last_lost_packets` for this packet).
+        """
+        from ext_sense_drivers.packets import Packet, PacketError, make_decoder
+
+        self._counts["packets"] += 1
+        self.last_lost_packets = 0
+        try:
+            options = msg.options if isinstance(msg, Packet) else msg.encoding_options
+            key = (str(msg.encoding), str(options))
+            if self.decoder is None or (self.decoder.encoding, self.decoder.options) != key:
+                self.decoder = make_decoder(*key)
+            decoded = self.decoder.decode(msg)
+        except PacketError as err:
+            self._counts["bad_packets"] += 1
+            self.last_packet_error = str(err)
+            return []
+        self.last_lost_packets = decoded.lost_packets
+        self._counts["lost_packets"] += decoded.lost_packets
+        if hasattr(decoded, "frames"):
+            out: list[ContactWindow] = []
+            for frame in decoded.frames:
+                out += self.on_frame(frame)
+            return out
+        self._counts["batches"] += 1
+        events = decoded.events if thin is None else thin(decoded.events)
+        return self.on_block(events, complete_ns=decoded.complete_ns)
 
     def on_frame(self, msg: Any) -> list[ContactWindow]:
         """Feed one ``BioTacFrame``; frames of several sensors are joined by sequence number.
@@ -124,7 +189,8 @@ class WindowStage:
             if mask:
                 shifts = 2 * np.arange(pac.shape[1], dtype=np.uint64)  # PAC words are even
                 valid[row] = ((np.uint64(mask) >> shifts) & np.uint64(1)) == 0
-        t0 = stamp_to_ns(frames[0].header.stamp)
+        first = frames[0]  # a BioTacFrame, or a packet decoder's DecodedFrame (stamp_ns)
+        t0 = first.stamp_ns if hasattr(first, "stamp_ns") else stamp_to_ns(first.header.stamp)
         period = int(frames[0].pac_sample_period_ns)
         try:
             out = self.windower.feed(t0, pac, period, valid=valid)

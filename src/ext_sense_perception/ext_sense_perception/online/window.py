@@ -218,9 +218,13 @@ def bin_events(
     idx = np.floor_divide(rel, np.int64(bin_ns))
     tax = events.taxel.astype(np.int64) - 1
     keep = (rel >= 0) & (idx < n_bins) & (tax >= 0) & (tax < n_taxels)
-    weights = np.where(events.polarity[keep] < 0, -1.0, 1.0)
-    flat = tax[keep] * n_bins + idx[keep]
-    counts = np.bincount(flat, weights=weights, minlength=n_taxels * n_bins)
+    flat = tax * n_bins + idx
+    size = n_taxels * n_bins
+    # integer counts of each sign: the same sums as float +-1 weights (exact in either), about
+    # twice as fast on a tap window (the window node cuts one as a packet closes it)
+    negative = events.polarity < 0
+    counts = np.bincount(flat[keep & ~negative], minlength=size)
+    counts -= np.bincount(flat[keep & negative], minlength=size)
     return counts.reshape(n_taxels, n_bins).astype(np.float32)
 
 

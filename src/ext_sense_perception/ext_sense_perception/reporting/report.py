@@ -11,12 +11,14 @@ calibration error and Brier score of the class probabilities). Across tap datase
 Everything is measured with :func:`ext_sense_perception.protocol.evaluate` (K splits, default 3
 for speed; the paper's K is given in the table's header when used). A point shared by several
 sections is evaluated once; ``report.md`` is rewritten after every data set, so a long run
-keeps what it has.
+keeps what it has. Each data set's sections are first planned (:meth:`Runner.plan`), so the
+fits of all its points go to the executor together (:meth:`Runner.flush`), then written.
 """
 
 from __future__ import annotations
 
 import json
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -218,6 +220,7 @@ def build_report(
     taxels: bool = True,
     executor: FitExecutor | None = None,
     full: bool = False,
+    plan: list[dict[str, Any]] | None = None,
 ) -> Path:
     """Evaluate every dataset and write ``out/report.md``, PNGs and ``out/report.json``.
 
@@ -240,9 +243,11 @@ def build_report(
         executor: Where the split fits run and are cached (default: here, uncached).
         full: The paper's tables in full: its K per point (unless ``k`` is given), every
             feature set and model, the GRU row, every section (``quick`` is refused).
+        plan: A list: fit and write nothing, only append to it each data set's count of the
+            fits the report would run (:meth:`Runner.listed`: points, fits, cached, to do).
 
     Returns:
-        The markdown file.
+        The markdown file (not written with ``plan``).
 
     Raises:
         PerceptionError: on an unknown feature set or model name (before anything runs), or
@@ -257,7 +262,8 @@ def build_report(
             )
     else:
         k = k or (2 if quick else 3)
-    out.mkdir(parents=True, exist_ok=True)
+    if plan is None:
+        out.mkdir(parents=True, exist_ok=True)
     lines = [
         "# ext_sense perception report",
         "",
@@ -268,20 +274,36 @@ def build_report(
     records: list[dict[str, Any]] = []
     run = Runner(k, seed, records, base_params, n_jobs, executor)
     rods: list[tuple[float, str, EvalResult]] = []
+
+    def sections(ws: WindowSet, path: Path, where: Path) -> list[str]:
+        """The data set's lines; its default point for the rod-length table is asked for too."""
+        found = report_dataset(
+            ws, path, where, run, quick, gru, gru_params, features, models, latency, taxels
+        )
+        if ws.task == "tap_localization" and np.isfinite(ws.rod_length_m).any():
+            feat0, model0 = default_choice(ws.task, ws.sensor)
+            res = run(ws, dataset_name(ws, path), feat0, model0)  # memoised above
+            if not run.planning:
+                rods.append((float(np.nanmedian(ws.rod_length_m)), ws.sensor, res))
+        return found
+
     with threadpool_limits(limits=1):
         for done, path in enumerate(datasets, start=1):
             ws = load_window_set(path)
-            lines += report_dataset(
-                ws, path, out, run, quick, gru, gru_params, features, models, latency, taxels
-            )
+            with tempfile.TemporaryDirectory(prefix="ext_sense_plan_") as scratch, run.plan():
+                sections(ws, path, Path(scratch))  # lists every point of the data set
+            if plan is not None:
+                plan.append({"data": str(path), **run.listed()})
+                run.discard()
+                continue
+            run.flush()  # every fit of the data set, submitted together
+            lines += sections(ws, path, out)
             if done < len(datasets):  # a long run keeps what it has so far
                 _write(
                     out, [*lines, f"(In progress: {done} of {len(datasets)} data sets.)"], records
                 )
-            if ws.task == "tap_localization" and np.isfinite(ws.rod_length_m).any():
-                feat0, model0 = default_choice(ws.task, ws.sensor)
-                res = run(ws, dataset_name(ws, path), feat0, model0)  # memoised above
-                rods.append((float(np.nanmedian(ws.rod_length_m)), ws.sensor, res))
+    if plan is not None:
+        return out / "report.md"
     if len(rods) > 1:
         lines += [
             "## Rod length (tap localisation, default model)",

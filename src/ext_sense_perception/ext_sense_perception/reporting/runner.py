@@ -1,10 +1,17 @@
-"""Running the protocol for the report: each distinct point once, every point recorded (no ROS)."""
+"""Running the protocol for the report: each distinct point once, every point recorded (no ROS).
+
+A data set's sections run twice: first inside :meth:`Runner.plan`, where every point they ask
+for is listed (and answered with a placeholder), then, after :meth:`Runner.flush` has fitted
+the splits of all those points in one submission, for real, from the memo. So a cluster's
+workers get every fit of a data set at once instead of one point's K at a time.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
-import time
 from collections import Counter
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -13,9 +20,15 @@ from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.maps import FeatureKind
 from ext_sense_perception.training.fit import fit_model
-from ext_sense_perception.training.fit_executor import FitExecutor
+from ext_sense_perception.training.fit_executor import FitExecutor, check
 from ext_sense_perception.training.models import MODEL_NAMES, default_feature_grid
-from ext_sense_perception.training.protocol import EvalResult, evaluate, features_for
+from ext_sense_perception.training.protocol import (
+    EvalPlan,
+    EvalResult,
+    assemble,
+    features_for,
+    plan_evaluation,
+)
 from ext_sense_perception.training.timing import measure_inference
 from ext_sense_runtime.stamps import MS
 
@@ -88,14 +101,36 @@ def modal_params(res: EvalResult) -> dict[str, Any]:
     return dict(res.best_params[keys.index(best)])
 
 
+def placeholder(plan: EvalPlan) -> EvalResult:
+    """A listed point's stand-in while its sections are only being planned (NaN scores)."""
+    nan = np.full(len(plan.tasks), np.nan)
+    return EvalResult(
+        task=plan.task,
+        sensor=plan.sensor,
+        features=plan.features,
+        model=plan.model,
+        metric="mae_m" if plan.regression else "accuracy",
+        scores=nan,
+        train_s=nan,
+        best_params=[],
+        confusion=None,
+        class_names=plan.labels,
+        y_true=np.full(1, np.nan),
+        y_pred=np.full(1, np.nan),
+        y_std=np.full(1, np.nan),
+        post_ns=plan.post_ns,
+    )
+
+
 class Runner:
     """Runs the protocol once per distinct (windows, features, model, parameters).
 
     Points shared by several sections (the default model on the full window, the nominal
     rate, both fingers, the rod-length table) are evaluated once and reused; every computed
-    point is appended to ``records`` (report.json). The split fits of each point run on
-    ``executor`` (here by default, or on a Dask cluster) and are cached there, so an
-    interrupted report reruns only what it had not finished.
+    point is appended to ``records`` (report.json). The split fits run on ``executor`` (here by
+    default, or on a Dask cluster) and are cached there, so an interrupted report reruns only
+    what it had not finished. Points asked for inside :meth:`plan` are fitted together by
+    :meth:`flush`; others at once.
     """
 
     def __init__(
@@ -111,7 +146,10 @@ class Runner:
         self.base_params = dict(base_params or {})
         self.n_jobs = n_jobs
         self.executor = executor or FitExecutor()
-        self._memo: dict[tuple, EvalResult] = {}
+        self.planning = False
+        self.final_fits = 0  # deployed models trained for latency while planning (in-process)
+        self._memo: dict[tuple, EvalResult | PerceptionError] = {}
+        self._pending: dict[tuple, tuple[EvalPlan, dict[str, Any]]] = {}
         self._prints: dict[int, tuple[np.ndarray, bytes]] = {}
 
     @property
@@ -137,6 +175,15 @@ class Runner:
             self._prints[id(ws.X)] = hit
         return hit[1]
 
+    @contextlib.contextmanager
+    def plan(self) -> Iterator[None]:
+        """Inside: points are listed for :meth:`flush`, answered with placeholders, not fitted."""
+        self.planning = True
+        try:
+            yield
+        finally:
+            self.planning = False
+
     def __call__(
         self,
         ws: WindowSet,
@@ -147,7 +194,12 @@ class Runner:
         extra_grid: dict[str, list[Any]] | None = None,
         **params: Any,
     ) -> EvalResult:
-        """Score ``features`` + ``model`` on ``ws`` (K splits), or return the memoised result."""
+        """Score ``features`` + ``model`` on ``ws`` (K splits), or return the memoised result.
+
+        Raises:
+            PerceptionError: the point cannot be evaluated, or one of its fits failed (the
+                same error each time the point is asked for).
+        """
         params = self.feature_params(ws, features, params)
         grid = dict(default_feature_grid(ws.task, ws.sensor, features))
         if model == LINEAR_MODEL and ws.is_regression:
@@ -161,41 +213,98 @@ class Runner:
             repr(sorted((model_params or {}).items())),
             repr(sorted(grid.items())),
         )
-        if key in self._memo:
-            return self._memo[key]
-        t0 = time.perf_counter()
-        res = evaluate(
-            ws,
-            features_for(ws, features, **params),
-            model,
-            k=self.k,
-            seed=self.seed,
-            progress=False,
-            n_jobs=self.n_jobs,
-            feature_grid=grid,
-            model_params=model_params,
-            executor=self.executor,
-        )
-        self.records.append(
-            {
+        if key not in self._memo and key not in self._pending:
+            try:
+                plan = plan_evaluation(
+                    ws,
+                    features_for(ws, features, **params),
+                    model,
+                    k=self.k,
+                    seed=self.seed,
+                    n_jobs=self.n_jobs,
+                    feature_grid=grid,
+                    model_params=model_params,
+                )
+            except PerceptionError as err:
+                self._memo[key] = err
+                raise
+            info = {
                 "dataset": name,
                 "data": key[0].hex(),  # digest of the windows and labels evaluated
                 "features": features,
                 "model": model,
                 "params": params,
                 "grid": grid,
-                "post_ms": res.post_ns / MS,
-                "metric": res.metric,
-                "mean": res.mean,
-                "std": res.std,
-                "scores": res.scores.tolist(),
-                "best_params": res.best_params,
-                "k": res.k,
-                "eval_s": time.perf_counter() - t0,
             }
-        )
-        self._memo[key] = res
-        return res
+            self._pending[key] = (plan, info)
+        if key in self._pending:
+            if self.planning:
+                return placeholder(self._pending[key][0])
+            self.flush()
+        hit = self._memo[key]
+        if isinstance(hit, PerceptionError):
+            raise hit
+        return hit
+
+    def flush(self) -> None:
+        """Fit the splits of every listed point, all submitted together; record each point.
+
+        ``eval_s`` of a record is the sum of its splits' fit times (grid search and refit),
+        wherever they ran.
+        """
+        pending, self._pending = list(self._pending.items()), {}
+        outcomes = self.executor.run_jobs([plan.job() for _, (plan, _) in pending])
+        for (key, (plan, info)), splits in zip(pending, outcomes, strict=True):
+            try:
+                check(splits)
+            except PerceptionError as err:
+                self._memo[key] = err
+                continue
+            res = assemble(plan, splits)
+            self.records.append(
+                {
+                    **info,
+                    "post_ms": res.post_ns / MS,
+                    "metric": res.metric,
+                    "mean": res.mean,
+                    "std": res.std,
+                    "scores": res.scores.tolist(),
+                    "best_params": res.best_params,
+                    "k": res.k,
+                    "eval_s": float(np.sum(res.train_s)),
+                }
+            )
+            self._memo[key] = res
+
+    def listed(self) -> dict[str, Any]:
+        """What the listed points would fit: points, fits, cached, to do per features+model.
+
+        Also the deployed models the planned sections train for their latency columns
+        (``final_fits``, in this process, not cached).
+        """
+        cache = self.executor.cache
+        todo: Counter[str] = Counter()
+        fits = cached = 0
+        for plan, info in self._pending.values():
+            for key in plan.keys:
+                fits += 1
+                if cache is not None and key in cache:
+                    cached += 1
+                else:
+                    todo[f"{info['features']}+{info['model']}"] += 1
+        return {
+            "points": len(self._pending),
+            "fits": fits,
+            "cached": cached,
+            "to_do": fits - cached,
+            "to_do_by_model": dict(todo),
+            "final_fits": self.final_fits,
+        }
+
+    def discard(self) -> None:
+        """Forget the listed points (a plan that is only counted)."""
+        self._pending.clear()
+        self.final_fits = 0
 
     def infer_ms(
         self,
@@ -209,7 +318,11 @@ class Runner:
 
         It is trained on every window with the hyper-parameters chosen in most splits (a
         one-candidate grid, so it costs about a quarter of a split, not a second search).
+        While planning it trains nothing and gives NaN.
         """
+        if self.planning:
+            self.final_fits += 1
+            return float("nan"), float("nan")
         fixed = {k: [v] for k, v in modal_params(res).items()}
         trained = fit_model(
             ws,

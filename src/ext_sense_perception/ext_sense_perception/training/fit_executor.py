@@ -3,9 +3,11 @@
 ``ext-sense evaluate`` and ``ext-sense report`` take ``--workers N`` (a local cluster started
 and stopped by the command, one single-threaded worker process per core) or ``--scheduler
 tcp://HOST:PORT`` (an existing cluster whose workers run this project's environment); without
-either, fits run here, one after the other. Each call to :meth:`FitExecutor.map` sends its data
-to the workers once (``scatter``) and its split tasks after it; finished fits are stored in a
-:class:`FitCache` as they arrive, so an interrupted run loses only the fits that were running.
+either, fits run here, one after the other. :meth:`FitExecutor.run_jobs` takes the fits of many
+points at once (a :class:`FitJob` each: its tasks and its data), sends each point's data to the
+workers once (``scatter``) and streams the tasks so the workers never wait between points;
+finished fits are stored in a :class:`FitCache` as they arrive, so an interrupted run loses only
+the fits that were running.
 ``dask`` is imported only when a cluster is asked for. No ROS.
 """
 
@@ -19,7 +21,7 @@ import tempfile
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from ext_sense_perception.errors import PerceptionError
 
@@ -36,6 +38,10 @@ class FitCache:
 
     def _path(self, key: str) -> Path:
         return self.directory / key[:2] / f"{key}.pkl"
+
+    def __contains__(self, key: str) -> bool:
+        """Whether ``key`` has a stored result (not read)."""
+        return self._path(key).exists()
 
     def get(self, key: str) -> Any | None:
         """The stored result of ``key`` (None: not there or unreadable)."""
@@ -55,6 +61,21 @@ class FitCache:
         os.replace(fh.name, path)
 
 
+class FitJob(NamedTuple):
+    """The fits of one point: ``fn(task, **data)`` for each task, cached under its key."""
+
+    fn: Callable[..., Any]
+    tasks: list[Any]
+    keys: list[str]
+    data: dict[str, Any]
+
+
+class FitFailure(NamedTuple):
+    """A fit that raised: its error as text (kept in place of its result)."""
+
+    error: str
+
+
 class Progress:
     """One line across every fit of a run: done of total, running, failed, cached, time left."""
 
@@ -69,7 +90,7 @@ class Progress:
         self.show()
 
     def finish(self, seconds: float | None, failed: bool = False, cached: bool = False) -> None:
-        """One fit ended (``seconds`` of work, None for a cache hit)."""
+        """One fit ended (``seconds`` of one worker's time, None for a cache hit)."""
         self.done += 1
         self.failed += int(failed)
         self.cached += int(cached)
@@ -125,70 +146,138 @@ class FitExecutor:
             PerceptionError: when any fit failed (the others are cached all the same), naming
                 the first failure.
         """
-        results: list[Any] = [None] * len(tasks)
-        todo = []
-        self.progress.add(len(tasks))
-        for i, key in enumerate(keys):
-            hit = self.cache.get(key) if self.cache is not None else None
-            if hit is not None:
-                results[i] = hit
-                self.progress.finish(None, cached=True)
-            else:
-                todo.append(i)
-        errors: list[str] = []
-        if self.client is None:
-            for i in todo:
-                self.progress.running = 1
-                t0 = time.perf_counter()
-                try:
-                    results[i] = fn(tasks[i], **data)
-                except Exception as err:  # one failed fit must not lose the others
-                    errors.append(f"{type(err).__name__}: {err}")
-                    self.progress.running = 0
-                    self.progress.finish(time.perf_counter() - t0, failed=True)
-                    continue
-                self._store(keys[i], results[i])
-                self.progress.running = 0
-                self.progress.finish(time.perf_counter() - t0)
-        elif todo:
-            self._map_on_cluster(fn, tasks, keys, todo, data, results, errors)
-        if errors:
-            raise PerceptionError(
-                f"{len(errors)} of {len(tasks)} fits failed (finished ones are kept for a "
-                f"rerun); the first: {errors[0]}"
-            )
+        results = self.run_jobs([FitJob(fn, tasks, keys, data)])[0]
+        check(results)
         return results
 
-    def _store(self, key: str, value: Any) -> None:
-        if self.cache is not None:
-            self.cache.put(key, value)
+    def run_jobs(self, jobs: list[FitJob]) -> list[list[Any]]:
+        """Every fit of every job, submitted together; results per job, in task order.
 
-    def _map_on_cluster(self, fn, tasks, keys, todo, data, results, errors) -> None:
+        On a cluster, jobs stream in order with at most :meth:`window` fits in flight, so
+        the workers never wait at the boundary between two points, and a job's data is on
+        the workers only while its fits run. Each task carries its own seed, so results do not
+        depend on the order fits finish in. A fit that raised gives a :class:`FitFailure` in
+        its place (see :func:`check`); the others are kept and cached all the same.
+        """
+        results: list[list[Any]] = [[None] * len(job.tasks) for job in jobs]
+        todo: list[tuple[int, int]] = []  # (job, task) not in the cache
+        self.progress.add(sum(len(job.tasks) for job in jobs))
+        for j, job in enumerate(jobs):
+            for i, key in enumerate(job.keys):
+                hit = self.cache.get(key) if self.cache is not None else None
+                if hit is not None:
+                    results[j][i] = hit
+                    self.progress.finish(None, cached=True)
+                else:
+                    todo.append((j, i))
+        if self.client is None:
+            for j, i in todo:
+                self.progress.running = 1
+                t0 = time.perf_counter()
+                results[j][i] = self._call(jobs[j], i)
+                self.progress.running = 0
+                self._done(jobs[j].keys[i], results[j][i], time.perf_counter() - t0)
+        elif todo:
+            self._run_on_cluster(jobs, todo, results)
+        return results
+
+    def window(self) -> int:
+        """Fits kept in flight on a cluster: enough to cover a point boundary on every worker."""
+        return 4 * self.progress.workers
+
+    def _call(self, job: FitJob, i: int) -> Any:
+        try:
+            return job.fn(job.tasks[i], **job.data)
+        except Exception as err:  # one failed fit must not lose the others
+            return FitFailure(f"{type(err).__name__}: {err}")
+
+    def _done(self, key: str, value: Any, seconds: float | None) -> None:
+        """Cache a finished fit and count it."""
+        failed = isinstance(value, FitFailure)
+        if self.cache is not None and not failed:
+            self.cache.put(key, value)
+        self.progress.finish(seconds, failed=failed)
+
+    def _run_on_cluster(
+        self, jobs: list[FitJob], todo: list[tuple[int, int]], results: list[list[Any]]
+    ) -> None:
         from distributed import as_completed
 
-        shared = {name: self.client.scatter(value, broadcast=True) for name, value in data.items()}
-        started = time.perf_counter()
-        futures = {
-            self.client.submit(fn, tasks[i], **shared, key=f"fit-{keys[i]}", pure=False): i
-            for i in todo
-        }
-        self.progress.running = len(futures)
-        for future in as_completed(futures):
-            i = futures[future]
-            self.progress.running -= 1
+        by_job: dict[int, list[int]] = {}
+        for j, i in todo:
+            by_job.setdefault(j, []).append(i)
+        queue = iter(by_job.items())
+        # data on the workers, by identity: (value, its future, jobs in flight using it)
+        live: dict[int, list[Any]] = {}
+        left: dict[int, int] = {}
+        futures: dict[Any, tuple[int, int]] = {}
+        running = as_completed()
+
+        def submit_next() -> bool:
+            item = next(queue, None)
+            if item is None:
+                return False
+            j, items = item
+            shared = {}
+            for name, value in jobs[j].data.items():
+                hit = live.setdefault(id(value), [value, None, 0])
+                if hit[1] is None:  # sent once, to every worker
+                    hit[1] = self.client.scatter(value, broadcast=True)
+                hit[2] += 1
+                shared[name] = hit[1]
+            left[j] = len(items)
+            for i in items:
+                job = jobs[j]
+                future = self.client.submit(
+                    job.fn, job.tasks[i], **shared, key=f"fit-{job.keys[i]}", pure=False
+                )
+                futures[future] = (j, i)
+                running.add(future)
+            return True
+
+        while len(futures) < self.window() and submit_next():
+            pass
+        self.progress.running = min(len(futures), self.progress.workers)
+        last = time.perf_counter()
+        for future in running:
+            j, i = futures.pop(future)
             try:
-                results[i] = future.result()
+                results[j][i] = future.result()
             except Exception as err:  # one failed fit must not lose the others
-                errors.append(f"{type(err).__name__}: {err}")
-                self.progress.finish(None, failed=True)
-                continue
-            self._store(keys[i], results[i])
-            self.progress.finish((time.perf_counter() - started) / max(len(todo), 1))
+                results[j][i] = FitFailure(f"{type(err).__name__}: {err}")
+            left[j] -= 1
+            if not left[j]:  # the workers may drop data no job in flight uses
+                for value in jobs[j].data.values():
+                    hit = live[id(value)]
+                    hit[2] -= 1
+                    if not hit[2]:
+                        del live[id(value)]
+            while len(futures) < self.window() and submit_next():
+                pass
+            self.progress.running = min(len(futures), self.progress.workers)
+            now = time.perf_counter()
+            # on W busy workers a fit ends about every (fit time / W): W x the gap per fit
+            self._done(jobs[j].keys[i], results[j][i], (now - last) * self.progress.workers)
+            last = now
 
     def close_line(self) -> None:
         """End the progress line (a newline after the last rewrite)."""
         if self.progress.enabled and self.progress.total:
             print(file=sys.stderr)
+
+
+def check(results: list[Any]) -> None:
+    """Raise when a job's results hold a failed fit.
+
+    Raises:
+        PerceptionError: naming how many fits failed and the first failure.
+    """
+    errors = [r.error for r in results if isinstance(r, FitFailure)]
+    if errors:
+        raise PerceptionError(
+            f"{len(errors)} of {len(results)} fits failed (finished ones are kept for a "
+            f"rerun); the first: {errors[0]}"
+        )
 
 
 @contextlib.contextmanager

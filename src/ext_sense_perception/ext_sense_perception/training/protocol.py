@@ -4,7 +4,9 @@
 K times: a random 90/10 split (stratified for classes); a grid search with 4-fold
 cross-validation on the 90%; refit on all of it; score the 10%. Seeded; tqdm progress bar.
 Each split is one task (:mod:`.split_fit`) run here or on a Dask cluster
-(:mod:`.fit_executor`), with the same result either way.
+(:mod:`.fit_executor`), with the same result either way: :func:`plan_evaluation` lists a point's
+tasks, :func:`assemble` makes its result from their fits (so a sweep can submit the fits of many
+points at once), and :func:`evaluate` does both for one point.
 
 Features without learned state (everything but the autoencoder) are computed once for all
 windows: their maps do not depend on any label or window, so this equals computing them per
@@ -13,7 +15,6 @@ fold. The autoencoder is fitted inside each training fold (it is part of the sea
 
 from __future__ import annotations
 
-import sys
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -31,9 +32,10 @@ from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.maps import FeatureKind
 from ext_sense_perception.features.transformer import FAMILIES, WindowFeatures, make_features
-from ext_sense_perception.training.fit_executor import FitExecutor
+from ext_sense_perception.training.fit_executor import FitExecutor, FitJob
 from ext_sense_perception.training.models import head_of, make_pipeline
 from ext_sense_perception.training.split_fit import (
+    SplitResult,
     SplitTask,
     code_digest,
     data_digest,
@@ -132,41 +134,43 @@ def default_k(ws: WindowSet, model: str) -> int:
     return 5 if (ws.is_regression or model == "gru") else 20
 
 
-def evaluate(
+class EvalPlan(NamedTuple):
+    """One point of the protocol before its fits: its K split tasks, their keys and its data."""
+
+    task: str
+    sensor: str
+    features: str
+    model: str
+    regression: bool
+    labels: tuple[str, ...]
+    post_ns: int
+    X: np.ndarray  # (n_windows, n_features) searched: features, or windows flattened
+    y: np.ndarray  # (n_windows,)
+    tasks: list[SplitTask]
+    keys: list[str]
+
+    def job(self) -> FitJob:
+        """The point's fits for a :class:`~.fit_executor.FitExecutor`."""
+        return FitJob(run_split, self.tasks, self.keys, {"X": self.X, "y": self.y})
+
+
+def plan_evaluation(
     ws: WindowSet,
     features: WindowFeatures,
     model: str,
     k: int | None = None,
     test_size: float = 0.1,
     seed: int = 0,
-    progress: bool = True,
     n_jobs: int = 1,
     feature_grid: dict[str, list[Any]] | None = None,
     model_params: dict[str, Any] | None = None,
-    executor: FitExecutor | None = None,
-) -> EvalResult:
-    """Run the protocol.
+) -> EvalPlan:
+    """The point's K split tasks (arguments as :func:`evaluate`'s); nothing is fitted yet.
 
-    Args:
-        ws: Labelled windows.
-        features: Feature transformer for the windows' geometry.
-        model: Model name (see :data:`ext_sense_perception.models.MODEL_NAMES`).
-        k: Random splits (default :func:`default_k`).
-        test_size: Held-out fraction per split.
-        seed: Seed of splits, folds and models.
-        progress: Show a tqdm progress bar (in-process runs without an executor).
-        n_jobs: Parallel grid-search jobs.
-        feature_grid: Feature parameters to search too (keys ``features__<param>``); the
-            features are then recomputed inside every fold.
-        model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
-        executor: Where the K split fits run and are cached (:mod:`.fit_executor`; default:
-            here, one after the other, uncached). The result does not depend on it.
-
-    Returns:
-        Scores per split and the pooled test predictions.
+    Features without learned state are computed here, once for every window.
 
     Raises:
-        PerceptionError: when there are too few windows or classes, or a fit failed.
+        PerceptionError: when there are too few windows or classes.
     """
     n = len(ws.y)
     if n < 8:
@@ -206,34 +210,93 @@ def evaluate(
         for train, test in _splits(ws, k, test_size, seed)
     ]
     data = data_digest(search_X, ws.y)
-    code = code_digest(sys.modules[type(features).__module__])
-    keys = [split_key(t, data, code) for t in tasks]
-    if executor is None:
-        executor = FitExecutor()
-        desc = f"{ws.task} {ws.sensor} {features.kind}+{model}"
-        bar = tqdm(total=k, desc=desc, disable=not progress, leave=False)
-        splits = []
-        for t, key in zip(tasks, keys, strict=True):
-            splits += executor.map(run_split, [t], [key], X=search_X, y=ws.y)
-            bar.update()
-        bar.close()
-    else:
-        splits = executor.map(run_split, tasks, keys, X=search_X, y=ws.y)
+    code = code_digest(search_pipe)
     g = ws.geometry
-    return EvalResult(
+    return EvalPlan(
         task=ws.task,
         sensor=ws.sensor,
         features=features.kind,
         model=model,
-        metric="mae_m" if ws.is_regression else "accuracy",
+        regression=ws.is_regression,
+        labels=labels,
+        post_ns=int(g.n_samples * g.period_ns - g.pre_ns),
+        X=search_X,
+        y=ws.y,
+        tasks=tasks,
+        keys=[split_key(t, data, code) for t in tasks],
+    )
+
+
+def assemble(plan: EvalPlan, splits: list[SplitResult]) -> EvalResult:
+    """The point's result from its split fits (in split order)."""
+    reg = plan.regression
+    return EvalResult(
+        task=plan.task,
+        sensor=plan.sensor,
+        features=plan.features,
+        model=plan.model,
+        metric="mae_m" if reg else "accuracy",
         scores=np.asarray([r.score for r in splits]),
         train_s=np.asarray([r.train_s for r in splits]),
         best_params=[r.best_params for r in splits],
-        confusion=None if ws.is_regression else np.sum([r.confusion for r in splits], axis=0),
-        class_names=labels,
-        y_true=np.concatenate([ws.y[t.test] for t in tasks]),
+        confusion=None if reg else np.sum([r.confusion for r in splits], axis=0),
+        class_names=plan.labels,
+        y_true=np.concatenate([plan.y[t.test] for t in plan.tasks]),
         y_pred=np.concatenate([r.y_pred for r in splits]),
         y_std=np.concatenate([r.y_std for r in splits]),
-        post_ns=int(g.n_samples * g.period_ns - g.pre_ns),
-        proba=None if ws.is_regression else np.concatenate([r.proba for r in splits]),
+        post_ns=plan.post_ns,
+        proba=None if reg else np.concatenate([r.proba for r in splits]),
     )
+
+
+def evaluate(
+    ws: WindowSet,
+    features: WindowFeatures,
+    model: str,
+    k: int | None = None,
+    test_size: float = 0.1,
+    seed: int = 0,
+    progress: bool = True,
+    n_jobs: int = 1,
+    feature_grid: dict[str, list[Any]] | None = None,
+    model_params: dict[str, Any] | None = None,
+    executor: FitExecutor | None = None,
+) -> EvalResult:
+    """Run the protocol.
+
+    Args:
+        ws: Labelled windows.
+        features: Feature transformer for the windows' geometry.
+        model: Model name (see :data:`ext_sense_perception.models.MODEL_NAMES`).
+        k: Random splits (default :func:`default_k`).
+        test_size: Held-out fraction per split.
+        seed: Seed of splits, folds and models.
+        progress: Show a tqdm progress bar (in-process runs without an executor).
+        n_jobs: Parallel grid-search jobs.
+        feature_grid: Feature parameters to search too (keys ``features__<param>``); the
+            features are then recomputed inside every fold.
+        model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
+        executor: Where the K split fits run and are cached (:mod:`.fit_executor`; default:
+            here, one after the other, uncached). The result does not depend on it.
+
+    Returns:
+        Scores per split and the pooled test predictions.
+
+    Raises:
+        PerceptionError: when there are too few windows or classes, or a fit failed.
+    """
+    plan = plan_evaluation(
+        ws, features, model, k, test_size, seed, n_jobs, feature_grid, model_params
+    )
+    if executor is None:
+        executor = FitExecutor()
+        desc = f"{ws.task} {ws.sensor} {features.kind}+{model}"
+        bar = tqdm(total=len(plan.tasks), desc=desc, disable=not progress, leave=False)
+        splits = []
+        for t, key in zip(plan.tasks, plan.keys, strict=True):
+            splits += executor.map(run_split, [t], [key], X=plan.X, y=plan.y)
+            bar.update()
+        bar.close()
+    else:
+        splits = executor.map(run_split, plan.tasks, plan.keys, X=plan.X, y=plan.y)
+    return assemble(plan, splits)

@@ -9,7 +9,10 @@ windows and the :class:`Recipe` choices, never in how it was trained. What the r
   channel selection, a BioTac decimation rate, and the default grid of feature parameters
   searched inside the folds (:func:`~.models.default_feature_grid`);
 - anytime models for the task profile's anytime post-contact times;
-- the grid search with 4-fold CV and refit of :func:`~.fit.fit_model`.
+- the grid search with 4-fold CV and refit of :func:`~.fit.fit_model`;
+- optionally, arrival-jitter augmentation (``arrival_jitter``): a fraction of the NUSkin windows
+  re-stamped as a late reader stamps them (:mod:`.arrival_jitter`, the read delays measured by
+  ``bench/bench_arrival.py``), before the fit and the anytime fits.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from typing import Any, NamedTuple
 
 from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.online.model_card import ModelCard
+from ext_sense_perception.training.arrival_jitter import augment, default_fraction
 from ext_sense_perception.training.bundle_io import save_bundle
 from ext_sense_perception.training.fit import TrainedModel, fit_anytime, fit_model
 from ext_sense_perception.training.models import default_choice, default_feature_grid
@@ -38,8 +42,13 @@ class Recipe:
             windows were thinned by the data source, the card records the rate.
         anytime_post_ns: Post-contact times of the anytime models, ns (None: the task
             profile's; ``()``: none).
-        seed: Seed of folds and models.
+        seed: Seed of folds and models (and of the augmentation).
         n_jobs: Grid-search jobs.
+        arrival_jitter: Fraction of NUSkin training windows re-stamped in place with the
+            measured arrival jitter (0: none; BioTac windows are never touched; None: the
+            task's :data:`~.arrival_jitter.DEFAULT_FRACTION`, 0.5 for handover, where it
+            lifts accuracy on jittered windows at no cost on clean ones, 0 for taps and food,
+            where it does not help; docs/perception.md, "Arrival jitter").
     """
 
     features: str | None = None
@@ -50,6 +59,7 @@ class Recipe:
     anytime_post_ns: tuple[int, ...] | None = None
     seed: int = 0
     n_jobs: int = 1
+    arrival_jitter: float | None = None
 
 
 class Choice(NamedTuple):
@@ -81,6 +91,9 @@ def fit_recipe(
     recipe: Recipe = Recipe(),
 ) -> tuple[TrainedModel, list[TrainedModel]]:
     """The model and its anytime models the recipe fits on ``ws``, not yet saved."""
+    fraction = default_fraction(ws.task) if recipe.arrival_jitter is None else recipe.arrival_jitter
+    if fraction:
+        ws = augment(ws, fraction, recipe.seed)
     choice = resolve(ws, recipe)
     kwargs: dict[str, Any] = {
         "feature_params": choice.feature_params,

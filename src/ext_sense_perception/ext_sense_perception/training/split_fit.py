@@ -4,14 +4,19 @@
 :func:`~.protocol.evaluate` cuts its K random splits into :class:`SplitTask` records and hands
 them to a :class:`~.fit_executor.FitExecutor`, which runs :func:`run_split` in this process or on
 the workers of a Dask cluster, and caches each finished split under :func:`split_key` (its
-configuration and its data's hash), so a rerun computes only what changed or failed. A task
-holds everything the fit needs but the data, which the executor sends to the workers once.
+configuration, its data's hash and the hash of the code it runs, :func:`code_digest`), so a
+rerun computes only what changed or failed. A task holds everything the fit needs but the data,
+which the executor sends to the workers once.
 """
 
 from __future__ import annotations
 
+import ast
+import functools
 import hashlib
-import inspect
+import importlib.metadata
+import importlib.util
+import sys
 import tempfile
 import time
 import warnings
@@ -27,8 +32,8 @@ from sklearn.metrics import accuracy_score, confusion_matrix, mean_absolute_erro
 from sklearn.model_selection import GridSearchCV, KFold, StratifiedKFold
 from threadpoolctl import threadpool_limits
 
-CODE_FILES = ("split_fit.py", "models.py", "gru.py", "taxel_stack.py")
-"""Training modules whose source goes into every fit's cache key (with the features' module)."""
+PROJECT_PACKAGES = ("ext_sense_perception", "ext_sense_runtime")
+"""Packages whose source goes into a fit's cache key (others by their version)."""
 
 
 class SplitTask(NamedTuple):
@@ -137,18 +142,88 @@ def data_digest(X: np.ndarray, y: np.ndarray) -> str:
     return h.hexdigest()
 
 
-def code_digest(*modules: Any) -> str:
-    """Hash of the source of the training modules and the given feature modules.
+def code_modules(
+    estimator: Any, packages: tuple[str, ...] = PROJECT_PACKAGES
+) -> tuple[list[str], list[str]]:
+    """The code a fit of ``estimator`` runs, beyond this module.
 
-    A change to the code that fits a model changes the key of every fit it made, so a rerun
-    recomputes those fits and keeps the others.
+    Args:
+        estimator: The searched pipeline (its steps and their nested estimators count).
+        packages: Top-level packages read as source; any other package counts by its version.
+
+    Returns:
+        ``(modules, versions)``: the modules of ``packages`` that define the pipeline's classes
+        and every such module they import, transitively (sorted names); and ``name version``
+        of the other libraries the classes come from or those modules import (scikit-learn,
+        NumPy, torch, ...).
     """
-    here = Path(__file__).parent
+    objs = [estimator, *estimator.get_params(deep=True).values()]
+    names = {type(o).__module__ for o in objs if hasattr(o, "get_params")}
+    todo = sorted(n for n in names if n.split(".")[0] in packages)
+    tops = {"numpy", *(n.split(".")[0] for n in names)}
+    seen: set[str] = set()
+    while todo:
+        name = todo.pop()
+        if name not in seen:
+            seen.add(name)
+            imported = _imports(name)
+            tops.update(n.split(".")[0] for n in imported)
+            todo += [n for n in imported if n.split(".")[0] in packages and _is_module(n)]
+    libraries = sorted(tops - set(packages) - set(sys.stdlib_module_names) - {"__future__"})
+    return sorted(seen), [_version(t) for t in libraries]
+
+
+def _source_path(module: str) -> Path | None:
+    spec = importlib.util.find_spec(module)
+    origin = spec.origin if spec is not None else None
+    return Path(origin) if origin and origin.endswith(".py") else None
+
+
+def _imports(module: str) -> list[str]:
+    """Names a module imports, anywhere in it (``from a.b import c``: ``a.b`` and ``a.b.c``)."""
+    path = _source_path(module)
+    if path is None:
+        return []
+    names = []
+    for node in ast.walk(ast.parse(path.read_bytes())):
+        if isinstance(node, ast.Import):
+            names += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            names += [node.module, *(f"{node.module}.{a.name}" for a in node.names)]
+    return names
+
+
+def _is_module(name: str) -> bool:
+    try:
+        return importlib.util.find_spec(name) is not None
+    except (ImportError, ValueError):  # ``a.b.name`` where a.b is a module, not a package
+        return False
+
+
+@functools.cache
+def _version(top: str) -> str:
+    """``top`` and its distributions' versions, from their metadata: nothing is imported."""
+    dists = sorted(set(importlib.metadata.packages_distributions().get(top, [])))
+    return " ".join([top, *(f"{d}=={importlib.metadata.version(d)}" for d in dists)])
+
+
+def code_digest(estimator: Any, packages: tuple[str, ...] = PROJECT_PACKAGES) -> str:
+    """Hash of the code a fit of ``estimator`` runs (see :func:`code_modules`).
+
+    This module's source, the source of the project modules behind the pipeline's classes
+    (with what they import) and the versions of the libraries the others come from. So a change
+    to one model's module recomputes only the fits of that model, and an edit elsewhere in the
+    project (a node, a driver, the report) keeps every cached fit. Features computed before the
+    search are not in the pipeline: their output is in the data's hash instead.
+    """
+    modules, versions = code_modules(estimator, packages)
     h = hashlib.blake2b(digest_size=8)
-    for name in CODE_FILES:
-        h.update((here / name).read_bytes())
-    for m in modules:
-        h.update(inspect.getsource(m).encode())
+    h.update(Path(__file__).read_bytes())
+    for name in modules:
+        path = _source_path(name)
+        h.update(name.encode())
+        h.update(path.read_bytes() if path is not None else b"")
+    h.update(repr(versions).encode())
     return h.hexdigest()
 
 

@@ -205,7 +205,9 @@ def test_bag_without_sensor_topic_or_with_a_wrong_type(tmp_path):
     with BagWriter(tmp_path / "wrong") as bag:
         bag.write(EVENTS, T0, ground_truth(T0, "tap_localization", 0, tap_position_m=0.1))
     _expect_cli_error(tmp_path, tmp_path / "wrong", "must hold ext_sense_msgs/msg/TaxelEventBatch")
-    with pytest.raises(PerceptionError, match="no nuskin messages on '/other'"):
+    with pytest.raises(
+        PerceptionError, match="no nuskin messages on '/extsense/nuskin/packets' or '/other'"
+    ):
         window_set_from_bag(tmp_path / "wrong", sensor="nuskin", topics=BagTopics(events="/other"))
 
 
@@ -322,3 +324,74 @@ def test_cli_train_and_evaluate_read_bags_and_need_labels(nuskin_run, tmp_path):
         argv = [command, "--data", str(out), "--onsets", "detected", "--out", str(tmp_path / "m")]
         args = parser.parse_args(argv[:5] if command == "evaluate" else argv)
         assert args.func(args) == 2
+
+
+def _tap_bags(tmp_path: Path) -> tuple[Path, Path]:
+    """The same simulated taps twice: as the driver records them by default (receiver words in
+    raw packets) and as its decoded arrays of those very packets (``decoded:=true``)."""
+    from ext_sense_bags.messages import header, make_message, taxel_event_batch
+
+    from ext_sense_bags import BagWriter, ground_truth
+    from ext_sense_drivers.nuskin.wire import encode_words
+    from ext_sense_drivers.packets import NUSKIN_WORDS_V1, PacketPacker, make_decoder
+    from ext_sense_drivers.transports.base import Chunk
+    from ext_sense_sim.engine import Simulator
+    from ext_sense_sim.scene import load_scene
+
+    _, sig = next(Simulator(load_scene("tap_rod30_nuskin")).batches(4, 0))
+    trial, ev = sig["events"]
+    trial_ns = 400 * MS
+    t = ev.t_ns + trial.astype(np.int64) * trial_ns + T0
+    taxel, value = ev.taxel, ev.value
+    order = np.argsort(t, kind="stable")
+    t, taxel, value = t[order], taxel[order], value[order]
+    packer, decoder = PacketPacker(NUSKIN_WORDS_V1), make_decoder(NUSKIN_WORDS_V1, "")
+    with BagWriter(tmp_path / "packets") as raw, BagWriter(tmp_path / "decoded") as arrays:
+        for start in range(T0, int(t[-1]) + MS, MS):  # one read, one packet per 1 ms
+            k = slice(*np.searchsorted(t, [start, start + MS]))
+            if t[k].size == 0:
+                continue
+            chunk = Chunk(encode_words(taxel[k], value[k]), start + MS)
+            for p in packer.pack([(1, chunk)], link_down=False):
+                raw.write(
+                    "/extsense/nuskin/packets",
+                    p.stamp_ns,
+                    make_message(
+                        "ext_sense_msgs/msg/SensorPacket",
+                        header=header(p.stamp_ns, "nuskin"),
+                        seq=p.seq,
+                        encoding=p.encoding,
+                        encoding_options=p.options,
+                        time_base=p.time_base,
+                        connection=p.connection,
+                        end_of_stream=p.end_of_stream,
+                        read_end=p.read_end,
+                        read_offset_ns=p.read_offset_ns,
+                        data=np.frombuffer(p.data, np.uint8),
+                    ),
+                )
+                e = decoder.decode(p).events
+                first = int(e.t_ns.min())  # the driver stamps a batch with its first event
+                batch = taxel_event_batch(first, e.taxel, e.polarity, e.value, e.t_ns - first)
+                arrays.write(EVENTS, p.stamp_ns, batch)
+        for i in range(4):
+            onset = T0 + i * trial_ns + int(sig["labels"].onset_ns[i])
+            for bag in (raw, arrays):
+                truth = ground_truth(
+                    onset, "tap_localization", i, tap_position_m=float(sig["labels"].y_m[i])
+                )
+                bag.write(TRUTH, onset, truth)
+    return tmp_path / "packets", tmp_path / "decoded"
+
+
+def test_a_packet_bag_gives_the_windows_of_its_decoded_arrays(tmp_path):
+    """``ext-sense record`` keeps raw packets by default: training from such a bag decodes them
+    with the drivers' library, and gets the windows the driver's decoded arrays give."""
+    packets, decoded = _tap_bags(tmp_path)
+    ws_p, counts = window_set_from_bag(packets)
+    ws_d, _ = window_set_from_bag(decoded)
+    assert counts.windows == counts.labelled == 4
+    assert counts.bad_messages == 0
+    assert ws_p.X.any()
+    np.testing.assert_array_equal(ws_p.X, ws_d.X)
+    np.testing.assert_array_equal(ws_p.y, ws_d.y)

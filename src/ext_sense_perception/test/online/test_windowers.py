@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -266,3 +268,60 @@ def test_empty_and_single_event_windows():
     )
     assert one.data.sum() == 1
     assert one.data[6, 50] == 1  # 50 ms of pre-onset at 1 ms bins
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.integers(-2_000_000, 12_000_000), st.integers(0, 90), st.sampled_from([-1, 0, 1])
+        ),
+        max_size=80,
+    ),
+    st.integers(1, 40),
+)
+def test_bin_events_matches_per_event_reference(events, n_bins):
+    t = np.array([e[0] for e in events], np.int64) + EPOCH
+    tax = np.array([e[1] for e in events], np.int64)
+    pol = np.array([e[2] for e in events], np.int8)
+    bin_ns = 250_000
+    expected = np.zeros((80, n_bins), np.float32)
+    for ti, k, p in zip(t.tolist(), tax.tolist(), pol.tolist(), strict=True):
+        b = (ti - EPOCH) // bin_ns
+        if 1 <= k <= 80 and 0 <= b < n_bins:
+            expected[k - 1, b] += -1.0 if p < 0 else 1.0
+    got = bin_events(EventBlock.of(t, tax, pol), EPOCH, n_bins, bin_ns)
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got, expected)
+
+
+def test_joining_the_buffer_at_cuts_changes_no_window_and_stays_bounded(monkeypatch):
+    # taps 700 ms apart fed in 1 ms chunks, as packets come: each tap's five cuts
+    rng = np.random.default_rng(5)
+    onsets = [(300 + 700 * i) * MS for i in range(9)]
+    parts = [_tap_stream(o, rng, background_s=0.0) for o in onsets]
+    t = np.concatenate([p[0] for p in parts])
+    order = np.argsort(t, kind="stable")
+    t, tax, pol = (np.concatenate([p[i] for p in parts])[order] for i in range(3))
+
+    def run(w: EventWindower) -> list:
+        out, sizes = [], []
+        edges = np.searchsorted(t, EPOCH + np.arange(0, 7_000 * MS, MS))
+        for lo, hi in itertools.pairwise(edges):
+            if hi > lo:
+                out += w.feed(EventBlock.of(t[lo:hi], tax[lo:hi], pol[lo:hi]))
+                sizes.append(sum(c.size for c in w._chunks))
+        return out + w.flush(), max(sizes)
+
+    joined, most = run(EventWindower())
+    monkeypatch.setattr(EventWindower, "_compact", lambda self: None)
+    chunked, _ = run(EventWindower())
+    assert len(joined) == len(chunked) >= 5 * (len(onsets) - 1)  # the last one is flushed
+    for x, y in zip(joined, chunked, strict=True):
+        assert (x.onset_ns, x.post_onset_ns, x.provisional) == (
+            y.onset_ns,
+            y.post_onset_ns,
+            y.provisional,
+        )
+        np.testing.assert_array_equal(x.data, y.data)
+    assert most <= 3 * 400  # about two taps' bursts at most: joining drops what is behind

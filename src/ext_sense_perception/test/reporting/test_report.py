@@ -155,3 +155,20 @@ def test_an_interrupted_report_resumes_from_its_cached_fits(tmp_path, make_tap_d
     again = json.loads((out / "report.json").read_text())
     strip = lambda recs: [{k: v for k, v in r.items() if k != "eval_s"} for r in recs]  # noqa: E731
     assert strip(first) == strip(again)
+
+
+@pytest.mark.slow  # a small report run between two plans
+def test_report_plan_counts_fits_cached_and_to_do(tmp_path, make_tap_dataset, capsys):
+    data = make_tap_dataset(tmp_path / "small.npz", n=24, seed=3)
+    out = tmp_path / "rep"
+    args = ["report", "--data", str(data), "--out", str(out), "--k", "2", "--features", "fft"]
+    args += ["--models", "svm_rbf,svm_linear", "--no-gru", "--no-latency", "--no-taxels"]
+    assert ext_sense([*args, "--plan"]) == 0
+    text = capsys.readouterr().out
+    # the table's 2 points and the default model at 8 rates (50 Hz .. 4 kHz; 4 kHz is the table's)
+    assert "10 points, 20 fits (0 cached, 20 to do: fft+svm_rbf 18, fft+svm_linear 2); 2 " in text
+    assert not (out / "report.md").exists()  # a plan writes nothing
+    assert ext_sense(args) == 0
+    capsys.readouterr()
+    assert ext_sense([*args, "--plan"]) == 0
+    assert "total: 10 points, 20 fits (20 cached in" in capsys.readouterr().out

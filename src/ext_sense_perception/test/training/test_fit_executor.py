@@ -17,8 +17,20 @@ import pytest
 from ext_sense.cli import main
 from ext_sense_perception.data.sources import from_sim_dataset
 from ext_sense_perception.errors import PerceptionError
-from ext_sense_perception.training.fit_executor import FitCache, FitExecutor, fit_executor
-from ext_sense_perception.training.protocol import evaluate, features_for
+from ext_sense_perception.training.fit_executor import (
+    FitCache,
+    FitExecutor,
+    FitFailure,
+    FitJob,
+    fit_executor,
+)
+from ext_sense_perception.training.protocol import (
+    assemble,
+    evaluate,
+    features_for,
+    plan_evaluation,
+)
+from ext_sense_perception.training.split_fit import code_digest, code_modules
 
 DASK = Path(sys.executable).with_name("dask")
 
@@ -115,3 +127,105 @@ def test_single_process_equals_local_cluster_equals_tcp_cluster(tap_npz, tmp_pat
         for p in procs:
             p.wait(timeout=30)
     assert alone == local == tcp
+
+
+POINTS = [("fft", "svm_rbf"), ("fft", "svm_linear"), ("baseline", "svm_rbf")]
+
+
+def _same(a, b) -> None:
+    np.testing.assert_array_equal(a.scores, b.scores)
+    np.testing.assert_array_equal(a.y_pred, b.y_pred)
+    assert a.best_params == b.best_params
+
+
+def _all_at_once(ws, executor: FitExecutor) -> list:
+    plans = [plan_evaluation(ws, features_for(ws, f), m, k=3) for f, m in POINTS]
+    outcomes = executor.run_jobs([p.job() for p in plans])
+    return [assemble(p, r) for p, r in zip(plans, outcomes, strict=True)]
+
+
+def test_points_submitted_together_equal_points_one_by_one(tap_npz):
+    ws = from_sim_dataset(tap_npz)
+    one_by_one = [evaluate(ws, features_for(ws, f), m, k=3, progress=False) for f, m in POINTS]
+    ex = FitExecutor()
+    for a, b in zip(one_by_one, _all_at_once(ws, ex), strict=True):
+        _same(a, b)
+    assert (ex.progress.total, ex.progress.done) == (9, 9)
+
+
+@pytest.mark.slow  # starts a local cluster of worker processes
+def test_points_submitted_together_on_a_cluster_equal_points_one_by_one(tap_npz):
+    ws = from_sim_dataset(tap_npz)
+    one_by_one = [evaluate(ws, features_for(ws, f), m, k=3, progress=False) for f, m in POINTS]
+    with fit_executor(workers=2) as ex:
+        assert ex.window() < 9  # the fits stream: some are submitted as others end
+        together = _all_at_once(ws, ex)
+    for a, b in zip(one_by_one, together, strict=True):
+        _same(a, b)
+
+
+def test_a_failed_fit_in_a_multi_point_run_stays_with_its_point():
+    def fit(task: int, offset: int) -> int:
+        if task == 2:
+            raise ValueError("bad split")
+        return task + offset
+
+    jobs = [
+        FitJob(fit, [1, 2], ["a1", "a2"], {"offset": 10}),
+        FitJob(fit, [3], ["b3"], {"offset": 0}),
+    ]
+    first, second = FitExecutor().run_jobs(jobs)
+    assert first[0] == 11
+    assert isinstance(first[1], FitFailure)
+    assert second == [3]
+
+
+def _write_package(root: Path, helper: str = "SCALE = 1.0", other: str = "X = 1") -> None:
+    pkg = root / "es18pkg"
+    pkg.mkdir(exist_ok=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "helper.py").write_text(helper + "\n")
+    (pkg / "other.py").write_text(other + "\n")  # imported by nothing the model runs
+    (pkg / "model.py").write_text(
+        "from sklearn.base import BaseEstimator\n"
+        "from es18pkg.helper import SCALE\n\n\n"
+        "class Scaled(BaseEstimator):\n"
+        "    def __init__(self, c=1.0):\n"
+        "        self.c = c\n"
+    )
+
+
+def test_code_digest_covers_the_model_modules_only(tmp_path, monkeypatch):
+    from sklearn.pipeline import Pipeline
+    from sklearn.preprocessing import StandardScaler
+
+    _write_package(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    from es18pkg.model import Scaled
+
+    pipe = Pipeline([("scale", StandardScaler()), ("model", Scaled())])
+    modules, versions = code_modules(pipe, ("es18pkg",))
+    assert modules == ["es18pkg.helper", "es18pkg.model"]
+    assert any(v.startswith("sklearn scikit-learn==") for v in versions)
+    before = code_digest(pipe, ("es18pkg",))
+    _write_package(tmp_path, other="X = 2")  # an unrelated module of the same package
+    assert code_digest(pipe, ("es18pkg",)) == before
+    _write_package(tmp_path, helper="SCALE = 2.0")  # a module the model imports
+    changed = code_digest(pipe, ("es18pkg",))
+    assert changed != before
+    model = tmp_path / "es18pkg" / "model.py"
+    model.write_text(model.read_text() + "# the model's own module\n")
+    assert code_digest(pipe, ("es18pkg",)) not in (before, changed)
+
+
+def test_the_project_code_hash_of_an_svm_leaves_out_other_models_and_precomputed_features(
+    tap_npz,
+):
+    ws = from_sim_dataset(tap_npz)
+    svm = plan_evaluation(ws, features_for(ws, "fft"), "svm_rbf", k=2).tasks[0].pipe
+    assert code_modules(svm)[0] == []  # scaler + SVR: scikit-learn's, by its version
+    gru = "ext_sense_perception.training.gru"
+    auto = plan_evaluation(ws, features_for(ws, "autoencoder"), "svm_rbf", k=2).tasks[0].pipe
+    modules = code_modules(auto)[0]
+    assert "ext_sense_perception.features.transformer" in modules
+    assert gru not in modules

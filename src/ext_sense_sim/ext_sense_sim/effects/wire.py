@@ -12,7 +12,8 @@ Models.
   value field: recovered events take the value of the nearest sent event of their taxel.
 - ``biotac_wire``: one bridge frame per sensor per 10 ms
   (:func:`ext_sense_drivers.biotac.encoder.encode_frames`), written when its last PAC sample
-  was taken; sensors interleave, sequence numbers run on across trials.
+  was taken; sensors interleave, each numbering its frames (the sensors of one
+  step share the number), on across trials.
 - ``wire_faults``: each byte is lost with probability ``lost``, flipped (one random bit) with
   ``flipped``, and an extra random byte follows it with ``extra``.
 
@@ -167,9 +168,12 @@ class BiotacWire(Effect):
             values[..., pos] = bt[key].transpose(0, 2, 1)
         replies = encode_values(values.reshape(-1, 44)).reshape(-1, 44)
         n = replies.shape[0]
-        seq = (self.seq + np.arange(n)) % 65536
-        self.seq = int((self.seq + n) % 65536)
-        sensor = np.tile(np.arange(n_sensors), n_trials * n_frames)
+        # the bridge numbers each sensor's frames (docs/biotac_bridge.md: per sensor, +1 per
+        # frame): the sensors' frames of one 10 ms step share their number
+        steps = n_trials * n_frames
+        seq = np.repeat((self.seq + np.arange(steps)) % 65536, n_sensors)
+        self.seq = int((self.seq + steps) % 65536)
+        sensor = np.tile(np.arange(n_sensors), steps)
         data = encode_frames(seq, sensor, replies)
         frame_ns = 10_000_000
         per_trial = n_frames * n_sensors

@@ -1,0 +1,205 @@
+"""Raw packets at the worst case: 80 taxels at 4 kHz for 60 s through the graph (issue #16).
+
+The tap graph's serial driver and window node (``source:=serial`` on a pty; the driver
+publishes packets only, the window node decodes them) and ``ext-sense record`` on the packets;
+this process writes the receiver's words into the pty, 320 words every millisecond (every
+taxel at 4 kHz). Printed side by side:
+
+- packets the driver published, and packets lost by ``seq`` at the window node (target 0) and
+  in the bag;
+- CPU per node process, % of one core, over the streaming time;
+- bag bytes per minute: the recorded packets, against the same stream as decoded arrays
+  (``TaxelEventBatch``, what bags held before packets: the packet bag decoded with the library
+  decoder and written with the same writer).
+
+``--quick`` streams 10 s. ``--seconds S`` sets the time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import tty
+from pathlib import Path
+
+import numpy as np
+from bench_idle import CLK_TCK, children, cpu_ticks, process_name
+from graph_runs import start_graph, stop_graph
+
+PACKETS = "/extsense/nuskin/packets"
+
+
+def _dir_bytes(path: Path) -> int:
+    return sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+
+
+def decoded_bag(packet_bag: Path, out: Path) -> int:
+    """Write the packet bag's stream as decoded ``TaxelEventBatch`` messages; their count."""
+    from ext_sense_bags import BagReader, BagWriter, taxel_event_batch
+    from ext_sense_drivers.packets import make_decoder
+
+    n = 0
+    with BagReader(packet_bag) as bag, BagWriter(out) as writer:
+        decoder = None
+        for rec, msg in bag.messages([PACKETS]):
+            if decoder is None:
+                decoder = make_decoder(msg.encoding, msg.encoding_options)
+            d = decoder.decode(msg)
+            if not d.events.size:
+                continue
+            first = int(d.events.t_ns.min())
+            batch = taxel_event_batch(
+                first,
+                d.events.taxel,
+                d.events.polarity,
+                d.events.value,
+                d.events.t_ns - first,
+                flag=d.flag,
+            )
+            writer.write("/extsense/nuskin/events", rec.log_time_ns, batch)
+            n += 1
+    return n
+
+
+def run(seconds: float) -> dict:
+    """Stream, record, measure; the figures as a dict."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.node import Node
+
+    from ext_sense_drivers.nuskin.wire import encode_words
+    from ext_sense_runtime.qos import DIAGNOSTICS_QOS
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench_packets_"))
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    overrides = {
+        "sensor": "nuskin",
+        "source": "serial",
+        "port": os.ttyname(slave),
+        "monitor": "false",
+    }
+    graph = start_graph("tap_localization", overrides, ("nuskin_driver", "contact_window"))
+    bag = tmp / "packets"
+    recorder = subprocess.Popen(
+        [sys.executable, "-m", "ext_sense.cli", "record", str(bag), "--topics", PACKETS],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
+    rclpy.init(args=[])
+    node = Node("bench_packets")
+    diag: dict[str, dict[str, str]] = {}
+
+    def on_diag(msg: DiagnosticArray) -> None:
+        for st in msg.status:
+            diag[st.name] = {kv.key: kv.value for kv in st.values}
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, DIAGNOSTICS_QOS)
+    executor = rclpy.executors.SingleThreadedExecutor()
+    executor.add_node(node)
+    sent = 0
+    try:
+        end = time.monotonic() + 60.0  # the window node and the recorder subscribed
+        while time.monotonic() < end and node.count_subscribers(PACKETS) < 2:
+            executor.spin_once(timeout_sec=0.05)
+        end = time.monotonic() + 2.0  # port open
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+        pids = {p: process_name(p) for p in children(graph.pid)}
+        pids[recorder.pid] = "recorder (ext-sense record)"
+        taxels = np.tile(np.arange(1, 81), 4)  # one ms: 4 ticks of all 80 taxels
+        values = np.random.default_rng(0).integers(0, 1024, taxels.size)
+        chunk = encode_words(taxels, values)
+        start = {p: cpu_ticks(p) for p in pids}
+        t0 = time.monotonic()
+        for i in range(int(seconds * 1000)):
+            delay = t0 + (i + 1) / 1000 - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            os.write(master, chunk)
+            sent += taxels.size
+        wall = time.monotonic() - t0
+        stop = {p: cpu_ticks(p) for p in pids}
+        end = time.monotonic() + 3.0  # drain, then two diagnostics periods
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(recorder.pid, signal.SIGINT)
+        recorder.wait(timeout=30)
+        stop_graph(graph)
+        os.close(master)
+        os.close(slave)
+    from ext_sense_bags import BagReader
+
+    with BagReader(bag) as reader:
+        seqs = np.array([int(m.seq) for _, m in reader.messages([PACKETS])], np.int64)
+    bag_lost = int(seqs.max() - seqs.min() + 1 - len(np.unique(seqs))) if len(seqs) else -1
+    n_decoded = decoded_bag(bag, tmp / "decoded")
+    per_min = 60.0 / seconds
+    packet_bytes, decoded_bytes = _dir_bytes(bag), _dir_bytes(tmp / "decoded")
+    shutil.rmtree(tmp, ignore_errors=True)  # 340 MB at 60 s
+    win = diag.get("contact_window: windows", {})
+    cpu = {
+        name: (b - a) / CLK_TCK / wall * 100
+        for p, name in pids.items()
+        if (a := start[p]) is not None and (b := stop[p]) is not None
+    }
+    return {
+        "seconds": seconds,
+        "write_wall_s": wall,
+        "words_sent": sent,
+        "events_at_window_node": int(win.get("events_total", -1)),
+        "packets_published": int(diag.get("nuskin_driver: link", {}).get("packets_published", -1)),
+        "packets_at_window_node": int(win.get("packet_packets", -1)),
+        "lost_at_window_node": int(win.get("packet_lost_packets", -1)),
+        "packets_in_bag": len(seqs),
+        "lost_in_bag": bag_lost,
+        "cpu_percent": cpu,
+        "packet_bag_mb_per_min": packet_bytes * per_min / 1e6,
+        "decoded_bag_mb_per_min": decoded_bytes * per_min / 1e6,
+        "decoded_messages": n_decoded,
+    }
+
+
+def main() -> int:
+    """Run and print the figures side by side."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="stream 10 s instead of 60")
+    parser.add_argument("--seconds", type=float, default=None)
+    args = parser.parse_args()
+    seconds = args.seconds or (10.0 if args.quick else 60.0)
+    r = run(seconds)
+    print(
+        f"80 taxels at 4 kHz for {r['seconds']:.0f} s through packets "
+        f"(written in {r['write_wall_s']:.2f} s): {r['words_sent']} words sent, "
+        f"{r['events_at_window_node']} events decoded at the window node"
+    )
+    print(
+        f"packets: published {r['packets_published']}, at window node "
+        f"{r['packets_at_window_node']}, lost by seq at window node {r['lost_at_window_node']} "
+        f"(target 0), in bag {r['packets_in_bag']}, lost by seq in bag {r['lost_in_bag']}"
+    )
+    cpu = ", ".join(f"{name} {v:.1f}%" for name, v in sorted(r["cpu_percent"].items()))
+    print(f"CPU per process (% of one core): {cpu}")
+    print(
+        f"bag bytes per minute: packets {r['packet_bag_mb_per_min']:.1f} MB | decoded arrays "
+        f"(TaxelEventBatch) {r['decoded_bag_mb_per_min']:.1f} MB "
+        f"({r['decoded_bag_mb_per_min'] / max(r['packet_bag_mb_per_min'], 1e-9):.2f}x)"
+    )
+    return 0 if r["lost_at_window_node"] == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

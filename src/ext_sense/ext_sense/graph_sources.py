@@ -1,0 +1,213 @@
+"""Where a graph's sensor data comes from: the simulated device or bag player, and the driver.
+
+Part of the graph descriptions of :mod:`ext_sense.graphs` (its build functions call
+:func:`source_nodes`), kept apart so that each module stays one idea: this one knows the four
+sources (``sim``, ``serial``, ``can``, ``bag``), the files they need, and which sensor stream
+the window node reads (raw packets, or the decoded arrays of a bag recorded before packets).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+from ext_sense.graph import ArgumentSpec, GraphError, NodeSpec, ParameterValue, as_bool
+from ext_sense.topics import (
+    SENSOR_PACKETS,
+    SENSOR_STREAMS,
+    TOPIC_GROUND_TRUTH,
+    TOPIC_HANDOVER_OFFER,
+    TOPIC_MOTION_START,
+)
+
+STARTUP_SPARE_TRIALS = 3
+"""Extra simulated trials: those streamed while the graph is still starting are lost."""
+
+DEFAULT_SCENES = {
+    ("tap_localization", "nuskin"): "tap_rod30_nuskin",
+    ("tap_localization", "biotac"): "tap_rod30_biotac",
+    ("handover_stability", "nuskin"): "handover_rod_nuskin",
+    ("handover_stability", "biotac"): "handover_plate_biotac",
+    ("food_identification", "nuskin"): "food_fork_nuskin",
+    ("food_identification", "biotac"): "food_fork_biotac",
+}
+
+SIM_TRIGGERS = {
+    "handover_stability": (TOPIC_HANDOVER_OFFER, "start"),
+    "food_identification": (TOPIC_MOTION_START, "onset"),
+}
+"""behaviours:=true with source sim: the topic on which each task's behaviour drives the
+simulated device, and how a trial is aligned to it (a grasp starts when the object is offered;
+a food trial's motion start is put at the probe's)."""
+
+PACKET_ARGUMENTS: tuple[ArgumentSpec, ...] = (
+    ArgumentSpec(
+        "decoded",
+        "false",
+        "Also publish the driver's decoded arrays (TaxelEventBatch on /extsense/nuskin/events, "
+        "BioTacFrame on /extsense/biotac/frames) beside its raw packets, for tools that want "
+        "arrays. The window node and the view read the packets.",
+        ("true", "false"),
+    ),
+    ArgumentSpec(
+        "reader_priority",
+        "0",
+        "SCHED_FIFO priority of the sensor driver's reader thread (its drain thread 10 below), "
+        "1-99; 0 leaves the scheduling as is. Needs CAP_SYS_NICE or an rtprio limit "
+        "(docs/runtime.md, 'Real-time priority for the reader'); refused, the driver says so "
+        "and runs at normal priority.",
+        kind=int,
+        low=0,
+        high=99,
+    ),
+)
+
+
+def window_input(args: Mapping[str, str]) -> str:
+    """The window node's ``input``: ``packets``, or ``decoded`` for a bag without packets.
+
+    A live graph's driver always publishes packets. With ``source:=bag`` the bag decides: one
+    recorded before packets existed holds only the decoded arrays and replays as before; so
+    does a bag that cannot be read here (the graph's file check names the problem), and an
+    empty ``bag`` (a benchmark that publishes decoded batches itself in the player's place).
+    """
+    if args["source"] != "bag":
+        return "packets"
+    try:
+        from ext_sense_bags import BagError, BagReader
+
+        with BagReader(Path(args["bag"])) as bag:
+            spec = bag.topics.get(SENSOR_PACKETS[args["sensor"]])
+            return "packets" if spec is not None and spec.count > 0 else "decoded"
+    except (BagError, OSError, ImportError):
+        return "decoded"
+
+
+def port_path(task: str, args: Mapping[str, str]) -> str:
+    """The sensor's serial device, or where the simulated device links its pty."""
+    return args["port"] or f"/tmp/ext_sense_{task}_{args['sensor']}.pty"
+
+
+def needed_files(task: str) -> Callable[[Mapping[str, str]], None]:
+    """The graph's check of the files its source needs (:meth:`GraphSpec.check_files`).
+
+    A serial device is not checked: one plugged in after the start must work (the driver
+    retries); the model is checked by :mod:`ext_sense.graph_model`.
+    """
+
+    def check(args: Mapping[str, str]) -> None:
+        source, bag, scene = args["source"], args["bag"], args["scene"]
+        if source == "bag" and not (bag and Path(bag).exists()):
+            got = f"'{bag}': no such file or directory" if bag else "nothing"
+            raise GraphError(
+                f"The 'bag' argument must name an existing rosbag2 directory or .mcap/.db3 file "
+                f"with source:=bag. Got {got}."
+            )
+        if source != "sim":
+            return
+        if not args["can_channel"]:
+            port = Path(port_path(task, args))
+            if not (port.parent.is_dir() and os.access(port.parent, os.W_OK | os.X_OK)):
+                raise GraphError(
+                    f"The 'port' argument must be a path in an existing, writable directory (the "
+                    f"simulated device links its pty there). Got '{port}': {port.parent} is not."
+                )
+        if scene.endswith((".yaml", ".yml")) and not Path(scene).is_file():
+            raise GraphError(
+                f"The 'scene' argument must be a scene name or an existing YAML "
+                f"file. Got '{scene}': no such file."
+            )
+
+    return check
+
+
+def source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
+    """The device emulator or bag player, and the driver."""
+    sensor, source = args["sensor"], args["source"]
+    rel, topic = SENSOR_STREAMS[sensor]
+    packets = ("packets", SENSOR_PACKETS[sensor])
+    nodes: list[NodeSpec] = []
+    if source == "bag":
+        return (
+            NodeSpec(
+                package="ext_sense",
+                executable="bag_player",
+                name="bag_player",
+                plugin="ext_sense.nodes.bag_player:BagPlayerNode",
+                # start_delay_s: after its own subscribers appear, let the nodes downstream
+                # (inference loading its model) come up before the first trial
+                parameters={"bag": args["bag"], "rate": 1.0, "start_delay_s": 4.0},
+                remappings=((rel, topic), packets, ("ground_truth", TOPIC_GROUND_TRUTH)),
+            ),
+        )
+    over_can = source == "can" or (source == "sim" and bool(args["can_channel"]))
+    if source == "sim":
+        trials = int(args["trials"])
+        # the device streams from start-up, like a real one: trials sent before the driver has
+        # the port are lost, so spare ones keep N scored trials
+        stream: dict[str, ParameterValue] = {
+            "trials": trials + STARTUP_SPARE_TRIALS if trials > 0 else 0
+        }
+        remaps: tuple[tuple[str, str], ...] = (("ground_truth", TOPIC_GROUND_TRUTH),)
+        if as_bool(args["behaviours"]) and task in SIM_TRIGGERS:
+            # the behaviour drives the scene: nothing streams before it asks, nothing is lost
+            trigger_topic, align = SIM_TRIGGERS[task]
+            stream = {
+                "trials": trials,
+                "mode": "trigger",
+                "align": align,
+                "labels": args["sim_labels"],
+                "trials_per_trigger": int(args.get("grasp_trials", "1")),
+            }
+            remaps = (*remaps, ("trigger", trigger_topic))
+        nodes.append(
+            NodeSpec(
+                package="ext_sense_sim",
+                executable="sim_device",
+                name="sim_device",
+                plugin="ext_sense_sim.nodes.sim_device:SimDeviceNode",
+                parameters={
+                    "device": sensor,
+                    "scene": args["scene"] or DEFAULT_SCENES[(task, sensor)],
+                    "link": "can" if over_can else "pty",
+                    "port_link": port_path(task, args),
+                    "can_channel": args["can_channel"],
+                    **stream,
+                    "seed": int(args["seed"]),
+                },
+                remappings=remaps,
+            )
+        )
+    driver = "nuskin_driver" if sensor == "nuskin" else "biotac_driver"
+    driver_class = "NuskinDriverNode" if sensor == "nuskin" else "BioTacDriverNode"
+    nodes.append(
+        NodeSpec(
+            package="ext_sense_drivers",
+            executable=driver,
+            name=driver,
+            plugin=f"ext_sense_drivers.nodes.{driver}:{driver_class}",
+            parameters={
+                "transport": "can" if over_can else "serial",
+                "port": port_path(task, args),
+                "baud": int(args["baud"]),
+                "can_interface": "virtual" if source == "sim" else args["can_interface"],
+                "can_channel": args["can_channel"],
+                **(
+                    {"frame_id": "nuskin"} if sensor == "nuskin" else {"frame_id_prefix": "biotac_"}
+                ),
+                # a lifecycle node: the front end (or an external manager) drives it
+                "autostart": False,
+                # the emulated devices send nothing between trials (a real NUSkin receiver
+                # sends its idle stream, a BioTac bridge 100 frames/s): no stall check on them
+                **({"expected_rate_hz": 0.0} if source == "sim" else {}),
+                # packets always (the view decodes them too); decoded arrays only when asked
+                "publish_decoded": as_bool(args["decoded"]),
+                "reader_priority": int(args["reader_priority"]),
+            },
+            remappings=((rel, topic), packets),
+            lifecycle=True,
+            manage=as_bool(args["manage_drivers"]),
+        )
+    )
+    return tuple(nodes)

@@ -1,0 +1,31 @@
+"""The graphs' topic names, in one place: the graph descriptions, the view and the commands.
+
+Absolute names; a node subscribes to its relative name (``events``, ``window``, ...) and the
+graph description remaps it to one of these (:mod:`ext_sense.graphs`). Their message types and
+QoS are in :data:`ext_sense_bags.STANDARD_TOPICS`.
+"""
+
+from __future__ import annotations
+
+NS = "/extsense"
+TOPIC_EVENTS = f"{NS}/nuskin/events"
+TOPIC_FRAMES = f"{NS}/biotac/frames"
+TOPIC_WINDOW = f"{NS}/contact_window"
+TOPIC_ESTIMATE = f"{NS}/contact_estimate"
+TOPIC_GROUND_TRUTH = f"{NS}/ground_truth"
+TOPIC_TAP_MARKER = f"{NS}/tap_marker"
+TOPIC_MOTION_START = f"{NS}/motion_start"
+TOPIC_HANDOVER_OFFER = f"{NS}/handover/offer"
+TOPIC_DIAGNOSTICS = "/diagnostics"
+TOPIC_NUSKIN_PACKETS = f"{NS}/nuskin/packets"
+TOPIC_BIOTAC_PACKETS = f"{NS}/biotac/packets"
+
+SENSOR_STREAMS: dict[str, tuple[str, str]] = {
+    "nuskin": ("events", TOPIC_EVENTS),
+    "biotac": ("frames", TOPIC_FRAMES),
+}
+"""Sensor -> the driver's relative output topic and its absolute name."""
+
+SENSOR_PACKETS: dict[str, str] = {"nuskin": TOPIC_NUSKIN_PACKETS, "biotac": TOPIC_BIOTAC_PACKETS}
+"""Sensor -> the absolute name of its driver's raw packets (``SensorPacket``, relative
+``packets``): what the window node reads and bags record (docs/runtime.md, Raw packets)."""

@@ -1,0 +1,235 @@
+"""What the view draws the sensor from: the drivers' raw packets, or their decoded arrays.
+
+A graph's driver publishes raw packets (``SensorPacket``) and decoded arrays only when asked
+(``decoded:=true``), and bags record the packets: so the view decodes packets itself, with the
+drivers' one decoder library (:func:`ext_sense_drivers.packets.make_decoder`), following the
+window node's conventions (:meth:`ext_sense_perception.online.stage.WindowStage.on_packet`):
+a decoder is made from a packet's ``encoding`` and ``encoding_options`` and made again when
+they change; a ``seq`` gap is counted and restarts the decoder's byte stream (the decoder does
+this: the bytes on either side of a gap do not join); a packet that cannot be read is counted
+and dropped with its reason, never raised.
+
+The view keeps one decoder per ``(encoding, options, connection)``: a connection is a byte
+stream of its own (the decoders restart at a new one anyway), and two publishers on one packet
+topic (a test's flood beside the driver) that differ in connection are then decoded apart
+instead of breaking each other's streams at every packet.
+
+The rule between the two inputs, one place for node and tests: decoded arrays
+(``TaxelEventBatch``, ``BioTacFrame``) are drawn while no packet has arrived (a bag recorded
+before packets existed, a tool publishing arrays); from the first packet on, only packets are
+(the decoded arrays of ``decoded:=true`` are the same data, decoded by the driver with the same
+library: drawing both would count every event twice), and arrays still arriving are counted
+as ignored. Either way the taxel grid, rates and PAC are fed the same values.
+
+No rclpy: messages are read duck-typed (rclpy, rosbags or plain records), so this is tested
+without ROS.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ext_sense.view.errors import ViewError
+from ext_sense.view.taxels import ElectrodeActivity, TaxelActivity
+from ext_sense.view.traces import PacTrace
+from ext_sense_drivers.packets import (
+    ACES_LINE_V1,
+    BIOTAC_BRIDGE_V1,
+    ENCODINGS,
+    NUSKIN_WORDS_V1,
+    Packet,
+    PacketError,
+    make_decoder,
+)
+from ext_sense_runtime.diagnostics import Level
+
+SENSOR_ENCODINGS: dict[str, tuple[str, ...]] = {
+    "nuskin": (NUSKIN_WORDS_V1, ACES_LINE_V1),
+    "biotac": (BIOTAC_BRIDGE_V1,),
+}
+"""Sensor -> the packet encodings the view draws for it."""
+
+MAX_DECODERS = 8
+"""Decoders kept at most (one per stream seen); the least recently fed goes first."""
+
+
+class FeedCounters(NamedTuple):
+    """What a :class:`SensorFeed` took, dropped and ignored (monotonic).
+
+    Attributes:
+        packets: Packets received (read or refused).
+        lost_packets: Packets missing before the ones received (``seq`` gaps).
+        bad_packets: Packets refused: malformed, unknown encoding, another sensor's.
+        decode_failures: Reads a decoder failed on (each costs that read).
+        events: NUSkin events drawn.
+        frames: BioTac frames drawn.
+        ignored_decoded: Decoded arrays not drawn because packets are (see the module's rule).
+    """
+
+    packets: int = 0
+    lost_packets: int = 0
+    bad_packets: int = 0
+    decode_failures: int = 0
+    events: int = 0
+    frames: int = 0
+    ignored_decoded: int = 0
+
+
+class SensorFeed:
+    """Packets or decoded arrays in, the view's taxel, electrode and PAC state fed.
+
+    Args:
+        sensor: ``nuskin`` or ``biotac``.
+        taxels: What NUSkin events are counted into.
+        electrodes: What BioTac frames' electrodes go to.
+        pac: What BioTac frames' PAC samples go to.
+
+    Raises:
+        ViewError: An unknown sensor.
+    """
+
+    def __init__(
+        self,
+        sensor: str,
+        taxels: TaxelActivity,
+        electrodes: ElectrodeActivity,
+        pac: PacTrace,
+    ) -> None:
+        if sensor not in SENSOR_ENCODINGS:
+            raise ViewError(
+                f"The 'sensor' parameter must be one of {list(SENSOR_ENCODINGS)}. "
+                f"Got {sensor!r} instead."
+            )
+        self.sensor = sensor
+        self.taxels, self.electrodes, self.pac = taxels, electrodes, pac
+        self._counts = dict.fromkeys(FeedCounters._fields, 0)
+        self._decoders: OrderedDict[tuple[str, str, int], Any] = OrderedDict()
+        self._retired_failures = 0
+        self.packets_seen = False
+        """A packet has arrived: from now on only packets are drawn."""
+        self.last_packet_error = ""
+        """Why the last refused packet was refused ('' when none was)."""
+        self.last_lost_packets = 0
+        """Packets missing just before the last packet fed (its ``seq`` gap)."""
+
+    @property
+    def counters(self) -> FeedCounters:
+        """Counters since construction (``decode_failures`` summed over every decoder)."""
+        live = sum(d.counters.decode_failures for d in self._decoders.values())
+        return FeedCounters(**{**self._counts, "decode_failures": self._retired_failures + live})
+
+    @property
+    def reading(self) -> str:
+        """What is drawn now: ``packets``, ``decoded``, or ``nothing`` before any input."""
+        if self.packets_seen:
+            return "packets"
+        return "decoded" if self._counts["events"] or self._counts["frames"] else "nothing"
+
+    # -- packets ---------------------------------------------------------------------------
+
+    def on_packet(self, msg: Any) -> None:
+        """Feed one ``SensorPacket`` (rclpy, rosbags or a :class:`Packet`).
+
+        A packet that cannot be read is counted in ``bad_packets`` and dropped, its reason in
+        :attr:`last_packet_error`; a ``seq`` gap is counted in ``lost_packets``
+        (:attr:`last_lost_packets` for this packet).
+        """
+        self._counts["packets"] += 1
+        self.packets_seen = True
+        self.last_lost_packets = 0
+        try:
+            decoded = self._decoder_for(msg).decode(msg)
+        except PacketError as err:
+            self._counts["bad_packets"] += 1
+            self.last_packet_error = str(err)
+            return
+        self.last_lost_packets = decoded.lost_packets
+        self._counts["lost_packets"] += decoded.lost_packets
+        if self.sensor == "nuskin":
+            self._draw_events(decoded.events.taxel)
+        else:
+            for frame in decoded.frames:
+                self._draw_frame(frame.sensor_id, frame.electrodes, frame.pac)
+
+    def _decoder_for(self, msg: Any) -> Any:
+        """The decoder of the packet's stream, made on its first packet.
+
+        Raises:
+            PacketError: An encoding of another sensor, an unknown one, or options its decoder
+                does not take.
+        """
+        encoding = str(msg.encoding)
+        options = str(msg.options if isinstance(msg, Packet) else msg.encoding_options)
+        key = (encoding, options, int(msg.connection))
+        decoder = self._decoders.get(key)
+        if decoder is not None:
+            self._decoders.move_to_end(key)
+            return decoder
+        wanted = SENSOR_ENCODINGS[self.sensor]
+        if encoding in ENCODINGS and encoding not in wanted:
+            raise PacketError(
+                f"packet seq {int(msg.seq)} is {encoding!r}: the {self.sensor} view reads "
+                f"{list(wanted)}"
+            )
+        decoder = make_decoder(encoding, options)
+        self._decoders[key] = decoder
+        while len(self._decoders) > MAX_DECODERS:
+            _, old = self._decoders.popitem(last=False)
+            self._retired_failures += old.counters.decode_failures
+        return decoder
+
+    # -- decoded arrays --------------------------------------------------------------------
+
+    def on_events(self, msg: Any) -> None:
+        """Feed one ``TaxelEventBatch``: drawn while no packet has arrived, else ignored."""
+        if self.packets_seen:
+            self._counts["ignored_decoded"] += 1
+            return
+        self._draw_events(msg.taxel)
+
+    def on_frame(self, msg: Any) -> None:
+        """Feed one ``BioTacFrame``: drawn while no packet has arrived, else ignored."""
+        if self.packets_seen:
+            self._counts["ignored_decoded"] += 1
+            return
+        self._draw_frame(msg.sensor_id, msg.electrodes, msg.pac)
+
+    # -- what both inputs share ------------------------------------------------------------
+
+    def _draw_events(self, taxel: Any) -> None:
+        ids = np.asarray(taxel, dtype=np.int64)
+        self._counts["events"] += ids.size
+        self.taxels.add(ids)
+
+    def _draw_frame(self, sensor_id: Any, electrodes: Any, pac: Any) -> None:
+        self._counts["frames"] += 1
+        self.electrodes.add(int(sensor_id), np.asarray(electrodes))
+        self.pac.add(int(sensor_id), np.asarray(pac))
+
+    # -- diagnostics -----------------------------------------------------------------------
+
+    def status(self) -> tuple[Level, str, dict[str, object]]:
+        """The input's part of the view's ``/diagnostics`` status.
+
+        WARN once a packet was refused (with the last reason), else OK; the counters as
+        key-values.
+        """
+        c = self.counters
+        values: dict[str, object] = {
+            "input": self.reading,
+            "packets": c.packets,
+            "lost_packets": c.lost_packets,
+            "dropped_bad_packets": c.bad_packets,
+            "decode_failures": c.decode_failures,
+            "ignored_decoded_msgs": c.ignored_decoded,
+        }
+        if c.bad_packets:
+            return (
+                Level.WARN,
+                f"dropped {c.bad_packets} bad packet(s): {self.last_packet_error}",
+                values,
+            )
+        return Level.OK, f"reading {self.reading}", values

@@ -1,0 +1,162 @@
+"""The best scheduling the machine allows for one thread: SCHED_FIFO, else a raised nice.
+
+The NUSkin words carry no time: the reader thread stamps each read when it returns, so every
+millisecond the thread waits for a core is a millisecond of stamp error (issue #16 measured
+11-45 % of events landing in another 1 ms bin). A real-time policy lets the reader preempt
+ordinary work the moment its read returns. Not every machine grants one: SCHED_FIFO needs
+``CAP_SYS_NICE`` or a non-zero ``RLIMIT_RTPRIO`` (``ulimit -r``), a lower nice needs
+``CAP_SYS_NICE`` or ``RLIMIT_NICE``. :func:`raise_thread_priority` tries them in that order and
+says what it got; it never raises, because a driver that cannot get real time must still
+read (docs/runtime.md, "Real-time priority for the reader").
+
+Plain Python (no rclpy); Linux semantics (``os.sched_setscheduler`` and ``os.setpriority`` act
+on one thread when given its native id). Elsewhere the calls are missing and the result says so.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from typing import NamedTuple
+
+FALLBACK_NICE = -10
+"""Nice asked for when SCHED_FIFO is refused: ahead of ordinary processes (nice 0), behind the
+kernel's own threads. Clamped to what ``RLIMIT_NICE`` allows."""
+
+MAX_FIFO_PRIORITY = 99
+"""Linux's highest SCHED_FIFO priority."""
+
+
+class Scheduling(NamedTuple):
+    """What a thread got.
+
+    Attributes:
+        policy: ``"fifo"`` (SCHED_FIFO), ``"nice"`` (SCHED_OTHER with a lowered nice) or
+            ``"default"`` (left as it was).
+        value: The FIFO priority (1-99), the nice value, or 0.
+        requested: The FIFO priority asked for (0: nothing asked).
+        reason: Why the policy is not the one asked for ("" when it is).
+    """
+
+    policy: str
+    value: int
+    requested: int
+    reason: str = ""
+
+    @property
+    def granted(self) -> bool:
+        """Whether the thread got the SCHED_FIFO priority asked for."""
+        return self.policy == "fifo" and self.value == self.requested
+
+    def describe(self) -> str:
+        """One line for a log or a diagnostics value."""
+        if self.policy == "fifo":
+            got = f"SCHED_FIFO {self.value}"
+        elif self.policy == "nice":
+            got = f"SCHED_OTHER nice {self.value}"
+        else:
+            got = "default scheduling"
+        if self.requested <= 0:
+            return f"{got} (reader_priority 0: left as is)"
+        if self.granted:
+            return got
+        return f"{got} (asked SCHED_FIFO {self.requested}: {self.reason})"
+
+
+def _rlimit(name: str) -> int | None:
+    """The soft limit ``RLIMIT_<name>``, or None where the platform has none."""
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(getattr(resource, f"RLIMIT_{name}"))
+    except (ImportError, AttributeError, OSError, ValueError):
+        return None
+    return None if soft == getattr(resource, "RLIM_INFINITY", -1) else int(soft)
+
+
+def _set_fifo(tid: int, priority: int) -> None:
+    os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+
+
+def _set_nice(tid: int, nice: int) -> None:
+    os.setpriority(os.PRIO_PROCESS, tid, nice)
+
+
+def _get_nice(tid: int) -> int:
+    return os.getpriority(os.PRIO_PROCESS, tid)
+
+
+def raise_thread_priority(
+    priority: int,
+    *,
+    tid: int | None = None,
+    fallback_nice: int = FALLBACK_NICE,
+    set_fifo: Callable[[int, int], None] = _set_fifo,
+    set_nice: Callable[[int, int], None] = _set_nice,
+    get_nice: Callable[[int], int] = _get_nice,
+) -> Scheduling:
+    """Give thread ``tid`` SCHED_FIFO at ``priority``, else the best nice allowed, else nothing.
+
+    A priority above ``RLIMIT_RTPRIO`` (when that limit is below it but above 0) is lowered to
+    the limit first: the best the machine allows. Never raises.
+
+    Args:
+        priority: SCHED_FIFO priority, 1-99; 0 or less leaves the thread as it is.
+        tid: Native thread id (default: the calling thread's, ``threading.get_native_id()``).
+        fallback_nice: Nice to ask for when SCHED_FIFO is refused (clamped to ``RLIMIT_NICE``).
+        set_fifo: Sets SCHED_FIFO (injectable for tests).
+        set_nice: Sets a thread's nice (injectable for tests).
+        get_nice: Reads a thread's nice (injectable for tests).
+
+    Returns:
+        What the thread got.
+    """
+    requested = min(int(priority), MAX_FIFO_PRIORITY)
+    if requested <= 0:
+        return Scheduling("default", 0, 0)
+    tid = threading.get_native_id() if tid is None else int(tid)
+    rtprio = _rlimit("RTPRIO")
+    tries = [requested]
+    if rtprio is not None and 0 < rtprio < requested:
+        tries.append(rtprio)  # without CAP_SYS_NICE the limit is the ceiling
+    reason = ""
+    for prio in tries:
+        try:
+            set_fifo(tid, prio)
+        except (OSError, AttributeError, ValueError) as err:
+            reason = f"SCHED_FIFO refused ({type(err).__name__}: {err}; RLIMIT_RTPRIO {rtprio})"
+            continue
+        if prio == requested:
+            return Scheduling("fifo", prio, requested)
+        return Scheduling("fifo", prio, requested, f"RLIMIT_RTPRIO is {rtprio}")
+    return _fallback(tid, requested, reason, fallback_nice, set_nice, get_nice)
+
+
+def _fallback(
+    tid: int,
+    requested: int,
+    reason: str,
+    fallback_nice: int,
+    set_nice: Callable[[int, int], None],
+    get_nice: Callable[[int], int],
+) -> Scheduling:
+    """The nice step of :func:`raise_thread_priority`: the lowest nice allowed, if below now."""
+    try:
+        current = int(get_nice(tid))
+    except (OSError, AttributeError) as err:
+        return Scheduling("default", 0, requested, f"{reason}; nice unreadable: {err}")
+    nice_limit = _rlimit("NICE")  # RLIMIT_NICE n allows nice down to 20 - n
+    tries = [int(fallback_nice)]
+    if nice_limit is not None and 20 - nice_limit > int(fallback_nice):
+        tries.append(20 - nice_limit)
+    for nice in tries:
+        if nice >= current:
+            continue
+        try:
+            set_nice(tid, nice)
+        except (OSError, AttributeError) as err:
+            reason = f"{reason}; nice {nice} refused ({type(err).__name__})"
+            continue
+        return Scheduling("nice", nice, requested, reason)
+    return Scheduling("default", 0, requested, f"{reason}; nice left at {current}")

@@ -1,0 +1,226 @@
+"""Arrival jitter as a late reader makes it: re-stamping events per read, for training and tests.
+
+The NUSkin words carry no time; the driver stamps each read when it returns and spreads its
+words over the time since the previous read (``ext_sense_drivers.nuskin.clock.ArrivalClock``).
+A reader that returns late stamps a whole chunk at once (issue #16). This module replays that:
+the read model (:class:`ReadDelay`) is measured by ``bench/bench_arrival.py``, the time from
+when the oldest unread word was due to when the read that takes it returns. A read then takes
+every word due by its return, and the driver's own arrival clock stamps them.
+
+Two uses, one model:
+
+- :func:`rechunk_writes` groups a device byte stream into the reads a late reader makes
+  (event level; test windows cut from it by ``data.device_stream`` meet live-like jitter);
+- :func:`augment` re-stamps the events of binned NUSkin windows in place (training-time
+  augmentation, ``Recipe.arrival_jitter``): each window's counts become events spread evenly
+  within their bins, are re-stamped by the read model, re-aligned on the re-stamped onset (the
+  live window follows its detected onset; not for external onsets) and binned again. Every
+  event stays in the window (clipped to its ends), so the event count is kept; only times move.
+
+Plain NumPy, no ROS.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import NamedTuple
+
+import numpy as np
+
+from ext_sense_drivers.nuskin.clock import ArrivalClock
+from ext_sense_perception.data.window_set import WindowSet
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.profiles import OnsetSource
+from ext_sense_runtime.enums import Task
+
+LINK_BAUD = 4_000_000
+"""The graphs' NUSkin link rate: the arrival clock's spread cap (10 us per word)."""
+
+
+class ReadDelay(NamedTuple):
+    """A measured distribution of read delays, as quantiles (inverse CDF, linear between).
+
+    Attributes:
+        probs: Cumulative probabilities, ascending from 0 to 1.
+        delay_ns: The delay at each probability, ns, non-decreasing.
+        source: Where it was measured (the command and the machine's state).
+    """
+
+    probs: tuple[float, ...]
+    delay_ns: tuple[int, ...]
+    source: str = ""
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """``(n,)`` int64 delays, ns."""
+        return np.interp(rng.random(n), self.probs, self.delay_ns).astype(np.int64)
+
+
+MEASURED_READ_DELAY = ReadDelay(
+    probs=(0.0, 0.10, 0.25, 0.50, 0.75, 0.90, 0.95, 0.99, 0.999, 1.0),
+    delay_ns=(46_000, 101_000, 240_000, 315_000, 456_000, 1_494_000, 1_697_000, 3_596_000,
+              5_127_000, 5_269_000),
+    source="bench/bench_arrival.py --quick: taps stream, both cores hogged, default scheduling "
+    "(2-core VM shared with other jobs)",
+)  # fmt: skip
+"""Read delays of the driver's reader without real-time priority on a loaded machine."""
+
+DEFAULT_FRACTION: dict[Task, float] = {Task.HANDOVER_STABILITY: 0.5}
+"""The recipe's ``arrival_jitter`` when it names none, by task (others: 0). Handover, because
+its default model (FFT + SVM on 1 ms bins) is the one the live stamps hurt: on jittered
+windows 0.70 -> 1.00 and 0.62 -> 0.93 with 0.5 (two seeds, ``bench/bench_jitter_models.py``),
+and live on the simulator stable grasps got P(stable) 0.0-0.6 against 0.54-0.97 offline
+(``bench/bench_live_offline.py``); taps gain nothing measurable (docs/perception.md)."""
+
+
+def default_fraction(task: Task | str) -> float:
+    """The augmented fraction of a task's NUSkin windows when the recipe leaves it open."""
+    return DEFAULT_FRACTION.get(Task.parse(task, PerceptionError), 0.0)
+
+
+def read_groups(
+    t_ns: np.ndarray, delay: ReadDelay, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """The reads a late reader makes of words due at ``t_ns``.
+
+    A read returns ``delay`` after the oldest word not yet read was due (never before the
+    previous read) and takes every word due by then.
+
+    Args:
+        t_ns: ``(n,)`` due times, non-decreasing, ns.
+        delay: The read model.
+        rng: Random generator.
+
+    Returns:
+        ``(ends, read_ns)``: read ``k`` takes words ``ends[k-1]:ends[k]`` and returns at
+        ``read_ns[k]``.
+    """
+    t = np.asarray(t_ns, dtype=np.int64)
+    ends: list[int] = []
+    reads: list[int] = []
+    draws = delay.sample(rng, 256)
+    i, k, prev = 0, 0, None
+    while i < t.size:
+        if k == draws.size:
+            draws, k = delay.sample(rng, 256), 0
+        r = int(t[i]) + int(draws[k])
+        k += 1
+        if prev is not None and r <= prev:
+            r = prev + 1
+        j = int(np.searchsorted(t, r, side="right"))
+        ends.append(j)
+        reads.append(r)
+        prev, i = r, j
+    return np.asarray(ends, dtype=np.int64), np.asarray(reads, dtype=np.int64)
+
+
+def restamp(t_ns: np.ndarray, delay: ReadDelay, rng: np.random.Generator) -> np.ndarray:
+    """Stamps the driver gives words due at ``t_ns`` when read by a late reader.
+
+    Returns:
+        ``(n,)`` int64 stamps, non-decreasing, in the order of ``t_ns``.
+    """
+    ends, reads = read_groups(t_ns, delay, rng)
+    clock = ArrivalClock.for_baud(LINK_BAUD)
+    out = np.empty(np.asarray(t_ns).size, dtype=np.int64)
+    start = 0
+    for end, r in zip(ends.tolist(), reads.tolist(), strict=True):
+        out[start:end] = clock.stamp(end - start, r)
+        start = end
+    return out
+
+
+def rechunk_writes(
+    writes: Iterable[tuple[int, bytes]], delay: ReadDelay, rng: np.random.Generator
+) -> list[tuple[int, bytes]]:
+    """A device byte stream regrouped into the reads a late reader makes: ``(read_ns, bytes)``.
+
+    Feed the result to ``data.device_stream.window_set_from_stream`` with ``read_period_ns=1``
+    (each item is then one read, at its own time).
+    """
+    items = list(writes)
+    if not items:
+        return []
+    t = np.asarray([int(w[0]) for w in items], dtype=np.int64)
+    ends, reads = read_groups(t, delay, rng)
+    out, start = [], 0
+    for end, r in zip(ends.tolist(), reads.tolist(), strict=True):
+        out.append((r, b"".join(bytes(b) for _, b in items[start:end])))
+        start = end
+    return out
+
+
+def jitter_window(
+    x: np.ndarray,
+    period_ns: int,
+    onset_bin: int | None,
+    delay: ReadDelay,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """One binned NUSkin window as a late reader would have stamped its events.
+
+    Args:
+        x: ``(n_channels, n_samples)`` signed event counts (rounded to whole events).
+        period_ns: The bin, ns.
+        onset_bin: Bin of the onset (the window is re-aligned on the re-stamped onset event),
+            or None (external onset: no re-alignment).
+        delay: The read model.
+        rng: Random generator.
+
+    Returns:
+        ``(n_channels, n_samples)`` counts, same dtype; the same events, times moved.
+    """
+    counts = np.rint(x).astype(np.int64)
+    channel, sample = np.nonzero(counts)
+    if channel.size == 0:
+        return x.copy()
+    v = counts[channel, sample]
+    n = np.abs(v)
+    ch = np.repeat(channel, n)
+    sign = np.repeat(np.sign(v), n)
+    idx = np.repeat(sample, n).astype(np.int64)
+    # events of one bin spread evenly inside it (unknown within a bin)
+    rank = np.arange(ch.size) - np.repeat(np.cumsum(n) - n, n)
+    t = idx * period_ns + ((2 * rank + 1) * period_ns) // (2 * np.repeat(n, n))
+    order = np.argsort(t, kind="stable")
+    t, ch, sign = t[order], ch[order], sign[order]
+    new = restamp(t, delay, rng)
+    if onset_bin is not None:
+        first = int(np.searchsorted(t, onset_bin * period_ns))
+        if first < t.size:
+            new = new - (new[first] - t[first])
+    bins = np.clip(new // period_ns, 0, x.shape[1] - 1)
+    out = np.zeros(counts.shape, dtype=np.float64)
+    np.add.at(out, (ch, bins), sign)
+    return out.astype(x.dtype)
+
+
+def augment(
+    ws: WindowSet, fraction: float, seed: int = 0, delay: ReadDelay = MEASURED_READ_DELAY
+) -> WindowSet:
+    """The set with ``fraction`` of its NUSkin windows re-stamped in place by :func:`jitter_window`.
+
+    In place rather than added copies: copies of one trial in different grid-search folds would
+    leak. BioTac windows are returned as they are (its frames carry the sensor's own clock).
+
+    Raises:
+        PerceptionError: ``fraction`` not in [0, 1].
+    """
+    if not 0.0 <= float(fraction) <= 1.0:
+        raise PerceptionError(
+            f"The 'arrival_jitter' parameter must be in [0, 1]. Got {fraction} instead."
+        )
+    if ws.sensor != "nuskin" or fraction == 0.0 or len(ws.y) == 0:
+        return ws
+    g = ws.geometry
+    profile = ws.task_profile
+    onset_bin = (
+        None
+        if profile.onset_source is OnsetSource.EXTERNAL or g.pre_ns < 0
+        else int(g.pre_ns // g.period_ns)
+    )
+    rng = np.random.default_rng(seed)
+    pick = rng.random(len(ws.y)) < float(fraction)
+    X = ws.X.copy()  # noqa: N806  (the window matrix, as in WindowSet)
+    for i in np.flatnonzero(pick):
+        X[i] = jitter_window(ws.X[i], int(g.period_ns), onset_bin, delay, rng)
+    return ws._replace(X=X)

@@ -1,0 +1,147 @@
+"""Arrival-jitter augmentation: deterministic, keeps every event, moves only times as modelled."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.training.arrival_jitter import (
+    ReadDelay,
+    augment,
+    jitter_window,
+    read_groups,
+    rechunk_writes,
+    restamp,
+)
+from ext_sense_runtime.stamps import MS
+
+NO_DELAY = ReadDelay((0.0, 1.0), (0, 0))
+LATE_5MS = ReadDelay((0.0, 1.0), (5 * MS, 5 * MS))
+
+
+def _window(rng: np.random.Generator, n_channels: int = 8, n_samples: int = 60) -> np.ndarray:
+    x = np.zeros((n_channels, n_samples), np.float32)
+    x[:, 20:35] = rng.integers(0, 4, (n_channels, 15))  # a tap at bin 20 (the onset)
+    x[:, 2:4] = rng.integers(0, 2, (n_channels, 2))
+    return x
+
+
+def test_restamp_is_deterministic_with_a_seed_and_keeps_order():
+    t = np.sort(np.random.default_rng(0).integers(0, 50 * MS, 500))
+    delay = ReadDelay((0.0, 0.5, 1.0), (50_000, 300_000, 4 * MS))
+    a = restamp(t, delay, np.random.default_rng(3))
+    b = restamp(t, delay, np.random.default_rng(3))
+    np.testing.assert_array_equal(a, b)
+    assert a.size == t.size
+    assert np.all(np.diff(a) >= 0)
+    # a word is stamped within its read: never later than the read that took it
+    assert np.all(a <= t + 4 * MS + 1)
+
+
+def test_a_read_takes_every_word_due_by_its_return():
+    t = np.array([0, 1 * MS, 2 * MS, 10 * MS, 11 * MS], np.int64)
+    ends, reads = read_groups(t, LATE_5MS, np.random.default_rng(0))
+    # first read returns at 5 ms (0 + 5 ms) with the three words due by then
+    np.testing.assert_array_equal(ends, [3, 5])
+    np.testing.assert_array_equal(reads, [5 * MS, 15 * MS])
+
+
+def test_no_delay_stamps_as_the_arrival_clock_does():
+    """Reads at each word's time: words due together are spread back over the interval since
+    the previous read (the driver's clock), never later than due, never before that read."""
+    t = np.array([500_000, 1_500_000, 1_500_000, 2_250_000, 2_750_000], np.int64)
+    got = restamp(t, NO_DELAY, np.random.default_rng(0))
+    np.testing.assert_array_equal(got, [500_000, 1_000_000, 1_500_000, 2_250_000, 2_750_000])
+
+
+def test_jitter_window_keeps_event_counts_per_channel():
+    rng = np.random.default_rng(4)
+    x = _window(rng)
+    out = jitter_window(x, MS, 20, LATE_5MS, np.random.default_rng(5))
+    assert out.dtype == x.dtype
+    assert out.shape == x.shape
+    np.testing.assert_array_equal(out.sum(axis=1), x.sum(axis=1))
+    assert not np.array_equal(out, x)  # 5 ms late reads do move events
+    # re-aligned on the re-stamped onset: the onset bin still holds the first tap events
+    assert out[:, :20].sum() <= x[:, :20].sum() + 1e-6 + x[:, 20].sum()
+
+
+def test_signed_counts_keep_their_sum():
+    x = np.zeros((2, 30), np.float32)
+    x[0, 10:14] = [3, -2, 1, -1]
+    x[1, 12] = -4
+    out = jitter_window(x, MS, 10, LATE_5MS, np.random.default_rng(0))
+    np.testing.assert_array_equal(out.sum(axis=1), x.sum(axis=1))
+
+
+def test_augment_is_deterministic_and_touches_only_the_fraction(tap_set):
+    a = augment(tap_set, 0.5, seed=7, delay=LATE_5MS)
+    b = augment(tap_set, 0.5, seed=7, delay=LATE_5MS)
+    np.testing.assert_array_equal(a.X, b.X)
+    np.testing.assert_array_equal(a.y, tap_set.y)
+    np.testing.assert_array_equal(a.X.sum(axis=2), tap_set.X.sum(axis=2))
+    changed = np.any(a.X != tap_set.X, axis=(1, 2))
+    assert 0 < changed.sum() < len(tap_set.y)
+    assert augment(tap_set, 0.0, seed=7) is tap_set
+
+
+def test_augment_refuses_a_bad_fraction(tap_set):
+    with pytest.raises(PerceptionError, match="'arrival_jitter' parameter must be in"):
+        augment(tap_set, 1.5)
+
+
+def test_rechunk_writes_keeps_every_byte_in_order():
+    writes = [(i * 100_000, bytes([i % 256]) * 4) for i in range(200)]
+    reads = rechunk_writes(writes, LATE_5MS, np.random.default_rng(0))
+    assert b"".join(b for _, b in reads) == b"".join(b for _, b in writes)
+    times = [t for t, _ in reads]
+    assert times == sorted(times)
+    assert len(reads) < len(writes)
+
+
+@pytest.fixture
+def tap_set():
+    from ext_sense_perception.data.window_set import WindowSet
+    from ext_sense_perception.online.model_input import Geometry
+
+    rng = np.random.default_rng(0)
+    X = np.stack([_window(rng) for _ in range(10)])  # noqa: N806
+    return WindowSet(
+        task="tap_localization",
+        sensor="nuskin",
+        X=X,
+        y=np.linspace(0.01, 0.29, 10),
+        geometry=Geometry(8, 60, MS, 20 * MS),
+        class_names=(),
+        groups=np.arange(10),
+        rod_length_m=np.full(10, 0.3),
+        source="test",
+        data_hash="0",
+    )
+
+
+@pytest.mark.parametrize(
+    ("task", "asked", "applied"),
+    [("handover", None, 0.5), ("handover", 0.0, None), ("tap", None, None), ("tap", 0.3, 0.3)],
+)
+def test_the_recipe_augments_by_the_task_default_unless_told(
+    tap_set, monkeypatch, task, asked, applied
+):
+    from ext_sense_perception.training import recipe as recipe_module
+
+    seen = []
+
+    def augment_spy(ws, fraction, seed):
+        seen.append(fraction)
+        return ws
+
+    def fit_stops(ws, *args, **kwargs):
+        raise StopIteration  # the fit itself is not what this checks
+
+    monkeypatch.setattr(recipe_module, "augment", augment_spy)
+    monkeypatch.setattr(recipe_module, "fit_model", fit_stops)
+    ws = tap_set._replace(task=task)
+    with pytest.raises(StopIteration):
+        recipe_module.fit_recipe(ws, recipe_module.Recipe(arrival_jitter=asked))
+    assert seen == ([] if applied is None else [applied])

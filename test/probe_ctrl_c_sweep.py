@@ -1,0 +1,49 @@
+"""Ctrl-C of the tap graph's process group at many delays after ``ext-sense run`` started.
+
+``test/test_shutdown.py`` stops the graph at three start-up delays; this probe sweeps many
+(a few seconds each, so it stays out of the suite) to find a stage of start-up where a stop is
+not clean: the runner importing, node processes importing rclpy, nodes being built and
+activated, the first data flowing. Run it as
+``.venv/bin/python test/probe_ctrl_c_sweep.py [--delays 0.1,0.5,...]``; it prints one line per
+delay with the problems found (empty: clean) and exits 1 if any run was not clean.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+from sim_models import Graph, stop_problems, train_sim_model
+
+DEFAULT_DELAYS = [0.1 * k for k in range(1, 21)] + [2.4, 2.7, 3.0, 3.5, 4.0]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--delays", help="comma-separated seconds (default: 0.1 to 4 s)")
+    args = parser.parse_args()
+    delays = [float(d) for d in args.delays.split(",")] if args.delays else DEFAULT_DELAYS
+    tmp = Path(tempfile.mkdtemp(prefix="ctrl_c_sweep_"))
+    model, _ = train_sim_model(tmp, "tap_rod30_nuskin", "tap_localization", 16)
+    unclean = 0
+    for i, delay in enumerate(delays):
+        graph = Graph("trials:=0", f"model:={model}", f"port:={tmp / f'n{i}.pty'}")
+        time.sleep(delay)
+        took = graph.stop([(0.0, signal.SIGINT)])
+        out, err = "".join(graph.out), "".join(graph.err)
+        problems = stop_problems(graph.proc, out, err)
+        print(f"delay {delay:.2f} s: stopped in {took:.2f} s, problems {problems}", flush=True)
+        if problems:
+            unclean += 1
+            (tmp / f"unclean_{delay:.2f}.log").write_text(out + err)
+    print(f"{unclean} of {len(delays)} runs not clean (logs in {tmp})")
+    return 1 if unclean else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
