@@ -54,7 +54,7 @@ def _tap_bag(path: Path) -> Path:
 def _tap_packet_bag(path: Path) -> tuple[Path, int]:
     """The same taps as the driver records them by default: receiver words in raw packets,
     one per 1 ms batch, and no decoded arrays. Returns the bag and its events."""
-    from ext_sense_bags.messages import header, make_message
+    from ext_sense_bags.messages import sensor_packet
     from ext_sense_bags.writer import BagWriter
 
     from ext_sense_drivers.nuskin.wire import encode_words
@@ -67,19 +67,7 @@ def _tap_packet_bag(path: Path) -> tuple[Path, int]:
         for b in tap_stream(ONSETS_MS, 2000, taxels=20, burst_ms=30):
             chunk = Chunk(encode_words(b.taxel, b.value), b.stamp_ns + MS)
             for p in packer.pack([(1, chunk)], link_down=False):
-                msg = make_message(
-                    "ext_sense_msgs/msg/SensorPacket",
-                    header=header(p.stamp_ns, "nuskin"),
-                    seq=p.seq,
-                    encoding=p.encoding,
-                    encoding_options=p.options,
-                    time_base=p.time_base,
-                    connection=p.connection,
-                    end_of_stream=p.end_of_stream,
-                    read_end=p.read_end,
-                    read_offset_ns=p.read_offset_ns,
-                    data=np.frombuffer(p.data, np.uint8),
-                )
+                msg = sensor_packet(p, "nuskin")
                 bag.write("/extsense/nuskin/packets", p.stamp_ns, msg)
             events += len(b.taxel)
         for k, onset in enumerate(ONSETS_MS):

@@ -196,6 +196,28 @@ def biotac_frame(
     )
 
 
+def sensor_packet(packet: Any, frame_id: str = "", distro: str = "kilted") -> Any:
+    """A ``SensorPacket`` as the driver node publishes it, from a driver's packet.
+
+    The packet (``ext_sense_drivers.packets.Packet``) is read by its fields, so bags stay free
+    of the drivers.
+    """
+    return make_message(
+        "ext_sense_msgs/msg/SensorPacket",
+        distro,
+        header=header(packet.stamp_ns, frame_id, distro),
+        seq=packet.seq,
+        encoding=packet.encoding,
+        encoding_options=packet.options,
+        time_base=packet.time_base,
+        connection=packet.connection,
+        end_of_stream=packet.end_of_stream,
+        read_end=np.asarray(packet.read_end, np.uint32),
+        read_offset_ns=np.asarray(packet.read_offset_ns, np.int64),
+        data=np.frombuffer(packet.data, np.uint8),
+    )
+
+
 def ground_truth(
     stamp_ns: int,
     task: str,

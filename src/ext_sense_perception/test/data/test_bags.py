@@ -329,7 +329,7 @@ def test_cli_train_and_evaluate_read_bags_and_need_labels(nuskin_run, tmp_path):
 def _tap_bags(tmp_path: Path) -> tuple[Path, Path]:
     """The same simulated taps twice: as the driver records them by default (receiver words in
     raw packets) and as its decoded arrays of those very packets (``decoded:=true``)."""
-    from ext_sense_bags.messages import header, make_message, taxel_event_batch
+    from ext_sense_bags.messages import sensor_packet, taxel_event_batch
 
     from ext_sense_bags import BagWriter, ground_truth
     from ext_sense_drivers.nuskin.wire import encode_words
@@ -356,19 +356,7 @@ def _tap_bags(tmp_path: Path) -> tuple[Path, Path]:
                 raw.write(
                     "/extsense/nuskin/packets",
                     p.stamp_ns,
-                    make_message(
-                        "ext_sense_msgs/msg/SensorPacket",
-                        header=header(p.stamp_ns, "nuskin"),
-                        seq=p.seq,
-                        encoding=p.encoding,
-                        encoding_options=p.options,
-                        time_base=p.time_base,
-                        connection=p.connection,
-                        end_of_stream=p.end_of_stream,
-                        read_end=p.read_end,
-                        read_offset_ns=p.read_offset_ns,
-                        data=np.frombuffer(p.data, np.uint8),
-                    ),
+                    sensor_packet(p, "nuskin"),
                 )
                 e = decoder.decode(p).events
                 first = int(e.t_ns.min())  # the driver stamps a batch with its first event
