@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 from bench_idle import CLK_TCK, children, cpu_ticks, process_name
-from graph_runs import start_graph, stop_graph
+from graph_runs import start_graph, stop_graph, watch_diagnostics
 
 PACKETS = "/extsense/nuskin/packets"
 
@@ -71,11 +71,9 @@ def decoded_bag(packet_bag: Path, out: Path) -> int:
 def run(seconds: float) -> dict:
     """Stream, record, measure; the figures as a dict."""
     import rclpy
-    from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.node import Node
 
     from ext_sense_drivers.nuskin.wire import encode_words
-    from ext_sense_runtime.qos import DIAGNOSTICS_QOS
 
     tmp = Path(tempfile.mkdtemp(prefix="bench_packets_"))
     master, slave = os.openpty()
@@ -96,13 +94,7 @@ def run(seconds: float) -> dict:
     )
     rclpy.init(args=[])
     node = Node("bench_packets")
-    diag: dict[str, dict[str, str]] = {}
-
-    def on_diag(msg: DiagnosticArray) -> None:
-        for st in msg.status:
-            diag[st.name] = {kv.key: kv.value for kv in st.values}
-
-    node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, DIAGNOSTICS_QOS)
+    diag = watch_diagnostics(node)
     executor = rclpy.executors.SingleThreadedExecutor()
     executor.add_node(node)
     sent = 0

@@ -13,8 +13,10 @@ left out of the graph (the bench itself is their source).
    receiver's idle stream of 540 words/s) at real-time pace, stamped with the host clock.
    ``--input packets`` (the default) publishes them as ``nuskin_driver`` does: its encoding and
    options, its ``PacketPacker`` and message code, one ``SensorPacket`` per 1 ms drain holding
-   that ms's reads (4 per ms), none when nothing was read, on ``/extsense/nuskin/packets``
-   (``source:=serial`` without the driver: the window node decodes the packets as live);
+   that ms's reads (4 per ms), and when nothing was read its empty "nothing read" packet (for
+   ``quiet_packets_s`` after the last bytes; none for a ``--baseline`` tree from before them),
+   on ``/extsense/nuskin/packets`` (``source:=serial`` without the driver: the window node
+   decodes the packets as live);
    ``--input decoded`` publishes ``TaxelEventBatch`` per ms on ``/extsense/nuskin/events`` as
    before packets (``source:=bag`` with an empty bag: the window node reads decoded batches).
    Per final estimate it measures the wall time from the end of the window (onset + 250 ms) to
@@ -54,7 +56,7 @@ from typing import Any
 
 import numpy as np
 from bench_arrival import start_hog, stop_hog
-from graph_runs import start_graph, stop_graph
+from graph_runs import start_graph, stop_graph, watch_diagnostics
 from latency_figures import (
     Final,
     Source,
@@ -107,8 +109,13 @@ def bench_latency(
     run: dict[str, str],
     pythonpath: str | None = None,
     trace_hops: bool = False,
+    quiet_s: float | None = None,
 ) -> dict:
-    """One latency run: ``run`` gives its ``input``, ``load`` and ``hot_path``."""
+    """One latency run: ``run`` gives its ``input``, ``load`` and ``hot_path``.
+
+    ``quiet_s``: how long after its last bytes the bench, as the driver, says it read nothing
+    (``quiet_packets_s``; ``None``: the driver's default, 0: not at all, as before it could).
+    """
     import rclpy
     from rclpy.node import Node
 
@@ -139,7 +146,7 @@ def bench_latency(
     spacing = 700.0
     onsets = [200.0 + i * spacing for i in range(taps)]
     batches = tap_batches(onsets, onsets[-1] + 600.0)
-    source = Source(run["input"], batches)
+    source = Source(run["input"], batches, quiet_s)
     sent: list[Any] = []
     try:
         graph = start_graph(GRAPH, overrides, ("contact_window", "contact_inference"), pythonpath)
@@ -197,6 +204,7 @@ def bench_latency(
     out = {
         **run,
         "tree": "baseline" if pythonpath else "this tree",
+        "quiet_packets_s": source.quiet_s,
         "load_average_before": load_before,
         "load_average_1min": os.getloadavg()[0],
         "model_compute_p50_ms": c50,
@@ -236,11 +244,9 @@ def bench_latency(
 # ---------------------------------------------------------------- 2. worst case
 def bench_worst_case(seconds: float) -> dict:
     import rclpy
-    from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.node import Node
 
     from ext_sense_drivers.nuskin.wire import encode_words
-    from ext_sense_runtime.qos import DIAGNOSTICS_QOS
 
     master, slave = os.openpty()
     import tty
@@ -252,13 +258,7 @@ def bench_worst_case(seconds: float) -> dict:
     graph = start_graph(GRAPH, overrides, ("nuskin_driver", "contact_window"))
     rclpy.init(args=[])
     node = Node("bench_worst_case")
-    diag: dict[str, dict[str, str]] = {}
-
-    def on_diag(msg: DiagnosticArray) -> None:
-        for st in msg.status:
-            diag[st.name] = {kv.key: kv.value for kv in st.values}
-
-    node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, DIAGNOSTICS_QOS)
+    diag = watch_diagnostics(node)
     halt = _spin_in_background(node)
     sent = 0
     try:
@@ -412,17 +412,27 @@ def main() -> int:
     results: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
         if args.only in (None, "latency"):
-            trees = [("", None)]
+            trees: list[tuple[str | None, float | None]] = [(None, None)]
             if args.baseline:
-                trees.insert(0, ("baseline", baseline_path(args.baseline)))
+                # a tree from before the driver's "nothing read" packets is driven without them
+                packer = args.baseline / "ext_sense_drivers/ext_sense_drivers/packets/packet.py"
+                says_quiet = "def nothing_read" in packer.read_text()
+                trees.insert(0, (baseline_path(args.baseline), None if says_quiet else 0.0))
             results["latency"] = []
             for load in _listed(args.load):
                 for kind in _listed(args.input):
                     for hot_path in _listed(args.hot_path):
-                        for _, path in trees:
+                        for path, quiet_s in trees:
                             run = {"input": kind, "load": load, "hot_path": hot_path}
                             r = bench_latency(
-                                taps, args.model, train_taps, Path(tmp), run, path, args.hops
+                                taps,
+                                args.model,
+                                train_taps,
+                                Path(tmp),
+                                run,
+                                path,
+                                args.hops,
+                                quiet_s,
                             )
                             results["latency"].append(r)
                             print_latency(r, taps)

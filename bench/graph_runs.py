@@ -17,6 +17,7 @@ import signal
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 STOP_TIMEOUT_S = 15.0
 
@@ -47,6 +48,26 @@ def start_graph(
         env["PYTHONPATH"] = pythonpath
     payload = json.dumps({"graph": graph, "overrides": overrides, "names": list(names)})
     return subprocess.Popen([sys.executable, str(Path(__file__).resolve()), payload], env=env)
+
+
+def watch_diagnostics(node: Any) -> dict[str, dict[str, str]]:
+    """Keep the newest values of every ``/diagnostics`` status the graph publishes.
+
+    Returns:
+        Status name -> its key/value pairs, filled in as ``node`` spins.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from ext_sense_runtime.qos import DIAGNOSTICS_QOS
+
+    diag: dict[str, dict[str, str]] = {}
+
+    def on_diag(msg: DiagnosticArray) -> None:
+        for st in msg.status:
+            diag[st.name] = {kv.key: kv.value for kv in st.values}
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, DIAGNOSTICS_QOS)
+    return diag
 
 
 def stop_graph(proc: subprocess.Popen[bytes]) -> None:

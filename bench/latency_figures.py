@@ -119,23 +119,26 @@ class Source:
     """The bench as the sensor driver: the stream's messages, built when each is due.
 
     ``packets``: as ``nuskin_driver`` publishes (``SensorPacket``, its encoding and options,
-    its packer and message code; one packet per 1 ms drain with the reads of that ms, none when
-    nothing was read). ``decoded``: ``TaxelEventBatch`` per ms (the path before packets).
+    its packer and message code; one packet per 1 ms drain with the reads of that ms, and when
+    nothing was read its empty "nothing read" packet for ``quiet_packets_s`` after the last
+    bytes). ``decoded``: ``TaxelEventBatch`` per ms (the path before packets).
     """
 
-    def __init__(self, kind: str, batches: list[Batch]) -> None:
+    def __init__(self, kind: str, batches: list[Batch], quiet_s: float | None = None) -> None:
         from ext_sense.graphs import TOPIC_EVENTS
         from ext_sense.topics import SENSOR_PACKETS
         from ext_sense_drivers.nodes.nuskin_driver import packet_encoding
         from ext_sense_drivers.nuskin.driver_config import DriverConfig
-        from ext_sense_drivers.packets import PacketPacker
+        from ext_sense_drivers.packets import QUIET_PACKETS_S, PacketPacker
         from ext_sense_msgs.msg import SensorPacket, TaxelEventBatch
 
         self.kind, self.batches = kind, batches
+        self.quiet_s = QUIET_PACKETS_S if quiet_s is None else quiet_s
         if kind == "packets":
             self.type, self.topic = SensorPacket, SENSOR_PACKETS["nuskin"]
             self.packer = PacketPacker(*packet_encoding(DriverConfig(baud=BAUD)))
             self.reads = [batch_reads(b) for b in batches]
+            self.last_read_ns: int | None = None
         else:
             self.type, self.topic = TaxelEventBatch, TOPIC_EVENTS
 
@@ -147,9 +150,15 @@ class Source:
 
         if self.kind == "packets":
             chunks = [(1, Chunk(data, stamp_ns + t)) for t, data in self.reads[i]]
-            return [
-                (packet_message(p, "nuskin"), p.end_ns) for p in self.packer.pack(chunks, False)
-            ]
+            packets = self.packer.pack(chunks, False)
+            if chunks:
+                self.last_read_ns = chunks[-1][1].t_ns
+            elif (
+                self.last_read_ns is not None
+                and stamp_ns + MS - self.last_read_ns < self.quiet_s * 1e9
+            ):  # the drain at the end of the ms found nothing: the driver says so
+                packets = [self.packer.nothing_read(stamp_ns + MS)]
+            return [(packet_message(p, "nuskin"), p.end_ns) for p in packets]
         msg = self.type()
         fill_stamp(msg.header.stamp, stamp_ns)
         ev = self.batches[i].events

@@ -34,6 +34,7 @@ def tap_model(tmp_path_factory):
     return model
 
 
+PACKET_MS = 5
 FLOOD_CONNECTION = 1000
 """The flood's link connection: not the driver's (1, 2, ...), so the view decodes the two
 packet streams on the topic apart (ext_sense.view.feed) and neither breaks the other's."""
@@ -41,7 +42,10 @@ packet streams on the topic apart (ext_sense.view.feed) and neither breaks the o
 
 def _flood(stop: threading.Event, sent: list[int]) -> None:
     """Every taxel at 4 kHz as raw packets on /extsense/nuskin/packets, where the driver's
-    packets go and the view reads: 1 ms packets of receiver words, paced by the wall clock."""
+    packets go and the view reads: 5 ms packets of receiver words, paced by the wall clock.
+
+    5 ms, not 1 ms: a 1 ms publisher fell 2 % behind 4 kHz on a loaded CI machine (314k of
+    320k events/s), which left the taxels just under the view's saturation rate."""
     from ext_sense_drivers.nodes.link_node import packet_message
     from ext_sense_drivers.nuskin.wire import encode_words
     from ext_sense_drivers.packets import NUSKIN_WORDS_V1, PacketPacker
@@ -55,14 +59,21 @@ def _flood(stop: threading.Event, sent: list[int]) -> None:
         return Node("view_flood", **kw)
 
     batches = tap_stream([0.0], 100, taxels=80, burst_ms=100, noise_per_s=0)  # 100 x 320 events
-    words = [(encode_words(b.taxel, b.value), b.taxel.size) for b in batches]
+    per_ms = [(encode_words(b.taxel, b.value), b.taxel.size) for b in batches]
+    words = [
+        (
+            b"".join(w for w, _ in per_ms[i : i + PACKET_MS]),
+            sum(n for _, n in per_ms[i : i + PACKET_MS]),
+        )
+        for i in range(0, len(per_ms), PACKET_MS)
+    ]
     packer = PacketPacker(NUSKIN_WORDS_V1, "baud=4000000;flag_polarity=ignore")
     with spinning(source) as (node,):
         pub = node.create_publisher(SensorPacket, "/extsense/nuskin/packets", SENSOR_STREAM_QOS)
         start = time.monotonic()
         k = 0
         while not stop.is_set():
-            due = int((time.monotonic() - start) * 1000)
+            due = int((time.monotonic() - start) * 1000) // PACKET_MS
             while k < due:
                 data, n = words[k % len(words)]
                 chunk = Chunk(data, time.time_ns())
@@ -70,7 +81,7 @@ def _flood(stop: threading.Event, sent: list[int]) -> None:
                 pub.publish(packet_message(packet, "nuskin"))
                 sent[0] += n
                 k += 1
-            time.sleep(0.0005)
+            time.sleep(0.001)
 
 
 @pytest.mark.timeout(300)
@@ -119,9 +130,9 @@ def test_view_serves_every_channel_and_holds_its_rate_under_a_full_flood(tap_mod
         t0 = time.monotonic()
         flood.start()
         time.sleep(LOAD_S)
+        t1 = time.monotonic()
         stop.set()
         flood.join(timeout=10)
-        t1 = time.monotonic()
         frames = [m for m in client.messages(ch.TAXELS) if t0 + 1.0 <= m.arrival_s <= t1]
         rates = [
             client.decode(m) for m in client.messages(ch.RATES) if t0 + 1.0 <= m.arrival_s <= t1
@@ -140,9 +151,17 @@ def test_view_serves_every_channel_and_holds_its_rate_under_a_full_flood(tap_mod
     assert fps <= RATE_HZ * 1.25 + 0.5  # bounded whatever the sensor does
     assert fps >= RATE_HZ * 0.4  # and the view kept showing under the flood
     assert peak > 0.3 * 80 * 4000  # it saw the flood (best effort may lose some of it)
-    grid = client.decode(frames[-1])
-    img = np.frombuffer(grid.data, np.uint8).reshape(grid.height, grid.width, 3)
-    assert (img == 255).all(axis=2).sum() > 40 * 24  # saturated taxels framed white
+    # saturated taxels framed white once the rate (smoothed over 0.5 s) has risen: the frames of
+    # the flood's last 2 s, each judged, most of them framed
+    framed = []
+    for m in frames:
+        if m.arrival_s >= t1 - 2.0:
+            grid = client.decode(m)
+            img = np.frombuffer(grid.data, np.uint8).reshape(grid.height, grid.width, 3)
+            framed.append(int((img == 255).all(axis=2).sum() > 40 * 24))
+    print(f"frames with saturated taxels framed in the last 2 s: {sum(framed)} of {len(framed)}")
+    assert framed
+    assert sum(framed) >= 0.75 * len(framed)
     problems = stop_problems(graph.proc, "".join(graph.out), "".join(graph.err))
     assert not [p for p in problems if "foxglove_view" in p], problems
 

@@ -230,6 +230,9 @@ def test_recorder_killed_in_a_live_tap_graph_loses_at_most_a_second(tmp_path):
     for topic in RELIABLE:  # every message older than the last flush is there
         assert missing_older[topic] == 0, (topic, missing_older)
     packets_older = sum(1 for r in published if r.topic == PACKETS and r.log_time_ns <= boundary)
-    assert packets_older > 500
+    # enough packets to judge a 5 % loss: the driver sends one per read while the sensor fires
+    # (taps and noise), so their number follows the scene's timing: 285 in a Jazzy run, ~1000
+    # in Kilted ones, over the ~11 s compared
+    assert packets_older > 200
     assert missing_older[PACKETS] <= 0.05 * packets_older  # best effort: a few drops, no gap
     assert sum(sent.values()) - sum(got.values()) == len(lost)

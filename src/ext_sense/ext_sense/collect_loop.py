@@ -63,6 +63,8 @@ class Collector(Protocol):
 
     def publishers(self, topic: str) -> set[str]: ...  # noqa: D102
 
+    def matched_publishers(self, topic: str) -> int: ...  # noqa: D102
+
     def start_probe(self) -> None: ...  # noqa: D102
 
     def trigger_sim(self, task: str, label: str) -> None: ...  # noqa: D102
@@ -253,14 +255,18 @@ class TrialLoop:
             raise CollectError(f"{', '.join(missing)} did not subscribe to {topic} within 90 s")
 
     def _wait_for_publisher(self, topic: str, node: str) -> None:
-        """Wait until ``node`` publishes ``topic`` as this process sees the graph.
+        """Wait until ``node`` publishes ``topic`` and the recording's subscription matched it.
+
+        Seen in the graph is not enough: a message published before the two endpoints matched
+        is lost to a volatile subscription (the Jazzy lane lost a first probe's truth so).
 
         Raises:
             CollectError: Not within 90 s.
         """
-        if not self.pump(lambda: node in self.node.publishers(topic), 90.0):
+        seen = lambda: node in self.node.publishers(topic) and self.node.matched_publishers(topic)  # noqa: E731
+        if not self.pump(seen, 90.0):
             raise CollectError(f"{node} did not publish {topic} within 90 s")
-        self.pump(lambda: False, MATCH_SETTLE_S)  # seen in the graph is not yet matched
+        self.pump(lambda: False, MATCH_SETTLE_S)  # the publisher's side may match a moment later
 
     def _start_probe(self, m: int, d: int) -> None:
         """Ask for a probe; again while the behaviour ignores the request.

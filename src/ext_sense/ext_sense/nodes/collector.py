@@ -67,6 +67,8 @@ class CollectorNode(Node):
         self.events: queue.Queue[tuple[str, Any]] = queue.Queue()
         self.received: dict[str, int] = {}
         self.skipped: set[str] = set()
+        # topic -> the subscription recording it (not "_subscriptions": rclpy's Node has that)
+        self._recorded_by: dict[str, Any] = {}
         self.failed = ""
         self._record(stream_topic, message_class(writer.specs[stream_topic].msgtype))
         for topic, cls in DECODED.items():
@@ -98,7 +100,7 @@ class CollectorNode(Node):
             if decode is not None:
                 self.events.put((kind or topic, deserialize_message(data, decode)))
 
-        self.create_subscription(
+        self._recorded_by[topic] = self.create_subscription(
             cls,
             topic,
             self.guard.wrap(callback, name=f"collect {topic}"),
@@ -146,6 +148,11 @@ class CollectorNode(Node):
     def publishers(self, topic: str) -> set[str]:
         """Names of the nodes publishing ``topic`` (to know the recording will hear them)."""
         return {info.node_name for info in self.get_publishers_info_by_topic(topic)}
+
+    def matched_publishers(self, topic: str) -> int:
+        """Publishers matched to the recording's subscription to ``topic`` (0: not recorded)."""
+        sub = self._recorded_by.get(topic)
+        return sub.get_publisher_count() if sub is not None else 0
 
     def trigger_sim(self, task: str, label: str) -> None:
         """Have the simulated device play its next grasp now, as ``label`` (``""``: its draw)."""

@@ -4,18 +4,23 @@ A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the por
 or a capture file) and reconnects with exponential backoff; a timer every ``batch_period_s``
 drains what arrived and publishes it on ``packets`` as one ``SensorPacket`` (encoding
 ``nuskin-words-v1``, or ``aces-line-v1`` in ``aces_line`` mode): the bytes and when each read
-returned, numbered by ``seq``. With ``publish_decoded`` (default true; the graphs turn it off on
-the hot path) the node also decodes its own packets with the library decoder every consumer
-uses (:mod:`ext_sense_drivers.packets`) and publishes the events on ``events``, each event's
-flag bit as received in the batch's ``flag`` array. Bad bytes are counted, never fatal.
-``/diagnostics`` carries the link state, the rate, the decode counters (when decoding) and the
-stream's liveness: a powered receiver sends words all the time (its idle stream), so silence
-while the link is up is a stall (WARN, then ERROR, naming the stream).
+returned, numbered by ``seq``. For ``quiet_packets_s`` after the last bytes, a drain that finds
+nothing publishes an empty packet saying so (``PacketPacker.nothing_read``): the emulated
+receiver falls silent between trials, and consumers close their windows on these packets as on
+data, so a replay of a recording cuts the windows the live run cut. With ``publish_decoded``
+(default true; the graphs turn it off on the hot path) the node also decodes its own packets
+with the library decoder every consumer uses (:mod:`ext_sense_drivers.packets`) and publishes
+the events on ``events``, each event's flag bit as received in the batch's ``flag`` array. Bad
+bytes are counted, never fatal. ``/diagnostics`` carries the link state, the rate, the decode
+counters (when decoding) and the stream's liveness: a powered receiver sends words all the time
+(its idle stream), so silence while the link is up is a stall (WARN, then ERROR, naming the
+stream).
 """
 
 from __future__ import annotations
 
 import array
+import time
 from typing import Any
 
 import numpy as np
@@ -42,6 +47,7 @@ from ext_sense_drivers.nuskin.streams import BatchCounters, EventStream
 from ext_sense_drivers.packets import (
     ACES_LINE_V1,
     NUSKIN_WORDS_V1,
+    QUIET_PACKETS_S,
     NuskinPacketDecoder,
     Packet,
     PacketPacker,
@@ -176,6 +182,20 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             high=1.0,
             read_only=True,
         )
+        quiet_s = declare(
+            self,
+            "quiet_packets_s",
+            QUIET_PACKETS_S,
+            "After the last bytes, an empty packet ('nothing read up to now') each batch "
+            "period for this long, s. A consumer then closes its windows on data when the "
+            "sensor falls silent, not on its own clock, so a replay of the recorded packets "
+            "cuts the same windows. Words mode only; 0: none.",
+            low=0.0,
+            high=60.0,
+            read_only=True,
+        )
+        self._quiet_ns = round(quiet_s * 1e9)
+        self._last_bytes_ns: int | None = None
         self.max_batch_events = declare(
             self,
             "max_batch_events",
@@ -268,11 +288,32 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             watch.on_data(len(chunk.data) // per_item, chunk.t_ns)
             if self.decoder is None and per_item == 4:
                 self._rate.add(len(chunk.data) // per_item)
-        for packet in self.packer.pack(tagged, link_down, self._mono_to_ros_ns):
+        packets = self.packer.pack(tagged, link_down, self._mono_to_ros_ns)
+        read = [chunk.t_ns for _, chunk in tagged if chunk.data]
+        if read:
+            self._last_bytes_ns = max(read)
+        elif not link_down and self._quiet_draining():
+            packet = self.packer.nothing_read(time.monotonic_ns(), self._mono_to_ros_ns)
+            packets += [packet] if packet is not None else []
+        for packet in packets:
             self._packet_pub.publish(packet_message(packet, self.frame_id))
             self.packets_published += 1
             if self.decoder is not None:
                 self._publish_decoded(packet)
+
+    def _quiet_draining(self) -> bool:
+        """Whether the drain goes on with nothing queued.
+
+        For ``quiet_packets_s`` after the last bytes (words mode), each empty drain then
+        publishes a "nothing read" packet.
+        """
+        last = self._last_bytes_ns
+        return (
+            self._quiet_ns > 0
+            and last is not None
+            and self.config.mode_kind == Mode.WORDS
+            and time.monotonic_ns() - last < self._quiet_ns
+        )
 
     def _publish_decoded(self, packet: Packet) -> None:
         """Decode one of the node's own packets and publish its events in batches."""

@@ -26,6 +26,11 @@ BIOTAC_BRIDGE_V1 = "biotac-bridge-v1"
 """The BioTac bridge's framed stream (docs/biotac_bridge.md)."""
 ENCODINGS = (NUSKIN_WORDS_V1, ACES_LINE_V1, BIOTAC_BRIDGE_V1)
 
+QUIET_PACKETS_S = 2.0
+"""How long after its last bytes the NUSkin driver keeps saying it read nothing
+(``quiet_packets_s``, :meth:`PacketPacker.nothing_read`): longer than a window's end lies after
+the last event of a tap or grasp, short enough that an idle driver soon stops waking."""
+
 ACES_BYTES_PER_SAMPLE = 2
 """The ACES line's clock ticks once per 2 bytes: ``time_base`` counts samples."""
 
@@ -246,8 +251,40 @@ class PacketPacker:
         self.seq += 1
         return packet
 
+    def nothing_read(self, t_ns: int, to_ros_ns: int = 0) -> Packet | None:
+        """A packet saying the link read nothing up to ``t_ns``: one read of no bytes.
+
+        A NUSkin receiver's words carry no time, so a consumer learns that its stream time
+        passed a window's end only from the next read; when the sensor falls silent there is
+        none, and a window would close on the consumer's clock, which a replay of the packets
+        cannot repeat. This packet is that read, recorded like any other: the decoder's arrival
+        clock moves to ``t_ns`` (later words are stamped after it) and its ``complete_ns`` is
+        ``t_ns``, live and in a replay alike.
+
+        Args:
+            t_ns: When the drain found nothing queued (the chunks' clock, monotonic).
+            to_ros_ns: Offset from that clock to ROS time, ns.
+
+        Returns:
+            The packet; ``None`` with no stream going (no bytes yet, or its end was sent), or
+            for another encoding than the receiver's words (the ACES line and the BioTac
+            bridge send samples and frames all the time, and their decoders do not stamp by
+            arrival).
+        """
+        if self._finished or self.encoding != NUSKIN_WORDS_V1:
+            return None
+        self._last_ns = max(int(t_ns) + to_ros_ns, self._last_ns)
+        return self._no_bytes(reads=1, end_of_stream=False)
+
     def _empty_end(self) -> Packet:
         """A packet with no bytes that ends the stream, stamped at its last read."""
+        return self._no_bytes(reads=0, end_of_stream=True)
+
+    def _no_bytes(self, reads: int, end_of_stream: bool) -> Packet:
+        """The next packet of no bytes on the current connection.
+
+        It holds ``reads`` empty reads and is stamped at the last read (or "nothing read") time.
+        """
         packet = Packet(
             self._last_ns,
             self.seq,
@@ -255,9 +292,9 @@ class PacketPacker:
             self.options,
             0,
             self._connection,
-            True,
-            np.zeros(0, np.uint32),
-            np.zeros(0, np.int64),
+            end_of_stream,
+            np.zeros(reads, np.uint32),
+            np.zeros(reads, np.int64),
             b"",
         )
         self.seq += 1

@@ -18,7 +18,7 @@ from rosutil import spin_until  # noqa: E402
 from ext_sense_drivers.nodes.nuskin_driver import NuskinDriverNode  # noqa: E402
 from ext_sense_drivers.nuskin.wire import encode_words  # noqa: E402
 from ext_sense_drivers.transports.base import LinkState  # noqa: E402
-from ext_sense_msgs.msg import TaxelEventBatch  # noqa: E402
+from ext_sense_msgs.msg import SensorPacket, TaxelEventBatch  # noqa: E402
 from ext_sense_runtime.qos import DIAGNOSTICS_QOS, SENSOR_STREAM_QOS  # noqa: E402
 from ext_sense_runtime.stamps import stamp_to_ns  # noqa: E402
 
@@ -50,11 +50,13 @@ class FakeDevice:
 
 
 @pytest.fixture
-def graph(tmp_path):
+def graph(tmp_path, request):
+    """Driver on a fake device, and a probe; ``request.param``: more parameters (name: value)."""
     context = rclpy.Context()
     rclpy.init(context=context)
     device = FakeDevice(tmp_path / "nuskin.pty")
     device.plug()
+    extra = [Parameter(k, value=v) for k, v in getattr(request, "param", {}).items()]
     driver = NuskinDriverNode(
         context=context,
         parameter_overrides=[
@@ -62,11 +64,13 @@ def graph(tmp_path):
             Parameter("reconnect_initial_s", Parameter.Type.DOUBLE, 0.02),
             Parameter("reconnect_max_s", Parameter.Type.DOUBLE, 0.05),
             Parameter("frame_id", Parameter.Type.STRING, "nuskin_test"),
+            *extra,
         ],
     )
     probe = rclpy.create_node("probe", context=context)
-    got = {"batches": [], "diag": []}
+    got = {"batches": [], "diag": [], "packets": []}
     probe.create_subscription(TaxelEventBatch, "events", got["batches"].append, SENSOR_STREAM_QOS)
+    probe.create_subscription(SensorPacket, "packets", got["packets"].append, SENSOR_STREAM_QOS)
     probe.create_subscription(DiagnosticArray, "/diagnostics", got["diag"].append, DIAGNOSTICS_QOS)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(driver)
@@ -371,6 +375,7 @@ def test_shipped_parameter_file_is_accepted():
         rclpy.try_shutdown(context=context)
 
 
+@pytest.mark.parametrize("graph", [{"quiet_packets_s": 0.0}], indirect=True)
 def test_the_drain_timer_stops_while_the_link_is_silent_and_data_restarts_it(graph):
     """An idle driver does not tick every batch period (issue #16: idle cost); the reader
     thread restarts the drain with the next bytes, and no byte waits for a later chunk."""
@@ -386,6 +391,42 @@ def test_the_drain_timer_stops_while_the_link_is_silent_and_data_restarts_it(gra
         # the queue drained: the timer stops again until the next bytes
         assert spin_until(executor, lambda: driver._drain_timer.is_canceled(), 2.0)
         assert driver.reader.queued_chunks == 0
+
+
+@pytest.mark.parametrize("graph", [{"quiet_packets_s": 0.3}], indirect=True)
+def test_after_its_last_bytes_the_driver_says_it_read_nothing_then_goes_idle(graph):
+    """For ``quiet_packets_s`` after the last bytes each drain that finds nothing publishes an
+    empty packet (one read of no bytes, stamped when the drain looked), so a window node closes
+    its windows on data; then the drain stops (idle cost) until the next bytes."""
+    from ext_sense_drivers.packets import NuskinPacketDecoder, packet_of
+
+    device, driver, executor, got = graph
+    assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
+    assert spin_until(executor, lambda: driver._drain_timer.is_canceled(), 2.0)
+    assert got["packets"] == []  # nothing read before any bytes: nothing said
+    device.send(encode_words([3, 4], [1, 2]))
+    assert spin_until(executor, lambda: driver._drain_timer.is_canceled(), 3.0)
+    packets = [packet_of(m) for m in got["packets"]]
+    assert packets[0].data
+    assert packets[0].seq == 0
+    quiet = packets[1:]
+    assert [p.seq for p in quiet] == list(range(1, len(packets)))
+    assert all(p.data == b"" and p.read_end.tolist() == [0] for p in quiet)
+    span_s = (quiet[-1].stamp_ns - packets[0].end_ns) / 1e9
+    print(f"{len(quiet)} 'nothing read' packets over {span_s:.3f} s after the bytes")
+    assert 0.25 <= span_s <= 0.4
+    assert len(quiet) >= 0.3 / 0.001 / 4  # about one per 1 ms drain (a loaded machine: fewer)
+    decoder = NuskinPacketDecoder(packets[0].encoding, packets[0].options)
+    decoded = [decoder.decode(p) for p in packets]
+    assert [d.events.size for d in decoded] == [2] + [0] * len(quiet)
+    assert [d.complete_ns for d in decoded[1:]] == [p.stamp_ns for p in quiet]
+    n = len(got["packets"])
+    executor.spin_once(timeout_sec=0.3)
+    assert len(got["packets"]) == n  # idle: nothing more until the next bytes
+    device.send(encode_words([7], [3]))
+    assert spin_until(executor, lambda: len(got["packets"]) > n)
+    later = decoder.decode(packet_of(got["packets"][n]))
+    assert later.events.t_ns.tolist()[0] > quiet[-1].stamp_ns  # stamped after "nothing read"
 
 
 def test_reader_priority_is_asked_for_and_reported_on_the_link_status(tmp_path):

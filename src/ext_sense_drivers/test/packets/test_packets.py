@@ -108,6 +108,33 @@ def test_a_lost_link_ends_the_stream_once_and_a_reconnect_starts_a_new_one():
     assert not second[0].end_of_stream
 
 
+def test_a_nothing_read_packet_moves_stream_time_and_later_words_are_stamped_after_it():
+    """The driver's empty packet after its last bytes: stream time is complete up to it, and
+    the next read's words are spread after it, not back over the silence."""
+    reads = _reads(6)
+    packer = PacketPacker(NUSKIN_WORDS_V1, OPTIONS)
+    assert packer.nothing_read(T0) is None  # no stream yet: nothing to say
+    [first] = packer.pack([(1, r) for r in reads[:3]], link_down=False)
+    quiet_ns = reads[2].t_ns + 5_000_000
+    empty = packer.nothing_read(quiet_ns)
+    assert (empty.seq, empty.connection, empty.data) == (1, 1, b"")
+    assert empty.read_end.tolist() == [0]
+    assert empty.stamp_ns == empty.end_ns == quiet_ns
+    later = reads[3]._replace(t_ns=quiet_ns + 200_000)  # 0.2 ms after it, under the 1 ms cap
+    [after] = packer.pack([(1, later)], link_down=False)
+    decoder = make_decoder(NUSKIN_WORDS_V1, OPTIONS)
+    decoded = [decoder.decode(p) for p in (first, empty, after)]
+    assert decoded[1].events.size == 0
+    assert decoded[1].complete_ns == quiet_ns
+    assert int(decoded[2].events.t_ns.min()) > quiet_ns
+    assert decoder.counters.lost_packets == 0
+    assert packer.pack([], link_down=True)[0].end_of_stream
+    assert packer.nothing_read(quiet_ns + 10**9) is None  # the stream ended
+    aces = PacketPacker("aces-line-v1", "threshold=0.5")
+    aces.pack([(1, Chunk(b"\x00\x01" * 8, T0))], link_down=False)
+    assert aces.nothing_read(T0 + 10**6) is None  # the line streams samples all the time
+
+
 def test_packet_of_reads_a_rosbags_message():
     from ext_sense_bags.messages import header, make_message
 

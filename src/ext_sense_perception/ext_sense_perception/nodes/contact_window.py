@@ -17,7 +17,9 @@ Windows close on data: the batch whose events (or, empty, whose stamp) pass ``on
 cuts the window in the subscription callback. A NUSkin window must also close when no event
 follows it, so one one-shot deadline timer is armed for the moment the stream clock (the newest
 data's stream time plus the wall time since it arrived, minus ``advance_slack_ms`` for events
-still in flight) reaches the next pending window's end, or the liveness status would change,
+still in flight, and with packets ``packet_wait_ms`` for the driver's next packet: its empty
+"nothing read" packets close a window on data when the sensor is quiet) reaches the next
+pending window's end, or the liveness status would change,
 or ``stream_timeout_ms`` passes with no data (the pending windows are then flushed, marked
 truncated); see :mod:`ext_sense_perception.online.deadline`. With nothing pending the timer is
 off: an idle node does not wake (a 1 ms polling timer here cost 12 % of a core while idle).
@@ -126,16 +128,19 @@ class ContactWindowNode(Node):
         )
         self.liveness = declare_input_liveness(self, config, input_topic)
         if self.input == "packets":
-            # a read waits in the driver up to its batch period before its packet goes out: a
-            # deadline closing a window sooner would miss bytes the offline replay has
+            # the NUSkin driver sends a packet each batch period while the sensor is quiet
+            # ("nothing read", quiet_packets_s): windows close on those, as a replay of the
+            # packets does; the clock closes one only when they stop coming (a stalled stream)
             self.slack_ns += round(
                 declare(
                     self,
-                    "packet_batch_ms",
-                    1.0,
-                    "The driver's batch period (batch_period_s, publish_period_s), ms: added to "
-                    "advance_slack_ms when reading packets, so that a window the deadline closes "
-                    "holds every byte read before its end.",
+                    "packet_wait_ms",
+                    20.0,
+                    "Longest wait past a window's end for the driver's next packet (bytes, or its "
+                    "empty 'nothing read' packet each batch period while the sensor is quiet) "
+                    "before the window is closed on this node's clock, ms: added to "
+                    "advance_slack_ms when reading packets. A window the clock closes may miss "
+                    "a late packet a replay of the recording would put in it.",
                     low=0.0,
                     high=1000.0,
                     read_only=True,

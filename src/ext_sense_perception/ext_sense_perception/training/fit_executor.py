@@ -76,12 +76,36 @@ class FitFailure(NamedTuple):
     error: str
 
 
+LOST_FIT_ATTEMPTS = 3
+"""Times a fit lost with its worker (killed, restarted after a missed heartbeat, its machine
+gone) is sent again, with its data sent again where that went too, before it counts as failed.
+A fit that itself ends its workers (Dask's ``KilledWorker``) is not sent again."""
+
+WORKER_WAIT_S = 300.0
+"""How long a lost fit waits for a worker to come back (a restart takes seconds)."""
+
+
+def _guarded(fn: Callable[..., Any], task: Any, **data: Any) -> Any:
+    """``fn(task, **data)`` on a worker, its error returned as a :class:`FitFailure`.
+
+    So an exception out of a future is the cluster's (a lost worker or lost data), never the
+    fit's.
+    """
+    try:
+        return fn(task, **data)
+    except Exception as err:
+        return FitFailure(f"{type(err).__name__}: {err}")
+
+
 class Progress:
-    """One line across every fit of a run: done of total, running, failed, cached, time left."""
+    """One line across every fit of a run: done of total, running, failed, cached, time left.
+
+    And how many fits were sent again after a lost worker, when any were.
+    """
 
     def __init__(self, enabled: bool, workers: int) -> None:
         self.enabled, self.workers = enabled, max(workers, 1)
-        self.total = self.done = self.failed = self.cached = self.running = 0
+        self.total = self.done = self.failed = self.cached = self.running = self.resent = 0
         self._spent = 0.0
 
     def add(self, n: int) -> None:
@@ -109,9 +133,10 @@ class Progress:
         """The progress line."""
         left = self.left_s()
         eta = f", about {left:.0f} s left" if left is not None else ""
+        resent = f", {self.resent} sent again after a lost worker" if self.resent else ""
         return (
             f"fits: {self.done} of {self.total} done ({self.cached} cached), {self.running} "
-            f"running, {self.failed} failed{eta}"
+            f"running, {self.failed} failed{resent}{eta}"
         )
 
     def show(self) -> None:
@@ -186,10 +211,7 @@ class FitExecutor:
         return 4 * self.progress.workers
 
     def _call(self, job: FitJob, i: int) -> Any:
-        try:
-            return job.fn(job.tasks[i], **job.data)
-        except Exception as err:  # one failed fit must not lose the others
-            return FitFailure(f"{type(err).__name__}: {err}")
+        return _guarded(job.fn, job.tasks[i], **job.data)  # one failed fit keeps the others
 
     def _done(self, key: str, value: Any, seconds: float | None) -> None:
         """Cache a finished fit and count it."""
@@ -201,38 +223,46 @@ class FitExecutor:
     def _run_on_cluster(
         self, jobs: list[FitJob], todo: list[tuple[int, int]], results: list[list[Any]]
     ) -> None:
-        from distributed import as_completed
+        from distributed import KilledWorker, as_completed
 
         by_job: dict[int, list[int]] = {}
         for j, i in todo:
             by_job.setdefault(j, []).append(i)
         queue = iter(by_job.items())
-        # data on the workers, by identity: (value, its future, jobs in flight using it)
+        # data on the workers, by identity: (value, its future, jobs in flight using it,
+        # generation: how many times it was sent, so a loss resends it once, not once per fit)
         live: dict[int, list[Any]] = {}
         left: dict[int, int] = {}
-        futures: dict[Any, tuple[int, int]] = {}
+        futures: dict[Any, tuple[int, int, dict[int, int]]] = {}  # -> job, task, generations
+        attempts: dict[tuple[int, int], int] = {}
         running = as_completed()
+
+        def submit(j: int, i: int) -> None:
+            job, shared, generations = jobs[j], {}, {}
+            for name, value in job.data.items():
+                hit = live[id(value)]
+                if hit[1] is None:  # sent once, to every worker
+                    hit[1] = self.client.scatter(value, broadcast=True)
+                    hit[3] += 1
+                shared[name], generations[id(value)] = hit[1], hit[3]
+            attempt = attempts.setdefault((j, i), 0)
+            key = f"fit-{job.keys[i]}" + (f"-again{attempt}" if attempt else "")
+            future = self.client.submit(
+                _guarded, job.fn, job.tasks[i], **shared, key=key, pure=False
+            )
+            futures[future] = (j, i, generations)
+            running.add(future)
 
         def submit_next() -> bool:
             item = next(queue, None)
             if item is None:
                 return False
             j, items = item
-            shared = {}
-            for name, value in jobs[j].data.items():
-                hit = live.setdefault(id(value), [value, None, 0])
-                if hit[1] is None:  # sent once, to every worker
-                    hit[1] = self.client.scatter(value, broadcast=True)
-                hit[2] += 1
-                shared[name] = hit[1]
+            for value in jobs[j].data.values():
+                live.setdefault(id(value), [value, None, 0, 0])[2] += 1
             left[j] = len(items)
             for i in items:
-                job = jobs[j]
-                future = self.client.submit(
-                    job.fn, job.tasks[i], **shared, key=f"fit-{job.keys[i]}", pure=False
-                )
-                futures[future] = (j, i)
-                running.add(future)
+                submit(j, i)
             return True
 
         while len(futures) < self.window() and submit_next():
@@ -240,11 +270,29 @@ class FitExecutor:
         self.progress.running = min(len(futures), self.progress.workers)
         last = time.perf_counter()
         for future in running:
-            j, i = futures.pop(future)
-            try:
+            j, i, generations = futures.pop(future)
+            try:  # the fit's own errors come back as a FitFailure (_guarded): this is the cluster's
                 results[j][i] = future.result()
-            except Exception as err:  # one failed fit must not lose the others
+            except KilledWorker as err:  # the fit itself ended worker after worker: not again
                 results[j][i] = FitFailure(f"{type(err).__name__}: {err}")
+            except Exception as err:  # lost with its worker, or its data lost with one
+                attempts[(j, i)] += 1
+                lost = f"{type(err).__name__}: {err}"
+                if attempts[(j, i)] <= LOST_FIT_ATTEMPTS:
+                    for value in jobs[j].data.values():
+                        hit = live[id(value)]
+                        if hit[3] == generations[id(value)]:  # not yet sent again since
+                            hit[1] = None
+                    try:
+                        self.client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+                        submit(j, i)
+                        self.progress.resent += 1
+                        continue
+                    except Exception as again:  # no worker came back, or the send failed
+                        lost = f"{type(again).__name__}: {again}"
+                results[j][i] = FitFailure(
+                    f"lost with a worker {attempts[(j, i)]} times; the last: {lost}"
+                )
             left[j] -= 1
             if not left[j]:  # the workers may drop data no job in flight uses
                 for value in jobs[j].data.values():

@@ -229,3 +229,29 @@ def test_the_project_code_hash_of_an_svm_leaves_out_other_models_and_precomputed
     modules = code_modules(auto)[0]
     assert "ext_sense_perception.features.transformer" in modules
     assert gru not in modules
+
+
+@pytest.mark.slow  # starts a local cluster of worker processes
+def test_a_fit_lost_with_its_worker_is_run_again_with_its_data_sent_again(tmp_path):
+    def fit_that_kills_its_worker_once(task: int, marker: str, data: np.ndarray) -> float:
+        """Its first call for task 1 ends its worker process, as a killed or hung worker ends
+        on a cluster: the worker's copy of the scattered data goes with it. (Defined here, so
+        the workers get it by value: pytest imports this module under a name they lack.)"""
+        import os
+        from pathlib import Path
+
+        if task == 1 and not os.path.exists(marker):
+            Path(marker).touch()
+            os._exit(1)
+        return float(data.sum()) + task
+
+    data = np.arange(1000.0)
+    marker = str(tmp_path / "killed")
+    job = FitJob(fit_that_kills_its_worker_once, [0, 1, 2], ["a", "b", "c"], {"data": data})
+    job.data["marker"] = marker
+    with fit_executor(workers=1) as ex:
+        [results] = ex.run_jobs([job])
+    assert Path(marker).exists()  # the worker was killed
+    assert results == [data.sum() + t for t in (0, 1, 2)]
+    assert ex.progress.failed == 0
+    assert ex.progress.resent >= 1
