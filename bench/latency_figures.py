@@ -120,8 +120,9 @@ class Source:
 
     ``packets``: as ``nuskin_driver`` publishes (``SensorPacket``, its encoding and options,
     its packer and message code; one packet per 1 ms drain with the reads of that ms, and when
-    nothing was read its empty "nothing read" packet for ``quiet_packets_s`` after the last
-    bytes). ``decoded``: ``TaxelEventBatch`` per ms (the path before packets).
+    nothing was read its quiet timer's "nothing read" packet every ``quiet_packets_period_s``
+    for ``quiet_packets_s`` after the last bytes). ``decoded``: ``TaxelEventBatch`` per ms (the
+    path before packets).
     """
 
     def __init__(self, kind: str, batches: list[Batch], quiet_s: float | None = None) -> None:
@@ -129,7 +130,7 @@ class Source:
         from ext_sense.topics import SENSOR_PACKETS
         from ext_sense_drivers.nodes.nuskin_driver import packet_encoding
         from ext_sense_drivers.nuskin.driver_config import DriverConfig
-        from ext_sense_drivers.packets import QUIET_PACKETS_S, PacketPacker
+        from ext_sense_drivers.packets import QUIET_PACKETS_PERIOD_S, QUIET_PACKETS_S, PacketPacker
         from ext_sense_msgs.msg import SensorPacket, TaxelEventBatch
 
         self.kind, self.batches = kind, batches
@@ -139,6 +140,8 @@ class Source:
             self.packer = PacketPacker(*packet_encoding(DriverConfig(baud=BAUD)))
             self.reads = [batch_reads(b) for b in batches]
             self.last_read_ns: int | None = None
+            self.next_quiet_ns = 0
+            self.quiet_period_ns = round(QUIET_PACKETS_PERIOD_S * 1e9)
         else:
             self.type, self.topic = TaxelEventBatch, TOPIC_EVENTS
 
@@ -151,13 +154,17 @@ class Source:
         if self.kind == "packets":
             chunks = [(1, Chunk(data, stamp_ns + t)) for t, data in self.reads[i]]
             packets = self.packer.pack(chunks, False)
+            drain_ns = stamp_ns + MS  # the driver drains at the end of the ms
             if chunks:
                 self.last_read_ns = chunks[-1][1].t_ns
+                self.next_quiet_ns = drain_ns + self.quiet_period_ns
             elif (
                 self.last_read_ns is not None
-                and stamp_ns + MS - self.last_read_ns < self.quiet_s * 1e9
-            ):  # the drain at the end of the ms found nothing: the driver says so
-                packets = [self.packer.nothing_read(stamp_ns + MS)]
+                and drain_ns - self.last_read_ns < self.quiet_s * 1e9
+                and drain_ns >= self.next_quiet_ns
+            ):  # the driver's quiet timer: nothing read this period, it says so
+                packets = [self.packer.nothing_read(drain_ns)]
+                self.next_quiet_ns += self.quiet_period_ns
             return [(packet_message(p, "nuskin"), p.end_ns) for p in packets]
         msg = self.type()
         fill_stamp(msg.header.stamp, stamp_ns)

@@ -110,16 +110,9 @@ def test_ctrl_c_of_the_process_group_ends_every_node_cleanly(tap_model, tmp_path
 def test_ctrl_c_while_the_nodes_start(tap_model, tmp_path):
     """A Ctrl-C while the node processes still start up (interpreters importing rclpy): held
     until each node process can stop cleanly, not a ``KeyboardInterrupt`` in some import; at
-    0.2 s it lands while the runner itself still imports (exit 0, "stopped before any node
-    started").
-
-    Not earlier: up to about 0.1 s after the start (0.15 s on the Jazzy venv) a Ctrl-C lands in
-    Python's own start-up, in ``site`` running the ``.pth`` files, before a line of this project
-    runs; Python prints the ``KeyboardInterrupt`` there, as for any program. Measured with
-    ``ext-sense run`` Ctrl-C'd at 0.02-0.1 s: tracebacks from ``site`` only; clean from 0.15 s
-    on both venvs.
-    """
-    for run, delay in enumerate((0.2, 0.4, 1.0)):
+    0.05 s it lands while the runner itself still imports (exit 0, "stopped before any node
+    started")."""
+    for run, delay in enumerate((0.05, 0.4, 1.0)):
         graph = Graph("trials:=0", f"model:={tap_model}", f"port:={tmp_path / f'n{run}.pty'}")
         time.sleep(delay)
         took = graph.stop([(0.0, signal.SIGINT)])

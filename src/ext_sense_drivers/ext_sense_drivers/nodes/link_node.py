@@ -402,18 +402,10 @@ class ManagedLink:
         self._drained_state = self.reader.state
         self._tick()
         timer = self._drain_timer
-        if timer is not None and not self.reader.queued_chunks and not self._quiet_draining():
+        if timer is not None and not self.reader.queued_chunks:
             timer.cancel()
             if self.reader.queued_chunks:
                 timer.reset()
-
-    def _quiet_draining(self: Any) -> bool:
-        """Whether the drain goes on with nothing queued.
-
-        Only the NUSkin driver's empty packets after its last bytes need that; otherwise the
-        drain stops until the reader queues a chunk.
-        """
-        return False
 
     def _wake_drain(self: Any) -> None:
         """Restart a stopped drain timer (the reader thread, on each queued chunk).

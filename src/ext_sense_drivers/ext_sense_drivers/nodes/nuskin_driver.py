@@ -4,10 +4,11 @@ A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the por
 or a capture file) and reconnects with exponential backoff; a timer every ``batch_period_s``
 drains what arrived and publishes it on ``packets`` as one ``SensorPacket`` (encoding
 ``nuskin-words-v1``, or ``aces-line-v1`` in ``aces_line`` mode): the bytes and when each read
-returned, numbered by ``seq``. For ``quiet_packets_s`` after the last bytes, a drain that finds
-nothing publishes an empty packet saying so (``PacketPacker.nothing_read``): the emulated
-receiver falls silent between trials, and consumers close their windows on these packets as on
-data, so a replay of a recording cuts the windows the live run cut. With ``publish_decoded``
+returned, numbered by ``seq``. For ``quiet_packets_s`` after the last bytes, a timer publishes
+every ``quiet_packets_period_s`` while nothing comes an empty packet saying so
+(``PacketPacker.nothing_read``): the emulated receiver falls silent between trials, and
+consumers close their windows on these packets as on data, so a replay of a recording cuts the
+windows the live run cut. With ``publish_decoded``
 (default true; the graphs turn it off on the hot path) the node also decodes its own packets
 with the library decoder every consumer uses (:mod:`ext_sense_drivers.packets`) and publishes
 the events on ``events``, each event's flag bit as received in the batch's ``flag`` array. Bad
@@ -47,6 +48,7 @@ from ext_sense_drivers.nuskin.streams import BatchCounters, EventStream
 from ext_sense_drivers.packets import (
     ACES_LINE_V1,
     NUSKIN_WORDS_V1,
+    QUIET_PACKETS_PERIOD_S,
     QUIET_PACKETS_S,
     NuskinPacketDecoder,
     Packet,
@@ -196,6 +198,20 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         )
         self._quiet_ns = round(quiet_s * 1e9)
         self._last_bytes_ns: int | None = None
+        quiet_period_s = declare(
+            self,
+            "quiet_packets_period_s",
+            QUIET_PACKETS_PERIOD_S,
+            "Time between the 'nothing read' packets, s: the longest a consumer's window waits "
+            "past its end for one when the sensor is silent. Each costs every consumer a "
+            "message (one per 1 ms batch made ten times the packets of a handover run).",
+            low=0.0005,
+            high=1.0,
+            read_only=True,
+        )
+        self._quiet_timer = self.create_timer(
+            quiet_period_s, self.guard(self._say_quiet), autostart=False
+        )
         self.max_batch_events = declare(
             self,
             "max_batch_events",
@@ -288,32 +304,36 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             watch.on_data(len(chunk.data) // per_item, chunk.t_ns)
             if self.decoder is None and per_item == 4:
                 self._rate.add(len(chunk.data) // per_item)
-        packets = self.packer.pack(tagged, link_down, self._mono_to_ros_ns)
+        for packet in self.packer.pack(tagged, link_down, self._mono_to_ros_ns):
+            self._publish_packet(packet)
         read = [chunk.t_ns for _, chunk in tagged if chunk.data]
-        if read:
+        if read and self._quiet_ns > 0 and self.config.mode_kind == Mode.WORDS:
             self._last_bytes_ns = max(read)
-        elif not link_down and self._quiet_draining():
-            packet = self.packer.nothing_read(time.monotonic_ns(), self._mono_to_ros_ns)
-            packets += [packet] if packet is not None else []
-        for packet in packets:
-            self._packet_pub.publish(packet_message(packet, self.frame_id))
-            self.packets_published += 1
-            if self.decoder is not None:
-                self._publish_decoded(packet)
+            self._quiet_timer.reset()  # its first tick one period after these bytes
 
-    def _quiet_draining(self) -> bool:
-        """Whether the drain goes on with nothing queued.
+    def _publish_packet(self, packet: Packet) -> None:
+        self._packet_pub.publish(packet_message(packet, self.frame_id))
+        self.packets_published += 1
+        if self.decoder is not None:
+            self._publish_decoded(packet)
 
-        For ``quiet_packets_s`` after the last bytes (words mode), each empty drain then
-        publishes a "nothing read" packet.
+    def _say_quiet(self) -> None:
+        """The quiet timer: while no bytes come, say so each period, for ``quiet_packets_s``.
+
+        Not while bytes wait for the drain (their packet says where the stream is), and never
+        after the link went down (its stream ended) or ``quiet_packets_s`` after the last bytes
+        (the timer stops: an idle driver does not wake).
         """
+        now = time.monotonic_ns()
         last = self._last_bytes_ns
-        return (
-            self._quiet_ns > 0
-            and last is not None
-            and self.config.mode_kind == Mode.WORDS
-            and time.monotonic_ns() - last < self._quiet_ns
-        )
+        if last is None or now - last >= self._quiet_ns or self._drain_timer is None:
+            self._quiet_timer.cancel()
+            return
+        if self.reader.queued_chunks or self.reader.state != LinkState.CONNECTED:
+            return
+        packet = self.packer.nothing_read(now, self._mono_to_ros_ns)
+        if packet is not None:
+            self._publish_packet(packet)
 
     def _publish_decoded(self, packet: Packet) -> None:
         """Decode one of the node's own packets and publish its events in batches."""

@@ -31,6 +31,10 @@ QUIET_PACKETS_S = 2.0
 (``quiet_packets_s``, :meth:`PacketPacker.nothing_read`): longer than a window's end lies after
 the last event of a tap or grasp, short enough that an idle driver soon stops waking."""
 
+QUIET_PACKETS_PERIOD_S = 0.005
+"""Default time between those packets (``quiet_packets_period_s``): the longest a window waits
+past its end for one; one per 1 ms batch period made ten times the packets of a handover run."""
+
 ACES_BYTES_PER_SAMPLE = 2
 """The ACES line's clock ticks once per 2 bytes: ``time_base`` counts samples."""
 
@@ -67,7 +71,10 @@ class Packet(NamedTuple):
 
     @property
     def end_ns(self) -> int:
-        """Host time the last read returned: every byte of the packet had arrived by then."""
+        """Host time the last read returned: every byte of the packet had arrived by then.
+
+        A packet of no reads (a stream's end, or "nothing read") ends at its stamp.
+        """
         last = int(self.read_offset_ns[-1]) if len(self.read_offset_ns) else 0
         return self.stamp_ns + last
 
@@ -252,14 +259,19 @@ class PacketPacker:
         return packet
 
     def nothing_read(self, t_ns: int, to_ros_ns: int = 0) -> Packet | None:
-        """A packet saying the link read nothing up to ``t_ns``: one read of no bytes.
+        """A packet saying the link read nothing up to ``t_ns``: no reads, no bytes.
 
         A NUSkin receiver's words carry no time, so a consumer learns that its stream time
         passed a window's end only from the next read; when the sensor falls silent there is
         none, and a window would close on the consumer's clock, which a replay of the packets
-        cannot repeat. This packet is that read, recorded like any other: the decoder's arrival
-        clock moves to ``t_ns`` (later words are stamped after it) and its ``complete_ns`` is
-        ``t_ns``, live and in a replay alike.
+        cannot repeat. This packet, recorded like any other, says where stream time is: its
+        ``complete_ns`` is ``t_ns``, live and in a replay alike. It holds no read, so the
+        decoder's arrival clock does not move: the words of the next read are still spread
+        over the time since the previous read (bytes may wait in the kernel while the reader
+        thread is not running; a floor at ``t_ns`` moved the stamps of a quarter of a handover
+        run's events, by up to 10 ms). A word of that next read stamped before ``t_ns`` is then
+        late for a window this packet closed (the window node counts it), the same live and
+        replayed.
 
         Args:
             t_ns: When the drain found nothing queued (the chunks' clock, monotonic).
@@ -274,16 +286,16 @@ class PacketPacker:
         if self._finished or self.encoding != NUSKIN_WORDS_V1:
             return None
         self._last_ns = max(int(t_ns) + to_ros_ns, self._last_ns)
-        return self._no_bytes(reads=1, end_of_stream=False)
+        return self._no_bytes(end_of_stream=False)
 
     def _empty_end(self) -> Packet:
         """A packet with no bytes that ends the stream, stamped at its last read."""
-        return self._no_bytes(reads=0, end_of_stream=True)
+        return self._no_bytes(end_of_stream=True)
 
-    def _no_bytes(self, reads: int, end_of_stream: bool) -> Packet:
-        """The next packet of no bytes on the current connection.
+    def _no_bytes(self, end_of_stream: bool) -> Packet:
+        """The next packet of no reads on the current connection.
 
-        It holds ``reads`` empty reads and is stamped at the last read (or "nothing read") time.
+        Stamped at the last read's return, or at the "nothing read" time.
         """
         packet = Packet(
             self._last_ns,
@@ -293,8 +305,8 @@ class PacketPacker:
             0,
             self._connection,
             end_of_stream,
-            np.zeros(reads, np.uint32),
-            np.zeros(reads, np.int64),
+            np.zeros(0, np.uint32),
+            np.zeros(0, np.int64),
             b"",
         )
         self.seq += 1

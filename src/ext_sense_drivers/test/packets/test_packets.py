@@ -108,17 +108,18 @@ def test_a_lost_link_ends_the_stream_once_and_a_reconnect_starts_a_new_one():
     assert not second[0].end_of_stream
 
 
-def test_a_nothing_read_packet_moves_stream_time_and_later_words_are_stamped_after_it():
+def test_a_nothing_read_packet_says_where_stream_time_is_and_leaves_the_clock_alone():
     """The driver's empty packet after its last bytes: stream time is complete up to it, and
-    the next read's words are spread after it, not back over the silence."""
+    the next read's words are stamped exactly as without it (spread over the time since the
+    previous read: they may have waited in the kernel while the reader did not run)."""
     reads = _reads(6)
     packer = PacketPacker(NUSKIN_WORDS_V1, OPTIONS)
     assert packer.nothing_read(T0) is None  # no stream yet: nothing to say
     [first] = packer.pack([(1, r) for r in reads[:3]], link_down=False)
-    quiet_ns = reads[2].t_ns + 5_000_000
+    quiet_ns = reads[2].t_ns + 500_000
     empty = packer.nothing_read(quiet_ns)
-    assert (empty.seq, empty.connection, empty.data) == (1, 1, b"")
-    assert empty.read_end.tolist() == [0]
+    assert (empty.seq, empty.connection, empty.data, empty.end_of_stream) == (1, 1, b"", False)
+    assert empty.read_end.size == 0
     assert empty.stamp_ns == empty.end_ns == quiet_ns
     later = reads[3]._replace(t_ns=quiet_ns + 200_000)  # 0.2 ms after it, under the 1 ms cap
     [after] = packer.pack([(1, later)], link_down=False)
@@ -126,8 +127,12 @@ def test_a_nothing_read_packet_moves_stream_time_and_later_words_are_stamped_aft
     decoded = [decoder.decode(p) for p in (first, empty, after)]
     assert decoded[1].events.size == 0
     assert decoded[1].complete_ns == quiet_ns
-    assert int(decoded[2].events.t_ns.min()) > quiet_ns
     assert decoder.counters.lost_packets == 0
+    without = make_decoder(NUSKIN_WORDS_V1, OPTIONS)
+    without.decode(first)
+    alone = without.decode(after._replace(seq=1))
+    assert decoded[2].events.t_ns.tolist() == alone.events.t_ns.tolist()
+    assert int(decoded[2].events.t_ns.min()) < quiet_ns  # spread back past it, as without it
     assert packer.pack([], link_down=True)[0].end_of_stream
     assert packer.nothing_read(quiet_ns + 10**9) is None  # the stream ended
     aces = PacketPacker("aces-line-v1", "threshold=0.5")
