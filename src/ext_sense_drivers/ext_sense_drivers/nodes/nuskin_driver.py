@@ -8,14 +8,13 @@ returned, numbered by ``seq``. For ``quiet_packets_s`` after the last bytes, a t
 every ``quiet_packets_period_s`` while nothing comes an empty packet saying so
 (``PacketPacker.nothing_read``): the emulated receiver falls silent between trials, and
 consumers close their windows on these packets as on data, so a replay of a recording cuts the
-windows the live run cut. With ``publish_decoded``
-(default true; the graphs turn it off on the hot path) the node also decodes its own packets
-with the library decoder every consumer uses (:mod:`ext_sense_drivers.packets`) and publishes
-the events on ``events``, each event's flag bit as received in the batch's ``flag`` array. Bad
-bytes are counted, never fatal. ``/diagnostics`` carries the link state, the rate, the decode
-counters (when decoding) and the stream's liveness: a powered receiver sends words all the time
-(its idle stream), so silence while the link is up is a stall (WARN, then ERROR, naming the
-stream).
+windows the live run cut. With ``publish_decoded`` (default true; the graphs turn it off on
+the hot path) the node also decodes its own packets with the library decoder every consumer
+uses (:mod:`ext_sense_drivers.packets`) and publishes the events on ``events``, each event's
+flag bit as received in the batch's ``flag`` array. Bad bytes are counted, never fatal.
+``/diagnostics`` carries the link state, the rate, the decode counters (when decoding) and the
+stream's liveness: a powered receiver sends words all the time (its idle stream), so silence
+while the link is up is a stall (WARN, then ERROR, naming the stream).
 """
 
 from __future__ import annotations
@@ -188,10 +187,10 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             self,
             "quiet_packets_s",
             QUIET_PACKETS_S,
-            "After the last bytes, an empty packet ('nothing read up to now') each batch "
-            "period for this long, s. A consumer then closes its windows on data when the "
-            "sensor falls silent, not on its own clock, so a replay of the recorded packets "
-            "cuts the same windows. Words mode only; 0: none.",
+            "After the last bytes, an empty packet ('nothing read up to now') every "
+            "quiet_packets_period_s while no bytes come, for this long, s. A consumer then "
+            "closes its windows on data when the sensor falls silent, not on its own clock, so "
+            "a replay of the recorded packets cuts the same windows. Words mode only; 0: none.",
             low=0.0,
             high=60.0,
             read_only=True,

@@ -274,7 +274,7 @@ class PacketPacker:
         replayed.
 
         Args:
-            t_ns: When the drain found nothing queued (the chunks' clock, monotonic).
+            t_ns: When the driver found nothing queued (the chunks' clock, monotonic).
             to_ros_ns: Offset from that clock to ROS time, ns.
 
         Returns:

@@ -128,8 +128,8 @@ class ContactWindowNode(Node):
         )
         self.liveness = declare_input_liveness(self, config, input_topic)
         if self.input == "packets":
-            # the NUSkin driver sends a packet each batch period while the sensor is quiet
-            # ("nothing read", quiet_packets_s): windows close on those, as a replay of the
+            # the NUSkin driver sends a packet every 5 ms while the sensor is quiet ("nothing
+            # read", quiet_packets_period_s): windows close on those, as a replay of the
             # packets does; the clock closes one only when they stop coming (a stalled stream)
             self.slack_ns += round(
                 declare(
@@ -137,7 +137,8 @@ class ContactWindowNode(Node):
                     "packet_wait_ms",
                     20.0,
                     "Longest wait past a window's end for the driver's next packet (bytes, or its "
-                    "empty 'nothing read' packet each batch period while the sensor is quiet) "
+                    "empty 'nothing read' packet, every quiet_packets_period_s while the sensor is "
+                    "quiet) "
                     "before the window is closed on this node's clock, ms: added to "
                     "advance_slack_ms when reading packets. A window the clock closes may miss "
                     "a late packet a replay of the recording would put in it.",
