@@ -8,6 +8,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from ext_sense_bags.messages import sensor_packet
 
 from ext_sense.view.errors import ViewError
 from ext_sense.view.feed import MAX_DECODERS, SensorFeed
@@ -52,23 +53,6 @@ def _word_packets(
     return packets, taxel
 
 
-def _message(packet: Packet) -> SimpleNamespace:
-    """A ``SensorPacket`` as a subscriber gets it (fields by name; NumPy arrays, as rosbags)."""
-    sec, nanosec = divmod(packet.stamp_ns, 1_000_000_000)
-    return SimpleNamespace(
-        header=SimpleNamespace(stamp=SimpleNamespace(sec=sec, nanosec=nanosec), frame_id="nuskin"),
-        seq=packet.seq,
-        encoding=packet.encoding,
-        encoding_options=packet.options,
-        time_base=packet.time_base,
-        connection=packet.connection,
-        end_of_stream=packet.end_of_stream,
-        read_end=packet.read_end,
-        read_offset_ns=packet.read_offset_ns,
-        data=np.frombuffer(packet.data, np.uint8),
-    )
-
-
 def _driver_batches(packets: list[Packet]) -> list[SimpleNamespace]:
     """The event batches the driver publishes with ``decoded:=true`` (its own decoder)."""
     decoder = make_decoder(NUSKIN_WORDS_V1, OPTIONS)
@@ -79,7 +63,7 @@ def test_packets_draw_the_taxels_the_driver_decoded_arrays_draw() -> None:
     packets, taxel = _word_packets()
     from_packets, from_arrays = _feed(), _feed()
     for p in packets:
-        from_packets.on_packet(_message(p))
+        from_packets.on_packet(sensor_packet(p, "nuskin"))
     for batch in _driver_batches(packets):
         from_arrays.on_events(batch)
     want = np.bincount(taxel - 1, minlength=N_TAXELS)

@@ -141,22 +141,12 @@ def test_a_nothing_read_packet_says_where_stream_time_is_and_leaves_the_clock_al
 
 
 def test_packet_of_reads_a_rosbags_message():
-    from ext_sense_bags.messages import header, make_message
+    from ext_sense_bags.messages import sensor_packet
 
     from ext_sense_drivers.packets import packet_of
 
     packet = PacketPacker(NUSKIN_WORDS_V1, OPTIONS).pack([(1, r) for r in _reads(3)], False)[0]
-    msg = make_message(
-        "ext_sense_msgs/msg/SensorPacket",
-        header=header(packet.stamp_ns, "nuskin"),
-        seq=packet.seq,
-        encoding=packet.encoding,
-        encoding_options=packet.options,
-        connection=packet.connection,
-        read_end=packet.read_end,
-        read_offset_ns=packet.read_offset_ns,
-        data=np.frombuffer(packet.data, np.uint8),
-    )
+    msg = sensor_packet(packet, "nuskin")
     back = packet_of(msg)
     assert back.data == packet.data
     assert back.reads() == packet.reads()
