@@ -180,10 +180,12 @@ class StreamLiveness(StallCounts):
         """``n`` packets are missing between the packet stamped ``before_ns`` and this one.
 
         Their bytes are gone: the windows across the gap are degraded, and the status is WARN
-        for :data:`RECENT_NS`. A driver publishes a packet only for reads that returned bytes,
-        so each lost packet held at least one word: ``n`` is a lower bound of the lost words,
-        and, as for a shortfall in the word count (:meth:`on_counts`), a gap of at least
-        ``contact_words`` counts as (at least) one lost contact.
+        for :data:`RECENT_NS`. A driver's packet holds the bytes of its reads, or none at all
+        when it says the link read nothing (the NUSkin driver's ``quiet_packets_s``, only while
+        the sensor sends nothing), so the lost words are not known. As for a shortfall in the
+        word count (:meth:`on_counts`), a gap of at least ``contact_words`` packets counts as
+        one lost contact: it may have held the words of an onset; a shorter gap cannot have
+        (the onset detector needs ``contact_words`` events).
         """
         if n <= 0:
             return

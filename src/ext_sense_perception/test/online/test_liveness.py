@@ -125,3 +125,17 @@ def test_words_the_driver_counted_but_never_arrived_degrade_the_windows_across_t
     clock.ns += 10_001 * MS
     live.on_message(t0 + 20 * MS, t0 + 22 * MS)
     assert live.check()[0] == Level.OK
+
+
+def test_a_seq_gap_degrades_the_windows_across_it_and_counts_a_contact_when_it_could_hold_one():
+    live, _ = _liveness()
+    live.contact_words = 8  # the onset detector's activity_min_events
+    t0 = 10**18
+    live.on_lost_packets(t0, t0 + 3 * MS, 1)  # one packet: too few words for an onset
+    assert (live.packets_lost, live.contacts_lost) == (1, 0)
+    assert live.fault_in(t0 + MS, t0 + 2 * MS) == (
+        "lost input: 1 packet(s) missing on /extsense/nuskin/events (seq gap)"
+    )
+    assert live.fault_in(t0 + 4 * MS, t0 + 5 * MS) == ""
+    live.on_lost_packets(t0 + 10 * MS, t0 + 30 * MS, 8)  # enough words for one
+    assert (live.packets_lost, live.contacts_lost) == (9, 1)
