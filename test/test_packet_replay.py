@@ -7,10 +7,11 @@ model the nodes run, the packets decoded by the same library decoder): both repl
 live run give the same estimates, every field but the live-only ones (compute latency, and the
 degraded flag the live node derives from arrival times, not from the bytes).
 
-A probe, not in ``make test`` (its name is not ``test_*``; run it with ``pytest
-test/probe_packet_replay.py``). Before the driver's "nothing read" packets it failed in most
-runs: a window the live node's deadline timer closed before a late packet arrived differed
-from the replay's (docs/runtime.md, "Raw packets"; issue #16).
+In ``make test`` since 24 November 2026 (about 25 s). Before the driver's "nothing read"
+packets it failed in most runs: a window the live node's deadline timer closed before a late
+packet arrived differed from the replay's (docs/runtime.md, "Raw packets"; issue #16). As a
+probe it then failed 2 of 11 runs because the recorder's packet subscription can match the
+driver's publisher after the window node's did; only what the bag holds is compared now.
 """
 
 from __future__ import annotations
@@ -96,7 +97,10 @@ def test_packet_bag_replays_offline_bit_identical_to_the_live_run(tmp_path):
     assert recorder.returncode == 0, rec_err[-3000:]
 
     with BagReader(bag) as reader:
-        seqs = [int(msg.seq) for _, msg in reader.messages([PACKETS])]
+        stamps = {
+            int(msg.seq): stamp_to_ns(msg.header.stamp) for _, msg in reader.messages([PACKETS])
+        }
+        seqs = list(stamps)
         answered = [(rec.log_time_ns, estimate_of(msg)) for rec, msg in reader.messages([ESTIMATE])]
         live = [e for _, e in answered]
         windows = [
@@ -107,7 +111,6 @@ def test_packet_bag_replays_offline_bit_identical_to_the_live_run(tmp_path):
     # subscription may match the driver's publisher after the first packets went out)
     assert seqs
     assert seqs == list(range(seqs[0], seqs[0] + len(seqs))), seqs[:20]
-    assert sum(not e.provisional for e in live) >= 3, (out, rec_out)
 
     # the window node may subscribe after the driver's first packets (the recorder, started
     # first, has them): replay from the packet the live node started with, as it logs
@@ -130,13 +133,44 @@ def test_packet_bag_replays_offline_bit_identical_to_the_live_run(tmp_path):
     def key(e: dict) -> tuple:
         return (e["onset_ns"], e["post_contact_used_ns"], e["provisional"])
 
+    # The recorder's packet subscription may match the driver's publisher after the window
+    # node's did, even in the middle of a tap: the bag then lacks bytes the live node had, and
+    # the replay cannot know the taps before it (it detected one 231 ms late, on a tap's tail,
+    # in 1 of 3 runs) nor the start of a window that begins before the bag (a window whose
+    # first 15 ms were not in it gave another tap position). From the first onset the replay
+    # shares with the live node whose window and onset burst the bag holds, both have the same
+    # bytes and detector state: everything from there is compared.
+    live_onsets = {onset for onset, _, _ in windows}
+    if seqs[0] > int(joined.group(1)):  # the bag starts after the live node's first packet
+        bag_from = stamps[from_seq]
+        covered = {
+            o for o in live_onsets if o - config.pre_ns - config.activity_window_ns >= bag_from
+        }
+    else:  # the replay reads every packet the live node read
+        covered = live_onsets
+    shared = sorted(covered & {e["onset_ns"] for e in first})
+    assert shared, (sorted(live_onsets)[:5], sorted({e["onset_ns"] for e in first})[:5])
+    compared_from = shared[0]
+    assert compared_from == min(covered), "a live onset the bag holds whole was not replayed"
+    first = [e for e in first if e["onset_ns"] >= compared_from]
+    live_c = [_comparable(e) for e in live if e.onset_ns >= compared_from]
+    assert sum(not e["provisional"] for e in live_c) >= 3, (out, rec_out)
+
     # every estimate the live run made and the recorder got, the replay made too, field for field
     replayed = {key(e): e for e in first}
-    live_c = [_comparable(e) for e in live]
     missing = [key(e) for e in live_c if key(e) not in replayed]
     onsets = sorted({e["onset_ns"] for e in first})
     near = [(m[0], min(onsets, key=lambda o, m=m: abs(o - m[0])) - m[0]) for m in missing[:5]]
-    assert not missing, (missing[:5], near, len(onsets), seqs[0], from_seq, err[-1500:])
+    bag_until = stamps[seqs[-1]]
+    assert not missing, (
+        missing[:5],
+        near,
+        [bag_until - m[0] for m in missing[:5]],  # the bag's last packet after the onset
+        len(onsets),
+        seqs[0],
+        from_seq,
+        err[-1500:],
+    )
     differ = [
         (key(b), {f: (replayed[key(b)][f], b[f]) for f in b if replayed[key(b)][f] != b[f]})
         for b in live_c
@@ -146,11 +180,15 @@ def test_packet_bag_replays_offline_bit_identical_to_the_live_run(tmp_path):
     # and it made no other, but for windows the recorder heard before the inference node had
     # its model (the recorder's subscriptions may also match the graph's publishers after the
     # first tap: nothing before the first window it heard counts)
-    heard_from = min(onset for onset, _, _ in windows)
     answered_keys = {key(e) for e in live_c}
-    extra = [e for e in first if key(e) not in answered_keys and e["onset_ns"] >= heard_from]
+    extra = [e for e in first if key(e) not in answered_keys]
     published = {(onset, prov): t for onset, prov, t in windows}
     unanswered = {(e["onset_ns"], e["provisional"]) for e in extra}
     assert unanswered <= published.keys()  # windows the live node cut, as the replay did
     assert all(published[w] <= answered[0][0] for w in unanswered)  # before inference was up
     assert len(extra) <= 10, extra  # at most the first two taps' provisional and final windows
+    print(
+        f"packet replay: {len(live_c)} live estimates compared and equal, from onset "
+        f"{sorted(live_onsets).index(compared_from) + 1} of {len(live_onsets)}; bag from seq "
+        f"{seqs[0]}, live node from seq {joined.group(1)}; {len(extra)} replayed only"
+    )
