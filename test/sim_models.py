@@ -32,6 +32,18 @@ def cli(*args: str, timeout: float = 240) -> subprocess.CompletedProcess:
     return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=timeout)
 
 
+def spawn(*args: str) -> subprocess.Popen:
+    """Start ``ext-sense ARGS`` in a session of its own (its process group: a graph's runner
+    and nodes), output captured as text; stop a graph with :func:`stop_graph`."""
+    return subprocess.Popen(
+        [*EXE, *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+
+
 def stop_graph(proc: subprocess.Popen, timeout: float = 20) -> tuple[str, str]:
     """Stop a graph started with ``start_new_session=True``: SIGINT to its process group (the
     runner and every node), SIGKILL if it is not gone after ``timeout`` s.

@@ -14,7 +14,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from sim_models import EXE, stop_graph, train_sim_model
+from sim_models import EXE, spawn, stop_graph, train_sim_model
 from sim_models import cli as _cli
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(400)]
@@ -50,21 +50,14 @@ def models(tmp_path_factory):
 
 def _run_graph(graph: str, model: Path, trials: int, *extra: str, timeout: float = 120):
     """Run a graph with ``ext-sense run``; on a timeout its whole process group is stopped."""
-    proc = subprocess.Popen(
-        [
-            *EXE,
-            "run",
-            graph,
-            f"trials:={trials}",
-            f"model:={model}",
-            "seed:=5",
-            f"port:=/tmp/ext_sense_e2e_{os.getpid()}_{graph}.pty",
-            *extra,
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
+    proc = spawn(
+        "run",
+        graph,
+        f"trials:={trials}",
+        f"model:={model}",
+        "seed:=5",
+        f"port:=/tmp/ext_sense_e2e_{os.getpid()}_{graph}.pty",
+        *extra,
     )
     try:
         stdout, stderr = proc.communicate(timeout=timeout)

@@ -24,7 +24,7 @@ import subprocess
 import time
 
 import pytest
-from sim_models import EXE, stop_graph, train_sim_model
+from sim_models import spawn, stop_graph, train_sim_model
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(400)]
 
@@ -58,30 +58,17 @@ def test_packet_bag_replays_offline_bit_identical_to_the_live_run(tmp_path):
 
     model_dir, _ = train_sim_model(tmp_path, "tap_rod30_nuskin", "tap_localization", 40)
     bag = tmp_path / "live"
-    recorder = subprocess.Popen(
-        [*EXE, "record", str(bag), "--topics", PACKETS, TRUTH, ESTIMATE, WINDOW],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
+    recorder = spawn("record", str(bag), "--topics", PACKETS, TRUTH, ESTIMATE, WINDOW)
     try:
         time.sleep(3.0)  # rclpy imported, subscriptions up before the graph's first packet
         assert recorder.poll() is None, recorder.communicate()
-        graph = subprocess.Popen(
-            [
-                *EXE,
-                "run",
-                "tap_localization",
-                "trials:=6",
-                f"model:={model_dir}",
-                "seed:=5",
-                f"port:=/tmp/ext_sense_packets_{os.getpid()}.pty",
-            ],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            start_new_session=True,
+        graph = spawn(
+            "run",
+            "tap_localization",
+            "trials:=6",
+            f"model:={model_dir}",
+            "seed:=5",
+            f"port:=/tmp/ext_sense_packets_{os.getpid()}.pty",
         )
         try:
             out, err = graph.communicate(timeout=150)

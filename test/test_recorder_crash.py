@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 from rosutil import spinning, wait_for
-from sim_models import EXE, stop_graph, train_sim_model
+from sim_models import EXE, spawn, stop_graph, train_sim_model
 from sim_models import cli as ext_sense
 from synthetic import T0, event_batch_msg, tap_stream
 
@@ -129,21 +129,14 @@ def _wait_line(log: Path, text: str, timeout: float) -> bool:
 @pytest.mark.timeout(300)
 def test_recorder_killed_in_a_live_tap_graph_loses_at_most_a_second(tmp_path):
     model, _ = train_sim_model(tmp_path, "tap_rod30_nuskin", "tap_localization", 10)
-    graph = subprocess.Popen(
-        [
-            *EXE,
-            "run",
-            "tap_localization",
-            "trials:=0",
-            "monitor:=false",
-            f"model:={model}",
-            "seed:=3",
-            f"port:=/tmp/ext_sense_crash_{os.getpid()}.pty",
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
+    graph = spawn(
+        "run",
+        "tap_localization",
+        "trials:=0",
+        "monitor:=false",
+        f"model:={model}",
+        "seed:=3",
+        f"port:=/tmp/ext_sense_crash_{os.getpid()}.pty",
     )
     ref_bag, bag, full_bag = tmp_path / "reference", tmp_path / "killed", tmp_path / "full"
     logs = {name: tmp_path / f"{name}.log" for name in ("reference", "killed", "full")}
