@@ -130,7 +130,7 @@ class Source:
         from ext_sense.topics import SENSOR_PACKETS
         from ext_sense_drivers.nodes.nuskin_driver import packet_encoding
         from ext_sense_drivers.nuskin.driver_config import DriverConfig
-        from ext_sense_drivers.packets import QUIET_PACKETS_PERIOD_S, QUIET_PACKETS_S, PacketPacker
+        from ext_sense_drivers.packets import QUIET_PACKETS_S, PacketPacker, QuietSchedule
         from ext_sense_msgs.msg import SensorPacket, TaxelEventBatch
 
         self.kind, self.batches = kind, batches
@@ -139,9 +139,7 @@ class Source:
             self.type, self.topic = SensorPacket, SENSOR_PACKETS["nuskin"]
             self.packer = PacketPacker(*packet_encoding(DriverConfig(baud=BAUD)))
             self.reads = [batch_reads(b) for b in batches]
-            self.last_read_ns: int | None = None
-            self.next_quiet_ns = 0
-            self.quiet_period_ns = round(QUIET_PACKETS_PERIOD_S * 1e9)
+            self.quiet = QuietSchedule(self.quiet_s)
         else:
             self.type, self.topic = TaxelEventBatch, TOPIC_EVENTS
 
@@ -156,15 +154,9 @@ class Source:
             packets = self.packer.pack(chunks, False)
             drain_ns = stamp_ns + MS  # the driver drains at the end of the ms
             if chunks:
-                self.last_read_ns = chunks[-1][1].t_ns
-                self.next_quiet_ns = drain_ns + self.quiet_period_ns
-            elif (
-                self.last_read_ns is not None
-                and drain_ns - self.last_read_ns < self.quiet_s * 1e9
-                and drain_ns >= self.next_quiet_ns
-            ):  # the driver's quiet timer: nothing read this period, it says so
+                self.quiet.on_bytes(drain_ns)
+            elif self.quiet.due(drain_ns):  # the driver's quiet timer: nothing read, it says so
                 packets = [self.packer.nothing_read(drain_ns)]
-                self.next_quiet_ns += self.quiet_period_ns
             return [(packet_message(p, "nuskin"), p.end_ns) for p in packets]
         msg = self.type()
         fill_stamp(msg.header.stamp, stamp_ns)

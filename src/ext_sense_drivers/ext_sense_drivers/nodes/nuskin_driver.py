@@ -52,6 +52,7 @@ from ext_sense_drivers.packets import (
     NuskinPacketDecoder,
     Packet,
     PacketPacker,
+    QuietSchedule,
     format_options,
 )
 from ext_sense_drivers.transports.base import LinkState
@@ -195,8 +196,6 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             high=60.0,
             read_only=True,
         )
-        self._quiet_ns = round(quiet_s * 1e9)
-        self._last_bytes_ns: int | None = None
         quiet_period_s = declare(
             self,
             "quiet_packets_period_s",
@@ -208,6 +207,7 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             high=1.0,
             read_only=True,
         )
+        self._quiet = QuietSchedule(quiet_s, quiet_period_s)
         self._quiet_timer = self.create_timer(
             quiet_period_s, self.guard(self._say_quiet), autostart=False
         )
@@ -305,9 +305,9 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
                 self._rate.add(len(chunk.data) // per_item)
         for packet in self.packer.pack(tagged, link_down, self._mono_to_ros_ns):
             self._publish_packet(packet)
-        read = [chunk.t_ns for _, chunk in tagged if chunk.data]
-        if read and self._quiet_ns > 0 and self.config.mode_kind == Mode.WORDS:
-            self._last_bytes_ns = max(read)
+        read = any(chunk.data for _, chunk in tagged)
+        if read and self._quiet.quiet_ns > 0 and self.config.mode_kind == Mode.WORDS:
+            self._quiet.on_bytes(time.monotonic_ns())
             self._quiet_timer.reset()  # its first tick one period after these bytes
 
     def _publish_packet(self, packet: Packet) -> None:
@@ -324,8 +324,7 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         (the timer stops: an idle driver does not wake).
         """
         now = time.monotonic_ns()
-        last = self._last_bytes_ns
-        if last is None or now - last >= self._quiet_ns or self._drain_timer is None:
+        if self._quiet.over(now) or self._drain_timer is None:
             self._quiet_timer.cancel()
             return
         if self.reader.queued_chunks or self.reader.state != LinkState.CONNECTED:

@@ -35,6 +35,51 @@ QUIET_PACKETS_PERIOD_S = 0.005
 """Default time between those packets (``quiet_packets_period_s``): the longest a window waits
 past its end for one; one per 1 ms batch period made ten times the packets of a handover run."""
 
+
+class QuietSchedule:
+    """When a NUSkin words driver says it read nothing (:meth:`PacketPacker.nothing_read`).
+
+    After bytes drained at ``t``, one "nothing read" packet is due at ``t + period``,
+    ``t + 2 period``, ... while no bytes come, until ``quiet_s`` after them. Clock-free, so that
+    the driver and the latency bench (which drives the driver's packer on simulated drains,
+    ``bench/latency_figures.py``) follow one rule: the driver asks :meth:`over` at each tick of
+    its periodic timer, which it resets when bytes come; :meth:`due` is that timer's schedule,
+    for a caller that has none.
+
+    Args:
+        quiet_s: ``quiet_packets_s``; 0 or less: never.
+        period_s: ``quiet_packets_period_s``.
+    """
+
+    def __init__(
+        self, quiet_s: float = QUIET_PACKETS_S, period_s: float = QUIET_PACKETS_PERIOD_S
+    ) -> None:
+        self.quiet_ns = round(quiet_s * 1e9)
+        self.period_ns = round(period_s * 1e9)
+        self.last_bytes_ns: int | None = None
+        self.next_ns = 0
+
+    def on_bytes(self, t_ns: int) -> None:
+        """Bytes were drained at ``t_ns``: the first packet is due one period later."""
+        self.last_bytes_ns = int(t_ns)
+        self.next_ns = int(t_ns) + self.period_ns
+
+    def over(self, now_ns: int) -> bool:
+        """No packet is due before the next bytes: none yet, or ``quiet_s`` passed."""
+        last = self.last_bytes_ns
+        return self.quiet_ns <= 0 or last is None or now_ns - last >= self.quiet_ns
+
+    def due(self, now_ns: int) -> bool:
+        """Whether a packet is due at ``now_ns``; if so, the next is due one period later.
+
+        The driver's timer ticks by then; the caller that has no timer asks this at each drain.
+        """
+        if self.over(now_ns) or now_ns < self.next_ns:
+            return False
+        self.next_ns += self.period_ns
+        return True
+
+
 ACES_BYTES_PER_SAMPLE = 2
 """The ACES line's clock ticks once per 2 bytes: ``time_base`` counts samples."""
 

@@ -15,6 +15,7 @@ from ext_sense_drivers.packets import (
     NUSKIN_WORDS_V1,
     PacketError,
     PacketPacker,
+    QuietSchedule,
     make_decoder,
     parse_options,
 )
@@ -150,3 +151,18 @@ def test_packet_of_reads_a_rosbags_message():
     back = packet_of(msg)
     assert back.data == packet.data
     assert back.reads() == packet.reads()
+
+
+def test_quiet_schedule_says_nothing_read_each_period_after_bytes_until_quiet_s():
+    quiet = QuietSchedule(quiet_s=0.02, period_s=0.005)
+    ms = 10**6
+    assert not quiet.due(T0)  # no bytes yet
+    quiet.on_bytes(T0)
+    drains = [T0 + k * ms for k in range(1, 30)]  # a drain every 1 ms, nothing read
+    said = [t - T0 for t in drains if quiet.due(t)]
+    assert said == [5 * ms, 10 * ms, 15 * ms]  # and not at 20 ms: quiet_s after the bytes
+    assert quiet.over(T0 + 20 * ms)
+    quiet.on_bytes(T0 + 40 * ms)  # bytes again: one period after them
+    assert not quiet.due(T0 + 44 * ms)
+    assert quiet.due(T0 + 45 * ms)
+    assert QuietSchedule(quiet_s=0.0).over(T0)  # 0: never
