@@ -134,7 +134,7 @@ def test_sigstop_of_the_window_node_degrades_the_windows_it_gets_late(tap_model,
         assert said, lost[0]
         packets, contacts = int(said.group(1)), int(said.group(2))
         # a gap counts a contact when it could hold an onset's events (the queue of 1000
-        # packets overflows by 1 to ~1000 in 2 s, as the driver's packet rate goes)
+        # packets overflowed by 1, and by 580-598, in runs of these 2 s)
         assert (contacts >= 1) == (packets >= WindowConfig.activity_min_events), lost[0]
     scored = [float(m.group(1)) for x in after if (m := LATENCY.search(x.strip()))]
     assert scored
