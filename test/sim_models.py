@@ -63,6 +63,23 @@ def stop_graph(proc: subprocess.Popen, timeout: float = 20) -> tuple[str, str]:
         return proc.communicate()
 
 
+def finish_graph(
+    proc: subprocess.Popen, timeout: float, what: str = "the graph"
+) -> tuple[str, str]:
+    """Wait for a graph started by :func:`spawn` to end by itself; ``(stdout, stderr)``.
+
+    Not ended after ``timeout`` s: it is stopped (:func:`stop_graph`) and the test fails with
+    its output.
+    """
+    import pytest
+
+    try:
+        return proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        stdout, stderr = stop_graph(proc, timeout=10)
+        pytest.fail(f"{what} did not finish in {timeout:g} s:\n{stdout}\n{stderr[-3000:]}")
+
+
 def child_exit_codes(stderr: str) -> dict[str, int]:
     """The node exit codes ``ext-sense run`` reported when the graph stopped (``{}``: none)."""
     found = EXIT_CODES.findall(stderr)

@@ -14,7 +14,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from sim_models import EXE, spawn, stop_graph, train_sim_model
+from sim_models import EXE, finish_graph, spawn, train_sim_model
 from sim_models import cli as _cli
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(400)]
@@ -59,11 +59,7 @@ def _run_graph(graph: str, model: Path, trials: int, *extra: str, timeout: float
         f"port:=/tmp/ext_sense_e2e_{os.getpid()}_{graph}.pty",
         *extra,
     )
-    try:
-        stdout, stderr = proc.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        stdout, stderr = stop_graph(proc, timeout=10)
-        pytest.fail(f"{graph} did not finish in {timeout} s:\n{stdout}\n{stderr[-3000:]}")
+    stdout, stderr = finish_graph(proc, timeout, graph)
     out = subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
     lines = [x for x in stdout.splitlines() if x.strip()]
     return out, lines

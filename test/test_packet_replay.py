@@ -20,11 +20,10 @@ import math
 import os
 import re
 import signal
-import subprocess
 import time
 
 import pytest
-from sim_models import spawn, stop_graph, train_sim_model
+from sim_models import finish_graph, spawn, train_sim_model
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(400)]
 
@@ -70,11 +69,7 @@ def test_packet_bag_replays_offline_bit_identical_to_the_live_run(tmp_path):
             "seed:=5",
             f"port:=/tmp/ext_sense_packets_{os.getpid()}.pty",
         )
-        try:
-            out, err = graph.communicate(timeout=150)
-        except subprocess.TimeoutExpired:
-            out, err = stop_graph(graph, timeout=10)
-            pytest.fail(f"the graph did not finish:\n{out}\n{err[-3000:]}")
+        out, err = finish_graph(graph, 150)
         assert graph.returncode == 0, err[-3000:]
         time.sleep(1.0)  # the last estimate reaches the recorder
     finally:

@@ -17,7 +17,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from sim_models import EXE, stop_graph
+from sim_models import EXE, finish_graph
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(600)]
 
@@ -80,11 +80,7 @@ def test_readme_ros_steps_print_estimates_from_an_unrelated_directory(tmp_path):
         text=True,
         start_new_session=True,
     )
-    try:
-        stdout, stderr = proc.communicate(timeout=150)
-    except subprocess.TimeoutExpired:
-        stdout, stderr = stop_graph(proc, timeout=10)
-        pytest.fail(f"the graph did not finish:\n{stdout}\n{stderr[-3000:]}")
+    stdout, stderr = finish_graph(proc, 150)
     assert proc.returncode == 0, stderr[-3000:]
     assert f"[run] model {store / 'tap_localization_nuskin'}" in stderr
     lines = [x for x in stdout.splitlines() if x.strip()]
