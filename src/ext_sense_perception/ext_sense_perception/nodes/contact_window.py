@@ -31,7 +31,9 @@ be silent for seconds). Silence then beyond ``stall_warn_ms`` is a stall: WARN o
 (status ``liveness``, naming the silent topic), ERROR beyond ``stall_error_ms``, published at
 once (not at the next 1 Hz tick), cleared when data returns. Every window overlapping a stall
 or holding a packet later than ``late_ms``, or input lost on the way (the driver's word count
-ran ahead of the events received), goes out with ``degraded`` and the reason; a contact
+ran ahead of the events received), goes out with ``degraded`` and the reason, as does a window
+reaching back before the first input the node got (it joined mid-stream: the onset found may be
+the tail of a contact already under way; the windower's rule, offline too); a contact
 whose final window a stall spoiled is counted as lost (``contacts_lost_in_stall``). QoS deadline
 events are not used for this: a subscription's deadline is incompatible with the drivers'
 publishers, which offer none, and it would cut the stream instead of reporting it.
@@ -209,8 +211,9 @@ class ContactWindowNode(Node):
     def _publish(self, windows: list) -> None:
         for win in windows:
             reason = self.liveness.fault_in(win.start_ns, win.onset_ns + win.post_onset_ns)
-            if reason:
-                win = win._replace(degraded=True, degraded_reason=reason)
+            if reason:  # beside the windower's own reason (a window begun before the first input)
+                both = "; ".join(r for r in (win.degraded_reason, reason) if r)
+                win = win._replace(degraded=True, degraded_reason=both)
                 if not win.provisional and "stall" in reason:
                     self.liveness.contacts_lost += 1  # its final window missed signal
             f = window_fields(win)
@@ -368,6 +371,7 @@ class ContactWindowNode(Node):
             "windows_final": wc.windows,
             "windows_provisional": wc.provisional_windows,
             "windows_truncated": wc.truncated_windows,
+            "windows_joined_mid_stream": wc.joined_mid_stream_windows,
             "onsets": wc.onsets,
             "motion_starts": self.motion_starts,
             "events_total": sc.events,

@@ -90,6 +90,7 @@ class PacWindower(WindowerBase):
                 )
             self._period = period_ns
             self._t_first = int(t0_ns)
+            self._joined(self._t_first)
             self._m = max(1, round(self.config.pac_energy_window_ns / period_ns))
             self._alpha = float(1.0 - np.exp(-period_ns / self.config.pac_baseline_tau_ns))
             self._baseline = x[:, :1].mean(axis=1) if x.shape[1] else None

@@ -18,6 +18,7 @@ from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.window import ContactWindow, WindowConfig, bin_events
 from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_runtime.records import EventBlock
+from ext_sense_runtime.stamps import MS
 
 
 class WindowerCounters(NamedTuple):
@@ -31,6 +32,7 @@ class WindowerCounters(NamedTuple):
     late_events: int = 0
     gap_samples: int = 0
     invalid_samples: int = 0
+    joined_mid_stream_windows: int = 0
 
 
 class _Pending:
@@ -51,6 +53,7 @@ class WindowerBase:
         self._pending: list[_Pending] = []
         self._next_allowed_ns: int | None = None
         self._now_ns: int | None = None
+        self._first_ns: int | None = None
         self._counts = dict.fromkeys(WindowerCounters._fields, 0)
 
     @property
@@ -62,6 +65,16 @@ class WindowerBase:
     def now_ns(self) -> int | None:
         """Stream time: the end of the newest data seen, ns (None before any data)."""
         return self._now_ns
+
+    @property
+    def first_ns(self) -> int | None:
+        """Stream time of the first data fed, ns (None before any): the stream is known from it."""
+        return self._first_ns
+
+    def _joined(self, t_ns: int) -> None:
+        """Note that data from ``t_ns`` on was fed (the first call fixes :attr:`first_ns`)."""
+        if self._first_ns is None:
+            self._first_ns = int(t_ns)
 
     @property
     def pending_onsets(self) -> tuple[int, ...]:
@@ -176,7 +189,13 @@ class WindowerBase:
         cfg = self.config
         period = cfg.period_ns
         n = cfg.n_samples(post_ns)
-        channels, data = self._cut(onset_ns - cfg.pre_ns, n)
+        start = onset_ns - cfg.pre_ns
+        channels, data = self._cut(start, n)
+        # A window reaching before the first data fed is missing its head: the consumer joined
+        # mid-stream (started, or its subscription matched, while the rod rang), so the onset
+        # found may be the tail of a contact already under way (measured: +184 ms, 14 cm off).
+        head_missing = self._first_ns is not None and start < self._first_ns
+        self._counts["joined_mid_stream_windows"] += int(head_missing)
         return ContactWindow(
             task=cfg.task.label,
             sensor=cfg.sensor.label,
@@ -188,6 +207,13 @@ class WindowerBase:
             data=data,
             provisional=provisional,
             truncated=truncated,
+            degraded=head_missing,
+            degraded_reason=(
+                f"joined mid-stream: the window begins {(self._first_ns - start) / MS:.0f} ms "
+                "before the first input"
+                if head_missing
+                else ""
+            ),
         )
 
     def _cut(self, start_ns: int, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
@@ -254,6 +280,7 @@ class EventWindower(WindowerBase):
         if events.size:
             events = events.sorted_by_time()
             t = events.t_ns
+            self._joined(int(t[0]))
             if self._now_ns is not None and t[0] < self._now_ns - self.config.history_ns:
                 late = t < self._now_ns - self.config.history_ns
                 self._counts["late_events"] += int(late.sum())
@@ -264,6 +291,7 @@ class EventWindower(WindowerBase):
             if self._now_ns is None or newest > self._now_ns:
                 self._now_ns = newest
         if now_ns is not None:
+            self._joined(int(now_ns))
             out.extend(self.advance(now_ns))
         else:
             out.extend(self._emit_due())

@@ -325,3 +325,54 @@ def test_joining_the_buffer_at_cuts_changes_no_window_and_stays_bounded(monkeypa
         )
         np.testing.assert_array_equal(x.data, y.data)
     assert most <= 3 * 400  # about two taps' bursts at most: joining drops what is behind
+
+
+def test_a_window_reaching_back_before_the_first_input_is_degraded_as_joined_mid_stream():
+    """A consumer that joins while the rod rings sees a contact's tail as an onset (measured
+    live: +184 ms, 14 cm off): a window beginning before the first data fed is degraded, so
+    its estimate is not scored as a normal one; the next contact's window is whole and not."""
+    rng = np.random.default_rng(5)
+    t, tax, pol = _tap_stream(300 * MS, rng)
+    second = EPOCH + 1_300 * MS + np.sort(rng.integers(0, 30 * MS, 400))
+    t2 = np.concatenate([t, second])
+    tax2 = np.concatenate([tax, rng.integers(1, 81, 400).astype(np.uint16)])
+    pol2 = np.concatenate([pol, np.ones(400, np.int8)])
+    joined = t2 >= EPOCH + 310 * MS  # the consumer's first data: 10 ms into the first burst
+    w = EventWindower()
+    out = _feed_in_batches(w, t2[joined], tax2[joined], pol2[joined])
+    out += w.advance(EPOCH + 3_000 * MS)
+    finals = [x for x in out if not x.provisional]
+    assert len(finals) == 2
+    late, whole = finals
+    assert late.onset_ns >= EPOCH + 310 * MS  # the tail taken for an onset
+    assert late.degraded
+    assert late.degraded_reason.startswith("joined mid-stream")
+    assert f"{(int(t2[joined][0]) - late.start_ns) / MS:.0f} ms" in late.degraded_reason
+    assert all(x.degraded for x in out if x.onset_ns == late.onset_ns)  # provisional ones too
+    assert not whole.degraded
+    assert whole.degraded_reason == ""
+    assert w.first_ns == int(t2[joined][0])
+    assert w.counters.joined_mid_stream_windows == 5  # 4 provisional and the final
+
+    # from the stream's start, the same contacts give whole windows
+    w = EventWindower()
+    out = _feed_in_batches(w, t2, tax2, pol2) + w.advance(EPOCH + 3_000 * MS)
+    assert [x.degraded for x in out] == [False] * 10
+    assert w.counters.joined_mid_stream_windows == 0
+
+
+def test_a_pac_window_reaching_back_before_the_first_frame_is_degraded():
+    cfg = WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.BIOTAC)
+    rng = np.random.default_rng(6)
+    n = int(1.5e9 // PAC_PERIOD_NS)
+    x = 2000.0 + rng.normal(0, 2, n)
+    burst = int(0.02e9 // PAC_PERIOD_NS)  # 20 ms into the stream: the pre-onset part is missing
+    x[burst : burst + 200] += 400 * np.sin(np.arange(200) * 0.7)
+    w = PacWindower(cfg)
+    out = []
+    for i in range(0, n, 22):
+        out += w.feed(EPOCH + i * PAC_PERIOD_NS, x[i : i + 22])
+    finals = [win for win in out if not win.provisional]
+    assert len(finals) == 1
+    assert finals[0].degraded
+    assert "joined mid-stream" in finals[0].degraded_reason
