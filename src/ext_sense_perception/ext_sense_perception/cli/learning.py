@@ -366,7 +366,7 @@ def _print_plan(plan: list[dict], cache: Path | None) -> None:
             f"{row['data']}: {row['points']} points, {row['fits']} fits ({row['cached']} "
             f"cached, {row['to_do']} to do: "
             + ", ".join(f"{m} {n}" for m, n in row["to_do_by_model"].items())
-            + f"); {row['final_fits']} deployed-model fits for latency (in-process)"
+            + f"); {row['final_fits']} deployed-model fits for latency (after these, cached too)"
         )
         total.update({k: row[k] for k in ("points", "fits", "cached", "to_do", "final_fits")})
         by_model.update(row["to_do_by_model"])
@@ -374,5 +374,5 @@ def _print_plan(plan: list[dict], cache: Path | None) -> None:
         f"total: {total['points']} points, {total['fits']} fits ({total['cached']} cached in "
         f"{cache or 'no cache'}, {total['to_do']} to do: "
         + ", ".join(f"{m} {n}" for m, n in sorted(by_model.items()))
-        + f"); {total['final_fits']} deployed-model fits for latency (in-process)"
+        + f"); {total['final_fits']} deployed-model fits for latency (after these, cached too)"
     )

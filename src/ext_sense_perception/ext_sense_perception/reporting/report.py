@@ -296,7 +296,11 @@ def build_report(
                 plan.append({"data": str(path), **run.listed()})
                 run.discard()
                 continue
-            run.flush()  # every fit of the data set, submitted together
+            run.flush()  # every split fit of the data set, submitted together
+            with tempfile.TemporaryDirectory(prefix="ext_sense_plan_") as scratch:
+                with run.plan_deployed():
+                    sections(ws, path, Path(scratch))  # lists the deployed models
+                run.flush_deployed()  # their fits, submitted together, then their timing
             lines += sections(ws, path, out)
             if done < len(datasets):  # a long run keeps what it has so far
                 _write(

@@ -1,9 +1,12 @@
 """Running the protocol for the report: each distinct point once, every point recorded (no ROS).
 
-A data set's sections run twice: first inside :meth:`Runner.plan`, where every point they ask
-for is listed (and answered with a placeholder), then, after :meth:`Runner.flush` has fitted
-the splits of all those points in one submission, for real, from the memo. So a cluster's
-workers get every fit of a data set at once instead of one point's K at a time.
+A data set's sections run three times: first inside :meth:`Runner.plan`, where every point they
+ask for is listed (and answered with a placeholder); after :meth:`Runner.flush` has fitted the
+splits of all those points in one submission, inside :meth:`Runner.plan_deployed`, where the
+deployed models of the latency columns (which need the points' chosen hyper-parameters) are
+listed; and after :meth:`Runner.flush_deployed` has fitted those, for real, from the memos. So a
+cluster's workers get every fit of a data set at once instead of one point's K at a time, and
+every fit is cached (:mod:`.deployed`).
 """
 
 from __future__ import annotations
@@ -19,8 +22,9 @@ import numpy as np
 from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.maps import FeatureKind
-from ext_sense_perception.training.fit import fit_model
-from ext_sense_perception.training.fit_executor import FitExecutor, check
+from ext_sense_perception.reporting.deployed import DeployedTask, deployed_key, fit_deployed
+from ext_sense_perception.training.fit import TrainedModel
+from ext_sense_perception.training.fit_executor import FitExecutor, FitFailure, FitJob, check
 from ext_sense_perception.training.models import MODEL_NAMES, default_feature_grid
 from ext_sense_perception.training.protocol import (
     EvalPlan,
@@ -147,9 +151,13 @@ class Runner:
         self.n_jobs = n_jobs
         self.executor = executor or FitExecutor()
         self.planning = False
-        self.final_fits = 0  # deployed models trained for latency while planning (in-process)
+        self.deploying = False  # inside plan_deployed: deployed models are listed, not fitted
+        self.final_fits = 0  # deployed models the planned sections ask for (latency columns)
         self._memo: dict[tuple, EvalResult | PerceptionError] = {}
         self._pending: dict[tuple, tuple[EvalPlan, dict[str, Any]]] = {}
+        # deployed models by cache key: listed (task, windows), then their ONNX latency
+        self._deploy_pending: dict[str, tuple[DeployedTask, WindowSet]] = {}
+        self._latency: dict[str, tuple[float, float] | PerceptionError] = {}
         self._prints: dict[int, tuple[np.ndarray, bytes]] = {}
 
     @property
@@ -280,7 +288,8 @@ class Runner:
         """What the listed points would fit: points, fits, cached, to do per features+model.
 
         Also the deployed models the planned sections train for their latency columns
-        (``final_fits``, in this process, not cached).
+        (``final_fits``: fitted after the points, on the executor, cached; their cache state
+        is known only then, from the points' chosen hyper-parameters).
         """
         cache = self.executor.cache
         todo: Counter[str] = Counter()
@@ -306,6 +315,40 @@ class Runner:
         self._pending.clear()
         self.final_fits = 0
 
+    @contextlib.contextmanager
+    def plan_deployed(self) -> Iterator[None]:
+        """Inside: deployed models are listed for :meth:`flush_deployed`, answered with NaN.
+
+        Run after :meth:`flush`: a deployed model needs its point's chosen hyper-parameters.
+        """
+        self.deploying = True
+        try:
+            yield
+        finally:
+            self.deploying = False
+
+    def flush_deployed(self) -> None:
+        """Fit every listed deployed model, all submitted together, and time each in turn.
+
+        The fits run on the executor (a cluster's workers when there is one) and are cached;
+        the timing (:func:`~ext_sense_perception.training.timing.measure_inference`) runs
+        here, after the last fit, so no fit competes with it for a core.
+        """
+        pending, self._deploy_pending = list(self._deploy_pending.items()), {}
+        jobs = [FitJob(fit_deployed, [task], [key], {"ws": ws}) for key, (task, ws) in pending]
+        outcomes = self.executor.run_jobs(jobs)
+        for (key, (_, ws)), (trained,) in zip(pending, outcomes, strict=True):
+            self._latency[key] = self._timed(trained, ws)
+
+    @staticmethod
+    def _timed(
+        trained: TrainedModel | FitFailure, ws: WindowSet
+    ) -> tuple[float, float] | PerceptionError:
+        if isinstance(trained, FitFailure):
+            return PerceptionError(f"the deployed model's fit failed: {trained.error}")
+        t = measure_inference(trained, ws, n=100)
+        return t["infer_p50_ms_onnx"], t["infer_p99_ms_onnx"]
+
     def infer_ms(
         self,
         ws: WindowSet,
@@ -317,22 +360,32 @@ class Runner:
         """ONNX single-window p50 and p99 latency, ms, of the model the protocol would deploy.
 
         It is trained on every window with the hyper-parameters chosen in most splits (a
-        one-candidate grid, so it costs about a quarter of a split, not a second search).
-        While planning it trains nothing and gives NaN.
+        one-candidate grid, so it costs about a quarter of a split, not a second search), as
+        a cached fit on the executor (:mod:`.deployed`). While planning points or deployed
+        models it trains nothing and gives NaN; a model not listed beforehand is fitted now.
+
+        Raises:
+            PerceptionError: its fit failed (the same error each time it is asked for).
         """
         if self.planning:
             self.final_fits += 1
             return float("nan"), float("nan")
-        fixed = {k: [v] for k, v in modal_params(res).items()}
-        trained = fit_model(
-            ws,
+        task = DeployedTask(
             features,
             model,
             self.feature_params(ws, features, {}),
-            fixed,
-            seed=self.seed,
-            n_jobs=self.n_jobs,
-            model_params=model_params,
+            {k: [v] for k, v in modal_params(res).items()},
+            self.seed,
+            self.n_jobs,
+            model_params,
         )
-        t = measure_inference(trained, ws, n=100)
-        return t["infer_p50_ms_onnx"], t["infer_p99_ms_onnx"]
+        key = deployed_key(task, ws, self._print(ws).hex())
+        if key not in self._latency:
+            self._deploy_pending[key] = (task, ws)
+            if self.deploying:
+                return float("nan"), float("nan")
+            self.flush_deployed()
+        hit = self._latency[key]
+        if isinstance(hit, PerceptionError):
+            raise hit
+        return hit

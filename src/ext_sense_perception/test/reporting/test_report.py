@@ -11,6 +11,7 @@ from ext_sense.cli import main as ext_sense
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.reporting.report import build_report
 from ext_sense_perception.reporting.runner import check_choices
+from ext_sense_perception.training import fit as fit_module
 
 
 def test_check_choices_canonicalises_and_keeps_order():
@@ -139,7 +140,9 @@ def test_full_refuses_a_reduced_report(tmp_path, capsys, make_tap_dataset):
 
 
 @pytest.mark.slow  # two small report runs
-def test_an_interrupted_report_resumes_from_its_cached_fits(tmp_path, make_tap_dataset, capsys):
+def test_an_interrupted_report_resumes_from_its_cached_fits(
+    tmp_path, make_tap_dataset, capsys, monkeypatch
+):
     data = make_tap_dataset(tmp_path / "small.npz", n=24, seed=3)
     out = tmp_path / "rep"
     args = ["report", "--data", str(data), "--out", str(out), "--k", "2", "--features", "fft"]
@@ -149,9 +152,18 @@ def test_an_interrupted_report_resumes_from_its_cached_fits(tmp_path, make_tap_d
     n_fits = sum(1 for _ in (out / "fits").rglob("*.pkl"))
     assert n_fits >= 2
     capsys.readouterr()
+
+    def no_training(*_a, **_k):
+        raise AssertionError("a deployed model was trained again")
+
+    # the deployed model of the ONNX latency column comes from the cache too (it was trained
+    # again in the report's process by every rerun, about 10 minutes per tap data set)
+    monkeypatch.setattr(fit_module, "GridSearchCV", no_training)
     assert ext_sense(args) == 0
     err = capsys.readouterr().err
     assert f"{n_fits} of {n_fits} done ({n_fits} cached)" in err  # nothing recomputed
+    row = r"\| fft \| svm_rbf \| [\d.]+ \+- [\d.]+ cm \| [\d.]+ \| [\d.]+ / [\d.]+ \|"
+    assert re.search(row, (out / "report.md").read_text())  # scores and latency, not 'failed'
     again = json.loads((out / "report.json").read_text())
     strip = lambda recs: [{k: v for k, v in r.items() if k != "eval_s"} for r in recs]  # noqa: E731
     assert strip(first) == strip(again)
@@ -172,3 +184,29 @@ def test_report_plan_counts_fits_cached_and_to_do(tmp_path, make_tap_dataset, ca
     capsys.readouterr()
     assert ext_sense([*args, "--plan"]) == 0
     assert "total: 10 points, 20 fits (20 cached in" in capsys.readouterr().out
+
+
+@pytest.mark.slow  # a local Dask cluster of 2 workers
+def test_a_report_on_a_local_cluster_equals_one_in_process_deployed_models_included(
+    tmp_path, make_tap_dataset
+):
+    """Every fit of a report, the deployed models of its latency column too, runs on the
+    cluster's workers and lands in the cache: the same records and the same cache keys as in
+    one process."""
+    data = make_tap_dataset(tmp_path / "small.npz", n=24, seed=3)
+    args = ["report", "--data", str(data), "--k", "2", "--features", "fft", "--models"]
+    args += ["svm_rbf,svm_linear", "--no-gru", "--no-latency", "--no-taxels"]
+    here, cluster = tmp_path / "here", tmp_path / "cluster"
+    assert ext_sense([*args, "--out", str(here)]) == 0
+    assert ext_sense([*args, "--out", str(cluster), "--workers", "2"]) == 0
+    keys = [sorted(p.name for p in (d / "fits").rglob("*.pkl")) for d in (here, cluster)]
+    assert keys[0] == keys[1]
+    assert len(keys[0]) == 20 + 2  # the plan's 20 split fits and the 2 rows' deployed models
+    strip = lambda recs: [{k: v for k, v in r.items() if k != "eval_s"} for r in recs]  # noqa: E731
+    records = [json.loads((d / "report.json").read_text()) for d in (here, cluster)]
+    assert strip(records[0]) == strip(records[1])
+    text = (cluster / "report.md").read_text()
+    assert (
+        len(re.findall(r"\| fft \| svm_\w+ \| [\d.]+ \+- [\d.]+ cm \| [\d.]+ \| [\d.]+ / ", text))
+        == 2
+    )
