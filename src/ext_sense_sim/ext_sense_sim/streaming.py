@@ -9,16 +9,19 @@ true contact onset is written, ``on_onset`` gets the ground truth stamped with t
 (``time.time_ns``, the clock drivers stamp arrival with) of that write. A trial that could not
 be simulated before its start is sent late and counted in ``late_trials``.
 
-The trials come from :mod:`~ext_sense_sim.trial_plan`; the bytes go to a link of
-:mod:`~ext_sense_sim.links` (a pty or a CAN sink).
+The trials come from :mod:`~ext_sense_sim.trial_plan`, simulated here or, with ``ahead`` (the
+``sim_device`` node and ``sim serve``), in a low-priority child process
+(:mod:`~ext_sense_sim.trials_ahead`: the emulated world's CPU off the host's hot path); the
+bytes go to a link of :mod:`~ext_sense_sim.links` (a pty or a CAN sink).
 """
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -30,7 +33,8 @@ from ext_sense_sim.bridge_line import BridgeLine
 from ext_sense_sim.errors import SceneError
 from ext_sense_sim.links import open_link
 from ext_sense_sim.scene import Scene
-from ext_sense_sim.trial_plan import PlannedTrial, plan_trials
+from ext_sense_sim.trial_plan import PlannedTrial, plan_trials, require_wire
+from ext_sense_sim.trials_ahead import TrialsAhead
 
 
 @dataclass
@@ -56,6 +60,7 @@ def stream(
     clock: Callable[[], int] = time.time_ns,
     sleep: Callable[[float], None] = time.sleep,
     stats: StreamStats | None = None,
+    ahead: bool = False,
 ) -> StreamStats:
     """Write the scene's device bytes in real time until ``trials`` are done or ``stop`` is set.
 
@@ -70,16 +75,46 @@ def stream(
         clock: Epoch integer nanoseconds (injectable for tests).
         sleep: Sleeps seconds (injectable for tests).
         stats: Counters to fill as it goes (e.g. read by a node's diagnostics); new if None.
+        ahead: Simulate the trials in a low-priority child process
+            (:class:`~ext_sense_sim.trials_ahead.TrialsAhead`: the same trials), not here.
     """
-    period_ns = round(max(period_s, scene.trial_s) * 1e9)
     stop = stop or threading.Event()
+    with _trials(scene, seed, stop, ahead) as plans:
+        return _stream(scene, write, plans, trials, period_s, on_onset, stop, clock, sleep, stats)
+
+
+@contextlib.contextmanager
+def _trials(
+    scene: Scene, seed: int, stop: threading.Event, ahead: bool
+) -> Generator[Iterator[PlannedTrial]]:
+    """The scene's trials, simulated here or (``ahead``) in a child process ended on exit."""
+    if not ahead:
+        yield plan_trials(scene, seed)
+        return
+    require_wire(scene)  # a clear error at once, not from the child
+    with TrialsAhead(scene, seed, stop) as plans:
+        yield plans
+
+
+def _stream(
+    scene: Scene,
+    write: Callable[[bytes], object],
+    plans: Iterator[PlannedTrial],
+    trials: int,
+    period_s: float,
+    on_onset: Callable[[GroundTruth], None] | None,
+    stop: threading.Event,
+    clock: Callable[[], int],
+    sleep: Callable[[float], None],
+    stats: StreamStats | None,
+) -> StreamStats:
+    period_ns = round(max(period_s, scene.trial_s) * 1e9)
     stats = StreamStats() if stats is None else stats
     start: int | None = None
     rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
-    plans = plan_trials(scene, seed)
-    upcoming: PlannedTrial | None = next(plans)
+    upcoming: PlannedTrial | None = next(plans, None)
     line, bridge = _device_line(scene, write, clock, stats)
-    if bridge is not None:
+    if bridge is not None and upcoming is not None:
         bridge.prime(b"".join(c[1] for c in upcoming.chunks[:4]))
     while upcoming is not None:
         plan = upcoming
@@ -96,7 +131,7 @@ def stream(
         # Simulate the next trial now, in the idle time before it is due: simulating it at
         # its start made it ~0.1 s late, so its first ~0.1 s of bytes (the tap itself) went
         # out in one burst, squeezing the tap's events into a few ms on the driver's clock.
-        upcoming = None if last or stop.is_set() else next(plans)
+        upcoming = None if last or stop.is_set() else next(plans, None)
         # the bridge keeps sending through the last period too: the last window closes on data
         while not stop.is_set() and clock() < t0 + period_ns and (not last or bridge is not None):
             line.idle()
@@ -155,10 +190,16 @@ class Trigger(NamedTuple):
 ALIGNS = ("start", "onset")
 
 
+class _StoppedError(Exception):
+    """The stream was stopped while it waited for its next trial (simulated ahead)."""
+
+
 def _next_like(plans: Iterator[PlannedTrial], label: str, scene: Scene) -> PlannedTrial:
     """The next planned trial of class ``label`` ("" = the next one)."""
     for _ in range(1000):
-        plan = next(plans)
+        plan = next(plans, None)
+        if plan is None:
+            raise _StoppedError
         if not label or plan.class_label == label:
             return plan
     raise SceneError(
@@ -197,6 +238,7 @@ def stream_on_trigger(
     clock: Callable[[], int] = time.time_ns,
     sleep: Callable[[float], None] = time.sleep,
     stats: StreamStats | None = None,
+    ahead: bool = False,
 ) -> StreamStats:
     """Play ``per_trigger`` trials per trigger, silent in between: a behaviour drives the scene.
 
@@ -229,6 +271,7 @@ def stream_on_trigger(
         clock: Epoch integer nanoseconds (injectable for tests).
         sleep: Sleeps seconds (injectable for tests).
         stats: Counters to fill as it goes; new if None.
+        ahead: Simulate the trials in a low-priority child process (see :func:`stream`).
 
     Raises:
         SceneError: Bad ``align`` or ``per_trigger``, the scene lacks the wire effect, or no
@@ -238,13 +281,49 @@ def stream_on_trigger(
         raise SceneError(f"The 'align' parameter must be one of {ALIGNS}. Got {align!r} instead.")
     if per_trigger < 1:
         raise SceneError(f"The 'per_trigger' parameter must be >= 1. Got {per_trigger!r} instead.")
-    period_ns = round(max(period_s, scene.trial_s) * 1e9)
     stop = stop or threading.Event()
     stats = StreamStats() if stats is None else stats
+    with _trials(scene, seed, stop, ahead) as plans, contextlib.suppress(_StoppedError):
+        _stream_on_trigger(
+            scene,
+            write,
+            triggers,
+            plans,
+            trials,
+            per_trigger,
+            period_s,
+            list(labels or []),
+            align,
+            on_onset,
+            on_ready,
+            stop,
+            clock,
+            sleep,
+            stats,
+        )
+    return stats
+
+
+def _stream_on_trigger(
+    scene: Scene,
+    write: Callable[[bytes], object],
+    triggers: queue.Queue[Trigger],
+    plans: Iterator[PlannedTrial],
+    trials: int,
+    per_trigger: int,
+    period_s: float,
+    labels: list[str],
+    align: str,
+    on_onset: Callable[[GroundTruth], None] | None,
+    on_ready: Callable[[], None] | None,
+    stop: threading.Event,
+    clock: Callable[[], int],
+    sleep: Callable[[float], None],
+    stats: StreamStats,
+) -> None:
+    period_ns = round(max(period_s, scene.trial_s) * 1e9)
     stats.extra.update(skipped_bytes=0, triggers=0)
     rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
-    plans = plan_trials(scene, seed)
-    labels = list(labels or [])
     played = 0
     line, bridge = _device_line(scene, write, clock, stats)
     primed = False
@@ -298,7 +377,6 @@ def stream_on_trigger(
         while not stop.is_set() and clock() < end:
             line.idle()
             sleep(0.005)
-    return stats
 
 
 def _play(
@@ -385,6 +463,7 @@ def serve_device(args) -> int:
                 f"trial {gt.trial} onset at {gt.onset_ns} ns {gt.class_label or gt.tap_position_m}",
                 flush=True,
             ),
+            ahead=True,
         )
     except KeyboardInterrupt:
         return 0

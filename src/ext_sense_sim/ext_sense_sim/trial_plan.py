@@ -22,7 +22,7 @@ from ext_sense_sim.scene import Scene
 WIRE_EFFECT = {Sensor.NUSKIN: "nuskin_wire", Sensor.BIOTAC: "biotac_wire"}
 
 
-def _require_wire(scene: Scene) -> None:
+def require_wire(scene: Scene) -> None:
     """Raise :class:`SceneError` unless the scene lists its sensor's wire effect."""
     wire = WIRE_EFFECT[scene.sensor]
     if wire not in scene.effect_names:
@@ -48,7 +48,7 @@ def plan_trials(scene: Scene, seed: int) -> Iterator[PlannedTrial]:
     Raises:
         SceneError: The scene lacks the wire effect (named) for its sensor.
     """
-    _require_wire(scene)
+    require_wire(scene)
     single = dataclasses.replace(scene, batch_size=1)
     sim = Simulator(single)
     seeds = np.random.SeedSequence(int(seed))
@@ -99,7 +99,7 @@ def lay_out_stream(scene: Scene, seed: int, trials: int, period_s: float = 1.0) 
     Raises:
         SceneError: The scene lacks the wire effect, or ``trials`` < 1.
     """
-    _require_wire(scene)
+    require_wire(scene)
     period_ns = round(max(period_s, scene.trial_s) * 1e9)
     rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
     writes: list[tuple[int, bytes]] = []

@@ -3,7 +3,9 @@
 Streams over a pty (with a symlink at ``port_link`` so a driver's ``port`` can name it before
 it exists) or a python-can virtual channel, from a thread, and publishes ``ground_truth``
 (``ext_sense_msgs/ContactGroundTruth``) stamped with the host time at which each trial's
-true onset bytes were written.
+true onset bytes were written. The trials themselves are simulated ahead in a child process at
+low priority (:mod:`ext_sense_sim.trials_ahead`): a real sensor costs the robot's computer
+nothing, and the emulated world's bursts of CPU would otherwise land on the nodes it feeds.
 
 With ``mode`` = ``trigger`` the device is silent until a message on ``trigger``
 (``ContactGroundTruth``; only its stamp is used) asks for the next ``trials_per_trigger``
@@ -192,6 +194,7 @@ class SimDeviceNode(Node):
                 on_onset=self._publish,
                 stop=self._stop,
                 stats=self.stats,
+                ahead=True,
             )
         except Exception as err:
             self.error = repr(err)
@@ -221,6 +224,7 @@ class SimDeviceNode(Node):
                 on_ready=self._ready.set,
                 stop=self._stop,
                 stats=self.stats,
+                ahead=True,
             )
         except Exception as err:
             self.error = repr(err)

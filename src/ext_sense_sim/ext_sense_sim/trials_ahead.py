@@ -1,0 +1,159 @@
+"""Trials simulated ahead in a child process at low priority: the emulated world off the hot path.
+
+A real sensor costs the robot's computer nothing to make its signal. The emulated one simulated
+each next trial in the device's own process, right after writing the last one's bytes, which is
+when the windows of that trial close: its burst of CPU (and of the GIL, holding back its own
+writes) fell on the driver, window and inference nodes of a 2-core machine. Measured with the
+live tap graph (``ext-sense run tap_localization trials:=30``, two runs each, alternating):
+compute p50 / p99 9.90 / 23.07 and 11.15 / 73.97 ms with the simulator as it was, 6.79 / 14.14
+and 6.34 / 21.33 ms with the whole simulator process reniced to +15.
+
+:class:`TrialsAhead` runs :func:`~ext_sense_sim.trial_plan.plan_trials` in a child process at
+``nice`` +10 and hands its trials over a pipe: the same trials in the same order (one seed, one
+generator), one simulated while the device plays the one before. The device's process only paces
+bytes. The child runs in a session of its own (``python -m ext_sense_sim.trials_ahead``): a
+Ctrl-C to the graph's process group is for the device node, which ends the child, and a
+multiprocessing child in the group printed ``KeyboardInterrupt`` tracebacks on it. It ends by
+itself when the device's end of the pipe closes, so a killed device leaves no orphan.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import pickle
+import select
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+from typing import BinaryIO
+
+from ext_sense_sim.errors import SceneError
+from ext_sense_sim.scene import Scene
+from ext_sense_sim.trial_plan import PlannedTrial, plan_trials
+
+WORLD_NICE = 10
+"""How much lower than the device's the child's priority is (``nice`` increment)."""
+POLL_S = 0.1
+"""How often a wait for the next trial looks at ``stop`` and at the child."""
+
+
+class _Failed:
+    """The child's error, sent in place of a trial (as text: it must unpickle anywhere)."""
+
+    def __init__(self, error: str) -> None:
+        self.error = error
+
+
+def simulate(scene: Scene, seed: int, out: BinaryIO) -> None:
+    """The child's work: simulate trial after trial and pickle each to ``out``.
+
+    A write blocks while the device has not read the trial before (the pipe holds less than
+    one); it fails once the device's end closed (it stopped, or it died), which ends this.
+    """
+    try:
+        for plan in plan_trials(scene, seed):
+            pickle.dump(plan, out, protocol=pickle.HIGHEST_PROTOCOL)
+            out.flush()
+    except (BrokenPipeError, OSError):
+        return
+    except Exception as err:
+        try:
+            pickle.dump(_Failed(f"{type(err).__name__}: {err}"), out)
+            out.flush()
+        except OSError:
+            pass
+
+
+class TrialsAhead(Iterator[PlannedTrial]):
+    """``plan_trials(scene, seed)`` computed in a low-priority child process.
+
+    Args:
+        scene: The scene (must list its sensor's wire effect).
+        seed: Seed of the trials.
+        stop: When set, a wait for the next trial ends the iteration.
+        nice: The child's priority increment.
+
+    Raises:
+        SceneError: (from ``next``) the scene cannot be streamed, or the child ended.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        seed: int,
+        stop: threading.Event | None = None,
+        nice: int = WORLD_NICE,
+    ) -> None:
+        self.stop = stop or threading.Event()
+        self._proc = subprocess.Popen(
+            [sys.executable, "-m", __name__, str(int(seed)), str(int(nice))],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            start_new_session=True,  # out of the graph's process group: its Ctrl-C is not ours
+        )
+        try:
+            self._proc.stdin.write(pickle.dumps(scene, protocol=pickle.HIGHEST_PROTOCOL))
+            self._proc.stdin.close()
+        except OSError as err:
+            self.close()
+            raise SceneError(f"The trial simulator did not start: {err}") from err
+
+    @property
+    def pid(self) -> int:
+        """The child's process id."""
+        return self._proc.pid
+
+    def __next__(self) -> PlannedTrial:
+        out = self._proc.stdout
+        while not self.stop.is_set():
+            ready, _, _ = select.select([out], [], [], POLL_S)
+            if not ready:
+                continue
+            try:
+                item = pickle.load(out)
+            except (EOFError, pickle.UnpicklingError):
+                break
+            if isinstance(item, _Failed):
+                raise SceneError(f"The trial simulator failed: {item.error}")
+            return item
+        if self.stop.is_set():
+            raise StopIteration
+        code = self._proc.wait(timeout=5.0)
+        raise SceneError(f"The trial simulator process ended (exit code {code}).")
+
+    def alive(self) -> bool:
+        """Whether the child still runs."""
+        return self._proc.poll() is None
+
+    def close(self) -> None:
+        """End the child and wait for it."""
+        if self._proc.poll() is None:
+            self._proc.kill()
+        self._proc.wait(timeout=5.0)
+        self._proc.stdout.close()
+
+    def __enter__(self) -> TrialsAhead:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The child (``python -m ext_sense_sim.trials_ahead SEED NICE``): the scene on stdin."""
+    seed, nice = (int(a) for a in (argv if argv is not None else sys.argv[1:]))
+    with contextlib.suppress(OSError):
+        os.nice(nice)
+    scene = pickle.load(sys.stdin.buffer)
+    simulate(scene, seed, sys.stdout.buffer)
+    return 0
+
+
+if __name__ == "__main__":
+    # run from the module imported by its name: what it pickles (``_Failed``) must unpickle in
+    # the device, where ``__main__`` is another program
+    from ext_sense_sim.trials_ahead import main as _main
+
+    sys.exit(_main())
