@@ -120,8 +120,10 @@ class Source:
 
     ``packets``: as ``nuskin_driver`` publishes (``SensorPacket``, its encoding and options,
     its packer and message code; one packet per 1 ms drain with the reads of that ms, and when
-    nothing was read its quiet timer's "nothing read" packet every ``quiet_packets_period_s``
-    for ``quiet_packets_s`` after the last bytes). ``decoded``: ``TaxelEventBatch`` per ms (the
+    nothing was read its quiet timer's "nothing read" packet on the driver's schedule,
+    :class:`~ext_sense_drivers.packets.QuietSchedule`: every ms for ``quiet_packets_fast_s``
+    after the last bytes, then every ``quiet_packets_period_s`` up to ``quiet_packets_s``).
+    ``decoded``: ``TaxelEventBatch`` per ms (the
     path before packets).
     """
 

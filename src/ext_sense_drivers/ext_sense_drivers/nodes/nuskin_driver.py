@@ -8,10 +8,12 @@ returned, numbered by ``seq``. For ``quiet_packets_s`` after the last bytes, a t
 every ``quiet_packets_period_s`` while nothing comes an empty packet saying so
 (``PacketPacker.nothing_read``): the emulated receiver falls silent between trials, and
 consumers close their windows on these packets as on data, so a replay of a recording cuts the
-windows the live run cut. With ``publish_decoded`` (default true; the graphs turn it off on
-the hot path) the node also decodes its own packets with the library decoder every consumer
-uses (:mod:`ext_sense_drivers.packets`) and publishes the events on ``events``, each event's
-flag bit as received in the batch's ``flag`` array. Bad bytes are counted, never fatal.
+windows the live run cut; for the first ``quiet_packets_fast_s`` they come every
+``batch_period_s``, while the windows of the contact that just fell silent end. With
+``publish_decoded`` (default true; the graphs turn it off on the hot path) the node also
+decodes its own packets with the library decoder every consumer uses
+(:mod:`ext_sense_drivers.packets`) and publishes the events on ``events``, each event's flag bit
+as received in the batch's ``flag`` array. Bad bytes are counted, never fatal.
 ``/diagnostics`` carries the link state, the rate, the decode counters (when decoding) and the
 stream's liveness: a powered receiver sends words all the time (its idle stream), so silence
 while the link is up is a stall (WARN, then ERROR, naming the stream).
@@ -47,6 +49,7 @@ from ext_sense_drivers.nuskin.streams import BatchCounters, EventStream
 from ext_sense_drivers.packets import (
     ACES_LINE_V1,
     NUSKIN_WORDS_V1,
+    QUIET_PACKETS_FAST_S,
     QUIET_PACKETS_PERIOD_S,
     QUIET_PACKETS_S,
     NuskinPacketDecoder,
@@ -207,9 +210,21 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             high=1.0,
             read_only=True,
         )
-        self._quiet = QuietSchedule(quiet_s, quiet_period_s)
+        fast_s = declare(
+            self,
+            "quiet_packets_fast_s",
+            QUIET_PACKETS_FAST_S,
+            "For this long after the last bytes the 'nothing read' packets come every "
+            "batch_period_s instead of every quiet_packets_period_s, s: a window cut at a "
+            "detected onset ends at most its post-onset time (250 ms for taps) after the "
+            "contact's last bytes, and closes on the next packet. 0: no fast phase.",
+            low=0.0,
+            high=60.0,
+            read_only=True,
+        )
+        self._quiet = QuietSchedule(quiet_s, quiet_period_s, fast_s, period_s)
         self._quiet_timer = self.create_timer(
-            quiet_period_s, self.guard(self._say_quiet), autostart=False
+            self._quiet.period_at(0) / 1e9, self.guard(self._say_quiet), autostart=False
         )
         self.max_batch_events = declare(
             self,
@@ -307,7 +322,9 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             self._publish_packet(packet)
         read = any(chunk.data for _, chunk in tagged)
         if read and self._quiet.quiet_ns > 0 and self.config.mode_kind == Mode.WORDS:
-            self._quiet.on_bytes(time.monotonic_ns())
+            now = time.monotonic_ns()
+            self._quiet.on_bytes(now)
+            self._quiet_timer.timer_period_ns = self._quiet.period_at(now)  # the fast phase's
             self._quiet_timer.reset()  # its first tick one period after these bytes
 
     def _publish_packet(self, packet: Packet) -> None:
@@ -332,6 +349,10 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         packet = self.packer.nothing_read(now, self._mono_to_ros_ns)
         if packet is not None:
             self._publish_packet(packet)
+        period = self._quiet.period_at(now)
+        if period != self._quiet_timer.timer_period_ns:  # the fast phase is over
+            self._quiet_timer.timer_period_ns = period
+            self._quiet_timer.reset()
 
     def _publish_decoded(self, packet: Packet) -> None:
         """Decode one of the node's own packets and publish its events in batches."""

@@ -393,11 +393,14 @@ def test_the_drain_timer_stops_while_the_link_is_silent_and_data_restarts_it(gra
         assert driver.reader.queued_chunks == 0
 
 
-@pytest.mark.parametrize("graph", [{"quiet_packets_s": 0.3}], indirect=True)
+@pytest.mark.parametrize(
+    "graph", [{"quiet_packets_s": 0.5, "quiet_packets_fast_s": 0.15}], indirect=True
+)
 def test_after_its_last_bytes_the_driver_says_it_read_nothing_then_goes_idle(graph):
-    """For ``quiet_packets_s`` after the last bytes a timer publishes every
-    ``quiet_packets_period_s`` an empty packet (no reads, stamped when it looked), so a window
-    node closes its windows on data; then it stops (idle cost) until the next bytes."""
+    """For ``quiet_packets_s`` after the last bytes a timer publishes an empty packet (no reads,
+    stamped when it looked) every ``batch_period_s`` for ``quiet_packets_fast_s``, then every
+    ``quiet_packets_period_s``, so a window node closes its windows on data; then it stops
+    (idle cost) until the next bytes."""
     from ext_sense_drivers.packets import QUIET_PACKETS_PERIOD_S, NuskinPacketDecoder, packet_of
 
     device, driver, executor, got = graph
@@ -415,14 +418,19 @@ def test_after_its_last_bytes_the_driver_says_it_read_nothing_then_goes_idle(gra
     assert [p.seq for p in quiet] == list(range(1, len(packets)))
     assert all(p.data == b"" and p.read_end.size == 0 for p in quiet)
     span_s = (quiet[-1].stamp_ns - packets[0].end_ns) / 1e9
-    gaps_ms = np.diff([p.stamp_ns for p in quiet]) / 1e6
+    since_s = (np.array([p.stamp_ns for p in quiet]) - packets[0].end_ns) / 1e9
+    fast, slow = quiet[: int(np.sum(since_s < 0.13))], quiet[int(np.sum(since_s < 0.17)) :]
+    fast_ms, slow_ms = (np.diff([p.stamp_ns for p in part]) / 1e6 for part in (fast, slow))
     print(
-        f"{len(quiet)} 'nothing read' packets over {span_s:.3f} s after the bytes, "
-        f"gaps p50 {np.median(gaps_ms):.2f} ms"
+        f"{len(quiet)} 'nothing read' packets over {span_s:.3f} s after the bytes, gaps p50 "
+        f"{np.median(fast_ms):.2f} ms in the fast phase ({len(fast)}), "
+        f"{np.median(slow_ms):.2f} ms after it ({len(slow)})"
     )
-    assert 0.25 <= span_s <= 0.4
-    assert len(quiet) >= 0.3 / QUIET_PACKETS_PERIOD_S / 2  # one per period (loaded: fewer)
-    assert np.median(gaps_ms) >= 0.8 * QUIET_PACKETS_PERIOD_S * 1e3
+    assert 0.45 <= span_s <= 0.6
+    assert len(fast) >= 0.13 / 0.001 / 3  # one per batch period (loaded: fewer)
+    assert np.median(fast_ms) <= 2.0
+    assert len(slow) >= 0.33 / QUIET_PACKETS_PERIOD_S / 2
+    assert np.median(slow_ms) >= 0.8 * QUIET_PACKETS_PERIOD_S * 1e3
     decoder = NuskinPacketDecoder(packets[0].encoding, packets[0].options)
     decoded = [decoder.decode(p) for p in packets]
     assert [d.events.size for d in decoded] == [2] + [0] * len(quiet)

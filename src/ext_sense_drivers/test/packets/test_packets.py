@@ -154,7 +154,7 @@ def test_packet_of_reads_a_rosbags_message():
 
 
 def test_quiet_schedule_says_nothing_read_each_period_after_bytes_until_quiet_s():
-    quiet = QuietSchedule(quiet_s=0.02, period_s=0.005)
+    quiet = QuietSchedule(quiet_s=0.02, period_s=0.005, fast_s=0.0)
     ms = 10**6
     assert not quiet.due(T0)  # no bytes yet
     quiet.on_bytes(T0)
@@ -166,3 +166,17 @@ def test_quiet_schedule_says_nothing_read_each_period_after_bytes_until_quiet_s(
     assert not quiet.due(T0 + 44 * ms)
     assert quiet.due(T0 + 45 * ms)
     assert QuietSchedule(quiet_s=0.0).over(T0)  # 0: never
+
+
+def test_quiet_schedule_says_it_every_batch_period_in_the_fast_phase_then_every_period():
+    """While the windows of the contact that fell silent end, a window waits at most one batch
+    period past its end for the packet that closes it; after, the packets thin out."""
+    ms = 10**6
+    quiet = QuietSchedule(quiet_s=0.03, period_s=0.005, fast_s=0.004, fast_period_s=0.001)
+    quiet.on_bytes(T0)
+    assert quiet.period_at(T0 + 3 * ms) == ms
+    assert quiet.period_at(T0 + 4 * ms) == 5 * ms
+    said = [k for k in range(1, 40) if quiet.due(T0 + k * ms)]
+    assert said == [1, 2, 3, 4, 9, 14, 19, 24, 29]
+    quiet.on_bytes(T0 + 50 * ms)  # bytes again: the fast phase again
+    assert [k for k in range(50, 56) if quiet.due(T0 + k * ms)] == [51, 52, 53, 54]

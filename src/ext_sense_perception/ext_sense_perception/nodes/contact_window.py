@@ -130,9 +130,10 @@ class ContactWindowNode(Node):
         )
         self.liveness = declare_input_liveness(self, config, input_topic)
         if self.input == "packets":
-            # the NUSkin driver sends a packet every quiet_packets_period_s (default 5 ms) while
-            # the sensor is quiet ("nothing read"): windows close on those, as a replay of the
-            # packets does; the clock closes one only when they stop coming (a stalled stream)
+            # the NUSkin driver sends a packet every batch period (1 ms) for quiet_packets_fast_s
+            # after its last bytes, then every quiet_packets_period_s (5 ms), while the sensor
+            # is quiet ("nothing read"): windows close on those, as a replay of the packets
+            # does; the clock closes one only when they stop coming (a stalled stream)
             self.slack_ns += round(
                 declare(
                     self,
