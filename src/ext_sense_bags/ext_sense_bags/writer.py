@@ -120,6 +120,17 @@ class _McapWithHashes(McapWriter):
     def __init__(self, path: Path, compression: CompressionMode) -> None:
         super().__init__(path, compression)
         self.bio.flush()  # the magic and header are on disk before the first chunk
+        self._chunk_ends: list[tuple[int, int]] = []  # (file offset after a chunk, messages)
+
+    def messages_in_file(self) -> int:
+        """Messages whose chunk record is whole in the file now (what a salvage finds).
+
+        After a failed write (disk full, file too large) the chunk a flush was writing may be
+        whole in the file with only its indexes cut: ``bag recover`` gets its messages, so the
+        writer counts them as flushed too (it said fewer than the recovery found, 245 of 832).
+        """
+        size = os.fstat(self.bio.fileno()).st_size
+        return sum(n for end, n in self._chunk_ends if end <= size)
 
     def close_chunk(self) -> None:
         """Close the pending chunk as rosbags does, with its records' CRC-32 in the header."""
@@ -134,6 +145,8 @@ class _McapWithHashes(McapWriter):
         write_uint64(rec, len(compressed))
         rec.write(compressed)
         chunk_start = self.bio.tell()
+        n_messages = sum(len(msgs) for msgs in self.chunk.msgs.values())
+        self._chunk_ends.append((chunk_start + 9 + len(rec.getvalue()), n_messages))
         write_record(self.bio, 0x06, rec)
         chunk_end = self.bio.tell()
 
@@ -456,6 +469,10 @@ class BagWriter:
 
     def _stop(self, err: BaseException) -> None:
         self._open = False
+        in_file = getattr(self._writer.storage, "messages_in_file", None)
+        if in_file is not None:
+            with contextlib.suppress(OSError):
+                self.flushed = max(self.flushed, in_file())
         self.failed = (
             f"Cannot write bag {self.path}: {_reason(err)}; recording stopped after "
             f"{self._written} messages, {self.flushed} of them flushed to the disk "

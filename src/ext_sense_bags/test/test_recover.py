@@ -294,3 +294,57 @@ def test_crashed_bag_reads_in_log_time_order_and_recovers_in_recorded_order(tmp_
     with Reader(tmp_path / "out") as reader:  # rewritten as recorded: arrival order in the file
         stored = [t for _, t, _ in reader.messages()]
     assert sorted(stored) == [T0 + i * STEP_NS for i in range(10)]
+
+
+ONE_FLUSH = textwrap.dedent(
+    """
+    import resource, sys
+    sys.path[:0] = [{test_dir!r}]
+    from test_recover import _write_one
+    from ext_sense_bags import BagError, BagWriter
+    if {fsize_limit}:
+        resource.setrlimit(resource.RLIMIT_FSIZE, ({fsize_limit}, {fsize_limit}))
+    bag = BagWriter({path!r}, storage="mcap", flush_period_s=3600.0).open()
+    for i in range(20):
+        _write_one(bag, i)
+    try:
+        bag.flush()
+    except BagError as err:
+        print("error", err, flush=True)
+    print("flushed", bag.flushed, flush=True)
+    """
+)
+
+
+def test_a_flush_cut_in_its_indexes_counts_the_whole_chunk_the_recovery_finds(tmp_path):
+    """A full disk that cuts a flush after its chunk record, in the message indexes: the
+    writer says the chunk's messages are flushed, as many as ``bag recover`` gives back (it
+    said none, while the recovery found them: 245 of 832 in a live graph's recorder)."""
+
+    def run(where: Path, limit: int) -> list[str]:
+        code = ONE_FLUSH.format(
+            test_dir=str(Path(__file__).parent), fsize_limit=limit, path=str(where)
+        )
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr
+        return out.stdout.splitlines()
+
+    assert run(tmp_path / "free", 0) == ["flushed 20"]
+    chunk_end = _first_chunk_end((tmp_path / "free" / "free.mcap").read_bytes())
+    cut = run(tmp_path / "cut", chunk_end + 5)  # the chunk whole, its first index cut
+    assert cut[0].startswith("error Cannot write bag"), cut
+    assert "20 of them flushed" in cut[0], cut
+    assert cut[-1] == "flushed 20"
+    assert recover_bag(tmp_path / "cut").messages == 20
+    short = run(tmp_path / "short", chunk_end - 5)  # the chunk itself cut: none of it
+    assert "0 of them flushed" in short[0], short
+    with pytest.raises(BagError, match="nothing to read"):
+        recover_bag(tmp_path / "short")
+
+
+def _first_chunk_end(data: bytes) -> int:
+    """File offset just after the first chunk record (opcode 0x06) of an mcap file."""
+    at = 8  # the magic
+    while data[at] != 0x06:
+        at += 9 + int.from_bytes(data[at + 1 : at + 9], "little")  # opcode, length, body
+    return at + 9 + int.from_bytes(data[at + 1 : at + 9], "little")

@@ -203,9 +203,10 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             self,
             "quiet_packets_period_s",
             QUIET_PACKETS_PERIOD_S,
-            "Time between the 'nothing read' packets, s: the longest a consumer's window waits "
-            "past its end for one when the sensor is silent. Each costs every consumer a "
-            "message (one per 1 ms batch made ten times the packets of a handover run).",
+            "Time between the 'nothing read' packets after quiet_packets_fast_s, s: the longest "
+            "a consumer's window waits past its end for one when the sensor is silent. Each "
+            "costs every consumer a message (one per 1 ms batch throughout made ten times the "
+            "packets of a handover run).",
             low=0.0005,
             high=1.0,
             read_only=True,
