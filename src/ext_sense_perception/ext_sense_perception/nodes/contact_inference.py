@@ -148,10 +148,11 @@ class ContactInferenceNode(Node):
             self._stamp = bundle_stamp(self.model_path, self.backend)
             self.model = load_model(self.model_path, self.backend, self.task, self.sensor)
         except PerceptionError as err:
-            self.model, self.model_id = None, ""
             if str(err) != self.model_error:
                 self.get_logger().error(f"model refused: {err}")
+            # the reason first: whoever sees no model (a test's thread) finds why
             self.model_error = str(err)
+            self.model, self.model_id = None, ""
             return
         self.model_id = self.model.model_id
         self.model_error = ""
