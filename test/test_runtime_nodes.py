@@ -304,7 +304,8 @@ def test_a_stall_mid_contact_is_diagnosed_within_a_second_and_degrades_the_windo
         assert finals[0].degraded_reason.startswith("stall: no input on /events")
         early = [e for e in probe.estimates if e.provisional and e.post_contact_used.nanosec < 40e6]
         assert early
-        assert not any(e.degraded for e in early)  # cut before the stall
+        # cut before the stall (failed once in make test, 24 November 2026, reason not kept)
+        assert not any(e.degraded for e in early), [e.degraded_reason for e in early]
         assert window_node.liveness.contacts_lost == 1
         values = {kv.key: kv.value for kv in st.values}
         assert values["stream"] == "/events"
