@@ -257,6 +257,13 @@ class FoodBehaviourNode(Node):
             },
         )
 
+    def destroy_node(self) -> None:
+        """Destroy the Franka adapter's action clients too (``destroy_node`` leaves them alive)."""
+        destroy = getattr(self.arm, "destroy", None)  # FrankaArmAdapter's; a SimulatedArm has none
+        if destroy is not None:
+            destroy()
+        super().destroy_node()
+
 
 def main(args: list[str] | None = None) -> int:
     """Run the node."""

@@ -170,6 +170,11 @@ class FrankaArmAdapter:
             )
             self.stop()
 
+    def destroy(self) -> None:
+        """Destroy the action clients (the owning node's ``destroy_node`` leaves them alive)."""
+        self._trajectory.destroy()
+        self._recovery.destroy()
+
     @property
     def trajectory_ready(self) -> bool:
         """Whether the trajectory controller's action server is discovered (motions can start)."""

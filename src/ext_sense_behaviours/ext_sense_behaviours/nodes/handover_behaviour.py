@@ -342,6 +342,11 @@ class HandoverBehaviourNode(Node):
             },
         )
 
+    def destroy_node(self) -> None:
+        """Destroy the gripper's action client too (``destroy_node`` leaves it alive)."""
+        self.gripper.destroy()
+        super().destroy_node()
+
 
 def main(args: list[str] | None = None) -> int:
     """Run the node."""

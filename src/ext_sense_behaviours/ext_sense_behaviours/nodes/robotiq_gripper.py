@@ -485,8 +485,10 @@ class RobotiqGripperNode(LifecycleNode):
         return (Level.OK if status.ready else Level.WARN), describe(status), values
 
     def destroy_node(self) -> None:
-        """Stop the worker thread and close the port, then destroy the node."""
+        """Stop the worker, close the port, destroy the action servers (rclpy's leaves them)."""
         self._release()
+        self.gripper_server.destroy()
+        self.parallel_server.destroy()
         super().destroy_node()
 
 

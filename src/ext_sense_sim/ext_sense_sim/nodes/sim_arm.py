@@ -117,6 +117,17 @@ class SimArmNode(Node):
         self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
 
+    def destroy_node(self) -> None:
+        """Destroy the action servers, then the node.
+
+        rclpy's ``destroy_node`` leaves action servers alive until garbage collection: a node
+        made next in the same process would find this one's trajectory server, ready, and send
+        its goals to a node nobody spins (test_franka_adapter failed in CI on exactly that).
+        """
+        self.trajectory_server.destroy()
+        self.recovery_server.destroy()
+        super().destroy_node()
+
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
 
