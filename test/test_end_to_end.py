@@ -101,6 +101,9 @@ def test_tap_localization_with_the_hot_path_in_one_process(models):
         out.stderr
     )
     assert "[run] exit codes: sim_device=0 hot_path=0 estimate_monitor=0" in out.stderr
+    # no middleware hop between the three nodes
+    for topic in ("/extsense/nuskin/packets", "/extsense/contact_window"):
+        assert f"{topic}: messages of this process handed over in process" in out.stderr
 
 
 def test_handover_over_pty(models):

@@ -3,10 +3,11 @@
 By default every node is its own process, as ``ros2 launch`` starts Python nodes: the graph
 uses both cores and a crash stays in one node. ``hot_path:=one_process`` puts the hot path,
 the sensor driver, ``contact_window`` and ``contact_inference``, in one process on one executor
-(:attr:`~ext_sense.graph.NodeSpec.process` ``"hot_path"``): a window and its estimate then move
-between callbacks of one process instead of waking two others (measured in
-``docs/runtime.md``, "One process for the hot path": the trade-off is one core and one GIL for
-the three).
+(:attr:`~ext_sense.graph.NodeSpec.process` ``"hot_path"``): packets and windows are then
+handed from callback to callback in that process (:mod:`ext_sense_runtime.intra_process`, as
+rclcpp's intra-process comms) instead of through the middleware and two more wake-ups
+(measured in ``docs/runtime.md``, "One process for the hot path": the trade-off is one core
+and one GIL for the three).
 
 rclpy has no component containers (``ComposableNodeContainer`` loads C++ components only), so
 one process for Python nodes is one executable running several nodes on one executor: the

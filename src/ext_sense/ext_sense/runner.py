@@ -105,6 +105,7 @@ def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence
         args: Process-wide ROS arguments (``--ros-args ...``, as ``ros2 launch`` appends them),
             for every node; each node's own name and remappings are its node arguments.
     """
+    from ext_sense_runtime import intra_process
     from ext_sense_runtime.node_main import install_stop_handlers, run_nodes
 
     stop = install_stop_handlers()
@@ -112,6 +113,7 @@ def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence
         stop.ignore_further()  # the runner's forwarded SIGINT may still come, during exit
         return 0
     classes = [(spec, spec.node_class()) for spec in nodes]
+    intra_process.enable()  # the hot path's packets and windows go from callback to callback
     return run_nodes(
         [lambda s=spec, c=cls: _make_node(s, c, use_sim_time) for spec, cls in classes],
         args=["node_group", *args] if args else [],

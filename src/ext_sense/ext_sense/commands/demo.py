@@ -7,8 +7,9 @@
    ``ext_sense_perception.online.model_store``), or into ``--model DIR``. NUSkin: on windows
    cut from the emulated device's own byte stream by the driver's decoder and the window node's
    core (no train/serve skew); BioTac: ``ext-sense sim run`` then ``ext-sense train``.
-2. Runs the ``tap_localization`` graph with ``source:=sim``: the emulated NUSkin streams over a
-   pty, the driver decodes it, ``contact_window`` cuts windows, ``contact_inference`` publishes
+2. Runs the ``tap_localization`` graph with ``source:=sim`` and ``hot_path:=one_process``
+   (``--hot-path``): the emulated NUSkin streams over a pty, the driver publishes its bytes,
+   ``contact_window`` cuts windows, ``contact_inference`` publishes
    ``/extsense/contact_estimate``, and ``estimate_monitor`` prints each estimate beside the
    simulator's ground truth and ends the graph after N taps with the line
    ``summary: taps=N mae_cm=X compute_p50_ms=Y compute_p99_ms=Z``.
@@ -60,6 +61,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default="",
         metavar="CHANNEL",
         help="stream over this python-can virtual channel instead of a pty",
+    )
+    parser.add_argument(
+        "--hot-path",
+        choices=("one_process", "processes"),
+        default="one_process",
+        help="the graph's hot_path: one_process (default; driver, window and inference nodes in "
+        "one process, handing packets and windows over in process: the lowest latency measured "
+        "on a 2-core machine, docs/runtime.md run 8) or processes (a process per node, the "
+        "launch files' default)",
     )
     parser.add_argument("--scene", default="", help="simulator scene (default: the graph's)")
     parser.add_argument(
@@ -237,6 +247,7 @@ def _demo(args: argparse.Namespace) -> int:
         "model": str(model_dir),
         "backend": args.backend,
         "monitor": "true",
+        "hot_path": args.hot_path,
     }
     if args.can:
         overrides["can_channel"] = args.can
@@ -244,7 +255,11 @@ def _demo(args: argparse.Namespace) -> int:
         overrides["scene"] = args.scene
     if args.port:
         overrides["port"] = args.port
-    print(f"[demo] running the tap_localization graph for {args.taps} taps", file=sys.stderr)
-    # python-can's virtual bus joins buses of one process only, so over CAN the graph runs
-    # in one process; over the pty each node has its own.
+    print(
+        f"[demo] running the tap_localization graph for {args.taps} taps "
+        f"(hot_path:={args.hot_path})",
+        file=sys.stderr,
+    )
+    # python-can's virtual bus joins buses of one process only, so over CAN the whole graph
+    # runs in one process.
     return run_graph(GRAPHS["tap_localization"], overrides, in_process=bool(args.can))

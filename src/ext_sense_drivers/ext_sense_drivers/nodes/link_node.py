@@ -28,6 +28,7 @@ from ext_sense_drivers.transports.link_config import (
 )
 from ext_sense_drivers.transports.reader import Backoff, StreamReader
 from ext_sense_msgs.msg import SensorPacket
+from ext_sense_runtime import intra_process
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
@@ -206,15 +207,15 @@ def monotonic_to_ros_ns(node: Node) -> int:
 
 def create_stream_publisher(
     node: Node, msg_type: type, topic: str
-) -> tuple[Publisher, QosEventCounter]:
+) -> tuple[Publisher | intra_process.IntraProcessPublisher, QosEventCounter]:
     """A raw sensor stream publisher (``SENSOR_STREAM_QOS``) whose QoS events are counted.
 
     Returns:
         The publisher and the counter that :func:`link_status` reports.
     """
     qos_events = QosEventCounter()
-    pub = node.create_publisher(
-        msg_type, topic, SENSOR_STREAM_QOS, event_callbacks=qos_events.publisher()
+    pub = intra_process.create_publisher(
+        node, msg_type, topic, SENSOR_STREAM_QOS, event_callbacks=qos_events.publisher()
     )
     return pub, qos_events
 

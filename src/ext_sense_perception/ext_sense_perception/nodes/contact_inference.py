@@ -41,6 +41,7 @@ from ext_sense_perception.online.messages import window_from_msg
 from ext_sense_perception.online.model_card import CARD_FILE, ONNX_FILE, SKLEARN_FILE
 from ext_sense_perception.online.model_store import default_name, locate_model
 from ext_sense_perception.online.predictor import ModelBundle, load_model
+from ext_sense_runtime import intra_process
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
@@ -126,7 +127,8 @@ class ContactInferenceNode(Node):
             ESTIMATE_QOS,
             event_callbacks=self.qos_events.publisher(),
         )
-        self.create_subscription(
+        self.window_subscription = intra_process.create_subscription(
+            self,
             ContactWindow,
             "window",
             self.guard(self._on_window),
@@ -231,6 +233,7 @@ class ContactInferenceNode(Node):
             "latency_p99_ms": f"{np.percentile(lat, 99):.3f}" if lat.size else "nan",
             "last_error": self.last_window_error,
             **self.qos_events.as_values(),
+            **intra_process.delivery_values(self.window_subscription, "windows"),
         }
         recent = self.last_reject_ns is not None and (
             time.monotonic_ns() - self.last_reject_ns < 10_000 * MS

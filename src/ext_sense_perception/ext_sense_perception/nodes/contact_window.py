@@ -62,6 +62,7 @@ from ext_sense_perception.nodes.window_parameters import (
 from ext_sense_perception.online.deadline import next_wake_ns, stall_change_ns
 from ext_sense_perception.online.messages import window_fields
 from ext_sense_perception.online.stage import WindowStage
+from ext_sense_runtime import intra_process
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
@@ -159,11 +160,14 @@ class ContactWindowNode(Node):
         self.motion_starts = 0
 
         self.qos_events = QosEventCounter()
-        self.pub = self.create_publisher(
-            ContactWindow, "window", WINDOW_QOS, event_callbacks=self.qos_events.publisher()
+        # in a node group, windows go straight to contact_inference, packets come straight from
+        # the driver (intra_process); a process of its own publishes and subscribes as rclpy does
+        self.pub = intra_process.create_publisher(
+            self, ContactWindow, "window", WINDOW_QOS, event_callbacks=self.qos_events.publisher()
         )
         if self.input == "packets":
-            self.create_subscription(
+            self.input_subscription = intra_process.create_subscription(
+                self,
                 SensorPacket,
                 "packets",
                 self.guard(self._on_packet),
@@ -171,7 +175,8 @@ class ContactWindowNode(Node):
                 event_callbacks=self.qos_events.subscription(),
             )
         elif config.sensor is Sensor.NUSKIN:
-            self.create_subscription(
+            self.input_subscription = intra_process.create_subscription(
+                self,
                 TaxelEventBatch,
                 "events",
                 self.guard(self._on_events),
@@ -179,7 +184,8 @@ class ContactWindowNode(Node):
                 event_callbacks=self.qos_events.subscription(),
             )
         else:
-            self.create_subscription(
+            self.input_subscription = intra_process.create_subscription(
+                self,
                 BioTacFrame,
                 "frames",
                 self.guard(self._on_frame),
@@ -385,6 +391,7 @@ class ContactWindowNode(Node):
             "pending_onsets": len(self.stage.windower.pending_onsets),
             "input": self.input,
             **self.qos_events.as_values(),
+            **intra_process.delivery_values(self.input_subscription, "input"),
         }
         if self.stage.decoder is not None:
             values.update({f"packet_{k}": v for k, v in self.stage.decoder.diagnostics().items()})
