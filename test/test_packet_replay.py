@@ -158,7 +158,10 @@ def test_packet_bag_replays_offline_bit_identical_to_the_live_run(tmp_path):
         for b in live_c
         if replayed[key(b)] != b
     ]
-    assert not differ, (differ[:3], err[-2000:])
+    # a window the live node's clock closed (no packet for packet_wait_ms) may lack a late
+    # packet the replay puts in it: the node logs each (once failed so on the loaded Jazzy lane)
+    clock = [line for line in err.splitlines() if "the clock closed" in line]
+    assert not differ, (differ[:3], clock[:5], err[-2000:])
     # and it made no other, but for windows the recorder heard before the inference node had
     # its model (the recorder's subscriptions may also match the graph's publishers after the
     # first tap: nothing before the first window it heard counts)

@@ -400,6 +400,8 @@ def test_a_quiet_stream_closes_the_window_by_deadline_and_an_idle_node_stops_wak
         assert len(final) == 1
         assert not final[0].truncated  # closed at its end, not flushed by the stream timeout
         assert [w.post_onset_ns // MS for w in windows] == [25, 50, 100, 150, 250]
+        # no event after 60 ms: the clock closed the 100, 150 and 250 ms windows at least
+        assert 3 <= window_node.closed_by_clock <= 5
         assert wait_for(lambda: window_node._deadline.is_canceled(), 2.0)
         assert window_node._armed_ns is None
         woken = window_node.wakeups

@@ -200,6 +200,7 @@ class ContactWindowNode(Node):
         self._deadline = self.create_timer(1.0, self.guard(self._on_deadline), autostart=False)
         self._armed_ns: int | None = None
         self.wakeups = 0
+        self.closed_by_clock = 0
 
         self.updater = Updater(hardware_id=f"{config.task.label}/{config.sensor.label}")
         self.rate = self.updater.add(
@@ -338,7 +339,15 @@ class ContactWindowNode(Node):
             if self.stage.windower.pending_onsets:
                 self._publish(self.stage.flush())
         elif self.config.sensor is Sensor.NUSKIN:
-            self._publish(self.stage.advance(last + idle - self.slack_ns))
+            closed = self.stage.advance(last + idle - self.slack_ns)
+            self.closed_by_clock += len(closed)
+            if closed and self.input == "packets":  # no packet, not even "nothing read", came
+                self.get_logger().info(
+                    f"the clock closed {len(closed)} window(s): no packet for {idle / MS:.1f} ms "
+                    "(a replay of the packets may put a late one in them)",
+                    throttle_duration_sec=1.0,
+                )
+            self._publish(closed)
         self._arm()
 
     def _arm(self, earlier_only: bool = False) -> None:
@@ -379,6 +388,7 @@ class ContactWindowNode(Node):
             "windows_provisional": wc.provisional_windows,
             "windows_truncated": wc.truncated_windows,
             "windows_joined_mid_stream": wc.joined_mid_stream_windows,
+            "windows_closed_by_clock": self.closed_by_clock,
             "onsets": wc.onsets,
             "motion_starts": self.motion_starts,
             "events_total": sc.events,
