@@ -73,7 +73,14 @@ def test_train_simulated_trains_the_recipe_and_keeps_a_current_model(store, tmp_
     out = tmp_path / "handover"
     assert models.train_simulated(out, "handover_stability", "nuskin", 16, False, log) == 0
     card = read_card(out)
-    assert (card.task, card.sensor, card.n_train) == ("handover_stability", "nuskin", 16)
+    assert (card.task, card.sensor) == ("handover_stability", "nuskin")
+    # cut from the device stream, and again by each late reader: windows of up to 16 trials
+    copies = models.HANDOVER_LATE_READS + 1
+    assert card.n_train % copies == 0
+    assert 16 * copies * 0.8 <= card.n_train <= 16 * copies
+    assert f"stream, {models.HANDOVER_LATE_READS} late reads: {card.n_train} windows" in (
+        log.getvalue()
+    )
     assert (out / "model.onnx").is_file()
     assert models.train_simulated(out, "handover_stability", "nuskin", 16, False, log) == 0
     assert "keeping" in log.getvalue()

@@ -17,7 +17,12 @@ from joblib import Memory
 from sklearn.base import clone
 from sklearn.calibration import CalibratedClassifierCV
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.model_selection import GridSearchCV, StratifiedKFold
+from sklearn.model_selection import (
+    GridSearchCV,
+    GroupKFold,
+    StratifiedGroupKFold,
+    StratifiedKFold,
+)
 from sklearn.pipeline import Pipeline
 from threadpoolctl import threadpool_limits
 
@@ -43,13 +48,37 @@ class TrainedModel(NamedTuple):
     card: ModelCard
 
 
-def _final_classifier(est: Any, y: np.ndarray, seed: int) -> Any:
+def whole_trial_folds(cv: Any, ws: WindowSet, seed: int) -> Any:
+    """``cv`` when every window is a trial of its own; else as many folds over whole trials.
+
+    A set may hold several windows of one trial (``groups``), e.g. the same stream cut again
+    as a late reader reads it (``arrival_jitter.late_read_window_set``). Such copies in a
+    training and a validation fold would leak: the grid search and the probability calibration
+    would score the model on near-copies of what it was fitted on, and choose and calibrate
+    it too confidently. So their folds keep each trial whole.
+
+    Returns:
+        ``cv``, or a list of ``(train, test)`` index pairs (as ``cv`` accepts).
+    """
+    groups = np.asarray(ws.groups)
+    if np.unique(groups).size == groups.size:
+        return cv
+    n = cv.get_n_splits()
+    split = (
+        GroupKFold(n, shuffle=True, random_state=seed)
+        if ws.is_regression
+        else StratifiedGroupKFold(n, shuffle=True, random_state=seed)
+    )
+    return list(split.split(np.zeros((len(groups), 1)), ws.y, groups))
+
+
+def _final_classifier(est: Any, ws: WindowSet, seed: int) -> Any:
     """Calibrated probabilities (Platt, inner CV) for estimators without ``predict_proba``."""
     if hasattr(est, "predict_proba"):
         return est
-    smallest = int(np.min(np.unique(y, return_counts=True)[1]))
+    smallest = int(np.min(np.unique(ws.y, return_counts=True)[1]))
     cv = StratifiedKFold(min(3, max(smallest, 2)), shuffle=True, random_state=seed)
-    return CalibratedClassifierCV(est, method="sigmoid", cv=cv)
+    return CalibratedClassifierCV(est, method="sigmoid", cv=whole_trial_folds(cv, ws, seed))
 
 
 def fit_model(
@@ -103,7 +132,7 @@ def fit_model(
         pipe.set_params(**{f"model__{k}": v for k, v in (model_params or {}).items()})
         grid.update(feature_grid or {})
         precompute = FeatureKind.parse(features) is not FeatureKind.AUTOENCODER and not feature_grid
-        cv = inner_cv(ws, ws.y, seed)
+        cv = whole_trial_folds(inner_cv(ws, ws.y, seed), ws, seed)
         scoring = "neg_mean_absolute_error" if ws.is_regression else "accuracy"
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
@@ -131,7 +160,8 @@ def fit_model(
                     if FeatureKind.parse(features) is not FeatureKind.AUTOENCODER
                     else None
                 )
-            metrics: dict[str, Any] = {"cv_folds": cv.get_n_splits()}
+            folds = len(cv) if isinstance(cv, list) else cv.get_n_splits()
+            metrics: dict[str, Any] = {"cv_folds": folds}
             if ws.is_regression:
                 # residual spread from the grid search's own out-of-fold MAE (sigma = MAE *
                 # sqrt(pi/2) for normal residuals): no extra fits, measured on held-out folds only
@@ -145,7 +175,7 @@ def fit_model(
             else:
                 metrics["cv_accuracy"] = float(search.best_score_)
                 scaler, est = head.steps[0][1], head.steps[1][1]
-                final = Pipeline([("scale", scaler), ("model", _final_classifier(est, ws.y, seed))])
+                final = Pipeline([("scale", scaler), ("model", _final_classifier(est, ws, seed))])
                 fitted_head = final.fit(
                     head_input if head_input is not None else best.steps[0][1].transform(X), ws.y
                 )

@@ -145,3 +145,81 @@ def test_the_recipe_augments_by_the_task_default_unless_told(
     with pytest.raises(StopIteration):
         recipe_module.fit_recipe(ws, recipe_module.Recipe(arrival_jitter=asked))
     assert seen == ([] if applied is None else [applied])
+
+
+@pytest.fixture(scope="module")
+def handover_stream():
+    from ext_sense_sim.scene import load_scene
+    from ext_sense_sim.trial_plan import lay_out_stream
+
+    return lay_out_stream(load_scene("handover_rod_nuskin"), seed=5, trials=6, period_s=1.0)
+
+
+def test_late_reads_add_a_cut_of_the_same_trials_each(handover_stream):
+    from ext_sense_perception.data.device_stream import window_set_from_stream
+    from ext_sense_perception.online.window import WindowConfig
+    from ext_sense_perception.training.arrival_jitter import (
+        MEASURED_READ_DELAY,
+        late_read_window_set,
+    )
+
+    config = WindowConfig.for_task("handover_stability", "nuskin")
+    writes, truths = handover_stream.writes, handover_stream.truths
+    ideal, counts = window_set_from_stream(writes, truths, config)
+    ws, got_counts = late_read_window_set(writes, truths, config, late_reads=2, seed=3)
+    assert got_counts == counts
+    n = len(ideal.y)
+    assert n >= 5
+    assert len(ws.y) == 3 * n  # every trial found again by both late readers
+    np.testing.assert_array_equal(ws.X[:n], ideal.X)  # the ideal cut comes first, unchanged
+    np.testing.assert_array_equal(ws.groups, np.tile(ideal.groups, 3))
+    np.testing.assert_array_equal(ws.y, np.tile(ideal.y, 3))
+    assert ws.data_hash == f"{ideal.data_hash}+2late"
+    # a late reader moves events between bins, and each late cut draws its own reads
+    assert not np.array_equal(ws.X[n : 2 * n], ideal.X)
+    assert not np.array_equal(ws.X[n : 2 * n], ws.X[2 * n :])
+    again, _ = late_read_window_set(writes, truths, config, late_reads=2, seed=3)
+    np.testing.assert_array_equal(again.X, ws.X)
+    # no late reads: the ideal cut alone
+    none, _ = late_read_window_set(writes, truths, config, late_reads=0)
+    np.testing.assert_array_equal(none.X, ideal.X)
+    assert MEASURED_READ_DELAY.delay_ns[-1] > 1_000_000  # the default is a late reader
+
+
+def test_late_reads_refuse_a_negative_count(handover_stream):
+    from ext_sense_perception.online.window import WindowConfig
+    from ext_sense_perception.training.arrival_jitter import late_read_window_set
+
+    config = WindowConfig.for_task("handover_stability", "nuskin")
+    with pytest.raises(PerceptionError, match="'late_reads' parameter must be at least 0"):
+        late_read_window_set(handover_stream.writes, handover_stream.truths, config, -1)
+
+
+def test_the_folds_keep_each_trial_whole_when_a_set_holds_copies(tap_set):
+    from sklearn.model_selection import KFold, StratifiedKFold
+
+    from ext_sense_perception.training.fit import whole_trial_folds
+
+    cv = KFold(4, shuffle=True, random_state=0)
+    assert whole_trial_folds(cv, tap_set, 0) is cv  # a trial per window: the splitter as is
+    copies = tap_set._replace(
+        X=np.concatenate([tap_set.X] * 3),
+        y=np.tile(tap_set.y, 3),
+        groups=np.tile(tap_set.groups, 3),
+    )
+    for ws, splitter in (
+        (copies, cv),
+        (
+            copies._replace(y=np.tile(np.array(["a", "b"] * 5), 3), class_names=("a", "b")),
+            StratifiedKFold(3, shuffle=True, random_state=0),
+        ),
+    ):
+        folds = whole_trial_folds(splitter, ws, 0)
+        assert len(folds) == splitter.get_n_splits()
+        seen = np.concatenate([test for _, test in folds])
+        assert sorted(seen.tolist()) == list(range(len(ws.y)))  # each window tested once
+        for train, test in folds:
+            assert not set(ws.groups[train]) & set(ws.groups[test])
+    # and the plain splitter would have split trials: what the grouped folds prevent
+    leaky = [set(copies.groups[tr]) & set(copies.groups[te]) for tr, te in cv.split(copies.X)]
+    assert any(leaky)
