@@ -323,7 +323,9 @@ class AutoencoderFeatures(FFTFeatures):
         self.ae_mean_ = base.mean(axis=0)
         scale = base.std(axis=0)
         self.ae_scale_ = np.where(scale > 1e-12, scale, 1.0)
-        z = (base - self.ae_mean_) / self.ae_scale_
+        # trained in float32: twice as fast (it was most of the full report's fit time) and
+        # the same reconstruction loss; the code is then computed in float64 as every feature
+        z = ((base - self.ae_mean_) / self.ae_scale_).astype(np.float32)
         net = MLPRegressor(
             hidden_layer_sizes=(128, 64, self.ae_code, 64, 128),
             activation="relu",
@@ -335,7 +337,8 @@ class AutoencoderFeatures(FFTFeatures):
             warnings.simplefilter("ignore", ConvergenceWarning)
             net.fit(z, z)
         self.ae_layers_ = [
-            (w.copy(), b.copy()) for w, b in zip(net.coefs_[:3], net.intercepts_[:3], strict=True)
+            (w.astype(np.float64), b.astype(np.float64))
+            for w, b in zip(net.coefs_[:3], net.intercepts_[:3], strict=True)
         ]
 
     def _features(self, x3: np.ndarray) -> np.ndarray:

@@ -24,6 +24,12 @@ from ext_sense_perception.training.models import make_pipeline
 from ext_sense_perception.training.protocol import features_for
 from ext_sense_perception.training.split_fit import code_digest
 
+DEPLOYED_STORE = "deployed"
+"""The fit cache's subdirectory of deployed models. They are kept apart from the split fits: a
+fitted model takes up to tens of megabytes (an RBF SVR keeps its support vectors), a split's
+result about 2 kB, so a report's split fits can be kept beside it (``docs/perception_report/fits``
+is in git) and its deployed models not (ignored)."""
+
 
 class DeployedTask(NamedTuple):
     """One deployed model's fit: :func:`~ext_sense_perception.training.fit.fit_model`'s arguments.

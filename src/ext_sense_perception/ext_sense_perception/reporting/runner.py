@@ -22,7 +22,12 @@ import numpy as np
 from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.maps import FeatureKind
-from ext_sense_perception.reporting.deployed import DeployedTask, deployed_key, fit_deployed
+from ext_sense_perception.reporting.deployed import (
+    DEPLOYED_STORE,
+    DeployedTask,
+    deployed_key,
+    fit_deployed,
+)
 from ext_sense_perception.training.fit import TrainedModel
 from ext_sense_perception.training.fit_executor import FitExecutor, FitFailure, FitJob, check
 from ext_sense_perception.training.models import MODEL_NAMES, default_feature_grid
@@ -335,7 +340,10 @@ class Runner:
         here, after the last fit, so no fit competes with it for a core.
         """
         pending, self._deploy_pending = list(self._deploy_pending.items()), {}
-        jobs = [FitJob(fit_deployed, [task], [key], {"ws": ws}) for key, (task, ws) in pending]
+        jobs = [
+            FitJob(fit_deployed, [task], [key], {"ws": ws}, DEPLOYED_STORE)
+            for key, (task, ws) in pending
+        ]
         outcomes = self.executor.run_jobs(jobs)
         for (key, (_, ws)), (trained,) in zip(pending, outcomes, strict=True):
             self._latency[key] = self._timed(trained, ws)

@@ -36,25 +36,25 @@ class FitCache:
     def __init__(self, directory: str | Path) -> None:
         self.directory = Path(directory)  # made by the first put: a refused run leaves nothing
 
-    def _path(self, key: str) -> Path:
-        return self.directory / key[:2] / f"{key}.pkl"
+    def _path(self, key: str, store: str = "") -> Path:
+        return self.directory / store / key[:2] / f"{key}.pkl"
 
     def __contains__(self, key: str) -> bool:
-        """Whether ``key`` has a stored result (not read)."""
+        """Whether ``key`` has a stored result in the main store (not read)."""
         return self._path(key).exists()
 
-    def get(self, key: str) -> Any | None:
+    def get(self, key: str, store: str = "") -> Any | None:
         """The stored result of ``key`` (None: not there or unreadable)."""
-        path = self._path(key)
+        path = self._path(key, store)
         try:
             with open(path, "rb") as fh:
                 return pickle.load(fh)
         except (OSError, EOFError, pickle.UnpicklingError, AttributeError, ImportError):
             return None
 
-    def put(self, key: str, value: Any) -> None:
-        """Store ``value`` under ``key``."""
-        path = self._path(key)
+    def put(self, key: str, value: Any, store: str = "") -> None:
+        """Store ``value`` under ``key``, in the subdirectory ``store`` when one is given."""
+        path = self._path(key, store)
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=path.parent, delete=False, suffix=".tmp") as fh:
             pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
@@ -62,12 +62,16 @@ class FitCache:
 
 
 class FitJob(NamedTuple):
-    """The fits of one point: ``fn(task, **data)`` for each task, cached under its key."""
+    """The fits of one point: ``fn(task, **data)`` for each task, cached under its key.
+
+    ``store`` names the cache's subdirectory its results go to ("": the cache itself).
+    """
 
     fn: Callable[..., Any]
     tasks: list[Any]
     keys: list[str]
     data: dict[str, Any]
+    store: str = ""
 
 
 class FitFailure(NamedTuple):
@@ -189,7 +193,7 @@ class FitExecutor:
         self.progress.add(sum(len(job.tasks) for job in jobs))
         for j, job in enumerate(jobs):
             for i, key in enumerate(job.keys):
-                hit = self.cache.get(key) if self.cache is not None else None
+                hit = self.cache.get(key, job.store) if self.cache is not None else None
                 if hit is not None:
                     results[j][i] = hit
                     self.progress.finish(None, cached=True)
@@ -201,7 +205,7 @@ class FitExecutor:
                 t0 = time.perf_counter()
                 results[j][i] = self._call(jobs[j], i)
                 self.progress.running = 0
-                self._done(jobs[j].keys[i], results[j][i], time.perf_counter() - t0)
+                self._done(jobs[j], i, results[j][i], time.perf_counter() - t0)
         elif todo:
             self._run_on_cluster(jobs, todo, results)
         return results
@@ -213,11 +217,11 @@ class FitExecutor:
     def _call(self, job: FitJob, i: int) -> Any:
         return _guarded(job.fn, job.tasks[i], **job.data)  # one failed fit keeps the others
 
-    def _done(self, key: str, value: Any, seconds: float | None) -> None:
-        """Cache a finished fit and count it."""
+    def _done(self, job: FitJob, i: int, value: Any, seconds: float | None) -> None:
+        """Cache a finished fit (task ``i`` of ``job``) and count it."""
         failed = isinstance(value, FitFailure)
         if self.cache is not None and not failed:
-            self.cache.put(key, value)
+            self.cache.put(job.keys[i], value, job.store)
         self.progress.finish(seconds, failed=failed)
 
     def _run_on_cluster(
@@ -305,7 +309,7 @@ class FitExecutor:
             self.progress.running = min(len(futures), self.progress.workers)
             now = time.perf_counter()
             # on W busy workers a fit ends about every (fit time / W): W x the gap per fit
-            self._done(jobs[j].keys[i], results[j][i], (now - last) * self.progress.workers)
+            self._done(jobs[j], i, results[j][i], (now - last) * self.progress.workers)
             last = now
 
     def close_line(self) -> None:

@@ -40,6 +40,20 @@ def test_every_kind_gives_finite_features_of_declared_size(kind):
     assert np.isfinite(F).all()
 
 
+def test_the_autoencoder_trains_in_float32_and_codes_in_float64():
+    X = _windows()
+    tf = _tf("autoencoder", ae_max_iter=20).fit(X)
+    assert all(w.dtype == b.dtype == np.float64 for w, b in tf.ae_layers_)
+    F = tf.transform(X)
+    assert F.dtype == np.float64
+    # the stored layers are the float32 net's own weights: its code, recomputed by hand
+    h = (FFTFeatures._features(tf, X.reshape(6, 80, -1)) - tf.ae_mean_) / tf.ae_scale_
+    for w, b in tf.ae_layers_:
+        assert np.array_equal(w, w.astype(np.float32).astype(np.float64))
+        h = np.maximum(h @ w + b, 0.0)
+    np.testing.assert_allclose(F, h, rtol=1e-12, atol=1e-12)
+
+
 def test_baseline_is_rebinned_signed_counts():
     X = _windows(2)
     F = _tf("baseline", bin_ns=5 * MS).fit(X).transform(X)

@@ -180,6 +180,24 @@ def test_a_failed_fit_in_a_multi_point_run_stays_with_its_point():
     assert second == [3]
 
 
+def test_a_job_with_a_store_keeps_its_fits_in_that_subdirectory(tmp_path):
+    calls: list[int] = []
+
+    def fit(task: int) -> int:
+        calls.append(task)
+        return 2 * task
+
+    cache = FitCache(tmp_path / "fits")
+    jobs = [FitJob(fit, [1], ["k1"], {}), FitJob(fit, [2], ["k2"], {}, "deployed")]
+    assert FitExecutor(cache=cache).run_jobs(jobs) == [[2], [4]]
+    assert (tmp_path / "fits" / "k1" / "k1.pkl").is_file()
+    assert (tmp_path / "fits" / "deployed" / "k2" / "k2.pkl").is_file()
+    assert "k1" in cache
+    assert "k2" not in cache  # the main store holds the split fits only
+    assert FitExecutor(cache=cache).run_jobs(jobs) == [[2], [4]]
+    assert calls == [1, 2]  # the rerun found both
+
+
 def _write_package(root: Path, helper: str = "SCALE = 1.0", other: str = "X = 1") -> None:
     pkg = root / "es18pkg"
     pkg.mkdir(exist_ok=True)
