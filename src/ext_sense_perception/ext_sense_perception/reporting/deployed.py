@@ -27,7 +27,7 @@ from ext_sense_perception.training.split_fit import code_digest
 DEPLOYED_STORE = "deployed"
 """The fit cache's subdirectory of deployed models. They are kept apart from the split fits: a
 fitted model takes up to tens of megabytes (an RBF SVR keeps its support vectors), a split's
-result about 2 kB, so a report's split fits can be kept beside it (``docs/perception_report/fits``
+result 1-2 kB, so a report's split fits can be kept beside it (``docs/perception_report/fits``
 is in git) and its deployed models not (ignored)."""
 
 
