@@ -10,8 +10,19 @@ and 6.34 / 21.33 ms with the whole simulator process reniced to +15.
 
 :class:`TrialsAhead` runs :func:`~ext_sense_sim.trial_plan.plan_trials` in a child process at
 ``nice`` +10 and hands its trials over a pipe: the same trials in the same order (one seed, one
-generator), one simulated while the device plays the one before. The device's process only paces
-bytes. The child runs in a session of its own (``python -m ext_sense_sim.trials_ahead``): a
+generator), up to :data:`AHEAD_TRIALS` simulated before the device asks for them. The device's
+process only paces bytes.
+
+Why that many: a graph that asks for trials of one class (a handover's grasps, ``labels``)
+skips the others, so a grasp can need ten or more draws at once. With one trial simulated
+ahead, those draws were made only when the device asked, in the 0.7 s before the trial was
+due; when they took longer the trial went out late in a burst that the driver stamps
+compressed, a distortion no real receiver makes: in a live 40-grasp handover run while two
+other jobs kept both cores busy, 28 of the 119 later trials of a grasp started 5 to 280 ms late
+(docs/benchmarks.md, "The emulator's look-ahead"). Kept pickled, a handover trial is 130-250
+kB, so the look-ahead holds about 10-16 MB.
+
+The child runs in a session of its own (``python -m ext_sense_sim.trials_ahead``): a
 Ctrl-C to the graph's process group is for the device node, which ends the child, and a
 multiprocessing child in the group printed ``KeyboardInterrupt`` tracebacks on it. It ends by
 itself when the device's end of the pipe closes, so a killed device leaves no orphan.
@@ -22,6 +33,7 @@ from __future__ import annotations
 import contextlib
 import os
 import pickle
+import queue
 import select
 import subprocess
 import sys
@@ -33,6 +45,8 @@ from ext_sense_sim.errors import SceneError
 from ext_sense_sim.scene import Scene
 from ext_sense_sim.trial_plan import PlannedTrial, plan_trials
 
+AHEAD_TRIALS = 64
+"""Trials the child keeps simulated ahead of the device (pickled, waiting for the pipe)."""
 WORLD_NICE = 10
 """How much lower than the device's the child's priority is (``nice`` increment)."""
 POLL_S = 0.1
@@ -46,24 +60,44 @@ class _Failed:
         self.error = error
 
 
-def simulate(scene: Scene, seed: int, out: BinaryIO) -> None:
-    """The child's work: simulate trial after trial and pickle each to ``out``.
+def simulate(scene: Scene, seed: int, out: BinaryIO, ahead: int = AHEAD_TRIALS) -> None:
+    """The child's work: simulate trial after trial, keeping up to ``ahead`` ready for ``out``.
 
-    A write blocks while the device has not read the trial before (the pipe holds less than
-    one); it fails once the device's end closed (it stopped, or it died), which ends this.
+    A writer thread pickles them to ``out`` in order; its writes block while the device does
+    not read. Simulation stops while ``ahead`` trials wait, and ends once the device's end of
+    the pipe closed (it stopped, or it died). An error is sent after the trials before it.
     """
+    ready: queue.Queue[bytes | None] = queue.Queue(maxsize=max(1, int(ahead)))
+    writer = threading.Thread(target=_write_all, args=(ready, out), daemon=True)
+    writer.start()
+
+    def put(item: bytes | None) -> bool:
+        while writer.is_alive():
+            try:
+                ready.put(item, timeout=POLL_S)
+                return True
+            except queue.Full:
+                continue
+        return False
+
     try:
         for plan in plan_trials(scene, seed):
-            pickle.dump(plan, out, protocol=pickle.HIGHEST_PROTOCOL)
-            out.flush()
-    except (BrokenPipeError, OSError):
-        return
+            if not put(pickle.dumps(plan, protocol=pickle.HIGHEST_PROTOCOL)):
+                return
     except Exception as err:
+        put(pickle.dumps(_Failed(f"{type(err).__name__}: {err}")))
+    put(None)
+    writer.join()
+
+
+def _write_all(ready: queue.Queue[bytes | None], out: BinaryIO) -> None:
+    """Write the pickled trials to ``out`` until ``None`` or a closed pipe."""
+    while (item := ready.get()) is not None:
         try:
-            pickle.dump(_Failed(f"{type(err).__name__}: {err}"), out)
+            out.write(item)
             out.flush()
-        except OSError:
-            pass
+        except OSError:  # BrokenPipeError included: the device's end closed
+            return
 
 
 class TrialsAhead(Iterator[PlannedTrial]):

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
+import pickle
 import signal
 import subprocess
 import sys
@@ -104,3 +106,37 @@ def _alive(pid: int) -> bool:
             return fh.read().split(") ")[1][0] != "Z"  # a zombie has ended
     except FileNotFoundError:
         return False
+
+
+def test_the_child_keeps_trials_simulated_ahead_while_the_device_does_not_read(monkeypatch):
+    """Up to ``ahead`` trials wait ready, in order; a closed pipe ends the simulation."""
+    from ext_sense_sim import trials_ahead
+    from ext_sense_sim.trial_plan import PlannedTrial
+
+    made: list[int] = []
+
+    def plans(scene, seed):  # trials too big for the pipe to hold one
+        k = 0
+        while True:
+            made.append(k)
+            yield PlannedTrial(k, [(0, bytes(200_000))], 0, 0.0, "stable")
+            k += 1
+
+    monkeypatch.setattr(trials_ahead, "plan_trials", plans)
+    r, w = os.pipe()
+    out = os.fdopen(w, "wb")
+    child = threading.Thread(target=trials_ahead.simulate, args=(None, 0, out, 5))
+    child.start()
+    deadline = time.monotonic() + 5.0
+    while time.monotonic() < deadline and len(made) < 7:
+        time.sleep(0.01)
+    time.sleep(0.2)
+    # five waiting, one in the writer's hand, one in the simulator's (blocked on the queue)
+    assert 5 <= len(made) <= 8
+    with os.fdopen(r, "rb") as src:
+        got = [pickle.load(src).trial for _ in range(10)]
+    child.join(timeout=5.0)  # the read end closed: the writer's next write fails
+    with contextlib.suppress(OSError):
+        out.close()
+    assert got == list(range(10))
+    assert not child.is_alive()

@@ -5,6 +5,14 @@ Robotiq node, so it works unchanged with ``ros2_control``'s ``GripperActionContr
 PickNik's Robotiq driver) on ``/robotiq_gripper_controller/gripper_cmd``. This wraps rclpy's
 ``ActionClient`` futures into one :class:`GripperReply` per goal, delivered on the executor, so
 the node's decisions stay plain callbacks. Not an executable: a helper of the behaviour nodes.
+
+Every goal gets an answer. The goal response and the result are service replies, and the
+middleware can lose one: a live handover graph once logged ``failed to send response
+(timeout)`` from the gripper's action server at start-up, and the handover waited for its
+grasp goal for the rest of the run (nine minutes, no trial played). So a goal not accepted
+within ``accept_timeout_s`` ends as ``unanswered`` and a result that does not come within
+``result_timeout_s`` as ``timed out`` (the goal is then canceled); an answer after that is
+ignored. The caller retries as for any failed goal.
 """
 
 from __future__ import annotations
@@ -26,7 +34,8 @@ class GripperReply(NamedTuple):
         position_m: Final finger gap, metres (NaN when the server sent no result).
         stalled: The fingers stopped on an object (object detected).
         reached_goal: The fingers reached the commanded gap.
-        reason: ``succeeded``, ``aborted``, ``canceled``, ``rejected`` or ``no server``.
+        reason: ``succeeded``, ``aborted``, ``canceled``, ``rejected``, ``no server``,
+            ``unanswered`` or ``timed out``.
     """
 
     succeeded: bool
@@ -43,19 +52,39 @@ _STATUS_NAMES = {
 }
 
 
+ACCEPT_TIMEOUT_S = 2.0
+"""Longest wait for a goal's acceptance (a server answers in milliseconds)."""
+RESULT_TIMEOUT_S = 15.0
+"""Longest wait for a goal's result (a 2F-85 closes fully in under 2 s at its slowest speed)."""
+
+
 class GripperClient:
     """Sends gripper goals, one at a time, and reports each outcome to a callback.
 
     Args:
-        node: The node that owns the client.
+        node: The node that owns the client (its timers keep the deadlines).
         action_name: Full action name (``/robotiq_gripper_controller/gripper_cmd``).
+        accept_timeout_s: Deadline of a goal's acceptance, s.
+        result_timeout_s: Deadline of a goal's result after its acceptance, s.
     """
 
-    def __init__(self, node: Node, action_name: str) -> None:
+    def __init__(
+        self,
+        node: Node,
+        action_name: str,
+        accept_timeout_s: float = ACCEPT_TIMEOUT_S,
+        result_timeout_s: float = RESULT_TIMEOUT_S,
+    ) -> None:
         self.action_name = action_name
+        self._node = node
         self._client = ActionClient(node, GripperCommand, action_name)
+        self.accept_timeout_s = float(accept_timeout_s)
+        self.result_timeout_s = float(result_timeout_s)
         self.busy = False
         self.sent = 0
+        self.timed_out = 0
+        self._pending = 0  # the goal (``sent`` count) whose answer is awaited; 0: none
+        self._timer: Any = None
 
     def ready(self) -> bool:
         """Whether a server is there and no goal of ours is running."""
@@ -72,12 +101,20 @@ class GripperClient:
         goal.command.position, goal.command.max_effort = float(position_m), float(max_effort_n)
         self.busy = True
         self.sent += 1
+        token = self._pending = self.sent
+
+        def finish(reply: GripperReply) -> None:
+            if self._pending != token:
+                return  # answered already (a reply after its deadline)
+            self._pending = 0
+            self.busy = False
+            self._stop_timer()
+            on_done(reply)
 
         def _on_result(future: Any) -> None:
-            self.busy = False
             response = future.result()
             result = response.result
-            on_done(
+            finish(
                 GripperReply(
                     response.status == GoalStatus.STATUS_SUCCEEDED,
                     result.position,
@@ -89,14 +126,44 @@ class GripperClient:
 
         def _on_goal(future: Any) -> None:
             handle = future.result()
-            if not handle.accepted:
-                self.busy = False
-                on_done(GripperReply(False, float("nan"), False, False, "rejected"))
+            if self._pending != token:
+                if handle.accepted:  # accepted after its deadline: nobody waits for it
+                    handle.cancel_goal_async()
                 return
+            if not handle.accepted:
+                finish(GripperReply(False, float("nan"), False, False, "rejected"))
+                return
+            self._start_timer(self.result_timeout_s, lambda: no_result(handle))
             handle.get_result_async().add_done_callback(_on_result)
 
+        def no_result(handle: Any) -> None:
+            handle.cancel_goal_async()
+            self.timed_out += 1
+            finish(GripperReply(False, float("nan"), False, False, "timed out"))
+
+        def no_goal_response() -> None:
+            self.timed_out += 1
+            finish(GripperReply(False, float("nan"), False, False, "unanswered"))
+
+        self._start_timer(self.accept_timeout_s, no_goal_response)
         self._client.send_goal_async(goal).add_done_callback(_on_goal)
+
+    def _start_timer(self, timeout_s: float, on_expiry: Callable[[], None]) -> None:
+        """One deadline at a time, on the node's executor."""
+        self._stop_timer()
+
+        def expired() -> None:
+            self._stop_timer()
+            on_expiry()
+
+        self._timer = self._node.create_timer(timeout_s, expired)
+
+    def _stop_timer(self) -> None:
+        if self._timer is not None:
+            self._node.destroy_timer(self._timer)
+            self._timer = None
 
     def destroy(self) -> None:
         """Release the client's entities."""
+        self._stop_timer()
         self._client.destroy()
