@@ -47,7 +47,9 @@ def score(model_dir: Path, cut: str, writes: list, truths: list, read_period_ns:
     correct = np.mean([e.class_label == y for e, y in zip(ests, labels, strict=True)])
     stable = [e for e, y in zip(ests, labels, strict=True) if y == "stable"]
     p = np.array([e.stability_probability for e in stable])
-    grasps = [stable[i : i + GRASP_TRIALS] for i in range(0, len(stable) - GRASP_TRIALS + 1, 4)]
+    grasps = [
+        stable[i : i + GRASP_TRIALS] for i in range(0, len(stable) - GRASP_TRIALS + 1, GRASP_TRIALS)
+    ]
     released = sum(reaches_release(g) for g in grasps)
     return (
         f"{model_dir.name:>28} {cut:>9}: accuracy {correct:.3f} ({len(ests)} trials, {missed} "

@@ -80,11 +80,15 @@ class GripperClient:
         self._client = ActionClient(node, GripperCommand, action_name)
         self.accept_timeout_s = float(accept_timeout_s)
         self.result_timeout_s = float(result_timeout_s)
-        self.busy = False
         self.sent = 0
         self.timed_out = 0
         self._pending = 0  # the goal (``sent`` count) whose answer is awaited; 0: none
         self._timer: Any = None
+
+    @property
+    def busy(self) -> bool:
+        """Whether a goal of ours awaits its answer."""
+        return self._pending != 0
 
     def ready(self) -> bool:
         """Whether a server is there and no goal of ours is running."""
@@ -99,7 +103,6 @@ class GripperClient:
             return
         goal = GripperCommand.Goal()
         goal.command.position, goal.command.max_effort = float(position_m), float(max_effort_n)
-        self.busy = True
         self.sent += 1
         token = self._pending = self.sent
 
@@ -107,7 +110,6 @@ class GripperClient:
             if self._pending != token:
                 return  # answered already (a reply after its deadline)
             self._pending = 0
-            self.busy = False
             self._stop_timer()
             on_done(reply)
 
