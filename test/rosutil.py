@@ -65,11 +65,14 @@ def spin_until(executor: Any, predicate: Callable[[], bool], timeout_s: float = 
     """Spin ``executor`` in this thread until ``predicate()`` holds; False after ``timeout_s``.
 
     For tests that own their executor (lifecycle transitions, action round trips) rather than
-    spinning it in a thread as :func:`spinning` does.
+    spinning it in a thread as :func:`spinning` does. ``executor`` may be a list of executors,
+    spun in turn: a test then leaves one out to make its node stop answering.
     """
+    executors = executor if isinstance(executor, list) else [executor]
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
-        executor.spin_once(timeout_sec=0.01)
+        for one in executors:
+            one.spin_once(timeout_sec=0.01)
         if predicate():
             return True
     return False

@@ -34,6 +34,13 @@ class ArmAdapter(Protocol):
     def read_state(self) -> ArmState | None:
         """The latest state, or ``None`` when none has arrived (or a replay has ended)."""
 
+    def take_failure(self) -> str | None:
+        """Why the newest motion command failed (each failure reported once), else ``None``.
+
+        A robot's controller can reject, abort or never answer a motion; the behaviour stops
+        and holds on it rather than wait for a motion that will not happen.
+        """
+
 
 class SimulatedArm:
     """A point end effector moving vertically above a compliant surface.
@@ -120,6 +127,10 @@ class SimulatedArm:
         if self.surface_z_m is None:
             return 0.0
         return max(0.0, self.surface_z_m - self.z_m) * self.stiffness_n_per_m
+
+    def take_failure(self) -> None:
+        """A simulated motion never fails."""
+        return None
 
     def read_state(self) -> ArmState:
         """The state now: height, and the surface force (upwards, +z) plus bias and noise."""

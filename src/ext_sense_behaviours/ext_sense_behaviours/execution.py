@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 from ext_sense_behaviours.arm import ArmAdapter
 from ext_sense_behaviours.decisions import Decision
+from ext_sense_behaviours.errors import BehaviourError
 from ext_sense_behaviours.food import FoodAction, FoodMachine, FoodResult
 from ext_sense_behaviours.gripper import GripperPort, describe_position, is_open, settled
 from ext_sense_behaviours.handover import HandoverAction, HandoverMachine, HandoverState
@@ -52,22 +53,33 @@ class FoodProbe:
         self.on_state = on_state
         self.samples = 0
 
-    def start(self) -> Decision | None:
-        """Start from the arm's current state; ``None`` when the arm has no state yet."""
+    def start(self, now_ns: int | None = None) -> Decision | None:
+        """Start from the arm's current state; ``None`` when the arm has no state yet.
+
+        ``now_ns`` is the clock :meth:`step` gets (default: the state's own stamp).
+        """
         state = self.arm.read_state()
         if state is None:
             return None
-        return self._act(self.machine.start(state))
+        return self._act(self.machine.start(state, now_ns))
 
     def step(self, now_ns: int) -> list[Decision]:
-        """Read one arm state, feed it and the clock to the machine, carry out what it decides."""
+        """One control tick: feed the machine the arm's failure, one state and the clock.
+
+        Carries out what the machine decides on each.
+        """
         out = []
+        failure = self.arm.take_failure()
+        if failure is not None:
+            decision = self.machine.on_arm_failure(failure, now_ns)
+            if decision is not None:
+                out.append(self._act(decision))
         state = self.arm.read_state()
         if state is not None:
             self.samples += 1
             if self.on_state is not None:
                 self.on_state(state)
-            decision = self.machine.on_arm_state(state)
+            decision = self.machine.on_arm_state(state, now_ns)
             if decision is not None:
                 out.append(self._act(decision))
         decision = self.machine.on_tick(now_ns)
@@ -81,6 +93,13 @@ class FoodProbe:
         return None if decision is None else self._act(decision)
 
     def _act(self, decision: Decision) -> Decision:
+        try:
+            self._carry_out(decision)
+        except BehaviourError as err:  # no robot state or no controller: the motion failed
+            return self._act(self.machine.on_arm_failure(str(err), decision.stamp_ns))
+        return decision
+
+    def _carry_out(self, decision: Decision) -> None:
         cfg, m = self.machine.config, self.machine
         action = FoodAction[decision.action]
         if action == FoodAction.MOVE_DOWN:
@@ -96,7 +115,6 @@ class FoodProbe:
             self.arm.retract(m.retract_height_m, cfg.retract_speed_mps)
         elif action == FoodAction.PUBLISH and self.on_publish is not None and m.result is not None:
             self.on_publish(m.result)
-        return decision
 
 
 class HandoverRun:

@@ -6,7 +6,8 @@ States::
     COLLECTING --window complete (motion start + window_end)--> CLASSIFYING
     CLASSIFYING --food estimate for this motion start (or timeout)--> RETRACTING
     RETRACTING --back at the retract height--> DONE (publish)
-    any moving state --invalid force samples / lowering timeout--> FAULT (stop, hold)
+    any moving state --invalid force samples / lowering or retract timeout / arm state
+        stalled / motion failed--> FAULT (stop, hold)
 
 The window is defined from the start of the motion (the paper: 2 s to 8 s after it), so the
 behaviour announces the motion start (the node publishes it on ``motion_start`` for the
@@ -62,6 +63,8 @@ class StopReason(IntEnum):
     PRESET_HEIGHT = 2
     TIMEOUT = 3
     INVALID_FORCE = 4
+    ARM_FAULT = 5
+    """The arm's state stopped coming, or its motion failed (rejected, unanswered, aborted)."""
 
 
 @dataclass(frozen=True)
@@ -76,6 +79,10 @@ class FoodConfig:
         window_end_ns: The window is complete this long after the motion start, ns.
         classify_timeout_ns: Longest wait for a class once the window is complete, ns.
         max_lowering_ns: Safety limit on the lowering time, ns.
+        max_retract_ns: Longest retract before the probe gives up and holds, ns.
+        state_timeout_ns: Longest gap between arm states while the arm moves, ns: without
+            state the behaviour cannot see contact nor the height (the robot publishes at
+            30 Hz to 1 kHz).
         retract_height_m: Height to retract to; NaN: the height the motion started from.
         retract_speed_mps: Retract speed, m/s.
         accept_provisional: Accept a provisional food estimate as the result.
@@ -91,6 +98,8 @@ class FoodConfig:
     window_end_ns: int = 8_000_000_000
     classify_timeout_ns: int = 5_000_000_000
     max_lowering_ns: int = 15_000_000_000
+    max_retract_ns: int = 20_000_000_000
+    state_timeout_ns: int = 500_000_000
     retract_height_m: float = math.nan
     retract_speed_mps: float = 0.05
     accept_provisional: bool = False
@@ -102,7 +111,13 @@ class FoodConfig:
             value = getattr(self, name)
             if not (value > 0 and math.isfinite(value)):
                 raise BehaviourError(f"The '{name}' parameter must be > 0. Got {value!r} instead.")
-        for name in ("window_end_ns", "classify_timeout_ns", "max_lowering_ns"):
+        for name in (
+            "window_end_ns",
+            "classify_timeout_ns",
+            "max_lowering_ns",
+            "max_retract_ns",
+            "state_timeout_ns",
+        ):
             if getattr(self, name) <= 0:
                 raise BehaviourError(
                     f"The '{name}' parameter must be > 0. Got {getattr(self, name)!r} instead."
@@ -159,13 +174,19 @@ class FoodMachine:
         self.stop_reason: StopReason | None = None
         self._stop: tuple[int, StopReason, float, float, int] | None = None
         self._window_done_ns = 0
+        self._retract_ns = 0  # when the retract was commanded, caller's clock
+        self._state_ns = 0  # when the newest arm state was read, caller's clock
 
     def _decide(self, now_ns: int, state: FoodState, action: FoodAction, reason: str) -> Decision:
         self.state = state
         return self.log.record(now_ns, state, action, reason)
 
-    def start(self, arm: ArmState) -> Decision:
-        """Begin a probe from the arm's current state: lower the fork."""
+    def start(self, arm: ArmState, now_ns: int | None = None) -> Decision:
+        """Begin a probe from the arm's current state: lower the fork.
+
+        ``now_ns`` is when the state was read on the clock :meth:`on_tick` gets (default: the
+        state's stamp); the arm-state stall check counts from it.
+        """
         if self.state not in (FoodState.IDLE, FoodState.DONE):
             return self._decide(
                 arm.stamp_ns, self.state, FoodAction.NONE, f"start ignored in {self.state.name}"
@@ -177,6 +198,7 @@ class FoodMachine:
             arm.z_m if math.isnan(cfg.retract_height_m) else cfg.retract_height_m
         )
         self.result, self._stop, self.stop_reason = None, None, None
+        self._state_ns = arm.stamp_ns if now_ns is None else now_ns
         return self._decide(
             arm.stamp_ns,
             FoodState.LOWERING,
@@ -191,9 +213,10 @@ class FoodMachine:
         self.stop_reason = reason
         return self._decide(arm.stamp_ns, state, FoodAction.STOP, text)
 
-    def on_arm_state(self, arm: ArmState) -> Decision | None:
-        """Feed one arm state sample (every one, in order)."""
+    def on_arm_state(self, arm: ArmState, now_ns: int | None = None) -> Decision | None:
+        """Feed one arm state sample (every one, in order), read at ``now_ns`` (see ``start``)."""
         cfg = self.config
+        self._state_ns = arm.stamp_ns if now_ns is None else now_ns
         if self.state == FoodState.LOWERING:
             norm = arm.force_norm_n
             if self.detector.update(norm):
@@ -232,9 +255,39 @@ class FoodMachine:
             return self._finish(arm.stamp_ns)
         return None
 
+    def on_arm_failure(self, reason: str, now_ns: int) -> Decision | None:
+        """The arm's motion failed (the adapter's report): a moving probe stops and holds."""
+        if self.state not in (FoodState.LOWERING, FoodState.RETRACTING):
+            return self._decide(
+                now_ns, self.state, FoodAction.NONE, f"arm failure while not moving: {reason}"
+            )
+        return self._fault(now_ns, f"arm failure while {self.state.name.lower()}: {reason}")
+
+    def _fault(self, now_ns: int, text: str) -> Decision:
+        """Stop and hold for a reason of the arm, not of the force (no state sample to quote)."""
+        if self.state == FoodState.LOWERING:
+            self._stop = (now_ns, StopReason.ARM_FAULT, math.nan, math.nan, -1)
+            self.stop_reason = StopReason.ARM_FAULT
+        return self._decide(now_ns, FoodState.FAULT, FoodAction.STOP, f"{text}: stop, hold")
+
     def on_tick(self, now_ns: int) -> Decision | None:
-        """Check the window end and the classification timeout; call periodically."""
+        """Check the window end, the timeouts and the arm state's flow; call periodically."""
         cfg = self.config
+        if (
+            self.state in (FoodState.LOWERING, FoodState.RETRACTING)
+            and now_ns - self._state_ns >= cfg.state_timeout_ns
+        ):
+            return self._fault(
+                now_ns,
+                f"no arm state for {(now_ns - self._state_ns) / 1e9:.2f} s while "
+                f"{self.state.name.lower()}",
+            )
+        if self.state == FoodState.RETRACTING and now_ns - self._retract_ns >= cfg.max_retract_ns:
+            return self._fault(
+                now_ns,
+                f"not back at z={self.retract_height_m:.4f} m within "
+                f"{cfg.max_retract_ns / 1e9:.1f} s of the retract",
+            )
         if (
             self.state == FoodState.COLLECTING
             and now_ns >= self.motion_start_ns + cfg.window_end_ns
@@ -251,6 +304,7 @@ class FoodMachine:
             and now_ns - self._window_done_ns >= cfg.classify_timeout_ns
         ):
             self._store(None)
+            self._retract_ns = now_ns
             return self._decide(
                 now_ns,
                 FoodState.RETRACTING,
@@ -288,6 +342,7 @@ class FoodMachine:
                 f"provisional estimate '{estimate.class_label}' noted; waiting for the final one",
             )
         self._store(estimate)
+        self._retract_ns = now_ns
         return self._decide(
             now_ns,
             FoodState.RETRACTING,

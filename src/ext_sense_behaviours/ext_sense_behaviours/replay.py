@@ -31,6 +31,10 @@ class ReplayArm:
         self.index += 1
         return self._states[self.index]
 
+    def take_failure(self) -> None:
+        """A recording's motion never fails."""
+        return None
+
     def move_down(self, speed_mps: float) -> None:
         """Log the command (the recording moves by itself)."""
         self.commands.append((self.index, f"move_down {speed_mps:.4f}"))

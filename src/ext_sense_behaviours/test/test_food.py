@@ -151,6 +151,101 @@ def test_lowering_timeout_stops_the_arm():
     assert "within 1.0 s" in d.reason
 
 
+def test_an_arm_state_stall_while_lowering_stops_and_holds():
+    machine = FoodMachine(FoodConfig(state_timeout_ns=500 * MS))
+    machine.start(ArmState(0, 0.16, (0.0, 0.0, 0.0)), now_ns=7 * MS)
+    assert machine.on_arm_state(ArmState(10 * MS, 0.159, (0.0, 0.0, 0.0)), now_ns=17 * MS) is None
+    assert machine.on_tick(516 * MS) is None
+    d = machine.on_tick(517 * MS)
+    assert (d.state, d.action) == ("FAULT", "STOP")
+    assert "no arm state for 0.50 s while lowering" in d.reason
+    assert machine.stop_reason == StopReason.ARM_FAULT
+
+
+class StuckRetract(SimulatedArm):
+    """Reaches the food but never goes back up; reports its own failure when ``reason`` is set."""
+
+    def __init__(self, reason: str | None = None, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.reason, self._failure = reason, None
+
+    def retract(self, height_m: float, speed_mps: float) -> None:
+        self.stop()
+        self._failure = self.reason
+
+    def take_failure(self) -> str | None:
+        failure, self._failure = self._failure, None
+        return failure
+
+
+def _probe_on(arm, clock, config):
+    machine = FoodMachine(config)
+    requests = []
+    probe = FoodProbe(machine, arm, on_request=lambda a, b: requests.append(a))
+    probe.start(clock.ns)
+    for _ in range(3000):
+        clock.ns += STEP_NS
+        probe.step(clock.ns)
+        if requests and machine.state == FoodState.CLASSIFYING:
+            probe.deliver(Estimate("food_identification", requests[0], class_label="x"), clock.ns)
+        if machine.state in (FoodState.DONE, FoodState.FAULT):
+            break
+    return machine
+
+
+def test_a_retract_that_never_arrives_stops_and_holds_after_its_time_limit():
+    clock = Clock()
+    arm = StuckRetract(start_z_m=0.16, surface_z_m=0.14, clock_ns=clock)
+    config = FoodConfig(window_end_ns=3000 * MS, max_retract_ns=2000 * MS)
+    machine = _probe_on(arm, clock, config)
+    assert machine.state == FoodState.FAULT
+    assert "within 2.0 s of the retract: stop, hold" in machine.log.entries[-1].reason
+    retract, fault = machine.log.entries[-2:]
+    assert retract.action == "RETRACT"
+    assert fault.stamp_ns - retract.stamp_ns == 2000 * MS
+    assert machine.result.estimate.class_label == "x"  # what it found is kept
+
+
+def test_the_arm_s_motion_failure_stops_and_holds_at_once():
+    clock = Clock()
+    arm = StuckRetract(
+        "trajectory goal rejected by the controller",
+        start_z_m=0.16,
+        surface_z_m=0.14,
+        clock_ns=clock,
+    )
+    machine = _probe_on(arm, clock, FoodConfig(window_end_ns=3000 * MS))
+    retract, fault = machine.log.entries[-2:]
+    assert (fault.state, fault.action) == ("FAULT", "STOP")
+    assert fault.reason == (
+        "arm failure while retracting: trajectory goal rejected by the controller: stop, hold"
+    )
+    assert fault.stamp_ns - retract.stamp_ns == STEP_NS  # on the next control tick
+
+
+def test_a_motion_command_the_arm_refuses_is_a_fault_not_a_crash():
+    class NoController(SimulatedArm):
+        def move_down(self, speed_mps: float) -> None:
+            raise BehaviourError("trajectory action 'x' not available")
+
+    clock = Clock()
+    machine = FoodMachine()
+    probe = FoodProbe(machine, NoController(clock_ns=clock))
+    d = probe.start(clock.ns)
+    assert (d.state, d.action) == ("FAULT", "STOP")
+    assert "arm failure while lowering: trajectory action 'x' not available" in d.reason
+
+
+def test_an_arm_failure_while_the_arm_holds_is_only_logged():
+    machine = FoodMachine(FoodConfig(window_end_ns=100 * MS))
+    machine.start(ArmState(0, 0.16, (0.0, 0.0, 0.0)))
+    machine.on_arm_state(ArmState(MS, 0.15, (0.0, 0.0, 12.0)))
+    assert machine.state == FoodState.COLLECTING
+    d = machine.on_arm_failure("trajectory goal ended with status 6", 2 * MS)
+    assert (d.state, d.action) == ("COLLECTING", "NONE")
+    assert machine.state == FoodState.COLLECTING
+
+
 def test_detector_consecutive_and_validation():
     det = ForceContactDetector(10.0, consecutive=2)
     assert [det.update(f) for f in (11.0, 5.0, 11.0, 12.0, 13.0)] == [

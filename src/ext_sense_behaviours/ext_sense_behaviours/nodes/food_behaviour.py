@@ -72,6 +72,20 @@ class FoodBehaviourNode(Node):
             max_lowering_ns=round(
                 d("max_lowering_s", 15.0, "Lowering time limit, s.", 0.5, 120.0) * S
             ),
+            max_retract_ns=round(
+                d("max_retract_s", 20.0, "Retract time limit, s.", 0.5, 120.0) * S
+            ),
+            state_timeout_ns=round(
+                d(
+                    "state_timeout_s",
+                    0.5,
+                    "Longest gap between arm states while moving before the probe stops and "
+                    "holds, s.",
+                    0.01,
+                    10.0,
+                )
+                * S
+            ),
             retract_speed_mps=d("retract_speed_mps", 0.05, "Retract speed, m/s.", 0.001, 0.25),
             accept_provisional=d("accept_provisional", False, "Accept a provisional class."),
         )
@@ -213,7 +227,7 @@ class FoodBehaviourNode(Node):
             self.results += 1
 
     def _on_start(self, msg: Bool) -> None:
-        if msg.data and self.probe.start() is None:
+        if msg.data and self.probe.start(self.get_clock().now().nanoseconds) is None:
             self.get_logger().error("food/start ignored: no arm state yet")
 
     def _on_estimate(self, msg: ContactEstimate) -> None:
@@ -227,7 +241,7 @@ class FoodBehaviourNode(Node):
         if self.auto_start and self.machine.state == FoodState.IDLE:
             if self.motion_pub.get_subscription_count() < self.start_subscribers:
                 return
-            if self.probe.start() is not None:
+            if self.probe.start(now) is not None:
                 self.auto_start = False
             return
         if (
@@ -237,10 +251,10 @@ class FoodBehaviourNode(Node):
             and now - self._done_ns >= self.repeat_ns
         ):
             self._done_ns = None
-            self.probe.start()
+            self.probe.start(now)
             return
         if self.machine.state not in (FoodState.IDLE, FoodState.DONE, FoodState.FAULT):
-            self.probe.step(self.get_clock().now().nanoseconds)
+            self.probe.step(now)
 
     def _check(self) -> tuple[Level, str, dict[str, object]]:
         state = self.machine.state

@@ -15,7 +15,13 @@ franka_ros2 robot offers (names are parameters, :class:`~ext_sense_behaviours.fr
   the position it has;
 - stops the descent by itself when the robot raises a Cartesian contact or collision flag (its
   lower threshold crossed) or reports reflex mode, whatever the behaviour decides;
-- offers error recovery through ``franka_msgs/action/ErrorRecovery`` after a reflex.
+- offers error recovery through ``franka_msgs/action/ErrorRecovery`` after a reflex;
+- ends every motion goal it sends: one the controller does not accept within
+  ``accept_timeout_s``, or whose result does not come within its planned duration plus
+  ``result_margin_s`` (it is then canceled), fails like a rejected or aborted one. The failure
+  is reported once through :meth:`FrankaArmAdapter.take_failure`, so the behaviour stops and
+  holds at once instead of waiting for a motion that will not happen (a lost goal response
+  used to leave the probe retracting forever).
 
 The simulated arm ``ext_sense_sim.nodes.sim_arm`` speaks exactly these interfaces, so the tests
 and the food graph's simulated source run this code. Imported lazily by ``food_behaviour``.
@@ -42,8 +48,14 @@ from ext_sense_behaviours.franka import (
     import_franka_msgs,
     reading_from_robot_state,
 )
+from ext_sense_behaviours.nodes.deadline import Deadline
 from ext_sense_behaviours.panda_kinematics import vertical_line
 from ext_sense_behaviours.records import ArmState
+
+ACCEPT_TIMEOUT_S = 2.0
+"""Longest wait for the controller to accept a trajectory goal (it answers in milliseconds)."""
+RESULT_MARGIN_S = 5.0
+"""Longest wait for a trajectory's result beyond its planned duration, s."""
 
 
 def _duration(seconds: float) -> Duration:
@@ -61,6 +73,8 @@ class FrankaArmAdapter:
             contact flags at half these).
         max_descent_m: Length of the planned descent, m (the behaviour stops it earlier).
         guard: Wraps each callback (the node's :class:`CallbackGuard`); identity when ``None``.
+        accept_timeout_s: Deadline of a trajectory goal's acceptance, s.
+        result_margin_s: Deadline of its result beyond the trajectory's planned duration, s.
 
     Raises:
         BehaviourError: franka_msgs is not installed, or a threshold is not positive.
@@ -75,6 +89,8 @@ class FrankaArmAdapter:
         joint_torque_nm: float = 40.0,
         max_descent_m: float = 0.15,
         guard: Callable[[Callable[..., Any]], Callable[..., Any]] | None = None,
+        accept_timeout_s: float = ACCEPT_TIMEOUT_S,
+        result_margin_s: float = RESULT_MARGIN_S,
     ) -> None:
         fm = import_franka_msgs()
         import franka_msgs.action  # type: ignore[import-not-found]
@@ -83,6 +99,8 @@ class FrankaArmAdapter:
         self.node = node
         self.names = names or FrankaNames()
         self.max_descent_m = float(max_descent_m)
+        self.accept_timeout_s = float(accept_timeout_s)
+        self.result_margin_s = float(result_margin_s)
         self.thresholds = collision_behavior_values(
             collision_force_n, collision_torque_nm, joint_torque_nm
         )
@@ -96,8 +114,12 @@ class FrankaArmAdapter:
             "contact_stops": 0,
             "goals_sent": 0,
             "goals_rejected": 0,
+            "goals_unanswered": 0,
+            "goals_timed_out": 0,
             "goals_failed": 0,
         }
+        self._failure: str | None = None  # the newest motion's failure, not yet taken
+        self._deadline = Deadline(node, wrap)
         self.thresholds_set: bool | None = None  # None: not yet answered
         self.last_error = ""
         state_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -172,6 +194,7 @@ class FrankaArmAdapter:
 
     def destroy(self) -> None:
         """Destroy the action clients (the owning node's ``destroy_node`` leaves them alive)."""
+        self._deadline.disarm()
         self._trajectory.destroy()
         self._recovery.destroy()
 
@@ -202,10 +225,16 @@ class FrankaArmAdapter:
         if dz > 1e-5:
             self._line(dz, speed_mps)
 
+    def take_failure(self) -> str | None:
+        """Why the newest motion failed (rejected, unanswered, timed out, aborted), once."""
+        failure, self._failure = self._failure, None
+        return failure
+
     def stop(self) -> None:
         """Cancel the motion under way; the controller holds where the arm is."""
         self.descending = False
         self._motion_id += 1
+        self._deadline.disarm()
         goal, self._goal = self._goal, None
         if goal is not None:
             goal.cancel_goal_async()
@@ -238,40 +267,72 @@ class FrankaArmAdapter:
                 f"trajectory action '{self.names.trajectory_action}' not available: is the "
                 "joint_trajectory_controller loaded and active?"
             )
-        motion = self._motion_id
+        motion, planned_s = self._motion_id, float(times[-1])
         self.counters["goals_sent"] += 1
+        self._deadline.arm(self.accept_timeout_s, lambda: self._unanswered(motion))
         future = self._trajectory.send_goal_async(goal)
-        future.add_done_callback(lambda f: self._on_goal_response(f, motion))
+        future.add_done_callback(lambda f: self._on_goal_response(f, motion, planned_s))
 
-    def _on_goal_response(self, future: Any, motion: int) -> None:
-        handle = future.result()
-        if handle is None or not handle.accepted:
-            self.counters["goals_rejected"] += 1
-            self.last_error = "trajectory goal rejected by the controller"
-            self.node.get_logger().error(self.last_error)
+    def _fail(self, counter: str, text: str) -> None:
+        """Count and log the current motion's failure; the behaviour takes it next."""
+        self.counters[counter] += 1
+        self.descending = False
+        self.last_error = self._failure = text
+        self.node.get_logger().error(text)
+
+    def _unanswered(self, motion: int) -> None:
+        if motion != self._motion_id:
             return
-        if motion != self._motion_id:  # stopped (or replaced) before the goal was accepted
-            handle.cancel_goal_async()
+        self._motion_id += 1  # an acceptance after this is stale: it gets canceled
+        self._fail(
+            "goals_unanswered",
+            f"trajectory goal not answered within {self.accept_timeout_s:.1f} s: motion abandoned",
+        )
+
+    def _on_goal_response(self, future: Any, motion: int, planned_s: float) -> None:
+        handle = future.result()
+        if motion != self._motion_id:  # stopped, replaced or abandoned before the answer
+            if handle is not None and handle.accepted:
+                handle.cancel_goal_async()
+            return
+        self._deadline.disarm()
+        if handle is None or not handle.accepted:
+            self._fail("goals_rejected", "trajectory goal rejected by the controller")
             return
         self._goal = handle
+        self._deadline.arm(planned_s + self.result_margin_s, lambda: self._no_result(handle))
         handle.get_result_async().add_done_callback(lambda f: self._on_result(f, handle))
+
+    def _no_result(self, handle: Any) -> None:
+        if self._goal is not handle:
+            return
+        self._goal = None
+        self._motion_id += 1
+        handle.cancel_goal_async()
+        self._fail(
+            "goals_timed_out",
+            f"trajectory goal had no result {self.result_margin_s:.1f} s after its planned end: "
+            "canceled",
+        )
 
     def _on_result(self, future: Any, handle: Any) -> None:
         from action_msgs.msg import GoalStatus
 
+        if self._goal is not handle:  # stopped, replaced or timed out: nobody waits for it
+            return
+        self._goal = None
+        self._deadline.disarm()
         outcome = future.result()
-        if self._goal is handle:
-            self._goal = None
-        if outcome is None or outcome.status in (GoalStatus.STATUS_SUCCEEDED,):
+        if outcome is None or outcome.status in (
+            GoalStatus.STATUS_SUCCEEDED,
+            GoalStatus.STATUS_CANCELED,
+        ):
             return
-        if outcome.status == GoalStatus.STATUS_CANCELED:
-            return
-        self.counters["goals_failed"] += 1
-        self.last_error = (
+        self._fail(
+            "goals_failed",
             f"trajectory goal ended with status {outcome.status}: "
-            f"{outcome.result.error_string or outcome.result.error_code}"
+            f"{outcome.result.error_string or outcome.result.error_code}",
         )
-        self.node.get_logger().error(self.last_error)
 
     def status(self) -> dict[str, object]:
         """Key-values for ``/diagnostics``."""

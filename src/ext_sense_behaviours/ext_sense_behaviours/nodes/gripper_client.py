@@ -25,6 +25,8 @@ from control_msgs.action import GripperCommand
 from rclpy.action import ActionClient
 from rclpy.node import Node
 
+from ext_sense_behaviours.nodes.deadline import Deadline
+
 
 class GripperReply(NamedTuple):
     """How a goal ended.
@@ -83,7 +85,7 @@ class GripperClient:
         self.sent = 0
         self.timed_out = 0
         self._pending = 0  # the goal (``sent`` count) whose answer is awaited; 0: none
-        self._timer: Any = None
+        self._deadline = Deadline(node)
 
     @property
     def busy(self) -> bool:
@@ -110,7 +112,7 @@ class GripperClient:
             if self._pending != token:
                 return  # answered already (a reply after its deadline)
             self._pending = 0
-            self._stop_timer()
+            self._deadline.disarm()
             on_done(reply)
 
         def _on_result(future: Any) -> None:
@@ -135,7 +137,7 @@ class GripperClient:
             if not handle.accepted:
                 finish(GripperReply(False, float("nan"), False, False, "rejected"))
                 return
-            self._start_timer(self.result_timeout_s, lambda: no_result(handle))
+            self._deadline.arm(self.result_timeout_s, lambda: no_result(handle))
             handle.get_result_async().add_done_callback(_on_result)
 
         def no_result(handle: Any) -> None:
@@ -147,25 +149,10 @@ class GripperClient:
             self.timed_out += 1
             finish(GripperReply(False, float("nan"), False, False, "unanswered"))
 
-        self._start_timer(self.accept_timeout_s, no_goal_response)
+        self._deadline.arm(self.accept_timeout_s, no_goal_response)
         self._client.send_goal_async(goal).add_done_callback(_on_goal)
-
-    def _start_timer(self, timeout_s: float, on_expiry: Callable[[], None]) -> None:
-        """One deadline at a time, on the node's executor."""
-        self._stop_timer()
-
-        def expired() -> None:
-            self._stop_timer()
-            on_expiry()
-
-        self._timer = self._node.create_timer(timeout_s, expired)
-
-    def _stop_timer(self) -> None:
-        if self._timer is not None:
-            self._node.destroy_timer(self._timer)
-            self._timer = None
 
     def destroy(self) -> None:
         """Release the client's entities."""
-        self._stop_timer()
+        self._deadline.disarm()
         self._client.destroy()

@@ -107,3 +107,81 @@ def test_adapter_without_robot_state_refuses_to_plan(rig):
     _sim, adapter, _executor = rig
     with pytest.raises(BehaviourError, match="no robot state yet"):
         adapter.move_down(0.01)
+
+
+@pytest.fixture
+def split_rig():
+    """The simulated robot and the adapter on executors of their own, spun on demand."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    sim = SimArmNode(context=context, parameter_overrides=[Parameter("force_noise_n", value=0.0)])
+    host = rclpy.create_node("food_behaviour", context=context)
+    adapter = FrankaArmAdapter(host, max_descent_m=0.05, accept_timeout_s=0.5, result_margin_s=0.2)
+    executors = []
+    for node in (sim, host):
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        executors.append(executor)
+    try:
+        yield sim, adapter, executors
+    finally:
+        for executor in executors:
+            executor.shutdown()
+        adapter.destroy()
+        sim.destroy_node()
+        host.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def _ready(sim_ex, host_ex, adapter) -> None:
+    assert spin_until([sim_ex, host_ex], lambda: adapter.reading is not None, 10.0)
+    assert spin_until([sim_ex, host_ex], lambda: adapter.trajectory_ready, 10.0)
+
+
+def test_a_goal_the_controller_does_not_answer_fails_once_and_a_late_acceptance_is_canceled(
+    split_rig,
+):
+    sim, adapter, (sim_ex, host_ex) = split_rig
+    _ready(sim_ex, host_ex, adapter)
+    adapter.move_down(0.01)
+    assert adapter.descending
+    # the robot's executor is not spun: the goal response never comes
+    assert spin_until([host_ex], lambda: adapter.counters["goals_unanswered"] == 1, 5.0)
+    failure = adapter.take_failure()
+    assert failure is not None
+    assert "not answered within 0.5 s" in failure
+    assert adapter.take_failure() is None  # reported once
+    assert not adapter.descending
+    # the robot answers late: the stale goal is canceled, nothing more is reported
+    assert spin_until([sim_ex, host_ex], lambda: sim.goals["canceled"] == 1, 10.0)
+    assert adapter.take_failure() is None
+    assert adapter.counters["goals_failed"] == adapter.counters["goals_rejected"] == 0
+
+
+def test_a_result_that_does_not_come_ends_the_motion_and_the_goal_is_canceled(split_rig):
+    sim, adapter, (sim_ex, host_ex) = split_rig
+    _ready(sim_ex, host_ex, adapter)
+    adapter.move_down(0.1)  # 5 cm at 10 cm/s: planned 0.5 s, result due within 0.7 s
+    assert spin_until([sim_ex, host_ex], lambda: sim.goals["accepted"] == 1, 5.0)
+    # the robot stops answering: its result never comes
+    assert spin_until([host_ex], lambda: adapter.counters["goals_timed_out"] == 1, 5.0)
+    failure = adapter.take_failure()
+    assert failure is not None
+    assert "no result 0.2 s after its planned end" in failure
+    # the robot resumes: the goal ends (canceled, or done before it read the cancel); ignored
+    assert spin_until(
+        [sim_ex, host_ex], lambda: sim.goals["canceled"] + sim.goals["succeeded"] == 1, 10.0
+    )
+    spin_until([sim_ex, host_ex], lambda: False, 0.3)
+    assert adapter.take_failure() is None
+    assert adapter.counters["goals_failed"] == 0
+
+
+def test_a_rejected_goal_is_reported_as_the_motion_failure(split_rig):
+    sim, adapter, (sim_ex, host_ex) = split_rig
+    _ready(sim_ex, host_ex, adapter)
+    adapter.reading = adapter.reading._replace(joint_names=("a", "b", "c", "d", "e", "f", "g"))
+    adapter.move_down(0.01)
+    assert spin_until([sim_ex, host_ex], lambda: adapter.counters["goals_rejected"] == 1, 5.0)
+    assert adapter.take_failure() == "trajectory goal rejected by the controller"
+    assert sim.goals["rejected"] == 1

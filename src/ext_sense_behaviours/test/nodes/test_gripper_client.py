@@ -13,6 +13,7 @@ from control_msgs.action import GripperCommand  # noqa: E402
 from rclpy.action import ActionServer, CancelResponse  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
+from rosutil import spin_until  # noqa: E402
 
 from ext_sense_behaviours.nodes.gripper_client import GripperClient, GripperReply  # noqa: E402
 
@@ -40,16 +41,6 @@ def nodes():
     rclpy.try_shutdown(context=context)
 
 
-def _spin(executors, cond, timeout_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        for ex in executors:
-            ex.spin_once(timeout_sec=0.01)
-        if cond():
-            return True
-    return False
-
-
 def test_a_goal_the_server_does_not_answer_ends_as_unanswered_and_a_late_answer_is_ignored(nodes):
     client_node, server_node, (client_ex, server_ex) = nodes
     canceled = threading.Event()
@@ -65,20 +56,20 @@ def test_a_goal_the_server_does_not_answer_ends_as_unanswered_and_a_late_answer_
     server = ActionServer(server_node, GripperCommand, ACTION, execute, cancel_callback=cancel)
     client = GripperClient(client_node, ACTION, accept_timeout_s=0.5, result_timeout_s=5.0)
     replies: list[GripperReply] = []
-    assert _spin([client_ex, server_ex], client._client.server_is_ready, 10.0)
+    assert spin_until([client_ex, server_ex], client._client.server_is_ready, 10.0)
     client.send(0.0, 20.0, replies.append)
     # the server's executor is not spun: its goal response never comes
-    assert _spin([client_ex], lambda: bool(replies), 5.0)
+    assert spin_until([client_ex], lambda: bool(replies), 5.0)
     assert replies[0].reason == "unanswered"
     assert not replies[0].succeeded
     assert not client.busy
     assert client.timed_out == 1
     # the server answers late: the client reports nothing more (and cancels the stale goal)
-    _spin([client_ex, server_ex], canceled.is_set, 5.0)
+    spin_until([client_ex, server_ex], canceled.is_set, 5.0)
     assert len(replies) == 1
     # the next goal is answered as usual
     client.send(0.0, 20.0, replies.append)
-    assert _spin([client_ex, server_ex], lambda: len(replies) == 2, 10.0)
+    assert spin_until([client_ex, server_ex], lambda: len(replies) == 2, 10.0)
     assert replies[1].succeeded
     assert replies[1].stalled
     server.destroy()
@@ -115,13 +106,13 @@ def test_a_result_that_does_not_come_ends_as_timed_out_and_cancels_the_goal(node
     try:
         client = GripperClient(client_node, ACTION, accept_timeout_s=2.0, result_timeout_s=0.5)
         replies: list[GripperReply] = []
-        assert _spin([client_ex], client._client.server_is_ready, 10.0)
+        assert spin_until([client_ex], client._client.server_is_ready, 10.0)
         client.send(0.0, 20.0, replies.append)
-        assert _spin([client_ex], lambda: bool(replies), 5.0)
+        assert spin_until([client_ex], lambda: bool(replies), 5.0)
         assert replies[0].reason == "timed out"
         assert not client.busy
-        assert _spin([client_ex], canceled.is_set, 5.0)
-        _spin([client_ex], lambda: False, 0.3)  # the canceled goal's result: ignored
+        assert spin_until([client_ex], canceled.is_set, 5.0)
+        spin_until([client_ex], lambda: False, 0.3)  # the canceled goal's result: ignored
         assert len(replies) == 1
         client.destroy()
         server.destroy()

@@ -1,0 +1,53 @@
+"""One deadline at a time on a node's executor: how long an action client waits for an answer.
+
+An action's goal response and result are service replies, and the middleware can lose one
+(a live handover graph once logged ``failed to send response (timeout)`` from an action server
+at start-up and then waited nine minutes for a reply). The action clients of the behaviours
+(the gripper client, the Franka adapter) therefore arm a :class:`Deadline` while they wait,
+and end the goal themselves when it expires. A one-shot timer on the node's own executor,
+so the expiry runs like any other callback of the node, never concurrently with it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.node import Node
+
+
+class Deadline:
+    """A one-shot timer that can be re-armed or disarmed.
+
+    Args:
+        node: The node whose executor runs the expiry.
+        guard: Wraps the expiry callback (a node's :class:`CallbackGuard`); identity if ``None``.
+    """
+
+    def __init__(
+        self, node: Node, guard: Callable[[Callable[..., Any]], Callable[..., Any]] | None = None
+    ) -> None:
+        self._node = node
+        self._wrap = guard or (lambda f: f)
+        self._timer: Any = None
+
+    @property
+    def armed(self) -> bool:
+        """Whether an expiry is pending."""
+        return self._timer is not None
+
+    def arm(self, timeout_s: float, on_expiry: Callable[[], None]) -> None:
+        """Call ``on_expiry`` once, ``timeout_s`` from now, unless disarmed or re-armed first."""
+        self.disarm()
+
+        def expired() -> None:
+            self.disarm()
+            on_expiry()
+
+        self._timer = self._node.create_timer(timeout_s, self._wrap(expired))
+
+    def disarm(self) -> None:
+        """Cancel the pending expiry (nothing when none is pending)."""
+        if self._timer is not None:
+            self._node.destroy_timer(self._timer)
+            self._timer = None
