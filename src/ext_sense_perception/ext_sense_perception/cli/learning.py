@@ -359,20 +359,22 @@ def _print_plan(plan: list[dict], cache: Path | None) -> None:
     """``report --plan``: one line per data set and the total."""
     from collections import Counter
 
+    def to_do(n: int, by_model: dict[str, int]) -> str:
+        models = ", ".join(f"{m} {k}" for m, k in by_model.items())
+        return f"{n} to do: {models}" if n else "nothing to do"
+
     total: Counter = Counter()
     by_model: Counter = Counter()
     for row in plan:
         print(
             f"{row['data']}: {row['points']} points, {row['fits']} fits ({row['cached']} "
-            f"cached, {row['to_do']} to do: "
-            + ", ".join(f"{m} {n}" for m, n in row["to_do_by_model"].items())
-            + f"); {row['final_fits']} deployed-model fits for latency (after these, cached too)"
+            f"cached, {to_do(row['to_do'], row['to_do_by_model'])}); "
+            f"{row['final_fits']} deployed-model fits for latency (after these, cached too)"
         )
         total.update({k: row[k] for k in ("points", "fits", "cached", "to_do", "final_fits")})
         by_model.update(row["to_do_by_model"])
     print(
         f"total: {total['points']} points, {total['fits']} fits ({total['cached']} cached in "
-        f"{cache or 'no cache'}, {total['to_do']} to do: "
-        + ", ".join(f"{m} {n}" for m, n in sorted(by_model.items()))
-        + f"); {total['final_fits']} deployed-model fits for latency (after these, cached too)"
+        f"{cache or 'no cache'}, {to_do(total['to_do'], dict(sorted(by_model.items())))}); "
+        f"{total['final_fits']} deployed-model fits for latency (after these, cached too)"
     )

@@ -111,6 +111,8 @@ class Progress:
         self.enabled, self.workers = enabled, max(workers, 1)
         self.total = self.done = self.failed = self.cached = self.running = self.resent = 0
         self._spent = 0.0
+        self._terminal = sys.stderr.isatty()
+        self._logged_at: float | None = None  # when a line was last written into a log
 
     def add(self, n: int) -> None:
         """``n`` more fits were asked for."""
@@ -136,17 +138,36 @@ class Progress:
     def line(self) -> str:
         """The progress line."""
         left = self.left_s()
-        eta = f", about {left:.0f} s left" if left is not None else ""
+        eta = f", about {left:.0f} s left" if left is not None and self.done < self.total else ""
         resent = f", {self.resent} sent again after a lost worker" if self.resent else ""
         return (
             f"fits: {self.done} of {self.total} done ({self.cached} cached), {self.running} "
             f"running, {self.failed} failed{resent}{eta}"
         )
 
+    LOG_EVERY_S = 30.0
+    """Period of the progress lines when stderr is not a terminal (a log file, CI)."""
+
     def show(self) -> None:
-        """Rewrite the line on a terminal (stderr)."""
-        if self.enabled:
+        """Rewrite the line on a terminal; into a log, a whole line every ``LOG_EVERY_S``.
+
+        A log file cannot rewrite a line: thousands of carriage-return updates would make one
+        line of megabytes that ``tail`` cannot show.
+        """
+        if not self.enabled:
+            return
+        if self._terminal:
             print("\r" + self.line(), end="", file=sys.stderr, flush=True)
+            return
+        now = time.monotonic()
+        if self._logged_at is None or now - self._logged_at >= self.LOG_EVERY_S:
+            self._logged_at = now
+            print(self.line(), file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        """End the display: a newline after the last rewrite, or the final line into a log."""
+        if self.enabled and self.total:
+            print("" if self._terminal else self.line(), file=sys.stderr, flush=True)
 
 
 class FitExecutor:
@@ -313,9 +334,8 @@ class FitExecutor:
             last = now
 
     def close_line(self) -> None:
-        """End the progress line (a newline after the last rewrite)."""
-        if self.progress.enabled and self.progress.total:
-            print(file=sys.stderr)
+        """End the progress line (see :meth:`Progress.close`)."""
+        self.progress.close()
 
 
 def check(results: list[Any]) -> None:

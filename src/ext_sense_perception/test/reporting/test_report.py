@@ -183,7 +183,8 @@ def test_report_plan_counts_fits_cached_and_to_do(tmp_path, make_tap_dataset, ca
     assert ext_sense(args) == 0
     capsys.readouterr()
     assert ext_sense([*args, "--plan"]) == 0
-    assert "total: 10 points, 20 fits (20 cached in" in capsys.readouterr().out
+    assert "total: 10 points, 20 fits (20 cached in" in (text := capsys.readouterr().out)
+    assert "nothing to do); 2 " in text
 
 
 @pytest.mark.slow  # a local Dask cluster of 2 workers

@@ -22,6 +22,7 @@ from ext_sense_perception.training.fit_executor import (
     FitExecutor,
     FitFailure,
     FitJob,
+    Progress,
     fit_executor,
 )
 from ext_sense_perception.training.protocol import (
@@ -70,6 +71,19 @@ def test_a_failed_fit_keeps_the_others_and_names_the_failure(tmp_path):
         ex.map(fit, [1, 2, 3], ["k1", "k2", "k3"])
     assert (cache.get("k1"), cache.get("k2"), cache.get("k3")) == (10, None, 30)
     assert FitExecutor(cache=cache).map(lambda t: t, [1, 3], ["k1", "k3"]) == [10, 30]
+
+
+def test_progress_into_a_log_writes_whole_lines_not_carriage_returns(capsys):
+    """A log file (stderr not a terminal, as in CI or ``nohup``) gets readable lines."""
+    progress = Progress(True, workers=2)
+    progress.add(3)
+    for _ in range(3):
+        progress.finish(1.0)  # within LOG_EVERY_S of the first line: not logged
+    progress.close()
+    assert capsys.readouterr().err.splitlines() == [
+        "fits: 0 of 3 done (0 cached), 0 running, 0 failed",
+        "fits: 3 of 3 done (0 cached), 0 running, 0 failed",
+    ]
 
 
 def test_cluster_options_are_checked():
