@@ -11,7 +11,11 @@ from ext_sense_runtime.stamps import MS
 
 
 def synthetic_tap_dataset(
-    path: Path, n: int = 48, seed: int = 0, task: str = "tap_localization"
+    path: Path,
+    n: int = 48,
+    seed: int = 0,
+    task: str = "tap_localization",
+    rod_length_m: float = 0.3,
 ) -> Path:
     """Taps whose event rhythm on each finger depends on the label (position or class)."""
     rng = np.random.default_rng(seed)
@@ -49,7 +53,7 @@ def synthetic_tap_dataset(
         y=labels,
         trial=np.arange(n, dtype=np.int32),
         onset_ns=onsets.astype(np.int64),
-        rod_length_m=np.full(n, 0.3),
+        rod_length_m=np.full(n, rod_length_m),
         ev_trial=np.concatenate(ev_trial).astype(np.int32),
         ev_t_ns=np.concatenate(ev_t).astype(np.int64),
         ev_taxel=np.concatenate(ev_tax).astype(np.uint16),

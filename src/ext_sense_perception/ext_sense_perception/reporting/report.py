@@ -283,7 +283,7 @@ def build_report(
         if ws.task == "tap_localization" and np.isfinite(ws.rod_length_m).any():
             feat0, model0 = default_choice(ws.task, ws.sensor)
             res = run(ws, dataset_name(ws, path), feat0, model0)  # memoised above
-            if not run.planning:
+            if not (run.planning or run.deploying):  # the pass that writes the sections
                 rods.append((float(np.nanmedian(ws.rod_length_m)), ws.sensor, res))
         return found
 

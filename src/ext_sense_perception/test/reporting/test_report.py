@@ -187,6 +187,32 @@ def test_report_plan_counts_fits_cached_and_to_do(tmp_path, make_tap_dataset, ca
     assert "nothing to do); 2 " in text
 
 
+def test_the_rod_length_table_has_one_row_per_rod(tmp_path, make_tap_dataset):
+    """Each data set's sections run three times (plan, deployed models, report): one row each."""
+    rods = [
+        make_tap_dataset(tmp_path / f"rod{r}.npz", n=24, seed=r, rod_length_m=r / 100)
+        for r in (30, 50)
+    ]
+    out = tmp_path / "rep"
+    args = ["report", "--out", str(out), "--k", "2", "--features", "fft", "--models", "svm_rbf"]
+    args += [
+        "--no-gru",
+        "--no-latency",
+        "--no-taxels",
+        "--data",
+        str(rods[0]),
+        "--data",
+        str(rods[1]),
+    ]
+    assert ext_sense(args) == 0
+    text = (out / "report.md").read_text()
+    table = text[text.index("## Rod length") :].splitlines()
+    assert [line.split(" | ")[0] for line in table if line.startswith("| 0.")] == [
+        "| 0.30",
+        "| 0.50",
+    ]
+
+
 @pytest.mark.slow  # a local Dask cluster of 2 workers
 def test_a_report_on_a_local_cluster_equals_one_in_process_deployed_models_included(
     tmp_path, make_tap_dataset
