@@ -172,13 +172,17 @@ fallback is counted (it must never be needed: a killed node reports -9)."""
 class Command:
     """``ext-sense ARGS`` in its own process group, its output read as it comes."""
 
-    def __init__(self, *args: str) -> None:
+    def __init__(self, *args: str, sigint_ignored: bool = False) -> None:
         self.proc = subprocess.Popen(
             [*EXE, *args],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
             start_new_session=True,
+            # as a shell without job control starts a background command (`cmd &` in a script)
+            preexec_fn=(lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+            if sigint_ignored
+            else None,
         )
         self.out: list[str] = []
         self.err: list[str] = []
@@ -220,8 +224,11 @@ class Command:
 class Graph(Command):
     """``ext-sense run GRAPH`` in its own process group, its output read as it comes."""
 
-    def __init__(self, *args: str, graph: str = "tap_localization") -> None:
-        super().__init__("run", graph, *args)
+    def __init__(
+        self, *args: str, graph: str = "tap_localization", sigint_ignored: bool = False
+    ) -> None:
+        super().__init__("run", graph, *args, sigint_ignored=sigint_ignored)
+        self.left_alive = ""  # ``ps`` of the processes still alive when ``stop`` gave up
 
     def wait_for_tap(self, timeout: float) -> bool:
         """Whether the monitor printed an estimate (every node up and working) in time."""
@@ -252,6 +259,11 @@ class Graph(Command):
             time.sleep(0.02)
         took = time.monotonic() - start
         if self.group_alive():
+            self.left_alive = subprocess.run(  # what outlived the limit, for the failure message
+                ["ps", "-o", "pid,ppid,stat,etime,wchan:20,args", "-s", str(self.proc.pid)],
+                capture_output=True,
+                text=True,
+            ).stdout
             os.killpg(self.proc.pid, signal.SIGKILL)
             took = float("inf")
         self.proc.wait(timeout=10)

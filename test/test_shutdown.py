@@ -125,5 +125,28 @@ def test_ctrl_c_while_the_nodes_start(tap_model, tmp_path):
         took = graph.stop([(0.0, signal.SIGINT)])
         stdout, stderr = "".join(graph.out), "".join(graph.err)
         problems = stop_problems(graph.proc, stdout, stderr)
-        assert took <= STOP_LIMIT_S, (delay, took)
+        assert took <= STOP_LIMIT_S, (delay, took, graph.left_alive, stdout[-3000:], stderr[-3000:])
         assert not problems, (delay, problems)
+
+
+def test_ctrl_c_reaches_a_graph_started_with_sigint_ignored(tap_model, tmp_path):
+    """A shell without job control (a script's ``ext-sense run ... &``, a CI runner) starts
+    the command with SIGINT ignored: the SIGINT must still stop it, also before its first node.
+
+    Before, Python installed no ``KeyboardInterrupt`` handler in such a process, a SIGINT
+    before the runner's own handlers was lost and the graph ran on until killed. One in the
+    interpreter's own first ~40 ms, before a line of ext_sense runs, is still lost: nothing in
+    the program can hear it.
+    """
+    for run, delay in enumerate((0.1, 0.3)):
+        graph = Graph(
+            "trials:=0",
+            f"model:={tap_model}",
+            f"port:={tmp_path / f'i{run}.pty'}",
+            sigint_ignored=True,
+        )
+        time.sleep(delay)
+        took = graph.stop([(0.0, signal.SIGINT)])
+        stdout, stderr = "".join(graph.out), "".join(graph.err)
+        assert took <= STOP_LIMIT_S, (delay, took, graph.left_alive, stderr[-3000:])
+        assert not stop_problems(graph.proc, stdout, stderr), delay

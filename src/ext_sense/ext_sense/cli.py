@@ -73,6 +73,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     as_process = argv is None
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
+        if argv[:1] == ["run"]:
+            _hear_interrupts()
         return _dispatch(argv)
     except KeyboardInterrupt:
         if argv[:1] == ["run"]:
@@ -86,6 +88,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         return code
     except BrokenPipeError:  # e.g. piped into `head`
         return 0
+
+
+def _hear_interrupts() -> None:
+    """Let Ctrl-C stop ``run`` from here on, also when it was started with SIGINT ignored.
+
+    A shell without job control starts background commands (``ext-sense run ... &`` in a
+    script, a CI runner) with SIGINT ignored, and Python then installs no
+    ``KeyboardInterrupt`` handler: a SIGINT before the runner installed its own handlers was
+    lost and the graph started anyway, to run until killed (``test_shutdown.py``, under a
+    backgrounded ``make test``). The runner's handlers take SIGINT whatever was inherited, so
+    this makes the command take it the same way from its first line on.
+    """
+    import signal
+
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _end_interrupted(code: int) -> NoReturn:
