@@ -173,16 +173,14 @@ class Command:
     """``ext-sense ARGS`` in its own process group, its output read as it comes."""
 
     def __init__(self, *args: str, sigint_ignored: bool = False) -> None:
+        # SIGINT ignored as a shell without job control starts a background command
+        ignoring = ["sh", "-c", 'trap "" INT; exec "$@"', "sh"] if sigint_ignored else []
         self.proc = subprocess.Popen(
-            [*EXE, *args],
+            [*ignoring, *EXE, *args],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
             start_new_session=True,
-            # as a shell without job control starts a background command (`cmd &` in a script)
-            preexec_fn=(lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
-            if sigint_ignored
-            else None,
         )
         self.out: list[str] = []
         self.err: list[str] = []

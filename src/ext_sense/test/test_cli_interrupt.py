@@ -51,3 +51,32 @@ def test_a_ctrl_c_caught_during_start_up_ends_the_process_with_its_exit_code(
         cwd=tmp_path,
     )
     assert (done.returncode, done.stderr.strip()) == (code, line)
+
+
+HANDLER_AFTER_MAIN = """
+import signal
+import sys
+import ext_sense.cli as cli
+
+cli._dispatch = lambda argv: 0  # nothing to run: only main's own set-up
+before = signal.getsignal(signal.SIGINT)
+cli.main(sys.argv[1:])
+after = signal.getsignal(signal.SIGINT)
+print(before is signal.SIG_IGN, after is signal.default_int_handler)
+"""
+
+
+@pytest.mark.parametrize(("command", "heard"), [("run", "True"), ("train", "False")])
+def test_run_hears_ctrl_c_when_started_with_sigint_ignored(command, heard):
+    """A shell without job control starts background commands with SIGINT ignored; ``run``
+    installs Python's ``KeyboardInterrupt`` handler anyway (its graph stops on SIGINT), the
+    other commands keep what they were given."""
+    ignoring = ["sh", "-c", 'trap "" INT; exec "$@"', "sh"]
+    out = subprocess.run(
+        [*ignoring, sys.executable, "-c", HANDLER_AFTER_MAIN, command],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    ).stdout.split()
+    assert out == ["True", heard]

@@ -71,9 +71,7 @@ class FoodProbe:
         out = []
         failure = self.arm.take_failure()
         if failure is not None:
-            decision = self.machine.on_arm_failure(failure, now_ns)
-            if decision is not None:
-                out.append(self._act(decision))
+            out.append(self._act(self.machine.on_arm_failure(failure, now_ns)))
         state = self.arm.read_state()
         if state is not None:
             self.samples += 1

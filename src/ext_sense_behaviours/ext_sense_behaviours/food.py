@@ -79,7 +79,8 @@ class FoodConfig:
         window_end_ns: The window is complete this long after the motion start, ns.
         classify_timeout_ns: Longest wait for a class once the window is complete, ns.
         max_lowering_ns: Safety limit on the lowering time, ns.
-        max_retract_ns: Longest retract before the probe gives up and holds, ns.
+        max_retract_ns: How much longer than planned (distance / ``retract_speed_mps``) the
+            retract may take before the probe gives up and holds, ns.
         state_timeout_ns: Longest gap between arm states while the arm moves, ns: without
             state the behaviour cannot see contact nor the height (the robot publishes at
             30 Hz to 1 kHz).
@@ -98,7 +99,7 @@ class FoodConfig:
     window_end_ns: int = 8_000_000_000
     classify_timeout_ns: int = 5_000_000_000
     max_lowering_ns: int = 15_000_000_000
-    max_retract_ns: int = 20_000_000_000
+    max_retract_ns: int = 10_000_000_000
     state_timeout_ns: int = 500_000_000
     retract_height_m: float = math.nan
     retract_speed_mps: float = 0.05
@@ -174,7 +175,7 @@ class FoodMachine:
         self.stop_reason: StopReason | None = None
         self._stop: tuple[int, StopReason, float, float, int] | None = None
         self._window_done_ns = 0
-        self._retract_ns = 0  # when the retract was commanded, caller's clock
+        self._retract_due_ns = 0  # when the retract must be done by, caller's clock
         self._state_ns = 0  # when the newest arm state was read, caller's clock
 
     def _decide(self, now_ns: int, state: FoodState, action: FoodAction, reason: str) -> Decision:
@@ -255,7 +256,7 @@ class FoodMachine:
             return self._finish(arm.stamp_ns)
         return None
 
-    def on_arm_failure(self, reason: str, now_ns: int) -> Decision | None:
+    def on_arm_failure(self, reason: str, now_ns: int) -> Decision:
         """The arm's motion failed (the adapter's report): a moving probe stops and holds."""
         if self.state not in (FoodState.LOWERING, FoodState.RETRACTING):
             return self._decide(
@@ -282,11 +283,11 @@ class FoodMachine:
                 f"no arm state for {(now_ns - self._state_ns) / 1e9:.2f} s while "
                 f"{self.state.name.lower()}",
             )
-        if self.state == FoodState.RETRACTING and now_ns - self._retract_ns >= cfg.max_retract_ns:
+        if self.state == FoodState.RETRACTING and now_ns >= self._retract_due_ns:
             return self._fault(
                 now_ns,
-                f"not back at z={self.retract_height_m:.4f} m within "
-                f"{cfg.max_retract_ns / 1e9:.1f} s of the retract",
+                f"not back at z={self.retract_height_m:.4f} m "
+                f"{cfg.max_retract_ns / 1e9:.1f} s after the retract's planned end",
             )
         if (
             self.state == FoodState.COLLECTING
@@ -304,7 +305,7 @@ class FoodMachine:
             and now_ns - self._window_done_ns >= cfg.classify_timeout_ns
         ):
             self._store(None)
-            self._retract_ns = now_ns
+            self._plan_retract(now_ns)
             return self._decide(
                 now_ns,
                 FoodState.RETRACTING,
@@ -342,13 +343,24 @@ class FoodMachine:
                 f"provisional estimate '{estimate.class_label}' noted; waiting for the final one",
             )
         self._store(estimate)
-        self._retract_ns = now_ns
+        self._plan_retract(now_ns)
         return self._decide(
             now_ns,
             FoodState.RETRACTING,
             FoodAction.RETRACT,
             f"classified as '{estimate.class_label}': retract to z={self.retract_height_m:.4f} m",
         )
+
+    def _plan_retract(self, now_ns: int) -> None:
+        """Set when the retract must be done: its planned duration plus ``max_retract_ns``.
+
+        Planned from where the fork stopped to the retract height at ``retract_speed_mps``.
+        """
+        cfg = self.config
+        stop_z = self._stop[2] if self._stop is not None else math.nan
+        distance = self.retract_height_m - stop_z
+        planned_ns = round(distance / cfg.retract_speed_mps * 1e9) if distance > 0 else 0
+        self._retract_due_ns = now_ns + planned_ns + cfg.max_retract_ns
 
     def _store(self, estimate: Estimate | None) -> None:
         stop_ns, reason, z, force, index = self._stop or (

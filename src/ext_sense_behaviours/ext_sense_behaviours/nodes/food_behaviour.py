@@ -73,7 +73,15 @@ class FoodBehaviourNode(Node):
                 d("max_lowering_s", 15.0, "Lowering time limit, s.", 0.5, 120.0) * S
             ),
             max_retract_ns=round(
-                d("max_retract_s", 20.0, "Retract time limit, s.", 0.5, 120.0) * S
+                d(
+                    "max_retract_s",
+                    10.0,
+                    "How much longer than planned (distance / retract_speed_mps) the retract "
+                    "may take before the probe stops and holds, s.",
+                    0.5,
+                    120.0,
+                )
+                * S
             ),
             state_timeout_ns=round(
                 d(

@@ -29,6 +29,7 @@ and the food graph's simulated source run this code. Imported lazily by ``food_b
 
 from __future__ import annotations
 
+import uuid
 from collections.abc import Callable
 from typing import Any
 
@@ -36,9 +37,11 @@ import numpy as np
 from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory
 from rclpy.action import ActionClient
+from rclpy.action.client import ClientGoalHandle
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectoryPoint
+from unique_identifier_msgs.msg import UUID
 
 from ext_sense_behaviours.errors import BehaviourError
 from ext_sense_behaviours.franka import (
@@ -268,9 +271,11 @@ class FrankaArmAdapter:
                 "joint_trajectory_controller loaded and active?"
             )
         motion, planned_s = self._motion_id, float(times[-1])
+        goal_id = UUID(uuid=list(uuid.uuid4().bytes))  # ours: a goal never answered can be canceled
+        self._failure = None  # a failure of an earlier motion is no longer news
         self.counters["goals_sent"] += 1
-        self._deadline.arm(self.accept_timeout_s, lambda: self._unanswered(motion))
-        future = self._trajectory.send_goal_async(goal)
+        self._deadline.arm(self.accept_timeout_s, lambda: self._unanswered(motion, goal_id))
+        future = self._trajectory.send_goal_async(goal, goal_uuid=goal_id)
         future.add_done_callback(lambda f: self._on_goal_response(f, motion, planned_s))
 
     def _fail(self, counter: str, text: str) -> None:
@@ -280,13 +285,19 @@ class FrankaArmAdapter:
         self.last_error = self._failure = text
         self.node.get_logger().error(text)
 
-    def _unanswered(self, motion: int) -> None:
+    def _unanswered(self, motion: int, goal_id: UUID) -> None:
         if motion != self._motion_id:
             return
         self._motion_id += 1  # an acceptance after this is stale: it gets canceled
+        # The controller may have accepted the goal and be moving, its answer lost on the way:
+        # cancel it by its id (a controller that never got it answers "unknown goal").
+        lost = ClientGoalHandle(
+            self._trajectory, goal_id, FollowJointTrajectory.Impl.SendGoalService.Response()
+        )
+        lost.cancel_goal_async()
         self._fail(
             "goals_unanswered",
-            f"trajectory goal not answered within {self.accept_timeout_s:.1f} s: motion abandoned",
+            f"trajectory goal not answered within {self.accept_timeout_s:.1f} s: canceled",
         )
 
     def _on_goal_response(self, future: Any, motion: int, planned_s: float) -> None:
@@ -323,10 +334,10 @@ class FrankaArmAdapter:
         self._goal = None
         self._deadline.disarm()
         outcome = future.result()
-        if outcome is None or outcome.status in (
-            GoalStatus.STATUS_SUCCEEDED,
-            GoalStatus.STATUS_CANCELED,
-        ):
+        if outcome is None or outcome.status == GoalStatus.STATUS_SUCCEEDED:
+            return
+        if outcome.status == GoalStatus.STATUS_CANCELED:  # ours clear ``_goal`` first: not ours
+            self._fail("goals_failed", "trajectory goal canceled by the controller")
             return
         self._fail(
             "goals_failed",

@@ -15,6 +15,9 @@ pytest.importorskip(
     "franka_msgs", reason="franka_msgs is not built into this venv: make setup builds interfaces/"
 )
 
+from control_msgs.action import FollowJointTrajectory  # noqa: E402
+from rclpy.action import ActionClient  # noqa: E402
+from rclpy.action.client import ClientGoalHandle  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rosutil import spin_until  # noqa: E402
@@ -177,11 +180,46 @@ def test_a_result_that_does_not_come_ends_the_motion_and_the_goal_is_canceled(sp
     assert adapter.counters["goals_failed"] == 0
 
 
-def test_a_rejected_goal_is_reported_as_the_motion_failure(split_rig):
+def test_a_rejected_goal_is_reported_as_the_motion_failure_until_the_next_motion(split_rig):
     sim, adapter, (sim_ex, host_ex) = split_rig
     _ready(sim_ex, host_ex, adapter)
-    adapter.reading = adapter.reading._replace(joint_names=("a", "b", "c", "d", "e", "f", "g"))
+    good = adapter.reading
+    adapter.reading = good._replace(joint_names=("a", "b", "c", "d", "e", "f", "g"))
     adapter.move_down(0.01)
     assert spin_until([sim_ex, host_ex], lambda: adapter.counters["goals_rejected"] == 1, 5.0)
-    assert adapter.take_failure() == "trajectory goal rejected by the controller"
     assert sim.goals["rejected"] == 1
+    adapter.reading = good
+    adapter.retract(0.2, 0.05)  # the failure nobody took is old news for a new motion
+    assert adapter.take_failure() is None
+    adapter.reading = good._replace(joint_names=("a", "b", "c", "d", "e", "f", "g"))
+    adapter.move_down(0.01)
+    assert spin_until([sim_ex, host_ex], lambda: adapter.counters["goals_rejected"] == 2, 5.0)
+    assert adapter.take_failure() == "trajectory goal rejected by the controller"
+
+
+def test_a_goal_accepted_but_whose_answer_is_lost_is_canceled_by_its_id(split_rig):
+    """The controller moves the arm; only its answer never reaches the adapter."""
+    sim, adapter, (sim_ex, host_ex) = split_rig
+    _ready(sim_ex, host_ex, adapter)
+    adapter._on_goal_response = lambda *_args: None  # the goal response is lost on the way
+    adapter.move_down(0.01)
+    assert spin_until([sim_ex, host_ex], lambda: sim.goals["accepted"] == 1, 5.0)
+    assert spin_until([sim_ex, host_ex], lambda: adapter.counters["goals_unanswered"] == 1, 5.0)
+    assert spin_until([sim_ex, host_ex], lambda: sim.goals["canceled"] == 1, 5.0)
+    held = sim.arm.pose[2, 3]
+    spin_until([sim_ex, host_ex], lambda: False, 0.3)
+    assert sim.arm.pose[2, 3] == pytest.approx(held, abs=1e-9)  # stopped, not descending on
+
+
+def test_a_goal_canceled_by_someone_else_is_a_failure(split_rig):
+    sim, adapter, (sim_ex, host_ex) = split_rig
+    _ready(sim_ex, host_ex, adapter)
+    adapter.move_down(0.01)
+    assert spin_until([sim_ex, host_ex], lambda: adapter._goal is not None, 5.0)
+    other = ActionClient(adapter.node, FollowJointTrajectory, adapter.names.trajectory_action)
+    response = FollowJointTrajectory.Impl.SendGoalService.Response(accepted=True)
+    ClientGoalHandle(other, adapter._goal.goal_id, response).cancel_goal_async()
+    assert spin_until([sim_ex, host_ex], lambda: sim.goals["canceled"] == 1, 5.0)
+    assert spin_until([sim_ex, host_ex], lambda: adapter.counters["goals_failed"] == 1, 5.0)
+    assert adapter.take_failure() == "trajectory goal canceled by the controller"
+    other.destroy()

@@ -113,6 +113,7 @@ class Progress:
         self._spent = 0.0
         self._terminal = sys.stderr.isatty()
         self._logged_at: float | None = None  # when a line was last written into a log
+        self._last_logged = ""
 
     def add(self, n: int) -> None:
         """``n`` more fits were asked for."""
@@ -162,12 +163,22 @@ class Progress:
         now = time.monotonic()
         if self._logged_at is None or now - self._logged_at >= self.LOG_EVERY_S:
             self._logged_at = now
-            print(self.line(), file=sys.stderr, flush=True)
+            self._log(self.line())
+
+    def _log(self, line: str) -> None:
+        """One whole line into the log, unless it repeats the last one."""
+        if line != self._last_logged:
+            self._last_logged = line
+            print(line, file=sys.stderr, flush=True)
 
     def close(self) -> None:
         """End the display: a newline after the last rewrite, or the final line into a log."""
-        if self.enabled and self.total:
-            print("" if self._terminal else self.line(), file=sys.stderr, flush=True)
+        if not (self.enabled and self.total):
+            return
+        if self._terminal:
+            print(file=sys.stderr, flush=True)
+        else:
+            self._log(self.line())
 
 
 class FitExecutor:

@@ -84,6 +84,16 @@ def test_progress_into_a_log_writes_whole_lines_not_carriage_returns(capsys):
         "fits: 0 of 3 done (0 cached), 0 running, 0 failed",
         "fits: 3 of 3 done (0 cached), 0 running, 0 failed",
     ]
+    empty = Progress(True, workers=1)
+    empty.add(1)
+    empty.finish(None, cached=True)
+    empty._logged_at = None  # the next update is logged at once
+    empty.show()
+    empty.close()  # the same state as the line just logged: not written twice
+    assert capsys.readouterr().err.splitlines() == [
+        "fits: 0 of 1 done (0 cached), 0 running, 0 failed",
+        "fits: 1 of 1 done (1 cached), 0 running, 0 failed",
+    ]
 
 
 def test_cluster_options_are_checked():
