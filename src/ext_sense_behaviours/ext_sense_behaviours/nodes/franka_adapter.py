@@ -16,12 +16,13 @@ franka_ros2 robot offers (names are parameters, :class:`~ext_sense_behaviours.fr
 - stops the descent by itself when the robot raises a Cartesian contact or collision flag (its
   lower threshold crossed) or reports reflex mode, whatever the behaviour decides;
 - offers error recovery through ``franka_msgs/action/ErrorRecovery`` after a reflex;
-- ends every motion goal it sends: one the controller does not accept within
-  ``accept_timeout_s``, or whose result does not come within its planned duration plus
-  ``result_margin_s`` (it is then canceled), fails like a rejected or aborted one. The failure
-  is reported once through :meth:`FrankaArmAdapter.take_failure`, so the behaviour stops and
-  holds at once instead of waiting for a motion that will not happen (a lost goal response
-  used to leave the probe retracting forever).
+- ends every motion goal it sends: one the controller does not answer within
+  ``accept_timeout_s`` is canceled by its own goal id (the controller may have accepted it and
+  be moving, its answer lost), one whose result does not come within its planned duration plus
+  ``result_margin_s`` is canceled; either fails like a rejected, aborted or foreign-canceled
+  one. The failure is reported once through :meth:`FrankaArmAdapter.take_failure`, so the
+  behaviour stops and holds at once instead of waiting for a motion that will not happen (a
+  lost goal response used to leave the probe retracting forever).
 
 The simulated arm ``ext_sense_sim.nodes.sim_arm`` speaks exactly these interfaces, so the tests
 and the food graph's simulated source run this code. Imported lazily by ``food_behaviour``.
@@ -229,7 +230,11 @@ class FrankaArmAdapter:
             self._line(dz, speed_mps)
 
     def take_failure(self) -> str | None:
-        """Why the newest motion failed (rejected, unanswered, timed out, aborted), once."""
+        """Why the newest motion failed, once (``None``: it did not, or it was taken).
+
+        Rejected, unanswered, timed out, aborted or canceled by someone else; a new motion
+        clears a failure nobody took.
+        """
         failure, self._failure = self._failure, None
         return failure
 

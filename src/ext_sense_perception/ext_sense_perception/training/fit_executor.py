@@ -107,6 +107,9 @@ class Progress:
     And how many fits were sent again after a lost worker, when any were.
     """
 
+    LOG_EVERY_S = 30.0
+    """Period of the progress lines when stderr is not a terminal (a log file, CI)."""
+
     def __init__(self, enabled: bool, workers: int) -> None:
         self.enabled, self.workers = enabled, max(workers, 1)
         self.total = self.done = self.failed = self.cached = self.running = self.resent = 0
@@ -145,9 +148,6 @@ class Progress:
             f"fits: {self.done} of {self.total} done ({self.cached} cached), {self.running} "
             f"running, {self.failed} failed{resent}{eta}"
         )
-
-    LOG_EVERY_S = 30.0
-    """Period of the progress lines when stderr is not a terminal (a log file, CI)."""
 
     def show(self) -> None:
         """Rewrite the line on a terminal; into a log, a whole line every ``LOG_EVERY_S``.
