@@ -27,99 +27,14 @@ from ext_sense_behaviours.nodes.franka_adapter import FrankaArmAdapter  # noqa: 
 from ext_sense_sim.nodes.sim_arm import SimArmNode  # noqa: E402
 
 
-@pytest.fixture
-def rig():
+def _rig(sim_parameters: list[Parameter], **adapter_kwargs):
+    """The simulated robot and the adapter, each on an executor of its own, spun on demand
+    (``spin_until`` with both; a test leaves the robot's out to make it stop answering)."""
     context = rclpy.Context()
     rclpy.init(context=context)
-    sim = SimArmNode(
-        context=context,
-        parameter_overrides=[
-            Parameter("start_z_m", value=0.16),
-            Parameter("surface_z_m", value=0.152),
-            Parameter("force_noise_n", value=0.0),
-        ],
-    )
+    sim = SimArmNode(context=context, parameter_overrides=sim_parameters)
     host = rclpy.create_node("food_behaviour", context=context)
-    # reflex at 6 N, contact flag at 3 N: the robot's own flag stops the descent
-    adapter = FrankaArmAdapter(host, collision_force_n=6.0, max_descent_m=0.05)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(sim)
-    executor.add_node(host)
-    try:
-        yield sim, adapter, executor
-    finally:
-        executor.shutdown()
-        sim.destroy_node()
-        host.destroy_node()
-        rclpy.try_shutdown(context=context)
-
-
-def test_adapter_reads_state_sets_thresholds_descends_and_stops_on_the_contact_flag(rig):
-    sim, adapter, executor = rig
-    # thresholds: the robot holds what the adapter asked for
-    assert spin_until(executor, lambda: adapter.thresholds_set is not None)
-    assert adapter.thresholds_set is True
-    assert sim.arm.thresholds["upper_force_thresholds_nominal"] == [6.0] * 3 + [20.0] * 3
-    assert sim.arm.thresholds["lower_force_thresholds_nominal"] == [3.0] * 3 + [10.0] * 3
-    # state: height and the external force estimate (here the bias only)
-    assert spin_until(executor, lambda: adapter.read_state() is not None)
-    state = adapter.reading.state
-    assert state.z_m == pytest.approx(0.16, abs=1e-5)
-    assert state.force_n == pytest.approx((-0.5, 0.4, -0.5))
-    # descent through FollowJointTrajectory at 1 cm/s
-    assert spin_until(executor, lambda: adapter.trajectory_ready)
-    adapter.move_down(0.01)
-    assert spin_until(executor, lambda: adapter.reading.state.z_m < 0.157)
-    assert adapter.reading.state.velocity_z_mps == pytest.approx(-0.01, rel=0.05)
-    assert sim.goals["accepted"] == 1
-    # the contact flag (|F_z| > 3 N, 3 mm into the 1000 N/m surface) stops it; no reflex
-    assert spin_until(executor, lambda: adapter.counters["contact_stops"] == 1)
-    assert spin_until(executor, lambda: sim.goals["canceled"] == 1)
-    assert not sim.arm.reflex
-    held = sim.arm.pose[2, 3]
-    spin_until(executor, lambda: False, 0.5)
-    assert sim.arm.pose[2, 3] == pytest.approx(held, abs=1e-9)  # holds where it stopped
-    assert adapter.reading.state.z_m == pytest.approx(held, abs=1e-6)
-    assert 0.152 - 0.0045 < held < 0.152 - 0.003
-    assert 3.0 < adapter.reading.state.force_n[2] < 6.0
-    # retract to the start height
-    adapter.retract(0.16, 0.05)
-    assert spin_until(executor, lambda: sim.goals["succeeded"] == 1)
-    # the state message that shows the arm back up may arrive after the goal's result
-    assert spin_until(executor, lambda: abs(adapter.reading.state.z_m - 0.16) <= 1e-4)
-    assert adapter.counters["goals_failed"] == 0
-    assert adapter.counters["goals_rejected"] == 0
-
-
-def test_software_stop_before_the_flag_cancels_and_holds(rig):
-    sim, adapter, executor = rig
-    assert spin_until(executor, lambda: adapter.read_state() is not None)
-    assert spin_until(executor, lambda: adapter.trajectory_ready)  # discovery takes a moment
-    adapter.move_down(0.02)
-    assert spin_until(executor, lambda: adapter.reading.state.z_m < 0.158)
-    adapter.stop()  # the behaviour's own stop (e.g. its 10 N threshold, or the preset height)
-    assert spin_until(executor, lambda: sim.goals["canceled"] == 1)
-    held = sim.arm.pose[2, 3]
-    spin_until(executor, lambda: False, 0.3)
-    assert sim.arm.pose[2, 3] == pytest.approx(held, abs=1e-9)
-    assert held > 0.152  # above the surface: never touched
-    assert adapter.counters["contact_stops"] == 0
-
-
-def test_adapter_without_robot_state_refuses_to_plan(rig):
-    _sim, adapter, _executor = rig
-    with pytest.raises(BehaviourError, match="no robot state yet"):
-        adapter.move_down(0.01)
-
-
-@pytest.fixture
-def split_rig():
-    """The simulated robot and the adapter on executors of their own, spun on demand."""
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    sim = SimArmNode(context=context, parameter_overrides=[Parameter("force_noise_n", value=0.0)])
-    host = rclpy.create_node("food_behaviour", context=context)
-    adapter = FrankaArmAdapter(host, max_descent_m=0.05, accept_timeout_s=0.5, result_margin_s=0.2)
+    adapter = FrankaArmAdapter(host, max_descent_m=0.05, **adapter_kwargs)
     executors = []
     for node in (sim, host):
         executor = SingleThreadedExecutor(context=context)
@@ -134,6 +49,84 @@ def split_rig():
         sim.destroy_node()
         host.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def rig():
+    # reflex at 6 N, contact flag at 3 N: the robot's own flag stops the descent
+    yield from _rig(
+        [
+            Parameter("start_z_m", value=0.16),
+            Parameter("surface_z_m", value=0.152),
+            Parameter("force_noise_n", value=0.0),
+        ],
+        collision_force_n=6.0,
+    )
+
+
+def test_adapter_reads_state_sets_thresholds_descends_and_stops_on_the_contact_flag(rig):
+    sim, adapter, executors = rig
+    # thresholds: the robot holds what the adapter asked for
+    assert spin_until(executors, lambda: adapter.thresholds_set is not None)
+    assert adapter.thresholds_set is True
+    assert sim.arm.thresholds["upper_force_thresholds_nominal"] == [6.0] * 3 + [20.0] * 3
+    assert sim.arm.thresholds["lower_force_thresholds_nominal"] == [3.0] * 3 + [10.0] * 3
+    # state: height and the external force estimate (here the bias only)
+    assert spin_until(executors, lambda: adapter.read_state() is not None)
+    state = adapter.reading.state
+    assert state.z_m == pytest.approx(0.16, abs=1e-5)
+    assert state.force_n == pytest.approx((-0.5, 0.4, -0.5))
+    # descent through FollowJointTrajectory at 1 cm/s
+    assert spin_until(executors, lambda: adapter.trajectory_ready)
+    adapter.move_down(0.01)
+    assert spin_until(executors, lambda: adapter.reading.state.z_m < 0.157)
+    assert adapter.reading.state.velocity_z_mps == pytest.approx(-0.01, rel=0.05)
+    assert sim.goals["accepted"] == 1
+    # the contact flag (|F_z| > 3 N, 3 mm into the 1000 N/m surface) stops it; no reflex
+    assert spin_until(executors, lambda: adapter.counters["contact_stops"] == 1)
+    assert spin_until(executors, lambda: sim.goals["canceled"] == 1)
+    assert not sim.arm.reflex
+    held = sim.arm.pose[2, 3]
+    spin_until(executors, lambda: False, 0.5)
+    assert sim.arm.pose[2, 3] == pytest.approx(held, abs=1e-9)  # holds where it stopped
+    assert adapter.reading.state.z_m == pytest.approx(held, abs=1e-6)
+    assert 0.152 - 0.0045 < held < 0.152 - 0.003
+    assert 3.0 < adapter.reading.state.force_n[2] < 6.0
+    # retract to the start height
+    adapter.retract(0.16, 0.05)
+    assert spin_until(executors, lambda: sim.goals["succeeded"] == 1)
+    # the state message that shows the arm back up may arrive after the goal's result
+    assert spin_until(executors, lambda: abs(adapter.reading.state.z_m - 0.16) <= 1e-4)
+    assert adapter.counters["goals_failed"] == 0
+    assert adapter.counters["goals_rejected"] == 0
+
+
+def test_software_stop_before_the_flag_cancels_and_holds(rig):
+    sim, adapter, executors = rig
+    assert spin_until(executors, lambda: adapter.read_state() is not None)
+    assert spin_until(executors, lambda: adapter.trajectory_ready)  # discovery takes a moment
+    adapter.move_down(0.02)
+    assert spin_until(executors, lambda: adapter.reading.state.z_m < 0.158)
+    adapter.stop()  # the behaviour's own stop (e.g. its 10 N threshold, or the preset height)
+    assert spin_until(executors, lambda: sim.goals["canceled"] == 1)
+    held = sim.arm.pose[2, 3]
+    spin_until(executors, lambda: False, 0.3)
+    assert sim.arm.pose[2, 3] == pytest.approx(held, abs=1e-9)
+    assert held > 0.152  # above the surface: never touched
+    assert adapter.counters["contact_stops"] == 0
+
+
+def test_adapter_without_robot_state_refuses_to_plan(rig):
+    _sim, adapter, _executors = rig
+    with pytest.raises(BehaviourError, match="no robot state yet"):
+        adapter.move_down(0.01)
+
+
+@pytest.fixture
+def split_rig():
+    yield from _rig(
+        [Parameter("force_noise_n", value=0.0)], accept_timeout_s=0.5, result_margin_s=0.2
+    )
 
 
 def _ready(sim_ex, host_ex, adapter) -> None:
