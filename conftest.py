@@ -9,10 +9,11 @@ Shared-memory segments that crashed participants leave in /dev/shm are cleaned a
 from __future__ import annotations
 
 import os
-import signal
 from pathlib import Path
 
 import pytest
+
+from ext_sense.cli import hear_interrupts
 
 ROOT = Path(__file__).resolve().parent
 SHARED_DATA = ROOT.parent / "shared" / "data"
@@ -21,8 +22,7 @@ SHARED_DATA = ROOT.parent / "shared" / "data"
 # process the tests start would inherit that: a test's Ctrl-C to a graph it started (its
 # runner's first tenth of a second, test_shutdown.py) was lost. The tests send the signals a
 # terminal would, so they run with the terminal's disposition.
-if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+hear_interrupts()
 
 os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 200))
 if worker := os.environ.get("PYTEST_XDIST_WORKER"):  # gw0, gw1, ...: a domain each (below 233)

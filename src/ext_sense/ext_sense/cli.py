@@ -74,7 +74,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         if argv[:1] == ["run"]:
-            _hear_interrupts()
+            hear_interrupts()
         return _dispatch(argv)
     except KeyboardInterrupt:
         if argv[:1] == ["run"]:
@@ -90,7 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
 
 
-def _hear_interrupts() -> None:
+def hear_interrupts() -> None:
     """Let Ctrl-C stop ``run`` from here on, also when it was started with SIGINT ignored.
 
     A shell without job control starts background commands (``ext-sense run ... &`` in a
@@ -98,7 +98,8 @@ def _hear_interrupts() -> None:
     ``KeyboardInterrupt`` handler: a SIGINT before the runner installed its own handlers was
     lost and the graph started anyway, to run until killed (``test_shutdown.py``, under a
     backgrounded ``make test``). The runner's handlers take SIGINT whatever was inherited, so
-    this makes the command take it the same way from its first line on.
+    this makes the command take it the same way from its first line on. The test suite calls
+    it too, so the graphs its tests start inherit a terminal's disposition.
     """
     import signal
 
