@@ -48,7 +48,7 @@ def test_create_trains_every_task_through_the_project_paths(store, monkeypatch, 
     assert rc == 0
     assert calls == [
         ("stream", store / "tap_localization_nuskin", "nuskin", 300, False),
-        ("recipe", store / "handover_stability_nuskin", "nuskin", 80, False),
+        ("recipe", store / "handover_stability_nuskin", "nuskin", 400, False),
         ("recipe", store / "food_identification_nuskin", "nuskin", 70, False),
     ]
     assert str(store) in out
@@ -57,7 +57,7 @@ def test_create_trains_every_task_through_the_project_paths(store, monkeypatch, 
     calls.clear()
     rc, _ = _main("models", "create", "--out", str(tmp_path / "o"), "--task", "handover_stability")
     assert rc == 0
-    assert calls == [("recipe", tmp_path / "o" / "handover_stability_nuskin", "nuskin", 80, False)]
+    assert calls == [("recipe", tmp_path / "o" / "handover_stability_nuskin", "nuskin", 400, False)]
 
     rc, out = _main("models", "list")
     assert rc == 0
