@@ -3,7 +3,7 @@
 ``create`` trains the default model of every task for one sensor on the scene simulator, with
 the training paths the rest of the project uses: tap localization as ``ext-sense demo`` does
 (NUSkin: windows cut from the emulated device's own byte stream, ``demo.ensure_model``; the same
-model the demo uses), handover and food on a small simulated set through the one training
+model the demo uses), handover and food on simulated sets through the one training
 recipe (``ext_sense_perception.training.recipe.train_bundle``); the NUSkin handover set is cut
 from the device stream too, and again as a late reader reads it (``HANDOVER_LATE_READS``). It writes
 ``<task>_<sensor>/`` bundles into the user's data directory (``$EXT_SENSE_MODELS`` when set; see
@@ -36,7 +36,8 @@ the command at about a minute on the 2-core machine (docs/runtime.md has the mea
 scores). The NUSkin handover: 400, because its release rule (3 confident estimates in a row)
 needs probabilities that hold on live reads; on two live 40-grasp bags its model released 81 of
 120 stable grasps (three fit seeds) with 80 trials, 96 with 160, 104 with 240 and 117 with 400,
-against 103-120 on the same trials read ideally (docs/benchmarks.md, "More training trials")."""
+against 103-120 on the same trials read ideally (docs/benchmarks.md, "Where the release streak
+is lost")."""
 
 HANDOVER_LATE_READS = 2
 """Extra cuts of the NUSkin handover training stream by a late reader
