@@ -29,6 +29,7 @@ shutting down its context: ``rclpy.try_shutdown(context=node.context)``.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -43,6 +44,10 @@ from ext_sense.graph import GraphSpec, NodeSpec, as_bool
 from ext_sense.graph_process import process_groups
 
 STOP_GRACE_S = 5.0
+STACKS_SIGNAL = signal.SIGUSR1
+"""Sent to a node that did not stop in time: ``node_main`` prints its threads' stacks on it."""
+STACKS_WAIT_S = 0.5
+"""Time such a node is given to print its stacks before it is killed."""
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
@@ -166,7 +171,14 @@ def stop_nodes(procs: dict[str, subprocess.Popen[bytes]], log: Any) -> dict[str,
         try:
             proc.wait(timeout=max(0.0, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
-            print(f"[run] {name} did not stop within {STOP_GRACE_S:g} s; killing it", file=log)
+            print(
+                f"[run] {name} did not stop within {STOP_GRACE_S:g} s: its threads' stacks "
+                "(on its stderr), then killed",
+                file=log,
+            )
+            with contextlib.suppress(OSError):
+                proc.send_signal(STACKS_SIGNAL)
+                time.sleep(STACKS_WAIT_S)
             proc.kill()
             proc.wait()
     return {name: proc.returncode for name, proc in procs.items()}

@@ -21,6 +21,7 @@ interpreter's finalisation would otherwise end it with -2.
 
 from __future__ import annotations
 
+import faulthandler
 import gc
 import signal
 import threading
@@ -36,6 +37,10 @@ from ext_sense_runtime.executor import make_executor, spin_until_shutdown
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 """The signals that ask a node process to stop."""
+STACKS_SIGNAL = signal.SIGUSR1
+"""Makes a node process print every thread's stack to stderr and go on (``faulthandler``):
+``ext-sense run`` sends it to a node that did not stop in time, before killing it, so the log
+says where it hung."""
 
 
 class StopRequest:
@@ -58,6 +63,7 @@ class StopRequest:
         if not self.installed and threading.current_thread() is threading.main_thread():
             for signum in STOP_SIGNALS:
                 signal.signal(signum, self._on_signal)
+            faulthandler.register(STACKS_SIGNAL, all_threads=True)
             self.installed = True
             # `ext-sense run` starts its children with these signals blocked, so that one
             # arriving while the interpreter starts and imports is held, not a KeyboardInterrupt:
