@@ -44,10 +44,9 @@ from ext_sense.graph import GraphSpec, NodeSpec, as_bool
 from ext_sense.graph_process import process_groups
 
 STOP_GRACE_S = 5.0
-STACKS_SIGNAL = signal.SIGUSR1
-"""Sent to a node that did not stop in time: ``node_main`` prints its threads' stacks on it."""
 STACKS_WAIT_S = 0.5
-"""Time such a node is given to print its stacks before it is killed."""
+"""Time a node that did not stop is given to print its threads' stacks (``node_main``'s
+``STACKS_SIGNAL``) before it is killed."""
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
@@ -176,6 +175,8 @@ def stop_nodes(procs: dict[str, subprocess.Popen[bytes]], log: Any) -> dict[str,
                 "(on its stderr), then killed",
                 file=log,
             )
+            from ext_sense_runtime.node_main import STACKS_SIGNAL  # rclpy: only on this path
+
             with contextlib.suppress(OSError):
                 proc.send_signal(STACKS_SIGNAL)
                 time.sleep(STACKS_WAIT_S)
