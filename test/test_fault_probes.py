@@ -94,9 +94,12 @@ def test_sigstop_of_the_inference_node_publishes_its_late_estimates_as_degraded(
     graph.stop([(0.0, signal.SIGINT)])
     after = graph.out[before:]
     degraded = [x for x in after if "DEGRADED" in x]
-    print(f"SIGSTOP inference 3 s: {len(degraded)} degraded, e.g. {degraded[:1]}")
-    assert degraded
-    assert all("late: ready " in x and "(deadline 500 ms)" in x for x in degraded)
+    late = [x for x in degraded if "late: ready " in x and "(deadline 500 ms)" in x]
+    print(f"SIGSTOP inference 3 s: {len(late)} late of {len(degraded)} degraded, e.g. {late[:1]}")
+    assert late, degraded  # the windows that waited out the stop
+    # any other degraded estimate names its own window's fault (on a loaded machine the sensor
+    # stream itself comes in late now and then: "N late packet(s) on ..."), never none
+    assert all("late packet(s) on " in x for x in degraded if x not in late), degraded
     scored = [float(m.group(1)) for x in after if (m := LATENCY.search(x.strip()))]
     assert scored  # the graph went on after the stop
     assert max(scored) < 500.0  # no late estimate passed off as a normal one

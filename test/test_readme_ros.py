@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 from sim_models import EXE, finish_graph
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(600)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(1200)]
 
 ROOT = Path(__file__).resolve().parents[1]
 TAPS = 5
@@ -62,8 +62,10 @@ def test_readme_ros_steps_print_estimates_from_an_unrelated_directory(tmp_path):
     env["XDG_DATA_HOME"] = str(tmp_path / "data")
     store = tmp_path / "data" / "ext_sense" / "models"
 
+    # the whole models create: 149 s on a quiet 2-core machine (docs/runtime.md), over 400 s on
+    # a slower one running the suite (26 November 2026: test-fast 2 min 49 s against 1 min 24 s)
     created = subprocess.run(
-        as_local(creates[0]), cwd=work, env=env, capture_output=True, text=True, timeout=400
+        as_local(creates[0]), cwd=work, env=env, capture_output=True, text=True, timeout=900
     )
     assert created.returncode == 0, created.stderr[-3000:]
     for name in ("tap_localization", "handover_stability", "food_identification"):

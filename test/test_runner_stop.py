@@ -3,9 +3,10 @@
 - ``ext-sense run`` gives each node ``STOP_GRACE_S`` after SIGINT; one still running then gets
   ``STACKS_SIGNAL`` (``node_main`` prints every thread's stack on it) before SIGKILL, so a hang
   at shutdown leaves evidence instead of only an exit code of -9.
-- ``node_main.TeardownGuard``: a hang inside rclpy while the last node is destroyed (what the
-  stacks showed in a ``test_shutdown`` run: the middleware destroying ``sim_device``) ends the
-  process with 0 after ``TEARDOWN_LIMIT_S``; a hang in a node's own cleanup does not.
+- ``teardown_guard.TeardownGuard``: a hang inside rclpy while the last node is destroyed (what
+  the stacks showed in ``test_shutdown`` runs: the middleware destroying ``sim_device`` or
+  ``estimate_monitor``, holding the GIL) ends the process with 0 after ``TEARDOWN_LIMIT_S``; a
+  hang in a node's own cleanup does not.
 """
 
 from __future__ import annotations
@@ -18,7 +19,10 @@ import sys
 import time
 from collections.abc import Iterator
 
+import pytest
+
 from ext_sense import runner
+from ext_sense_runtime.teardown_guard import TEARDOWN_LIMIT_S
 
 HUNG_NODE = """
 import sys, time
@@ -67,15 +71,17 @@ def test_a_node_that_ignores_the_stop_prints_its_stacks_then_is_killed(monkeypat
 
 
 STUCK_AT_TEARDOWN = """
-import sys, time
-import rclpy.node
+import ctypes, sys
 from rclpy.node import Node
 from ext_sense_runtime.node_main import run_nodes
 
 WHERE = sys.argv[1]
-ns = {}  # a hang whose innermost Python frame is rclpy's, as the middleware's was
-exec(compile("def hang(self):\\n    while True:\\n        time.sleep(0.05)\\n",
-             rclpy.node.__file__, "exec"), {"time": time}, ns)
+
+
+def hang():
+    # a C call that keeps the GIL (a PyDLL function), as the middleware's destruction did: no
+    # Python thread can run while it blocks
+    ctypes.PyDLL(None).sleep(60)
 
 
 class Stuck(Node):
@@ -85,9 +91,9 @@ class Stuck(Node):
 
     def destroy_node(self):
         if WHERE == "own":
-            while True:  # the node's own cleanup never ends
-                time.sleep(0.05)
-        Node._wake_executor = ns["hang"]  # the last step of rclpy's destroy_node
+            hang()  # the node's own cleanup never ends
+        # the middleware's destruction, inside rclpy's destroy_node, never ends
+        self._type_description_service.destroy = hang
         super().destroy_node()
 
 
@@ -108,21 +114,44 @@ def _stop_stuck(where: str, wait_s: float) -> tuple[int | None, str, float]:
     return code, proc.stderr.read(), took
 
 
-def test_a_hang_in_the_middleware_teardown_of_the_last_node_ends_the_process():
-    from ext_sense_runtime.node_main import TEARDOWN_LIMIT_S
-
+def test_a_hang_holding_the_gil_in_the_middleware_teardown_of_the_last_node_ends_the_process():
     code, stderr, took = _stop_stuck("rclpy", TEARDOWN_LIMIT_S + 4.0)
     assert code == 0, stderr
-    assert "[stuck] the teardown did not end within" in stderr
-    assert "exiting without it" in stderr
-    assert "in hang" in stderr  # its stack
+    assert f"Timeout (0:00:0{TEARDOWN_LIMIT_S:g})!" in stderr  # faulthandler's stacks
+    assert "in hang" in stderr, stderr
+    assert "in destroy_node" in stderr, stderr
+    assert "[stuck] rclpy's teardown hung for 3 s after every node's own cleanup" in stderr
     assert TEARDOWN_LIMIT_S <= took < TEARDOWN_LIMIT_S + 4.0
 
 
-def test_a_hang_in_a_node_own_cleanup_is_left_to_the_supervisor():
-    from ext_sense_runtime.node_main import TEARDOWN_LIMIT_S
-
+def test_a_hang_holding_the_gil_in_a_node_own_cleanup_is_left_to_the_supervisor():
     code, stderr, _ = _stop_stuck("own", TEARDOWN_LIMIT_S + 1.5)
     assert code is None, stderr  # still running: its own cleanup may be writing data
-    assert "[stuck] the teardown did not end within" in stderr  # its stacks are out
-    assert "exiting without it" not in stderr
+    assert f"Timeout (0:00:0{TEARDOWN_LIMIT_S:g})!" in stderr  # its stacks are out
+    assert "in hang" in stderr, stderr
+    assert "rclpy's teardown hung" not in stderr
+
+
+@pytest.mark.ros
+def test_a_guarded_teardown_that_ends_in_time_leaves_no_trace():
+    from rclpy.node import Node
+
+    from ext_sense_runtime.teardown_guard import TeardownGuard
+
+    class Plain(Node):
+        pass
+
+    import rclpy
+
+    context = rclpy.Context()
+    rclpy.init(context=context, args=[])
+    nodes = [Plain("first", context=context), Plain("last", context=context)]
+    with TeardownGuard(nodes) as guard:
+        for node in nodes:
+            guard.destroying(node)
+            node.destroy_node()
+        guard.destroying(None)
+        with guard.middleware():
+            rclpy.try_shutdown(context=context)
+    assert guard.armed == 2  # around rclpy's destroy_node of the last node, and its shutdown
+    time.sleep(TEARDOWN_LIMIT_S + 0.5)  # both timers deleted: this process is still here

@@ -248,6 +248,12 @@ its force is a 1000 N/m spring, not the scene's per-food profile."""
 SIM_FOOD_STOP_HEIGHT_M = 0.125
 """The probe's preset stop over the simulated arm: the scene's 35 mm travel from the start."""
 
+SIM_ARM_STATE_TIMEOUT_S = 2.0
+"""The probe's arm-state timeout over the simulated arm (0.5 s on a robot). franka_ros2 sends
+states at 1 kHz from a real-time process; ``sim_arm`` sends 100 Hz from a Python process that
+shares the CPU with the whole graph, and on a slow 2-core machine running the full test suite
+its states paused 0.62 s once, which faulted the probe."""
+
 
 def _handover_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     handover: dict[str, ParameterValue] = {"timeout_s": float(args["handover_timeout_s"])}
@@ -284,6 +290,7 @@ def _food_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     arm: tuple[NodeSpec, ...] = ()
     if args["arm"] == "sim":
         food["stop_height_m"] = SIM_FOOD_STOP_HEIGHT_M
+        food["state_timeout_s"] = SIM_ARM_STATE_TIMEOUT_S
         plugin = "ext_sense_sim.nodes.sim_arm:SimArmNode"
         arm = (NodeSpec("ext_sense_sim", "sim_arm", "sim_arm", plugin, dict(SIM_FOOD_ARM)),)
     if args["source"] == "sim":

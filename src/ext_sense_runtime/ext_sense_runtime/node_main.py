@@ -23,9 +23,7 @@ from __future__ import annotations
 
 import faulthandler
 import gc
-import os
 import signal
-import sys
 import threading
 from collections.abc import Callable, Sequence
 from types import FrameType
@@ -36,6 +34,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from ext_sense_runtime.executor import make_executor, spin_until_shutdown
+from ext_sense_runtime.teardown_guard import TeardownGuard
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 """The signals that ask a node process to stop."""
@@ -110,63 +109,6 @@ def install_stop_handlers() -> StopRequest:
     return STOP
 
 
-TEARDOWN_LIMIT_S = 3.0
-"""Longest the middleware's part of the cleanup may take before the process exits without it
-(below ``ext-sense run``'s 5 s and ``ros2 launch``'s SIGTERM timeout)."""
-
-
-class TeardownGuard:
-    """Ends the process when the middleware's teardown of its last node hangs.
-
-    Seen in ``test_shutdown`` runs (docs/runtime.md): ``sim_device`` stopped its own thread and
-    link, then hung for good in rclpy's ``Node.destroy_node``, where the middleware destroys the
-    node, and was killed. After :data:`TEARDOWN_LIMIT_S` the guard prints every thread's stack;
-    if the main thread is then inside rclpy while destroying the process's last node (or in
-    ``rclpy.try_shutdown`` after them all), every node's own cleanup is done and the process
-    exits 0 without the rest. A hang anywhere else (a node's own cleanup, an earlier node of
-    several) is left to the supervisor, which kills the process after its own grace period.
-    """
-
-    def __init__(self, nodes: Sequence[Node]) -> None:
-        self.nodes = list(nodes)
-        self.current: Node | None = None
-        """The node being destroyed; ``None`` before the first and after the last."""
-        self.all_destroyed = False
-        self._main = threading.main_thread().ident
-        self._timer = threading.Timer(TEARDOWN_LIMIT_S, self._expired)
-        self._timer.daemon = True
-        self._timer.start()
-
-    def disarm(self) -> None:
-        """The teardown finished in time."""
-        self._timer.cancel()
-
-    def in_rclpy(self) -> bool:
-        """Whether the main thread's innermost Python frame is rclpy's."""
-        frame = sys._current_frames().get(self._main) if self._main is not None else None
-        return frame is not None and f"{os.sep}rclpy{os.sep}" in frame.f_code.co_filename
-
-    def _expired(self) -> None:
-        last = self.all_destroyed or (self.nodes and self.current is self.nodes[-1])
-        safe = bool(last) and self.in_rclpy()
-        name = self.current.get_name() if self.current is not None else "rclpy shutdown"
-        print(
-            f"[{name}] the teardown did not end within {TEARDOWN_LIMIT_S:g} s; its threads:",
-            file=sys.stderr,
-            flush=True,
-        )
-        faulthandler.dump_traceback(all_threads=True)
-        if safe:
-            print(
-                f"[{name}] hung in the middleware's teardown after every node's own cleanup: "
-                "exiting without it",
-                file=sys.stderr,
-                flush=True,
-            )
-            sys.stdout.flush()
-            os._exit(0)
-
-
 def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | None = None) -> int:
     """Create nodes after ``rclpy.init``, spin them on one executor until a stop, clean up once.
 
@@ -200,15 +142,17 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
     except (KeyboardInterrupt, ExternalShutdownException):  # rclpy's handlers (not main thread)
         pass
     finally:
-        guard = TeardownGuard(nodes)
-        if executor is not None:
-            executor.shutdown()  # before the nodes: it lets go of their entities
-        for node in nodes:
-            guard.current = node
-            node.destroy_node()
-        guard.current, guard.all_destroyed = None, True
-        rclpy.try_shutdown()
-        guard.disarm()
+        # a hang in rclpy's own teardown ends the process after every node's cleanup (off the
+        # main thread, e.g. in a test process, the guard does nothing)
+        with TeardownGuard(nodes, enabled=stop.installed) as guard:
+            if executor is not None:
+                executor.shutdown()  # before the nodes: it lets go of their entities
+            for node in nodes:
+                guard.destroying(node)
+                node.destroy_node()
+            guard.destroying(None)
+            with guard.middleware():
+                rclpy.try_shutdown()
         stop.ignore_further()
     return 0
 
