@@ -18,9 +18,12 @@ demo: setup
 demo-sessions: setup
 	@scripts/demo_sessions.sh
 
-## Lint and every test (unit, node, system). CI runs exactly this.
+## Lint and every test (unit, node, system). CI runs exactly this. The tests not marked slow
+## run on both cores, as in test-fast; the slow ones (graphs of node processes, timing) one at a
+## time, alone on the machine.
 test: setup lint
-	@$(VENV)/bin/pytest
+	@$(VENV)/bin/pytest -m "not slow" -n 2
+	@$(VENV)/bin/pytest -m slow
 
 ## The everyday lane: lint and the tests not marked slow (no graph subprocesses, no training on
 ## hundreds of taps), on both cores. Run `make test` before you push.

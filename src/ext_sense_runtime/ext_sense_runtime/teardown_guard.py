@@ -130,6 +130,7 @@ class TeardownGuard:
         """The node being destroyed; ``None`` before the first and after the last."""
         self.name = "rclpy"
         self._exit: NativeExitTimer | None = None
+        self._previous_profile: Any = None
         self.unavailable = False
         """The C library has no POSIX timers: a hang is left to the supervisor."""
         self.armed = 0
@@ -138,6 +139,7 @@ class TeardownGuard:
     def __enter__(self) -> TeardownGuard:
         if self.enabled:
             faulthandler.dump_traceback_later(TEARDOWN_LIMIT_S, exit=False)
+            self._previous_profile = sys.getprofile()  # put back afterwards (e.g. cProfile's)
             sys.setprofile(self._profile)
         return self
 
@@ -148,7 +150,7 @@ class TeardownGuard:
         tb: TracebackType | None,
     ) -> None:
         if self.enabled:
-            sys.setprofile(None)
+            sys.setprofile(self._previous_profile)
             faulthandler.cancel_dump_traceback_later()
             self._disarm()
 

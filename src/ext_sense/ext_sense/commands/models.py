@@ -15,6 +15,7 @@ retrains it. ``list`` prints the search path and every bundle found along it.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import time
@@ -38,6 +39,12 @@ needs probabilities that hold on live reads; on two live 40-grasp bags its model
 120 stable grasps (three fit seeds) with 80 trials, 96 with 160, 104 with 240 and 117 with 400,
 against 103-120 on the same trials read ideally (docs/benchmarks.md, "Where the release streak
 is lost")."""
+
+JOBS = os.cpu_count() or 1
+"""Grid-search jobs of the recipe-trained models (every core: the same model as one job). The
+NUSkin handover's 400-trial fit on a slow 2-core machine: 129.2 + 244.8 s (model + anytime
+models) with 1 job, 71.7 + 144.1 s with 2, the same CV accuracy and parameters
+(``bench/handover_fit_jobs.py``, docs/runtime.md)."""
 
 HANDOVER_LATE_READS = 2
 """Extra cuts of the NUSkin handover training stream by a late reader
@@ -153,7 +160,7 @@ def train_simulated(
     try:
         t0 = time.monotonic()
         if from_stream:
-            ws, recipe = late_read_set(scene, task, trials), Recipe(arrival_jitter=0.0)
+            ws, recipe = late_read_set(scene, task, trials), Recipe(arrival_jitter=0.0, n_jobs=JOBS)
         else:
             with tempfile.TemporaryDirectory(prefix="ext_sense_models_") as tmp:
                 run_scene(
@@ -162,7 +169,7 @@ def train_simulated(
                 npz = Path(tmp) / "sim" / "dataset.npz"
                 if sensor == "nuskin":
                     npz = as_delivered(npz, Path(tmp) / "delivered.npz")
-                ws, recipe = from_sim_dataset(npz), Recipe()
+                ws, recipe = from_sim_dataset(npz), Recipe(n_jobs=JOBS)
         t1 = time.monotonic()
         print(
             f"[models] simulated {scene} ({how}: {len(ws.y)} windows) in {t1 - t0:.1f} s", file=log
