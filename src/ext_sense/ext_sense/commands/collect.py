@@ -103,6 +103,11 @@ def _graph_nodes(args: argparse.Namespace, schedule: list[str], scripted: bool) 
     overrides = parse_assignments(args.assignments)
     overrides.setdefault("monitor", "false")
     overrides.setdefault("trials", "0")
+    if overrides.get("source", "sim") == "sim":
+        # as ext-sense demo: the emulated sensor's hot path in one process. On a slow 2-core
+        # machine a food session's graph of a process per node lost thousands of packets and
+        # its probe faulted (the arm's states late); one process held (docs/collect.md)
+        overrides.setdefault("hot_path", "one_process")
     if args.task != "tap_localization":
         overrides.setdefault("behaviours", "true")
         if schedule and overrides.get("source", "sim") == "sim":
