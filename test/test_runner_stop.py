@@ -134,18 +134,14 @@ def test_a_hang_holding_the_gil_in_a_node_own_cleanup_is_left_to_the_supervisor(
 
 @pytest.mark.ros
 def test_a_guarded_teardown_that_ends_in_time_leaves_no_trace():
+    import rclpy
     from rclpy.node import Node
 
     from ext_sense_runtime.teardown_guard import TeardownGuard
 
-    class Plain(Node):
-        pass
-
-    import rclpy
-
     context = rclpy.Context()
     rclpy.init(context=context, args=[])
-    nodes = [Plain("first", context=context), Plain("last", context=context)]
+    nodes = [Node("first", context=context), Node("last", context=context)]
     with TeardownGuard(nodes) as guard:
         for node in nodes:
             guard.destroying(node)
