@@ -103,7 +103,8 @@ def _graph_nodes(args: argparse.Namespace, schedule: list[str], scripted: bool) 
     overrides = parse_assignments(args.assignments)
     overrides.setdefault("monitor", "false")
     overrides.setdefault("trials", "0")
-    if overrides.get("source", "sim") == "sim":
+    simulated = overrides.get("source", "sim") == "sim"
+    if simulated:
         # as ext-sense demo: the emulated sensor's hot path in one process. On a slow 2-core
         # machine a food session's graph of a process per node lost thousands of packets and
         # its probe faulted (the arm's states late), 3 runs of 3; one process passed 2 of 3
@@ -111,7 +112,7 @@ def _graph_nodes(args: argparse.Namespace, schedule: list[str], scripted: bool) 
         overrides.setdefault("hot_path", "one_process")
     if args.task != "tap_localization":
         overrides.setdefault("behaviours", "true")
-        if schedule and overrides.get("source", "sim") == "sim":
+        if schedule and simulated:
             overrides.setdefault("sim_labels", ",".join(schedule))
     if args.task == "handover_stability":
         overrides.setdefault("grasp_trials", "2")
