@@ -18,12 +18,12 @@ demo: setup
 demo-sessions: setup
 	@scripts/demo_sessions.sh
 
-## Lint and every test (unit, node, system). CI runs exactly this. The tests not marked slow
-## run on both cores, as in test-fast; the slow ones (graphs of node processes, timing) one at a
-## time, alone on the machine.
+## Lint and every test (unit, node, system). CI runs exactly this. Every test but the graphs of
+## node processes (marked slow and ros) runs on both cores, test-fast's and the slow training
+## ones; the graphs, which assert on live timing, then one at a time, alone on the machine.
 test: setup lint
-	@$(VENV)/bin/pytest -m "not slow" -n 2
-	@$(VENV)/bin/pytest -m slow
+	@$(VENV)/bin/pytest -m "not (slow and ros)" -n 2
+	@$(VENV)/bin/pytest -m "slow and ros"
 
 ## The everyday lane: lint and the tests not marked slow (no graph subprocesses, no training on
 ## hundreds of taps), on both cores. Run `make test` before you push.

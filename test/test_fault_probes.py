@@ -50,6 +50,20 @@ def _start(tap_model, tmp_path, tag: str) -> Graph:
     return graph
 
 
+def _wait_scored(graph: Graph, since: int, at_least: float, timeout: float) -> None:
+    """Wait ``at_least`` s, then until a normal (scored) estimate follows line ``since``.
+
+    A fixed wait was too short on a slow machine running the whole suite: 4 s after ``SIGCONT``
+    held no scored tap there, twice.
+    """
+    time.sleep(at_least)
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if any(LATENCY.search(x.strip()) for x in graph.out[since:]):
+            return
+        time.sleep(0.2)
+
+
 def _wait_gone(graph: Graph, timeout: float) -> float:
     start = time.monotonic()
     while graph.group_alive() and time.monotonic() - start < timeout:
@@ -90,7 +104,7 @@ def test_sigstop_of_the_inference_node_publishes_its_late_estimates_as_degraded(
     os.kill(pid, signal.SIGSTOP)
     time.sleep(3.0)
     os.kill(pid, signal.SIGCONT)
-    time.sleep(8.0)  # 4 s were not enough for a scored tap once on a slow machine
+    _wait_scored(graph, len(graph.out), at_least=2.0, timeout=20.0)
     graph.stop([(0.0, signal.SIGINT)])
     after = graph.out[before:]
     degraded = [x for x in after if "DEGRADED" in x]
@@ -115,7 +129,7 @@ def test_sigstop_of_the_window_node_degrades_the_windows_it_gets_late(tap_model,
     os.kill(pid, signal.SIGSTOP)
     time.sleep(2.0)
     os.kill(pid, signal.SIGCONT)
-    time.sleep(4.0)
+    _wait_scored(graph, len(graph.out), at_least=2.0, timeout=20.0)
     graph.stop([(0.0, signal.SIGINT)])
     after = graph.out[before:]
     degraded = [x for x in after if "DEGRADED" in x]
@@ -137,8 +151,12 @@ def test_sigstop_of_the_window_node_degrades_the_windows_it_gets_late(tap_model,
         assert said, lost[0]
         packets, contacts = int(said.group(1)), int(said.group(2))
         # a gap counts a contact when it could hold an onset's events (the queue of 1000
-        # packets overflowed by 1, and by 580-598, in runs of these 2 s)
-        assert (contacts >= 1) == (packets >= WindowConfig.activity_min_events), lost[0]
+        # packets overflowed by 1, and by 580-598, in runs of these 2 s); the count is the
+        # node's total so far, so a final window the stall spoiled may be in it too (CI: a gap
+        # of 1 packet said "1 contact(s) lost" beside 4 degraded estimates)
+        gap = int(packets >= WindowConfig.activity_min_events)
+        stalled = sum("stall: no input on " in x for x in degraded)
+        assert gap <= contacts <= gap + stalled, (lost[0], degraded)
     scored = [float(m.group(1)) for x in after if (m := LATENCY.search(x.strip()))]
     assert scored
     assert max(scored) < 500.0

@@ -22,7 +22,7 @@ from sim_models import (
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(600)]
 
 NODES = {"sim_device", "nuskin_driver", "contact_window", "contact_inference", "estimate_monitor"}
-RUNS = 10
+RUNS = 6
 
 
 def _signals(run: int) -> list[tuple[float, signal.Signals]]:
