@@ -351,9 +351,10 @@ def test_food_probe_stops_on_contact_and_classifies_its_own_window(food_model, t
     # the goal reaches the arm a moment after the decision (an action round trip, as on the
     # robot): from the first sample that moves, every one comes down at 1 cm/s
     moving = next(i for i, a in enumerate(lowering) if a[2] != 0.0)
-    # moving within 1.5 s of the decision (an action round trip and the first 50 ms waypoint;
-    # 0.64 s once on a slow 2-core machine running the whole suite)
-    assert lowering[moving][0] - motion_ns < 1_500_000_000
+    # moving within 3 s of the decision (an action round trip and the first 50 ms waypoint; on
+    # slow 2-core machines running the whole suite 0.64 s once, and 1.79 s once, while the
+    # simulated device computed the trial the motion start triggered)
+    assert lowering[moving][0] - motion_ns < 3_000_000_000
     speeds = [v for _, _, v, _ in lowering[moving + 1 :]]
     assert speeds
     assert all(v == pytest.approx(-0.01, rel=2e-3) for v in speeds), speeds

@@ -152,11 +152,11 @@ def test_sigstop_of_the_window_node_degrades_the_windows_it_gets_late(tap_model,
         packets, contacts = int(said.group(1)), int(said.group(2))
         # a gap counts a contact when it could hold an onset's events (the queue of 1000
         # packets overflowed by 1, and by 580-598, in runs of these 2 s); the count is the
-        # node's total so far, so a final window the stall spoiled may be in it too (CI: a gap
-        # of 1 packet said "1 contact(s) lost" beside 4 degraded estimates)
+        # node's total so far, so it may also hold the final windows the stall spoiled: one per
+        # tap at most, and the taps come 1 s apart (seen: a gap of 1 packet with "1 contact(s)
+        # lost", a gap of 1154 with 2)
         gap = int(packets >= WindowConfig.activity_min_events)
-        stalled = sum("stall: no input on " in x for x in degraded)
-        assert gap <= contacts <= gap + stalled, (lost[0], degraded)
+        assert gap <= contacts <= gap + 3, (lost[0], degraded)
     scored = [float(m.group(1)) for x in after if (m := LATENCY.search(x.strip()))]
     assert scored
     assert max(scored) < 500.0
