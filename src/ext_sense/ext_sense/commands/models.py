@@ -41,7 +41,8 @@ against 103-120 on the same trials read ideally (docs/benchmarks.md, "Where the 
 is lost")."""
 
 JOBS = os.cpu_count() or 1
-"""Grid-search jobs of the recipe-trained models (every core: the same model as one job). The
+"""Grid-search jobs of the recipe-trained models, and processes cutting the NUSkin handover's
+stream (its ideal and late-read cuts side by side): every core, the same model as one job. The
 NUSkin handover's 400-trial fit on a slow 2-core machine: 129.2 + 244.8 s (model + anytime
 models) with 1 job, 71.7 + 144.1 s with 2, the same CV accuracy and parameters
 (``bench/handover_fit_jobs.py``, docs/runtime.md)."""
@@ -201,7 +202,7 @@ def late_read_set(scene: str, task: str, trials: int, late_reads: int = HANDOVER
     laid = lay_out_stream(load_scene(scene), TRAIN_SEED, trials, TRIAL_PERIOD_S)
     config = WindowConfig.for_task(task, "nuskin")
     ws, _ = late_read_window_set(
-        laid.writes, laid.truths, config, late_reads, source=f"stream:{scene}"
+        laid.writes, laid.truths, config, late_reads, source=f"stream:{scene}", n_jobs=JOBS
     )
     return ws
 

@@ -239,6 +239,7 @@ def late_read_window_set(
     delay: ReadDelay = MEASURED_READ_DELAY,
     seed: int = 0,
     source: str = "stream",
+    n_jobs: int = 1,
 ) -> tuple[WindowSet, StreamCounts]:
     """A device stream cut as the live graph cuts it: with ideal reads, and again per late read.
 
@@ -259,6 +260,8 @@ def late_read_window_set(
         delay: The late reader's read delays.
         seed: Seed of the read delays.
         source: Description stored in the set.
+        n_jobs: Processes cutting side by side (joblib). The reads are drawn first, in order,
+            so the windows are the same whatever the count.
 
     Returns:
         The windows of every cut, and the ideal cut's counts.
@@ -271,14 +274,33 @@ def late_read_window_set(
             f"The 'late_reads' parameter must be at least 0. Got {late_reads} instead."
         )
     items = list(writes)
-    ws, counts = window_set_from_stream(items, truths, config, source=source)
     rng = np.random.default_rng(seed)
-    cuts = [ws]
-    for _ in range(late_reads):
-        late = rechunk_writes(items, delay, rng)
-        cut, _ = window_set_from_stream(late, truths, config, read_period_ns=1, source=source)
-        cuts.append(cut)
-    return concat_cuts(cuts), counts
+    # (reads, read period): the ideal reader's own period, then one read per late read
+    streams: list[tuple[list[tuple[int, bytes]], int | None]] = [(items, None)]
+    streams += [(rechunk_writes(items, delay, rng), 1) for _ in range(late_reads)]
+    jobs = [(reads, truths, config, period, source) for reads, period in streams]
+    if n_jobs > 1 and len(jobs) > 1:
+        from joblib import Parallel, delayed
+
+        done = Parallel(n_jobs=min(n_jobs, len(jobs)))(delayed(_cut)(*job) for job in jobs)
+    else:
+        done = [_cut(*job) for job in jobs]
+    return concat_cuts([ws for ws, _ in done]), done[0][1]
+
+
+def _cut(
+    reads: list[tuple[int, bytes]],
+    truths: Sequence[GroundTruth],
+    config: WindowConfig,
+    read_period_ns: int | None,
+    source: str,
+) -> tuple[WindowSet, StreamCounts]:
+    """One cut of :func:`late_read_window_set` (a top-level function: it goes to a process)."""
+    if read_period_ns is None:
+        return window_set_from_stream(reads, truths, config, source=source)
+    return window_set_from_stream(
+        reads, truths, config, read_period_ns=read_period_ns, source=source
+    )
 
 
 def concat_cuts(cuts: Sequence[WindowSet]) -> WindowSet:

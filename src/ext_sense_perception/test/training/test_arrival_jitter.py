@@ -180,6 +180,11 @@ def test_late_reads_add_a_cut_of_the_same_trials_each(handover_stream):
     assert not np.array_equal(ws.X[n : 2 * n], ws.X[2 * n :])
     again, _ = late_read_window_set(writes, truths, config, late_reads=2, seed=3)
     np.testing.assert_array_equal(again.X, ws.X)
+    # cut side by side in two processes: the same windows
+    side, side_counts = late_read_window_set(writes, truths, config, late_reads=2, seed=3, n_jobs=2)
+    np.testing.assert_array_equal(side.X, ws.X)
+    np.testing.assert_array_equal(side.groups, ws.groups)
+    assert side_counts == counts
     # no late reads: the ideal cut alone
     none, _ = late_read_window_set(writes, truths, config, late_reads=0)
     np.testing.assert_array_equal(none.X, ideal.X)
