@@ -248,8 +248,8 @@ from the probe's 10 N contact to the robot's 20 N reflex, and at the preset stop
 (``SIM_FOOD_STOP_HEIGHT_M``) it pushes 13.5 N. With 1000 N/m that was 1 s, and on a 2-core machine
 running the whole suite the graph fell 1.3 s behind the simulated arm once (the simulator
 computes each trial's stream at its onset): the arm's states reached the probe late, its cancel
-came at 20 N, in reflex (the test's recorder got 194 states of the 100 Hz arm in 12 s). A robot's
-controller runs in real time beside an idle CPU."""
+came at 20 N, in reflex (the test's recorder got 194 states of the 100 Hz arm in 12 s). On a
+robot the controller runs in real time, and no simulator shares its CPU."""
 
 SIM_FOOD_STOP_HEIGHT_M = 0.125
 """The probe's preset stop over the simulated arm: the scene's 35 mm travel from the start."""
