@@ -3,10 +3,11 @@ by grid-search jobs, in one run (docs/runtime.md, the ``models create`` table)::
 
     python bench/handover_fit_jobs.py --trials 400 --jobs 1,2
 
-Cuts the training stream as ``models create`` does (``commands.models.late_read_set``), then
-fits the recipe's choice with ``fit_model`` and ``fit_anytime`` once per job count, printing each
-part's wall time beside the CV accuracy and the chosen parameters (equal for every job count:
-the grid search's folds do not depend on it).
+Cuts the training stream as ``models create`` does (``commands.models.late_read_set``) once
+per job count (its ideal and late-read cuts in that many processes, the same windows), then
+fits the recipe's choice with ``fit_model`` and ``fit_anytime`` once per job count, printing
+each part's wall time beside the CV accuracy and the chosen parameters (equal for every job
+count: the grid search's folds do not depend on it).
 """
 
 from __future__ import annotations
@@ -24,15 +25,19 @@ def main() -> None:
     key = ("handover_stability", "nuskin")
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--trials", type=int, default=TRIALS[key])
-    parser.add_argument("--jobs", default="1,2", help="grid-search job counts, comma separated")
+    parser.add_argument("--jobs", default="1,2", help="job counts, comma separated")
     args = parser.parse_args()
 
-    t0 = time.perf_counter()
-    ws = late_read_set(DEFAULT_SCENES[key], key[0], args.trials)
-    print(f"cut: {time.perf_counter() - t0:.1f} s, {len(ws.y)} windows", flush=True)
+    job_counts = [int(j) for j in args.jobs.split(",")]
+    for jobs in job_counts:
+        t0 = time.perf_counter()
+        ws = late_read_set(DEFAULT_SCENES[key], key[0], args.trials, n_jobs=jobs)
+        print(
+            f"{jobs} job(s): cut {time.perf_counter() - t0:.1f} s, {len(ws.y)} windows", flush=True
+        )
     choice = resolve(ws, Recipe(arrival_jitter=0.0))
     posts = ws.task_profile.anytime_post_ns
-    for jobs in (int(j) for j in args.jobs.split(",")):
+    for jobs in job_counts:
         kwargs = {
             "feature_params": choice.feature_params,
             "feature_grid": choice.feature_grid,

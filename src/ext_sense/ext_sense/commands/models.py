@@ -189,7 +189,13 @@ def train_simulated(
     return 0
 
 
-def late_read_set(scene: str, task: str, trials: int, late_reads: int = HANDOVER_LATE_READS) -> Any:
+def late_read_set(
+    scene: str,
+    task: str,
+    trials: int,
+    late_reads: int = HANDOVER_LATE_READS,
+    n_jobs: int = JOBS,
+) -> Any:
     """The scene's trials as the emulated device streams them, cut ideally and by late reads.
 
     The ``contact_window`` node's own configuration cuts them (``WindowConfig.for_task``), so
@@ -204,7 +210,7 @@ def late_read_set(scene: str, task: str, trials: int, late_reads: int = HANDOVER
     laid = lay_out_stream(load_scene(scene), TRAIN_SEED, trials, TRIAL_PERIOD_S)
     config = WindowConfig.for_task(task, "nuskin")
     ws, _ = late_read_window_set(
-        laid.writes, laid.truths, config, late_reads, source=f"stream:{scene}", n_jobs=JOBS
+        laid.writes, laid.truths, config, late_reads, source=f"stream:{scene}", n_jobs=n_jobs
     )
     return ws
 
