@@ -131,7 +131,10 @@ class FoodBehaviourNode(Node):
                 clock_ns=lambda: self.get_clock().now().nanoseconds,
             )
         elif arm_kind == "franka":
-            from ext_sense_behaviours.nodes.franka_adapter import FrankaArmAdapter
+            from ext_sense_behaviours.nodes.franka_adapter import (
+                ACCEPT_TIMEOUT_S,
+                FrankaArmAdapter,
+            )
 
             defaults = FrankaNames()
             names = FrankaNames(
@@ -164,6 +167,13 @@ class FoodBehaviourNode(Node):
                     "the descent).",
                     1.0,
                     100.0,
+                ),
+                accept_timeout_s=d(
+                    "franka.accept_timeout_s",
+                    ACCEPT_TIMEOUT_S,
+                    "Longest wait for the controller to accept a trajectory goal, s.",
+                    0.1,
+                    60.0,
                 ),
                 max_descent_m=d(
                     "franka.max_descent_m",
