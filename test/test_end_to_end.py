@@ -35,15 +35,13 @@ TRAIN = {
 
 @pytest.fixture(scope="session")
 def models(tmp_path_factory):
-    """Train each task's model once: {task: (model_dir, dataset.npz as delivered)}."""
+    """Each task's model, trained once (``train_sim_model`` keeps what it trained):
+    {task: (model_dir, dataset.npz as delivered)}."""
     root = tmp_path_factory.mktemp("e2e_models")
-    cache: dict[str, tuple[Path, Path]] = {}
 
     def get(task: str) -> tuple[Path, Path]:
-        if task not in cache:
-            scene, trials, _ = TRAIN[task]
-            cache[task] = train_sim_model(root, scene, task, trials)
-        return cache[task]
+        scene, trials, _ = TRAIN[task]
+        return train_sim_model(root, scene, task, trials)
 
     return get
 

@@ -28,6 +28,7 @@ import sys
 import time
 
 import pytest
+from rosutil import wait_for
 from sim_models import CRASH_MARKERS, Graph, child_exit_codes, train_sim_model
 
 from ext_sense_perception.online.window import WindowConfig
@@ -57,11 +58,7 @@ def _wait_scored(graph: Graph, since: int, at_least: float, timeout: float) -> N
     held no scored tap there, twice.
     """
     time.sleep(at_least)
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if any(LATENCY.search(x.strip()) for x in graph.out[since:]):
-            return
-        time.sleep(0.2)
+    wait_for(lambda: any(LATENCY.search(x.strip()) for x in graph.out[since:]), timeout, step=0.2)
 
 
 def _wait_gone(graph: Graph, timeout: float) -> float:

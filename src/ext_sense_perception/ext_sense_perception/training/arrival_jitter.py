@@ -30,7 +30,11 @@ from typing import NamedTuple
 import numpy as np
 
 from ext_sense_drivers.nuskin.clock import ArrivalClock
-from ext_sense_perception.data.device_stream import StreamCounts, window_set_from_stream
+from ext_sense_perception.data.device_stream import (
+    READ_PERIOD_NS,
+    StreamCounts,
+    window_set_from_stream,
+)
 from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.window import WindowConfig
@@ -276,31 +280,19 @@ def late_read_window_set(
     items = list(writes)
     rng = np.random.default_rng(seed)
     # (reads, read period): the ideal reader's own period, then one read per late read
-    streams: list[tuple[list[tuple[int, bytes]], int | None]] = [(items, None)]
+    streams = [(items, READ_PERIOD_NS)]
     streams += [(rechunk_writes(items, delay, rng), 1) for _ in range(late_reads)]
-    jobs = [(reads, truths, config, period, source) for reads, period in streams]
-    if n_jobs > 1 and len(jobs) > 1:
-        from joblib import Parallel, delayed
+    cuts = [
+        (window_set_from_stream, (reads, truths, config), {"read_period_ns": p, "source": source})
+        for reads, p in streams
+    ]
+    if n_jobs > 1 and len(cuts) > 1:
+        from joblib import Parallel
 
-        done = Parallel(n_jobs=min(n_jobs, len(jobs)))(delayed(_cut)(*job) for job in jobs)
+        done = Parallel(n_jobs=min(n_jobs, len(cuts)))(cuts)
     else:
-        done = [_cut(*job) for job in jobs]
+        done = [f(*args, **kwargs) for f, args, kwargs in cuts]
     return concat_cuts([ws for ws, _ in done]), done[0][1]
-
-
-def _cut(
-    reads: list[tuple[int, bytes]],
-    truths: Sequence[GroundTruth],
-    config: WindowConfig,
-    read_period_ns: int | None,
-    source: str,
-) -> tuple[WindowSet, StreamCounts]:
-    """One cut of :func:`late_read_window_set` (a top-level function: it goes to a process)."""
-    if read_period_ns is None:
-        return window_set_from_stream(reads, truths, config, source=source)
-    return window_set_from_stream(
-        reads, truths, config, read_period_ns=read_period_ns, source=source
-    )
 
 
 def concat_cuts(cuts: Sequence[WindowSet]) -> WindowSet:
