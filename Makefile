@@ -1,6 +1,11 @@
 # ext_sense: the two commands a newcomer needs are `make demo` and `make test`.
 # Each runs scripts/setup.sh first (idempotent; well under a second when nothing changed).
 
+# Python writes its compiled files (__pycache__), even where the environment says not to, as
+# container images often do (PYTHONDONTWRITEBYTECODE=1): then every node process and every test
+# collection compiled the sources again (a collection of the tests took 17.9 s, 9.8 s compiled).
+unexport PYTHONDONTWRITEBYTECODE
+
 VENV        ?= .venv
 JAZZY_VENV  ?= .venv-jazzy
 PY          := $(VENV)/bin/python

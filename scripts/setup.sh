@@ -51,7 +51,51 @@ if ! fresh deps "$s"; then
   rm -f "$VENV/.stamp-msgs"
 fi
 
-# 2. The interface packages, built with cmake into the venv prefix: ours (ext_sense_msgs), and
+# 2. Every Python package of src/, editable (code changes need no reinstall; only a changed
+#    setup.py or a new package triggers this step).
+PKGS=()
+for d in "$ROOT"/src/*/; do [ -f "$d/setup.py" ] && PKGS+=("$d"); done
+s=$(stamp_of "${PKGS[@]/%//setup.py}" "$0")
+if [ ${#PKGS[@]} -gt 0 ] && ! fresh editable "$s"; then
+  echo "setup: installing ${#PKGS[@]} packages of src/ editable" >&2
+  args=(); for d in "${PKGS[@]}"; do args+=(-e "$d"); done
+  mkdir -p "$ROOT/build"
+  "$VPY" -m pip install "${PIP_FLAGS[@]}" --no-deps --no-build-isolation "${args[@]}" \
+    >"$ROOT/build/editable-$DISTRO.log" 2>&1 || { cat "$ROOT/build/editable-$DISTRO.log" >&2; exit 1; }
+  mark editable "$s"
+fi
+
+# 3. Optional training extra (torch, for the GRU model), only as a CPU-only build: the explicit
+#    local version (torch==X+cpu) cannot pull the gigabytes of CUDA that plain `torch` does.
+#    Found through pip's own configuration (here find-links /opt/wheels; elsewhere e.g.
+#    PIP_EXTRA_INDEX_URL=https://download.pytorch.org/whl/cpu). Default on for kilted, off for
+#    the jazzy venv (node tests only); EXT_SENSE_TRAIN=0 or 1 overrides.
+#    When no such wheel exists the GRU tests skip; `rm $VENV/.stamp-train` to try again.
+#    It installs in the background while step 4 compiles (mostly unpacking and byte-compiling
+#    on one core, beside builds that leave a core idle at times); no other pip runs meanwhile.
+install_train_extra() {
+  TRAIN_REQ="$ROOT/requirements/train.txt"
+  s=$(stamp_of "$TRAIN_REQ" "$0")
+  TRAIN_DEFAULT=$([ "$DISTRO" = kilted ] && echo 1 || echo 0)
+  if [ "${EXT_SENSE_TRAIN:-$TRAIN_DEFAULT}" != 0 ] && [ -f "$TRAIN_REQ" ] && ! fresh train "$s"; then
+    TORCH=$(sed -n 's/^\(torch==[0-9][0-9.]*\).*/\1/p' "$TRAIN_REQ" | head -1)
+    mkdir -p "$ROOT/build"
+    if [ -n "$TORCH" ] && "$VPY" -c "import torch, sys; sys.exit(torch.__version__ != '${TORCH#torch==}+cpu')" 2>/dev/null; then
+      :  # already installed
+    elif [ -n "$TORCH" ] && "$VPY" -m pip install "${PIP_FLAGS[@]}" --only-binary=:all: \
+        "$TORCH+cpu" >"$ROOT/build/train-$DISTRO.log" 2>&1; then
+      echo "setup: installed $TORCH+cpu (optional training extra, GRU model)" >&2
+    else
+      echo "setup: no CPU-only wheel of ${TORCH:-torch} (+cpu) found, training extra skipped: the GRU tests will skip (details: build/train-$DISTRO.log)" >&2
+    fi
+    mark train "$s"
+  fi
+}
+install_train_extra &
+TRAIN_PID=$!
+trap 'wait "$TRAIN_PID" 2>/dev/null || true' EXIT  # a failed build below leaves no pip behind
+
+# 4. The interface packages, built with cmake into the venv prefix: ours (ext_sense_msgs), and
 #    the parts of control_msgs and franka_msgs we use, which are not on PyPI (interfaces/,
 #    definitions byte-identical to upstream; on a ROS install the real packages are used).
 #    A file that differs on upstream's branch for this distribution (control_msgs jazzy:
@@ -89,40 +133,5 @@ build_interfaces control_msgs "$ROOT/interfaces/control_msgs" \
 build_interfaces franka_msgs "$ROOT/interfaces/franka_msgs" \
   "from franka_msgs.msg import FrankaRobotState; from franka_msgs.srv import SetFullCollisionBehavior; from franka_msgs.action import ErrorRecovery"
 touch "$VENV/.stamp-msgs"
+wait "$TRAIN_PID"
 
-# 3. Every Python package of src/, editable (code changes need no reinstall; only a changed
-#    setup.py or a new package triggers this step).
-PKGS=()
-for d in "$ROOT"/src/*/; do [ -f "$d/setup.py" ] && PKGS+=("$d"); done
-s=$(stamp_of "${PKGS[@]/%//setup.py}" "$0")
-if [ ${#PKGS[@]} -gt 0 ] && ! fresh editable "$s"; then
-  echo "setup: installing ${#PKGS[@]} packages of src/ editable" >&2
-  args=(); for d in "${PKGS[@]}"; do args+=(-e "$d"); done
-  mkdir -p "$ROOT/build"
-  "$VPY" -m pip install "${PIP_FLAGS[@]}" --no-deps --no-build-isolation "${args[@]}" \
-    >"$ROOT/build/editable-$DISTRO.log" 2>&1 || { cat "$ROOT/build/editable-$DISTRO.log" >&2; exit 1; }
-  mark editable "$s"
-fi
-
-# 4. Optional training extra (torch, for the GRU model), only as a CPU-only build: the explicit
-#    local version (torch==X+cpu) cannot pull the gigabytes of CUDA that plain `torch` does.
-#    Found through pip's own configuration (here find-links /opt/wheels; elsewhere e.g.
-#    PIP_EXTRA_INDEX_URL=https://download.pytorch.org/whl/cpu). Default on for kilted, off for
-#    the jazzy venv (node tests only); EXT_SENSE_TRAIN=0 or 1 overrides.
-#    When no such wheel exists the GRU tests skip; `rm $VENV/.stamp-train` to try again.
-TRAIN_REQ="$ROOT/requirements/train.txt"
-s=$(stamp_of "$TRAIN_REQ" "$0")
-TRAIN_DEFAULT=$([ "$DISTRO" = kilted ] && echo 1 || echo 0)
-if [ "${EXT_SENSE_TRAIN:-$TRAIN_DEFAULT}" != 0 ] && [ -f "$TRAIN_REQ" ] && ! fresh train "$s"; then
-  TORCH=$(sed -n 's/^\(torch==[0-9][0-9.]*\).*/\1/p' "$TRAIN_REQ" | head -1)
-  mkdir -p "$ROOT/build"
-  if [ -n "$TORCH" ] && "$VPY" -c "import torch, sys; sys.exit(torch.__version__ != '${TORCH#torch==}+cpu')" 2>/dev/null; then
-    :  # already installed
-  elif [ -n "$TORCH" ] && "$VPY" -m pip install "${PIP_FLAGS[@]}" --only-binary=:all: \
-      "$TORCH+cpu" >"$ROOT/build/train-$DISTRO.log" 2>&1; then
-    echo "setup: installed $TORCH+cpu (optional training extra, GRU model)" >&2
-  else
-    echo "setup: no CPU-only wheel of ${TORCH:-torch} (+cpu) found, training extra skipped: the GRU tests will skip (details: build/train-$DISTRO.log)" >&2
-  fi
-  mark train "$s"
-fi

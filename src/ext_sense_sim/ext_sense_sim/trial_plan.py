@@ -3,6 +3,10 @@
 :func:`plan_trials` simulates a scene's trials one at a time, each with its wire chunks and its
 ground truth, for :mod:`~ext_sense_sim.streaming` to send in real time; :func:`lay_out_stream`
 lays a run of trials on one stream clock without waiting (the bytes a model is trained on).
+
+The simulator (and SciPy with it) is imported where trials are simulated, not with this module:
+``sim_device``'s own process only paces bytes while a child simulates
+(:mod:`~ext_sense_sim.trials_ahead`), and the import took about 1.7 s of every device start.
 """
 
 from __future__ import annotations
@@ -15,7 +19,6 @@ import numpy as np
 
 from ext_sense_runtime.enums import Sensor
 from ext_sense_runtime.records import GroundTruth
-from ext_sense_sim.engine import Simulator
 from ext_sense_sim.errors import SceneError
 from ext_sense_sim.scene import Scene
 
@@ -48,6 +51,8 @@ def plan_trials(scene: Scene, seed: int) -> Iterator[PlannedTrial]:
     Raises:
         SceneError: The scene lacks the wire effect (named) for its sensor.
     """
+    from ext_sense_sim.engine import Simulator  # here: see the module docstring
+
     require_wire(scene)
     single = dataclasses.replace(scene, batch_size=1)
     sim = Simulator(single)
@@ -99,6 +104,8 @@ def lay_out_stream(scene: Scene, seed: int, trials: int, period_s: float = 1.0) 
     Raises:
         SceneError: The scene lacks the wire effect, or ``trials`` < 1.
     """
+    from ext_sense_sim.engine import Simulator  # here: see the module docstring
+
     require_wire(scene)
     period_ns = round(max(period_s, scene.trial_s) * 1e9)
     rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import lfilter
 
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.window import ContactWindow, WindowConfig
@@ -38,6 +37,12 @@ class PacWindower(WindowerBase):
                 f"The 'n_sensors' parameter must be >= 1. Got {n_sensors!r} instead."
             )
         super().__init__(config)
+        # scipy.signal is imported here, not with the module: it takes about 1 s, which every
+        # contact_window start paid, NUSkin ones too (a BioTac one pays it while configuring,
+        # not at its first contact)
+        from scipy.signal import lfilter
+
+        self._lfilter = lfilter
         self.n_sensors = n_sensors
         self._period = PAC_PERIOD_NS
         self._t_first: int | None = None
@@ -133,7 +138,7 @@ class PacWindower(WindowerBase):
         base = np.empty_like(x)
         for s in range(x.shape[0]):
             zi = np.array([(1 - a) * self._baseline[s]])
-            base[s], _ = lfilter([a], [1.0, -(1.0 - a)], x[s], zi=zi)
+            base[s], _ = self._lfilter([a], [1.0, -(1.0 - a)], x[s], zi=zi)
         prev = np.concatenate([self._baseline[:, None], base[:, :-1]], axis=1)
         dev_sq = ((x - prev) ** 2).mean(axis=0)
         self._baseline = base[:, -1].copy()
