@@ -26,6 +26,8 @@ left out of the graph (the bench itself is their source).
    process per core, started before the graph and stopped after it), ``--input``, ``--hot-path``
    (the nodes in processes of their own, or in one) and a ``--baseline`` source tree are
    measured in turn in one run, then printed side by side with the load average before each.
+   After the runs it prints the floor under that latency for each ``--hot-path``, a hot path of
+   no work (``bench_hop_floor.py``).
    ``--hops`` also subscribes to the windows and splits the latency: window end -> the first
    input past it published (``wait``), -> window received (``window_node``), -> estimate ready
    (``inference``), -> estimate received (``estimate``). The model is ``--model``, else the
@@ -57,6 +59,7 @@ from typing import Any
 
 import numpy as np
 from bench_arrival import start_hog, stop_hog
+from bench_hop_floor import measure as floor_of
 from graph_runs import start_graph, stop_graph, watch_diagnostics
 from latency_figures import (
     Final,
@@ -453,6 +456,17 @@ def main() -> int:
                             results["latency"].append(r)
                             print_latency(r, taps)
             print_table(results["latency"])
+            # beside it, the part of that no node's work is in (bench_hop_floor.py)
+            results["floor"] = []
+            for hot_path in _listed(args.hot_path):
+                results["floor"].append(f := floor_of(300 if args.quick else 1000, hot_path))
+                print(
+                    f"[latency] with no work in the hot path (hot_path:={hot_path}): floor p50 "
+                    f"{f['floor_p50_ms']:.2f} ms = 0.5 ms waiting for the drain past a window's "
+                    f"end + {f['arrival_p50_ms']:.2f} ms drain -> estimate received "
+                    "(bench_hop_floor.py)",
+                    flush=True,
+                )
         if args.only in (None, "worst"):
             results["worst_case"] = []
             for hot_path in _listed(args.hot_path):
