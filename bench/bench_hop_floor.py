@@ -36,10 +36,10 @@ import json
 import os
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
+from graph_runs import spin_in_background
 
 os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -114,7 +114,6 @@ def measure(packets: int, layout: str) -> dict:
     from ext_sense_drivers.packets.packet import NUSKIN_WORDS_V1
     from ext_sense_drivers.transports.base import Chunk
     from ext_sense_msgs.msg import ContactEstimate, SensorPacket
-    from ext_sense_runtime.executor import make_executor
     from ext_sense_runtime.qos import ESTIMATE_QOS, SENSOR_STREAM_QOS
     from ext_sense_runtime.stamps import stamp_to_ns
 
@@ -135,14 +134,7 @@ def measure(packets: int, layout: str) -> dict:
         lambda m: received.setdefault(stamp_to_ns(m.header.stamp), time.time_ns()),
         ESTIMATE_QOS,
     )
-    executor = make_executor()
-    executor.add_node(node)
-    stop = threading.Event()
-    spinner = threading.Thread(
-        target=lambda: [executor.spin_once(timeout_sec=0.01) for _ in iter(stop.is_set, True)],
-        daemon=True,
-    )
-    spinner.start()
+    halt = spin_in_background(node)
     packer = PacketPacker(NUSKIN_WORDS_V1)
     packer.pack([(1, Chunk(bytes(4), time.time_ns()))], False)  # a stream going: one word read
     drains: list[int] = []
@@ -174,8 +166,7 @@ def measure(packets: int, layout: str) -> dict:
         time.sleep(0.5)
     finally:
         gc.enable()
-        stop.set()
-        spinner.join(timeout=2)
+        halt()
         node.destroy_node()
         rclpy.try_shutdown()
         child.terminate()

@@ -51,16 +51,14 @@ import os
 import subprocess
 import sys
 import tempfile
-import threading
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from bench_arrival import start_hog, stop_hog
 from bench_hop_floor import measure as floor_of
-from graph_runs import start_graph, stop_graph, watch_diagnostics
+from graph_runs import spin_in_background, start_graph, stop_graph, watch_diagnostics
 from latency_figures import (
     Final,
     Source,
@@ -81,27 +79,6 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 GRAPH = "tap_localization"
 STARTUP_TIMEOUT_S = 30.0
-
-
-# ---------------------------------------------------------------- the graph, as ext-sense run
-def _spin_in_background(node: object) -> Callable[[], None]:
-    """Spin ``node`` on its own executor thread; returns the function that stops and joins it."""
-    from ext_sense_runtime.executor import make_executor
-
-    executor = make_executor()
-    executor.add_node(node)
-    stop = threading.Event()
-    thread = threading.Thread(
-        target=lambda: [executor.spin_once(timeout_sec=0.01) for _ in iter(stop.is_set, True)],
-        daemon=True,
-    )
-    thread.start()
-
-    def halt() -> None:
-        stop.set()
-        thread.join(timeout=2)
-
-    return halt
 
 
 # ---------------------------------------------------------------- 1. latency
@@ -167,7 +144,7 @@ def bench_latency(
                     windows[(stamp_to_ns(m.header.stamp), m.post_onset_ns)] = time.time_ns()
 
             node.create_subscription(ContactWindow, TOPIC_WINDOW, on_window, WINDOW_QOS)
-        halt = _spin_in_background(node)
+        halt = spin_in_background(node)
         try:
             deadline = time.monotonic() + STARTUP_TIMEOUT_S
             while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
@@ -276,7 +253,7 @@ def bench_worst_case(seconds: float, hot_path: str) -> dict:
     rclpy.init(args=[])
     node = Node("bench_worst_case")
     diag = watch_diagnostics(node)
-    halt = _spin_in_background(node)
+    halt = spin_in_background(node)
     sent = 0
     try:
         time.sleep(4.0)  # nodes up, port open
@@ -350,7 +327,7 @@ def bench_replay(seconds: float, tmp: Path) -> dict:
         lambda m: count.__setitem__(0, count[0] + 1),
         SENSOR_STREAM_QOS,
     )
-    halt = _spin_in_background(node)
+    halt = spin_in_background(node)
     try:
         out = subprocess.run(
             [sys.executable, "-m", "ext_sense.cli", "replay", str(bag), "--flat-out"],

@@ -16,10 +16,36 @@ import os
 import signal
 import subprocess
 import sys
+import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 STOP_TIMEOUT_S = 15.0
+
+
+def spin_in_background(node: Any) -> Callable[[], None]:
+    """Spin ``node`` on its own executor thread; returns the function that stops and joins it.
+
+    The benchmarks' own nodes (the sensor's stand-in, the estimates' receiver) spin so while
+    their main thread keeps the stream's pace.
+    """
+    from ext_sense_runtime.executor import make_executor
+
+    executor = make_executor()
+    executor.add_node(node)
+    stop = threading.Event()
+    thread = threading.Thread(
+        target=lambda: [executor.spin_once(timeout_sec=0.01) for _ in iter(stop.is_set, True)],
+        daemon=True,
+    )
+    thread.start()
+
+    def halt() -> None:
+        stop.set()
+        thread.join(timeout=2)
+
+    return halt
 
 
 def start_graph(
