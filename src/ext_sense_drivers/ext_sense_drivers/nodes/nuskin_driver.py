@@ -9,7 +9,10 @@ every ``quiet_packets_period_s`` while nothing comes an empty packet saying so
 (``PacketPacker.nothing_read``): the emulated receiver falls silent between trials, and
 consumers close their windows on these packets as on data, so a replay of a recording cuts the
 windows the live run cut; for the first ``quiet_packets_fast_s`` they come every
-``batch_period_s``, while the windows of the contact that just fell silent end. With
+``batch_period_s``, while the windows of the contact that just fell silent end. Each
+connection's first bytes go out after one more such packet, stamped at the link's open
+(``PacketPacker.opened``): the stream is known from there, so a silent receiver's first
+contact is not judged "joined mid-stream". With
 ``publish_decoded`` (default true; the graphs turn it off on the hot path) the node also
 decodes its own packets with the library decoder every consumer uses
 (:mod:`ext_sense_drivers.packets`) and publishes the events on ``events``, each event's flag bit
@@ -58,7 +61,7 @@ from ext_sense_drivers.packets import (
     QuietSchedule,
     format_options,
 )
-from ext_sense_drivers.transports.base import LinkState
+from ext_sense_drivers.transports.base import Chunk, LinkState
 from ext_sense_msgs.msg import SensorPacket, TaxelEventBatch
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
@@ -254,6 +257,7 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         self._mono_to_ros_ns = monotonic_to_ros_ns(self)
         self.batches_published = 0
         self.packets_published = 0
+        self._opened_said = 0  # the last connection whose open a packet announced
         self._failures_logged = 0
         self._packet_pub, self._qos_events = create_stream_publisher(self, SensorPacket, "packets")
         self._pub = None
@@ -319,6 +323,7 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             watch.on_data(len(chunk.data) // per_item, chunk.t_ns)
             if self.decoder is None and per_item == 4:
                 self._rate.add(len(chunk.data) // per_item)
+        self._say_opened(tagged)
         for packet in self.packer.pack(tagged, link_down, self._mono_to_ros_ns):
             self._publish_packet(packet)
         read = any(chunk.data for _, chunk in tagged)
@@ -327,6 +332,34 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             self._quiet.on_bytes(now)
             self._quiet_timer.timer_period_ns = self._quiet.period_at(now)  # the fast phase's
             self._quiet_timer.reset()  # its first tick one period after these bytes
+
+    def _say_opened(self, tagged: list[tuple[int, Chunk]]) -> None:
+        """Before a connection's first bytes, a packet saying when it opened (words mode).
+
+        Stamped at the open (``PacketPacker.opened``; no later than the first chunk drained with
+        it), so a window node knows the stream from the open, not from the first word: the
+        emulated receiver is silent until the first trial, whose tap window began before its
+        first word and was judged "joined mid-stream". Sent with the first bytes' drain, not
+        at the open: a recorder that starts with the sensor's first bytes then records it too,
+        and its replay judges the first window as the live run did. Off with
+        ``quiet_packets_s`` 0, as every "nothing read" packet; not when chunks of an older
+        connection are in the drain (their bytes come first; the new connection's then start
+        its stream).
+        """
+        connection, opened = self.reader.connects, self.reader.connected_ns
+        if (
+            opened is None
+            or not tagged
+            or connection == self._opened_said
+            or self._quiet.quiet_ns <= 0
+            or any(c != connection for c, _ in tagged)
+        ):
+            return
+        self._opened_said = connection
+        opened = min(opened, tagged[0][1].t_ns)
+        packet = self.packer.opened(connection, opened, self._mono_to_ros_ns)
+        if packet is not None:
+            self._publish_packet(packet)
 
     def _publish_packet(self, packet: Packet) -> None:
         self._packet_pub.publish(packet_message(packet, self.frame_id))

@@ -358,6 +358,31 @@ class PacketPacker:
         self._last_ns = max(int(t_ns) + to_ros_ns, self._last_ns)
         return self._no_bytes(end_of_stream=False)
 
+    def opened(self, connection: int, t_ns: int, to_ros_ns: int = 0) -> Packet | None:
+        """A packet saying the link opened ``connection`` at ``t_ns`` and read nothing yet.
+
+        A consumer knows a stream from its first packet on: a window reaching back before it
+        lacks its head (the consumer joined mid-stream). A receiver's words come from the open
+        on, so the words' stream is known from the open, not from the first word: with a
+        receiver that sends nothing until touched (the emulated one), the first contact's
+        window began before the first word and was judged incomplete. Like
+        :meth:`nothing_read`, it holds no read and leaves the arrival clock alone.
+
+        Args:
+            connection: The link's connection number (1, 2, ...).
+            t_ns: When it opened (the chunks' clock, monotonic).
+            to_ros_ns: Offset from that clock to ROS time, ns.
+
+        Returns:
+            The packet; ``None`` for a connection this packer already has bytes of, or for
+            another encoding than the receiver's words (see :meth:`nothing_read`).
+        """
+        if self.encoding != NUSKIN_WORDS_V1 or connection == self._connection:
+            return None
+        self._connection, self._finished, self._bytes_on_connection = connection, False, 0
+        self._last_ns = int(t_ns) + to_ros_ns
+        return self._no_bytes(end_of_stream=False)
+
     def _empty_end(self) -> Packet:
         """A packet with no bytes that ends the stream, stamped at its last read."""
         return self._no_bytes(end_of_stream=True)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -115,6 +116,8 @@ class StreamReader:
         self.chunks_total = 0
         self.connects = 0
         """Successful opens."""
+        self.connected_ns: int | None = None
+        """When the last open succeeded, ``time.monotonic_ns`` (None before the first)."""
         self.disconnects = 0
         """Open links lost to a TransportError."""
         self.open_failures = 0
@@ -186,6 +189,7 @@ class StreamReader:
                 self.open_failures += 1
                 self._fail(err)
                 continue
+            self.connected_ns = time.monotonic_ns()
             self.connects += 1
             self.failures_in_row = 0
             self.state = LinkState.CONNECTED

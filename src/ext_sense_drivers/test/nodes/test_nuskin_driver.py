@@ -407,15 +407,18 @@ def test_after_its_last_bytes_the_driver_says_it_read_nothing_then_goes_idle(gra
     assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
     assert spin_until(executor, lambda: driver._drain_timer.is_canceled(), 2.0)
     assert driver._quiet_timer.is_canceled()
-    assert got["packets"] == []  # nothing read before any bytes: nothing said
+    assert got["packets"] == []  # nothing read before any bytes: nothing said, not even the open
     device.send(encode_words([3, 4], [1, 2]))
-    assert spin_until(executor, lambda: len(got["packets"]) > 0)
+    assert spin_until(executor, lambda: len(got["packets"]) > 1)
     assert spin_until(executor, lambda: driver._quiet_timer.is_canceled(), 3.0)
-    packets = [packet_of(m) for m in got["packets"]]
+    opened, *packets = [packet_of(m) for m in got["packets"]]
+    # first, with the first bytes' drain: the link opened then and read nothing before them
+    assert (opened.seq, opened.connection, opened.data, opened.read_end.size) == (0, 1, b"", 0)
+    assert opened.stamp_ns < packets[0].stamp_ns
     assert packets[0].data
-    assert packets[0].seq == 0
+    assert packets[0].seq == 1
     quiet = packets[1:]
-    assert [p.seq for p in quiet] == list(range(1, len(packets)))
+    assert [p.seq for p in quiet] == list(range(2, len(packets) + 1))
     assert all(p.data == b"" and p.read_end.size == 0 for p in quiet)
     span_s = (quiet[-1].stamp_ns - packets[0].end_ns) / 1e9
     since_s = (np.array([p.stamp_ns for p in quiet]) - packets[0].end_ns) / 1e9
@@ -432,6 +435,7 @@ def test_after_its_last_bytes_the_driver_says_it_read_nothing_then_goes_idle(gra
     assert len(slow) >= 0.33 / QUIET_PACKETS_PERIOD_S / 2
     assert np.median(slow_ms) >= 0.8 * QUIET_PACKETS_PERIOD_S * 1e3
     decoder = NuskinPacketDecoder(packets[0].encoding, packets[0].options)
+    assert decoder.decode(opened).complete_ns == opened.stamp_ns
     decoded = [decoder.decode(p) for p in packets]
     assert [d.events.size for d in decoded] == [2] + [0] * len(quiet)
     assert [d.complete_ns for d in decoded[1:]] == [p.stamp_ns for p in quiet]

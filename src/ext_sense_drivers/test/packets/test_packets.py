@@ -141,6 +141,30 @@ def test_a_nothing_read_packet_says_where_stream_time_is_and_leaves_the_clock_al
     assert aces.nothing_read(T0 + 10**6) is None  # the line streams samples all the time
 
 
+def test_an_opened_packet_says_where_the_stream_began_and_leaves_the_clock_alone():
+    """The driver's empty packet at the link's open: the stream is known from there, and the
+    words that follow are stamped exactly as without it."""
+    reads = _reads(6)
+    packer = PacketPacker(NUSKIN_WORDS_V1, OPTIONS)
+    opened = packer.opened(1, T0 - 2 * 10**9)
+    assert (opened.seq, opened.connection, opened.data, opened.end_of_stream) == (0, 1, b"", False)
+    assert opened.stamp_ns == opened.end_ns == T0 - 2 * 10**9
+    assert packer.opened(1, T0) is None  # said once per connection
+    [first] = packer.pack([(1, r) for r in reads[:3]], link_down=False)
+    assert (first.seq, first.connection) == (1, 1)
+    decoder = make_decoder(NUSKIN_WORDS_V1, OPTIONS)
+    assert decoder.decode(opened).complete_ns == opened.stamp_ns
+    got = decoder.decode(first)
+    assert decoder.counters.lost_packets == 0
+    alone = make_decoder(NUSKIN_WORDS_V1, OPTIONS).decode(first._replace(seq=0))
+    assert got.events.t_ns.tolist() == alone.events.t_ns.tolist()
+    assert packer.nothing_read(reads[2].t_ns + 10**6) is not None  # a stream going
+    assert packer.pack([], link_down=True)[0].end_of_stream
+    again = packer.opened(2, T0 + 10**9)  # a reconnect: a new stream, said once more
+    assert (again.connection, again.end_of_stream) == (2, False)
+    assert PacketPacker("aces-line-v1", "threshold=0.5").opened(1, T0) is None  # samples flow
+
+
 def test_packet_of_reads_a_rosbags_message():
     from ext_sense_bags.messages import sensor_packet
 

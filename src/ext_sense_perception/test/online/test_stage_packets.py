@@ -83,3 +83,29 @@ def test_biotac_packets_give_the_frames_to_the_pac_windower():
     assert stage.counters.frames == 50
     assert stage.counters.bad_packets == 0
     assert stage.last_data_ns is not None
+
+
+def test_a_silent_receiver_first_tap_is_whole_when_the_driver_said_the_link_opened():
+    """The emulated receiver sends nothing until the first tap: its window began before the
+    first word and was judged "joined mid-stream", unless the driver's packet at the link's
+    open (``PacketPacker.opened``) says the stream was there, silent, from then on."""
+    config = WindowConfig.for_task("tap_localization", "nuskin")
+    rng = np.random.default_rng(3)
+
+    def first_tap(opened: bool) -> list:
+        packer = PacketPacker(NUSKIN_WORDS_V1, OPTIONS)
+        packets = [packer.opened(1, T0 - 2_000 * MS)] if opened else []
+        for ms in range(400):  # the tap at T0, then the silent receiver's end of the window
+            n = 60 if ms < 30 else 0
+            data = encode_words(rng.integers(1, 81, n), rng.integers(0, 1024, n))
+            packets += packer.pack([(1, Chunk(data, T0 + ms * MS))], link_down=False)
+        packets.append(packer.nothing_read(T0 + 400 * MS))
+        stage = WindowStage(config)
+        return [w for p in packets for w in stage.on_packet(p) if not w.provisional]
+
+    [without] = first_tap(opened=False)
+    assert without.degraded
+    assert without.degraded_reason.startswith("joined mid-stream")
+    [whole] = first_tap(opened=True)
+    assert not whole.degraded, whole.degraded_reason
+    assert whole.onset_ns == without.onset_ns
