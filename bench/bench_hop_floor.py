@@ -36,10 +36,12 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import time
+from collections.abc import Callable
 
-import numpy as np
 from graph_runs import spin_in_background
+from latency_figures import pct
 
 os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -47,60 +49,68 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 MS = 1_000_000
 PACKETS_TOPIC = "/bench_hop_floor/packets"
 ESTIMATE_TOPIC = "/bench_hop_floor/estimate"
-TOPICS = (ESTIMATE_TOPIC, PACKETS_TOPIC)
-"""The hot path process's arguments after its mode and count."""
 
-CHILD = r"""
-import gc, sys, threading, time
-import rclpy
-from rclpy.node import Node
-from ext_sense_msgs.msg import ContactEstimate, SensorPacket
-from ext_sense_runtime.executor import make_executor, spin_until_shutdown
-from ext_sense_runtime.qos import ESTIMATE_QOS, SENSOR_STREAM_QOS
-from ext_sense_runtime.stamps import fill_stamp
 
-mode, packets = sys.argv[1], int(sys.argv[2])
-estimates, packets_topic = sys.argv[3], sys.argv[4]
-rclpy.init()
-node = Node("hop_floor_hot_path")
-pub = node.create_publisher(ContactEstimate, estimates, ESTIMATE_QOS)
-
-def echo(msg):
-    out = ContactEstimate()
-    out.header.stamp = msg.header.stamp
-    pub.publish(out)
-
-def drains():
-    while pub.get_subscription_count() < 1:
-        time.sleep(0.05)
-    time.sleep(1.0)  # both ends matched
+def at_drains(packets: int, send: Callable[[int], None]) -> None:
+    """Call ``send(drain_ns)`` at ``packets`` drains 1 ms apart from 20 ms on, as the driver's
+    1 ms timer; no garbage collection meanwhile (as bench_runtime: a sensor does not pause)."""
     gc.collect()
     gc.disable()
-    base = time.time_ns() + 20_000_000
-    for i in range(packets):
-        drain = base + i * 1_000_000
-        delay = (drain - time.time_ns()) / 1e9
-        if delay > 0:
-            time.sleep(delay)
+    try:
+        base = time.time_ns() + 20 * MS
+        for i in range(packets):
+            drain = base + i * MS
+            delay = (drain - time.time_ns()) / 1e9
+            if delay > 0:
+                time.sleep(delay)
+            send(drain)
+    finally:
+        gc.enable()
+
+
+def hot_path_process(mode: str, packets: int) -> None:
+    """The hot path of no work, in a process of its own (``--hot-path-process MODE``).
+
+    ``echo``: each packet taken is answered at once by an estimate with its stamp. ``source``:
+    an estimate stamped at each of ``packets`` drains, then ``done`` on stdout.
+    """
+    import rclpy
+    from rclpy.node import Node
+
+    from ext_sense_msgs.msg import ContactEstimate, SensorPacket
+    from ext_sense_runtime.executor import make_executor, spin_until_shutdown
+    from ext_sense_runtime.qos import ESTIMATE_QOS, SENSOR_STREAM_QOS
+    from ext_sense_runtime.stamps import fill_stamp
+
+    rclpy.init()
+    node = Node("hop_floor_hot_path")
+    pub = node.create_publisher(ContactEstimate, ESTIMATE_TOPIC, ESTIMATE_QOS)
+
+    def echo(msg: SensorPacket) -> None:
         out = ContactEstimate()
-        fill_stamp(out.header.stamp, drain)
+        out.header.stamp = msg.header.stamp
         pub.publish(out)
-    print("done", flush=True)
 
-if mode == "echo":
-    node.create_subscription(SensorPacket, packets_topic, echo, SENSOR_STREAM_QOS)
-else:
-    threading.Thread(target=drains, daemon=True).start()
-executor = make_executor()
-executor.add_node(node)
-print("ready", flush=True)
-spin_until_shutdown(executor)
-"""
+    def estimate_at(drain_ns: int) -> None:
+        out = ContactEstimate()
+        fill_stamp(out.header.stamp, drain_ns)
+        pub.publish(out)
 
+    def drains() -> None:
+        while pub.get_subscription_count() < 1:
+            time.sleep(0.05)
+        time.sleep(1.0)  # both ends matched
+        at_drains(packets, estimate_at)
+        print("done", flush=True)
 
-def _pct(values: list[float]) -> tuple[float, float]:
-    a = np.asarray(values, dtype=np.float64)
-    return float(np.percentile(a, 50)), float(np.percentile(a, 99))
+    if mode == "echo":
+        node.create_subscription(SensorPacket, PACKETS_TOPIC, echo, SENSOR_STREAM_QOS)
+    else:
+        threading.Thread(target=drains, daemon=True).start()
+    executor = make_executor()
+    executor.add_node(node)
+    print("ready", flush=True)
+    spin_until_shutdown(executor)
 
 
 def measure(packets: int, layout: str) -> dict:
@@ -118,8 +128,9 @@ def measure(packets: int, layout: str) -> dict:
     from ext_sense_runtime.stamps import stamp_to_ns
 
     echo = layout == "processes"
+    mode = "echo" if echo else "source"
     child = subprocess.Popen(
-        [sys.executable, "-c", CHILD, "echo" if echo else "source", str(packets), *TOPICS],
+        [sys.executable, __file__, "--hot-path-process", mode, "--packets", str(packets)],
         stdout=subprocess.PIPE,
         text=True,
     )
@@ -138,6 +149,11 @@ def measure(packets: int, layout: str) -> dict:
     packer = PacketPacker(NUSKIN_WORDS_V1)
     packer.pack([(1, Chunk(bytes(4), time.time_ns()))], False)  # a stream going: one word read
     drains: list[int] = []
+
+    def packet_at(drain_ns: int) -> None:
+        pub.publish(packet_message(packer.nothing_read(drain_ns), "nuskin"))
+        drains.append(drain_ns)
+
     try:
         if child.stdout.readline().strip() != "ready":
             raise SystemExit("bench_hop_floor: the hot path's process did not start")
@@ -150,22 +166,11 @@ def measure(packets: int, layout: str) -> dict:
                 time.sleep(0.05)
             time.sleep(0.5)
             received.clear()
-            gc.collect()
-            gc.disable()  # as bench_runtime: the sensor does not pause for a collection
-            base = time.time_ns() + 20 * MS
-            for i in range(packets):
-                drain = base + i * MS
-                delay = (drain - time.time_ns()) / 1e9
-                if delay > 0:
-                    time.sleep(delay)
-                pub.publish(packet_message(packer.nothing_read(drain), "nuskin"))
-                drains.append(drain)
-        else:
-            if child.stdout.readline().strip() != "done":
-                raise SystemExit("bench_hop_floor: the hot path's process stopped early")
+            at_drains(packets, packet_at)
+        elif child.stdout.readline().strip() != "done":
+            raise SystemExit("bench_hop_floor: the hot path's process stopped early")
         time.sleep(0.5)
     finally:
-        gc.enable()
         halt()
         node.destroy_node()
         rclpy.try_shutdown()
@@ -173,7 +178,7 @@ def measure(packets: int, layout: str) -> dict:
         child.wait(timeout=10)
     sent = set(drains)  # echo: the drains measured (not the warm-up packets)
     arrivals = [(t - d) / MS for d, t in received.items() if not sent or d in sent]
-    a50, a99 = _pct(arrivals) if arrivals else (float("nan"), float("nan"))
+    a50, a99 = pct(arrivals)
     return {
         "layout": layout,
         "drains": packets,
@@ -190,7 +195,11 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="300 drains instead of 2000")
     parser.add_argument("--packets", type=int, default=None)
     parser.add_argument("--json", action="store_true", help="print the results as JSON too")
+    parser.add_argument("--hot-path-process", choices=("echo", "source"), help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.hot_path_process:  # the child measure() starts
+        hot_path_process(args.hot_path_process, args.packets)
+        return 0
     packets = args.packets or (300 if args.quick else 2000)
     rows = [measure(packets, layout) for layout in ("processes", "one_process")]
     print(

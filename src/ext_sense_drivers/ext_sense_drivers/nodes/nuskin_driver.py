@@ -257,7 +257,6 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         self._mono_to_ros_ns = monotonic_to_ros_ns(self)
         self.batches_published = 0
         self.packets_published = 0
-        self._opened_said = 0  # the last connection whose open a packet announced
         self._failures_logged = 0
         self._packet_pub, self._qos_events = create_stream_publisher(self, SensorPacket, "packets")
         self._pub = None
@@ -350,12 +349,11 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         if (
             opened is None
             or not tagged
-            or connection == self._opened_said
+            or connection == self.packer.connection  # its stream is going: said, or too late
             or self._quiet.quiet_ns <= 0
             or any(c != connection for c, _ in tagged)
         ):
             return
-        self._opened_said = connection
         opened = min(opened, tagged[0][1].t_ns)
         packet = self.packer.opened(connection, opened, self._mono_to_ros_ns)
         if packet is not None:

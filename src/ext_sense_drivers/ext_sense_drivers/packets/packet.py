@@ -271,6 +271,11 @@ class PacketPacker:
         self._bytes_on_connection = 0
         self._last_ns = 0
 
+    @property
+    def connection(self) -> int:
+        """The connection of the stream packed last (0 before any)."""
+        return self._connection
+
     def pack(
         self, tagged: Sequence[tuple[int, Chunk]], link_down: bool, to_ros_ns: int = 0
     ) -> list[Packet]:

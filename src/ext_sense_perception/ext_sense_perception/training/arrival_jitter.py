@@ -28,6 +28,7 @@ from collections.abc import Iterable, Sequence
 from typing import NamedTuple
 
 import numpy as np
+from joblib import Parallel, delayed
 
 from ext_sense_drivers.nuskin.clock import ArrivalClock
 from ext_sense_perception.data.device_stream import (
@@ -282,16 +283,11 @@ def late_read_window_set(
     # (reads, read period): the ideal reader's own period, then one read per late read
     streams = [(items, READ_PERIOD_NS)]
     streams += [(rechunk_writes(items, delay, rng), 1) for _ in range(late_reads)]
-    cuts = [
-        (window_set_from_stream, (reads, truths, config), {"read_period_ns": p, "source": source})
-        for reads, p in streams
-    ]
-    if n_jobs > 1 and len(cuts) > 1:
-        from joblib import Parallel
-
-        done = Parallel(n_jobs=min(n_jobs, len(cuts)))(cuts)
-    else:
-        done = [f(*args, **kwargs) for f, args, kwargs in cuts]
+    cut = delayed(window_set_from_stream)
+    # one job runs them here, one after the other (joblib's sequential backend)
+    done = Parallel(n_jobs=max(1, min(n_jobs, len(streams))))(
+        cut(reads, truths, config, read_period_ns=p, source=source) for reads, p in streams
+    )
     return concat_cuts([ws for ws, _ in done]), done[0][1]
 
 
