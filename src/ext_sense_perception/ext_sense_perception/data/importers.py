@@ -68,12 +68,16 @@ def _load_rows(path: Path, n_cols: int) -> np.ndarray:
     return rows
 
 
-def read_paper_tact(path: str | Path, policy: InputPolicy | None = None) -> EventBlock:
+def read_paper_tact(
+    path: str | Path, policy: InputPolicy | None = None, markers: bool = True
+) -> EventBlock:
     """The paper's NUSkin ``.tact``: ``isPos taxel removable t``; first and last lines are markers.
 
     Args:
         path: The file.
         policy: Strict (default) or lenient input rules (:mod:`.validation`).
+        markers: Whether the first and last lines are markers (the paper's files) or ordinary
+            events (the lab's real-time rod-tap captures, REFERENCE.md section 2).
 
     Returns:
         Events with polarity +1 (``isPos`` 1) or -1 (``isPos`` 0), in time order.
@@ -81,9 +85,11 @@ def read_paper_tact(path: str | Path, policy: InputPolicy | None = None) -> Even
     Raises:
         PerceptionError: when the file is missing or malformed, or a row breaks a rule.
     """
-    rows = _load_rows(Path(path), 4)[1:-1]
+    rows = _load_rows(Path(path), 4)
+    rows = rows[1:-1] if markers else rows
     policy = policy or InputPolicy()
-    where = f"NUSkin events {str(path)!r} (rows after the start marker)"
+    after = "rows after the start marker" if markers else "rows from line 1"
+    where = f"NUSkin events {str(path)!r} ({after})"
     rows = rows[check_event_rows(rows[:, 3], rows[:, 1], None, where, policy)]
     return EventBlock(
         t_ns=_seconds_to_ns(rows[:, 3]),

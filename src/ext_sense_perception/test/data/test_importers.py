@@ -34,6 +34,15 @@ def test_paper_tact_drops_markers_and_maps_polarity(tmp_path):
     assert ev.t_ns[0] == 1_617_277_544_123_456_000
 
 
+def test_paper_tact_without_markers_keeps_the_first_and_last_events(tmp_path):
+    p = tmp_path / "temp_signal0.tact"
+    p.write_text("1 1 1 1616591902.76\n0 24 1 1616591902.77\n1 80 1 1616591903.01\n")
+    ev = read_paper_tact(p, markers=False)
+    assert list(ev.taxel) == [1, 24, 80]
+    assert list(ev.polarity) == [1, -1, 1]
+    assert list(read_paper_tact(p).taxel) == [24]
+
+
 def test_capture_tact_keeps_values_and_polarity_zero(tmp_path):
     p = tmp_path / "apple_zero_0.tact"
     p.write_text(
