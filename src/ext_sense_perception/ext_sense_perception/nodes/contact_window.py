@@ -37,6 +37,13 @@ the tail of a contact already under way; the windower's rule, offline too); a co
 whose final window a stall spoiled is counted as lost (``contacts_lost_in_stall``). QoS deadline
 events are not used for this: a subscription's deadline is incompatible with the drivers'
 publishers, which offer none, and it would cut the stream instead of reporting it.
+
+Stuck taxels (NUSkin, :mod:`ext_sense_perception.online.stuck_taxels`): a taxel firing at
+``stuck_rate_hz`` or more for longer than ``stuck_after_ms`` (longer than any contact lasts) is
+masked from onset detection until it quiets, and reported at once: WARN on ``/diagnostics``
+(status ``taxels``, naming the taxel ids) and on the console; windows cut meanwhile go out
+degraded. An onset needs events from ``activity_min_taxels`` taxels, so one taxel at its ceiling
+never opens a contact, even before it is masked.
 """
 
 from __future__ import annotations
@@ -62,6 +69,7 @@ from ext_sense_perception.nodes.window_parameters import (
 from ext_sense_perception.online.deadline import next_wake_ns, stall_change_ns
 from ext_sense_perception.online.messages import window_fields
 from ext_sense_perception.online.stage import WindowStage
+from ext_sense_perception.online.windowers import EventWindower
 from ext_sense_runtime import intra_process
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
@@ -208,6 +216,11 @@ class ContactWindowNode(Node):
         )
         self.updater.add_check("windows", self._check_windows)
         self.updater.add_check("liveness", self.liveness.check)
+        self.event_windower = (
+            self.stage.windower if isinstance(self.stage.windower, EventWindower) else None
+        )
+        if self.event_windower is not None:
+            self.updater.add_check("taxels", self._check_taxels)
         self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
         self.get_logger().info(
@@ -255,6 +268,7 @@ class ContactWindowNode(Node):
                 throttle_duration_sec=1.0,
             )
         self._publish(self.stage.on_events(msg))
+        self._report_stuck_change()
         self._arm(earlier_only=True)
 
     def _on_packet(self, msg: SensorPacket) -> None:
@@ -286,6 +300,7 @@ class ContactWindowNode(Node):
             )
             self.diagnostics.publish()
         self._publish(windows)
+        self._report_stuck_change()
         self._arm(earlier_only=True)
 
     def _on_frame(self, msg: BioTacFrame) -> None:
@@ -316,6 +331,45 @@ class ContactWindowNode(Node):
         if state != self._stall_state:
             self._stall_state = state
             self.diagnostics.publish()
+
+    def _report_stuck_change(self) -> None:
+        """Log and publish diagnostics at once when a taxel turns stuck or quiets again."""
+        if self.event_windower is None or not self.event_windower.stuck_changed:
+            return
+        level, message, _ = self._check_taxels()
+        if level is Level.OK:
+            self.get_logger().info("no taxel stuck any more: every taxel detects onsets again")
+        else:
+            self.get_logger().warning(message)
+        self.diagnostics.publish()
+
+    def _check_taxels(self) -> tuple[Level, str, dict[str, object]]:
+        """Taxels stuck at their ceiling (NUSkin): WARN naming them while any is."""
+        windower = self.event_windower
+        if windower is None:  # not added for BioTac
+            return Level.OK, "no taxels", {}
+        guard = windower.stuck
+        ids = guard.ids
+        rate = max((guard.last_rate_hz[i] for i in ids), default=0.0)
+        stuck_s = max((guard.stuck_for_ns(i) for i in ids), default=0) / 1e9
+        values: dict[str, object] = {
+            "stuck_taxel_ids": ",".join(map(str, ids)),
+            "stuck_taxel_rate_events_per_s": f"{rate:.0f}",
+            "stuck_for_s": f"{stuck_s:.1f}",
+            "stuck_threshold_events_per_s": f"{guard.rate_hz:g}",
+            "stuck_after_ms": f"{guard.after_ns / MS:g}",
+            "masked_events": guard.masked_events,
+            "one_taxel_bursts_refused": windower.counters.one_taxel_bursts,
+            "windows_with_stuck_taxels": windower.counters.stuck_taxel_windows,
+        }
+        if ids:
+            return (
+                Level.WARN,
+                f"stuck taxel(s) {', '.join(map(str, ids))}: {rate:.0f} events/s for "
+                f"{stuck_s:.1f} s; masked from onset detection until they quiet",
+                values,
+            )
+        return Level.OK, "ok", values
 
     def _on_motion_start(self, msg: ContactGroundTruth) -> None:
         if self.stage.on_motion_start(stamp_to_ns(msg.header.stamp)):

@@ -109,6 +109,35 @@ def declare_window_config(node: Node) -> tuple[WindowConfig, tuple[int, ...], st
         high=1000.0,
         read_only=True,
     )
+    min_taxels = declare(
+        node,
+        "activity_min_taxels",
+        base.activity_min_taxels,
+        "NUSkin onset: distinct taxels those events must come from (one taxel at its ceiling "
+        "is a fault, not a contact).",
+        low=1,
+        high=base.n_taxels,
+        read_only=True,
+    )
+    stuck_rate = declare(
+        node,
+        "stuck_rate_hz",
+        base.stuck_rate_hz,
+        "NUSkin: events per second of one taxel that count as its ceiling, Hz.",
+        low=1.0,
+        high=1e6,
+        read_only=True,
+    )
+    stuck_ms = declare(
+        node,
+        "stuck_after_ms",
+        base.stuck_after_ns / MS,
+        "NUSkin: a taxel at stuck_rate_hz for longer than this is stuck: WARN on /diagnostics, "
+        "masked from onset detection until it quiets, its windows degraded, ms.",
+        low=100.0,
+        high=600000.0,
+        read_only=True,
+    )
     sensor_ids = declare(
         node,
         "sensor_ids",
@@ -129,6 +158,9 @@ def declare_window_config(node: Node) -> tuple[WindowConfig, tuple[int, ...], st
             ),
             activity_min_events=int(min_events),
             activity_window_ns=round(act_ms * MS),
+            activity_min_taxels=int(min_taxels),
+            stuck_rate_hz=float(stuck_rate),
+            stuck_after_ns=round(stuck_ms * MS),
         )
     except PerceptionError as err:
         raise ValueError(f"contact_window: {err}") from err

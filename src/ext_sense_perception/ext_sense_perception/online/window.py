@@ -71,6 +71,12 @@ class WindowConfig:
         sensor: The sensor the windows are cut from.
         activity_window_ns: NUSkin onset: the sliding window events are counted in, ns.
         activity_min_events: NUSkin onset: events within ``activity_window_ns`` that mean contact.
+        activity_min_taxels: NUSkin onset: distinct taxels those events must come from, at most
+            ``activity_min_events`` (a contact is many taxels; one taxel at its ceiling is a
+            fault, not a contact).
+        stuck_rate_hz: NUSkin: events per second of one taxel that count as its ceiling.
+        stuck_after_ns: NUSkin: a taxel at that rate for longer than this is stuck and masked
+            from onset detection until it quiets, ns (longer than any contact lasts).
         pac_energy_window_ns: BioTac onset: the sliding window of the PAC energy, ns.
         pac_threshold_sigma: BioTac onset: threshold as a multiple of the PAC noise RMS.
         pac_min_rms: BioTac onset: threshold floor of the PAC RMS deviation, ADC counts.
@@ -83,6 +89,9 @@ class WindowConfig:
     sensor: Sensor = Sensor.NUSKIN
     activity_window_ns: int = 2 * MS
     activity_min_events: int = 8
+    activity_min_taxels: int = 2
+    stuck_rate_hz: float = 2000.0
+    stuck_after_ns: int = 1000 * MS
     pac_energy_window_ns: int = 5 * MS
     pac_threshold_sigma: float = 6.0
     pac_min_rms: float = 8.0
@@ -100,6 +109,14 @@ class WindowConfig:
         _check(
             self.activity_min_events >= 1, "activity_min_events", ">= 1", self.activity_min_events
         )
+        _check(
+            1 <= self.activity_min_taxels <= self.n_taxels,
+            "activity_min_taxels",
+            "in [1, n_taxels]",
+            self.activity_min_taxels,
+        )
+        _check(self.stuck_rate_hz > 0, "stuck_rate_hz", "> 0", self.stuck_rate_hz)
+        _check(self.stuck_after_ns > 0, "stuck_after_ns", "> 0", self.stuck_after_ns)
         _check(
             self.pac_energy_window_ns > 0, "pac_energy_window_ns", "> 0", self.pac_energy_window_ns
         )

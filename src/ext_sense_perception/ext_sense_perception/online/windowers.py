@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.online.stuck_taxels import StuckTaxels
 from ext_sense_perception.online.window import ContactWindow, WindowConfig, bin_events
 from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_runtime.records import EventBlock
@@ -33,6 +34,8 @@ class WindowerCounters(NamedTuple):
     gap_samples: int = 0
     invalid_samples: int = 0
     joined_mid_stream_windows: int = 0
+    one_taxel_bursts: int = 0
+    stuck_taxel_windows: int = 0
 
 
 class _Pending:
@@ -196,6 +199,21 @@ class WindowerBase:
         # found may be the tail of a contact already under way (measured: +184 ms, 14 cm off).
         head_missing = self._first_ns is not None and start < self._first_ns
         self._counts["joined_mid_stream_windows"] += int(head_missing)
+        reasons = (
+            [
+                f"joined mid-stream: the window begins {(self._first_ns - start) / MS:.0f} ms "
+                "before the first input"
+            ]
+            if head_missing
+            else []
+        )
+        stuck = self._stuck_ids()
+        if stuck:  # the model never saw a taxel at its ceiling: not a normal estimate
+            self._counts["stuck_taxel_windows"] += 1
+            reasons.append(
+                f"stuck taxel(s) {', '.join(map(str, stuck))} in the window (masked from onset "
+                "detection)"
+            )
         return ContactWindow(
             task=cfg.task.label,
             sensor=cfg.sensor.label,
@@ -207,14 +225,13 @@ class WindowerBase:
             data=data,
             provisional=provisional,
             truncated=truncated,
-            degraded=head_missing,
-            degraded_reason=(
-                f"joined mid-stream: the window begins {(self._first_ns - start) / MS:.0f} ms "
-                "before the first input"
-                if head_missing
-                else ""
-            ),
+            degraded=bool(reasons),
+            degraded_reason="; ".join(reasons),
         )
+
+    def _stuck_ids(self) -> tuple[int, ...]:
+        """Taxels masked as stuck now (none for sensors without taxels)."""
+        return ()
 
     def _cut(self, start_ns: int, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
         raise NotImplementedError
@@ -226,9 +243,11 @@ class WindowerBase:
 class EventWindower(WindowerBase):
     """Contact windows from a NUSkin event stream.
 
-    Onset: the first time ``activity_min_events`` events (any taxel) fall within
-    ``activity_window_ns``; the onset is the first event of that burst. Events are kept in a
-    buffer of chunks covering the pre-onset signal and every pending window.
+    Onset: the first time ``activity_min_events`` events from at least
+    ``activity_min_taxels`` taxels fall within ``activity_window_ns``; the onset is the first
+    event of that burst. Taxels stuck at their ceiling (:class:`.stuck_taxels.StuckTaxels`) are
+    left out of it until they quiet, and windows cut while one is stuck go out degraded. Events
+    are kept in a buffer of chunks covering the pre-onset signal and every pending window.
 
     Args:
         config: Window configuration (``sensor`` must be NUSkin).
@@ -244,6 +263,11 @@ class EventWindower(WindowerBase):
         super().__init__(config)
         self._chunks: list[EventBlock] = []
         self._recent = np.empty(0, dtype=np.int64)
+        self._recent_taxel = np.empty(0, dtype=np.uint16)
+        self.stuck = StuckTaxels(config.n_taxels, config.stuck_rate_hz, config.stuck_after_ns)
+        """Per-taxel rates; the taxels stuck at their ceiling, masked from onset detection."""
+        self.stuck_changed = False
+        """Whether the stuck taxels changed in the last :meth:`feed` (the node reports it)."""
 
     def feed(self, events: EventBlock, now_ns: int | None = None) -> list[ContactWindow]:
         """Add a block of events and return the windows that became due.
@@ -277,6 +301,7 @@ class EventWindower(WindowerBase):
             self._counts["bad_taxel_events"] += int((~ok).sum())
             events = events.select(ok)
         out: list[ContactWindow] = []
+        self.stuck_changed = False
         if events.size:
             events = events.sorted_by_time()
             t = events.t_ns
@@ -285,37 +310,62 @@ class EventWindower(WindowerBase):
                 late = t < self._now_ns - self.config.history_ns
                 self._counts["late_events"] += int(late.sum())
             self._chunks.append(events)
+            self.stuck_changed = self.stuck.feed(t, events.taxel)
             if not self.config.external_onsets:
-                self._detect(t)
+                keep = self.stuck.unmasked(events.taxel)
+                if keep is None:
+                    self._detect(t, events.taxel)
+                else:
+                    self._detect(t[keep], events.taxel[keep])
             newest = int(t[-1])
             if self._now_ns is None or newest > self._now_ns:
                 self._now_ns = newest
         if now_ns is not None:
+            self.stuck_changed |= self.stuck.advance(int(now_ns))
             self._joined(int(now_ns))
             out.extend(self.advance(now_ns))
         else:
             out.extend(self._emit_due())
         return out
 
-    def _detect(self, t: np.ndarray) -> None:
+    def _detect(self, t: np.ndarray, taxel: np.ndarray) -> None:
+        """Find onsets among new events ``t`` (sorted) of ``taxel``, after the recent ones."""
+        if not t.size:
+            return
         cfg = self.config
         k = cfg.activity_min_events
         both = np.concatenate([self._recent, t])
+        tax = np.concatenate([self._recent_taxel, taxel])
         first_new = len(self._recent)
         new_t = both[first_new:]
         lo = np.searchsorted(both, new_t - cfg.activity_window_ns, side="right")
-        counts = np.arange(first_new, len(both)) - lo + 1
-        hits = np.flatnonzero(counts >= k)
+        ends = np.arange(first_new, len(both))
+        hits = np.flatnonzero(ends - lo + 1 >= k)
+        m = min(cfg.activity_min_taxels, k)
+        if len(hits) and m > 1:  # more than one taxel: decided for all bursts at once
+            idx = np.arange(len(tax))
+            change = np.maximum.accumulate(
+                np.where(np.concatenate(([False], tax[1:] != tax[:-1])), idx, 0)
+            )
+            wide = change[ends[hits]] > lo[hits]
+            self._counts["one_taxel_bursts"] += int(len(hits) - np.count_nonzero(wide))
+            hits = hits[wide]
         starts = both[lo[hits]]  # onset candidates: first event of each qualifying burst
-        while len(starts):
+        while len(hits):
             if self._next_allowed_ns is not None:
-                starts = starts[starts >= self._next_allowed_ns]
-                if not len(starts):
+                later = starts >= self._next_allowed_ns
+                hits, starts = hits[later], starts[later]
+                if not len(hits):
                     break
-            self._add_onset(int(starts[0]))
-            starts = starts[1:]
+            h = hits[0]
+            if m <= 2 or np.unique(tax[lo[h] : ends[h] + 1]).size >= m:
+                self._add_onset(int(starts[0]))
+            hits, starts = hits[1:], starts[1:]
         cut = np.searchsorted(both, both[-1] - cfg.activity_window_ns, side="right")
-        self._recent = both[cut:]
+        self._recent, self._recent_taxel = both[cut:], tax[cut:]
+
+    def _stuck_ids(self) -> tuple[int, ...]:
+        return self.stuck.ids
 
     def _cut(self, start_ns: int, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
         cfg = self.config
