@@ -11,10 +11,11 @@
 Every complete message (:mod:`ext_sense_bags.salvage`) is written, in the order it was
 recorded, into a new bag of the same storage through :class:`ext_sense_bags.BagWriter`, which
 writes the index and a rosbag2 ``metadata.yaml`` with the message counts, the offered QoS and
-the type hashes as the original recorded them. Where it recorded no hash, the hash is computed
-from the definition it stored (a bag older than a ``.msg`` change keeps its own definition and
-hash, so it still decodes as written), and only without either from the current typestore.
-The original is never deleted: in place, it is renamed ``<bag>.damaged`` (``.damaged.2``, ...).
+the definitions and type hashes as the original recorded them. Where it recorded no hash, the
+hash is computed from the ``ros2msg`` definition it stored (a bag older than a ``.msg`` change
+keeps its own definition and hash, so it still decodes as written), and only without either
+from the current typestore. The original is never deleted: in place, it is renamed
+``<bag>.damaged`` (``.damaged.2``, ...).
 """
 
 from __future__ import annotations
@@ -24,12 +25,10 @@ import tempfile
 from pathlib import Path
 from typing import NamedTuple
 
-from rosbags.rosbag2.metadata import parse_qos
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from ext_sense_bags.errors import BagError
-from ext_sense_bags.reader import BagReader
-from ext_sense_bags.recorded import decoding_store
-from ext_sense_bags.salvage import SalvageReport, open_salvaged
+from ext_sense_bags.salvage import Report, SalvagedTopic, incomplete, salvage
 from ext_sense_bags.typestore import make_typestore
 from ext_sense_bags.writer import BagWriter
 
@@ -41,7 +40,7 @@ class Recovery(NamedTuple):
     """The complete bag written."""
     counts: dict[str, int]
     """Messages recovered per topic."""
-    report: SalvageReport
+    report: Report
     """The storage file read, what was wrong with it, chunks and bytes dropped."""
     kept: Path | None
     """Where the damaged original went (in-place recovery), else None."""
@@ -55,14 +54,12 @@ class Recovery(NamedTuple):
 
 
 def bag_problem(path: str | Path) -> str:
-    """'' when the bag at ``path`` is complete, else what is wrong with it (one line).
+    """'' when the bag at ``path`` was closed by its writer, else what is wrong (one line).
 
     Raises:
-        BagError: It cannot be read at all.
+        BagError: It does not exist or holds no storage file.
     """
-    with BagReader(path) as bag:
-        report = bag.salvage_report
-        return "" if report is None else report.problem or "incomplete"
+    return incomplete(Path(path))
 
 
 def recover_bag(path: str | Path, out: str | Path | None = None) -> Recovery:
@@ -107,50 +104,58 @@ def _free_name(path: Path) -> Path:
 
 
 def _rewrite(path: Path, out: Path) -> Recovery:
-    salvage = open_salvaged(path)
-    typestore = make_typestore()
+    report, items = salvage(path)
+    current = make_typestore()
+    skipped: list[str] = []
+    topic_of: dict[int, str] = {}
+    bag = BagWriter(out, storage=report.storage)
+    created = False
     try:
-        with BagWriter(out, storage=salvage.report.storage) as bag:
+        with bag:
+            created = True
             bag.set_custom_data("recovered_by", "ext-sense bag recover")
-            if salvage.report.problem:
-                bag.set_custom_data("recovered_problem", salvage.report.problem)
-            skipped: list[str] = []
-            topic_of: dict[int, str] = {}
-            for cid, info in salvage.topics.items():
-                known = info.msgtype in typestore.fielddefs
-                digest = info.type_hash or _stored_hash(
-                    info.msgtype, info.msgdef, info.msgdef_encoding
-                )
-                digest = digest or (typestore.hash_rihs01(info.msgtype) if known else "")
-                if not (info.msgtype and digest and (info.msgdef or known)):
-                    skipped.append(info.topic)
+            for item in items:
+                if not isinstance(item, SalvagedTopic):
+                    if topic_of.get(item[0]):
+                        bag.write_raw(topic_of[item[0]], item[1], item[2])
                     continue
-                try:
-                    qos = parse_qos(info.qos) if info.qos else None
-                except Exception:  # a QoS string rosbags cannot parse: the standard table's
-                    qos = None
-                definition = (info.msgdef, digest) if info.msgdef else None
-                bag.add_topic(info.topic, info.msgtype, definition=definition, qos=qos)
-                topic_of[cid] = info.topic
-            for cid, log_time, data in salvage.records(topic_of, ordered=False):
-                bag.write_raw(topic_of[cid], log_time, data)
-            counts = dict(bag.counts)
-    except (OSError, ValueError) as err:
+                topic_of[item.id] = ""  # seen; named once it can be rewritten
+                known = item.msgtype in current.fielddefs
+                digest = item.type_hash or _stored_hash(item)
+                digest = digest or (current.hash_rihs01(item.msgtype) if known else "")
+                if not (item.msgtype and digest and (item.msgdef or known)):
+                    skipped.append(item.topic)
+                    continue
+                definition = (item.msgdef, digest) if item.msgdef else None
+                bag.add_topic(item.topic, item.msgtype, definition=definition, qos=item.qos)
+                topic_of[item.id] = item.topic
+            if report.problem:
+                bag.set_custom_data("recovered_problem", report.problem)
+            if not topic_of and report.bytes_dropped and not report.empty:
+                raise BagError(
+                    f"Cannot read bag {path}: {report.file.name} has {report.problem}; no "
+                    "complete chunk before it, so there is nothing to read."
+                )
+    except (BagError, OSError, ValueError) as err:
+        if created:  # the partial output is no use
+            shutil.rmtree(out, ignore_errors=True)
+        if isinstance(err, BagError):
+            raise
         raise BagError(f"Cannot recover {path}: {err}") from err
-    finally:
-        salvage.close()
-    return Recovery(out, counts, salvage.report, None, tuple(skipped))
+    return Recovery(out, dict(bag.counts), report, None, tuple(skipped))
 
 
-def _stored_hash(msgtype: str, msgdef: str, encoding: str) -> str:
-    """RIHS01 hash of the definition a bag stored without its hash ('' when it stored none).
+def _stored_hash(topic: SalvagedTopic) -> str:
+    """RIHS01 hash of the ``ros2msg`` definition a file stored without its hash ('' if none).
 
     The current typestore's hash would not do: it names the current definition, which an old
     bag's bytes do not follow.
     """
-    if not msgdef:
+    if not topic.msgdef or topic.encoding != "ros2msg":
         return ""
-    source = decoding_store(msgtype, "", msgdef, encoding)
-    if source.problem or msgtype not in source.store.fielddefs:
+    store = get_typestore(Stores.EMPTY)
+    try:
+        store.register(get_types_from_msg(topic.msgdef, topic.msgtype))
+        return str(store.hash_rihs01(topic.msgtype))
+    except Exception:  # rosbags' parser and type system raise several types
         return ""
-    return str(source.store.hash_rihs01(msgtype))

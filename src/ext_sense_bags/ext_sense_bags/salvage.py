@@ -1,129 +1,98 @@
-"""Reading what a killed recorder left behind: mcap without footer, sqlite3 without metadata.
+"""Reading what a killed recorder left: an mcap file without footer, a sqlite3 bag left open.
 
-That is an mcap file without summary and footer, or a sqlite3 bag with no ``metadata.yaml``
-and its write-ahead log still beside it.
+The writer (:mod:`ext_sense_bags.writer`) closes an mcap chunk, or commits a sqlite3
+transaction, at least every ``flush_period_s``; what reached the file before a crash is a run
+of complete records followed, at worst, by one cut off mid-write.
 
-The writer (:mod:`ext_sense_bags.writer`) closes an mcap chunk, and commits a sqlite3
-transaction, at least every ``flush_period_s`` (1 s). What reached the file before a crash is
-therefore a run of complete records followed, at worst, by one record cut off mid-write:
+- mcap: mcap's ``StreamReader`` reads the file record by record from its magic, without the
+  summary a crashed writer never wrote. Every chunk whose size and CRC check out is kept; a
+  spoiled chunk is dropped and the scan goes on; it ends at the first record cut off or
+  unreadable (what follows is counted as dropped).
+- sqlite3: SQLite's own crash recovery (the committed part of a write-ahead log kept, a hot
+  rollback journal rolled back) runs when the database is opened read-write, in place; rosbags'
+  reader then reads the file.
 
-- mcap: :class:`ext_sense_bags.mcap_salvage.McapSalvage` walks the file record by record from
-  its magic and keeps every complete chunk (what follows the first record cut off is dropped).
-- sqlite3: SQLite's own crash recovery (replaying the committed part of the write-ahead log,
-  discarding the uncommitted tail) runs when the database is opened read-write, in place.
-
-:func:`open_salvaged` returns a :class:`McapSalvage` or :class:`SqliteSalvage`; both give the
-topics, counts and messages (file order or log-time order) and a :class:`SalvageReport` saying
-what was wrong and what was dropped. :class:`ext_sense_bags.BagReader` falls back to them when a
-bag has no footer or metadata, and :func:`ext_sense_bags.recover.recover_bag` rewrites a valid bag
-from them.
+:func:`salvage` yields the topics and messages in file order and fills a :class:`Report`;
+:func:`ext_sense_bags.recover.recover_bag` writes them into a complete bag.
 """
 
 from __future__ import annotations
 
+import contextlib
 import sqlite3
-from collections.abc import Iterable, Iterator
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
+
+from mcap.exceptions import McapError
+from mcap.records import Channel, Chunk, DataEnd, McapRecord, Message, Schema
+from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
+from rosbags.interfaces import MessageDefinitionFormat, Qos
+from rosbags.rosbag2 import Reader
+from rosbags.rosbag2.metadata import parse_qos
 
 from ext_sense_bags.errors import BagError
-from ext_sense_bags.mcap_salvage import McapSalvage
-from ext_sense_bags.records import SalvagedTopic, SalvageReport
 
-__all__ = [
-    "McapSalvage",
-    "Salvage",
-    "SalvageReport",
-    "SalvagedTopic",
-    "SqliteSalvage",
-    "has_open_log",
-    "open_salvaged",
-    "storage_file",
-]
+MAGIC = b"\x89MCAP0\r\n"
+STOPPED = "the recorder stopped without closing the bag"
 
 
-class SqliteSalvage:
-    """A sqlite3 bag database opened read-write in place, so SQLite recovers it.
+class SalvagedTopic(NamedTuple):
+    """One topic (an mcap channel or a sqlite3 topic row) as the file stores it."""
 
-    Opening replays the committed part of a write-ahead log left by a killed writer and
-    discards its uncommitted tail (or rolls back a hot rollback journal): every committed
-    transaction is kept.
-
-    Args:
-        file: The ``.db3`` file.
-        problem: What is wrong with the bag (for the report).
-
-    Raises:
-        BagError: The database cannot be opened or lacks the rosbag2 tables.
-    """
-
-    def __init__(self, file: Path, problem: str = "") -> None:
-        self.file = Path(file)
-        self.report = SalvageReport(self.file, "sqlite3", problem)
-        self.complete = False
-        try:
-            self._conn = sqlite3.connect(f"file:{self.file}?mode=rw", uri=True)
-            self._load()
-        except sqlite3.Error as err:
-            raise BagError(f"Cannot read sqlite3 bag file {self.file}: {err}.") from err
-
-    def _load(self) -> None:
-        cur = self._conn.cursor()
-        tables = {r[0] for r in cur.execute("SELECT name FROM sqlite_master WHERE type='table'")}
-        if not {"topics", "messages"} <= tables:
-            raise BagError(f"{self.file} is not a rosbag2 database (no topics/messages tables).")
-        cols = {r[1] for r in cur.execute("PRAGMA table_info(topics)")}
-        qos = "offered_qos_profiles" if "offered_qos_profiles" in cols else "''"
-        digest = "type_description_hash" if "type_description_hash" in cols else "''"
-        defs: dict[str, tuple[str, str]] = {}
-        if "message_definitions" in tables:
-            for name, enc, text in cur.execute(
-                "SELECT topic_type, encoding, encoded_message_definition FROM message_definitions"
-            ):
-                defs[name] = (text, enc)
-        self.topics: dict[int, SalvagedTopic] = {}
-        for cid, topic, msgtype, q, h in cur.execute(
-            f"SELECT id, name, type, {qos}, {digest} FROM topics ORDER BY id"
-        ):
-            text, enc = defs.get(msgtype, ("", "ros2msg"))
-            self.topics[int(cid)] = SalvagedTopic(topic, msgtype, text, enc, h or "", q or "")
-        self.counts: dict[int, int] = {}
-        first, last = 2**63 - 1, 0
-        for cid, n, lo, hi in cur.execute(
-            "SELECT topic_id, count(*), min(timestamp), max(timestamp) FROM messages "
-            "GROUP BY topic_id"
-        ):
-            if int(cid) in self.topics:
-                self.counts[int(cid)] = int(n)
-                first, last = min(first, int(lo)), max(last, int(hi))
-            else:
-                self.report.orphans += int(n)
-        self.start_ns, self.end_ns = (first, last) if self.counts else (0, 0)
-
-    def records(
-        self, channels: Iterable[int] | None = None, *, ordered: bool = True
-    ) -> Iterator[tuple[int, int, bytes]]:
-        """Yield ``(topic id, log time ns, CDR bytes)``, in log-time (else insertion) order."""
-        ids = sorted(self.topics if channels is None else set(channels) & self.topics.keys())
-        if not ids:
-            return
-        order = "timestamp, id" if ordered else "id"
-        marks = ",".join("?" * len(ids))
-        try:
-            for cid, t, data in self._conn.execute(
-                f"SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN ({marks}) "
-                f"ORDER BY {order}",
-                ids,
-            ):
-                yield int(cid), int(t), bytes(data)
-        except sqlite3.Error as err:
-            raise BagError(f"Corrupt sqlite3 bag file {self.file}: {err}.") from err
-
-    def close(self) -> None:
-        """Close the database (SQLite checkpoints a recovered write-ahead log into it)."""
-        self._conn.close()
+    id: int
+    topic: str
+    msgtype: str
+    msgdef: str
+    """Message definition text ('' when the file holds none)."""
+    encoding: str
+    """``ros2msg`` or ``ros2idl``."""
+    type_hash: str
+    """RIHS01 hash ('' when the file holds none)."""
+    qos: list[Qos] | None
+    """Offered QoS profiles (None when absent or unreadable)."""
 
 
-Salvage = McapSalvage | SqliteSalvage
+Item = SalvagedTopic | tuple[int, int, bytes]
+"""A topic, or one message: ``(topic id, log time ns, CDR bytes)``."""
+
+
+@dataclass
+class Report:
+    """What a salvage found: the storage file, what was wrong, and what was dropped."""
+
+    file: Path
+    storage: str
+    notes: list[str] = field(default_factory=list)
+    """What was wrong, in the order found (none: the file was complete)."""
+    empty: bool = False
+    """The file holds no more than (part of) the mcap magic."""
+    chunks: int = 0
+    """Complete mcap chunks read."""
+    chunks_dropped: int = 0
+    """mcap chunks cut off or unreadable (their messages are lost)."""
+    bytes_dropped: int = 0
+    """Bytes of the file that could not be used."""
+    orphans: int = 0
+    """Messages whose channel record was lost (not returned)."""
+
+    @property
+    def problem(self) -> str:
+        """What was wrong ('' when the file was complete)."""
+        return "; ".join(self.notes)
+
+    def describe(self) -> str:
+        """One line: the problem and what was dropped."""
+        dropped = (
+            f"{self.chunks} complete chunks read, {self.chunks_dropped} dropped, "
+            f"{self.bytes_dropped} bytes dropped"
+            if self.storage == "mcap"
+            else "committed transactions kept, the uncommitted last one discarded"
+        )
+        orphans = f", {self.orphans} messages of lost channels" if self.orphans else ""
+        return f"{self.problem or 'complete'} ({dropped}{orphans})"
 
 
 def storage_file(path: Path) -> Path:
@@ -132,7 +101,6 @@ def storage_file(path: Path) -> Path:
     Raises:
         BagError: None, or several.
     """
-    path = Path(path)
     if not path.is_dir():
         return path
     files = sorted(p for p in path.iterdir() if p.suffix in (".mcap", ".db3") and p.is_file())
@@ -144,49 +112,188 @@ def storage_file(path: Path) -> Path:
     return files[0]
 
 
-def has_open_log(db3: Path) -> bool:
-    """Whether a sqlite3 file has a write-ahead log or hot journal beside it (not closed)."""
-    return any(db3.with_name(db3.name + s).exists() for s in ("-wal", "-journal"))
+def incomplete(path: Path) -> str:
+    """Why the bag at ``path`` was not closed by its writer ('' when it was).
+
+    A sqlite3 file with its write-ahead log or journal beside it, an mcap file that does not
+    end with the mcap magic (no footer), a directory without ``metadata.yaml``.
+
+    Raises:
+        BagError: ``path`` does not exist, or is a directory without ``metadata.yaml`` and
+            not exactly one storage file.
+    """
+    if not path.exists():
+        raise BagError(f"Bag {path} does not exist.")
+    files = (
+        sorted(p for p in path.iterdir() if p.suffix in (".mcap", ".db3"))
+        if path.is_dir()
+        else [path]
+    )
+    if len(files) == 1 and files[0].suffix == ".db3":
+        if any(files[0].with_name(files[0].name + s).exists() for s in _LOGS):
+            return f"an open write-ahead log or journal: {STOPPED}"
+    elif len(files) == 1 and files[0].suffix == ".mcap" and not _ends_with_magic(files[0]):
+        return f"no footer: {STOPPED}"
+    if path.is_dir() and not (path / "metadata.yaml").exists():
+        storage_file(path)  # exactly one storage file, else the error says what is there
+        return "no metadata.yaml"
+    return ""
 
 
-def open_salvaged(path: Path, cause: str = "") -> Salvage:
-    """Open a bag that lacks its footer or metadata, for reading what was written.
+_LOGS = ("-wal", "-journal")
+
+
+def _ends_with_magic(file: Path) -> bool:
+    with file.open("rb") as bio:
+        size = bio.seek(0, 2)
+        bio.seek(max(0, size - len(MAGIC)))
+        return size > len(MAGIC) and bio.read() == MAGIC
+
+
+def salvage(path: Path) -> tuple[Report, Iterator[Item]]:
+    """Open a bag a killed writer left, to read what it holds.
 
     Args:
         path: Bag directory, or its ``.mcap``/``.db3`` file.
-        cause: Why a normal open failed (used in the error when nothing can be read).
 
     Returns:
-        A :class:`McapSalvage` or :class:`SqliteSalvage` (close it after use).
+        The report (complete once the items are consumed) and the topics and messages in file
+        order, each topic before its first message.
 
     Raises:
-        BagError: Nothing can be read: the error names the file and what is wrong.
+        BagError: The file is not a bag file (the error names it and what is wrong).
     """
-    path = Path(path)
     file = storage_file(path)
-    no_meta = path.is_dir() and not (path / "metadata.yaml").exists()
     if file.suffix == ".db3":
-        problem = (
-            "an open write-ahead log: the recorder stopped without closing the bag"
-            if has_open_log(file)
-            else "no metadata.yaml"
-            if no_meta
-            else cause
-        )
-        return SqliteSalvage(file, problem)
+        report = Report(file, "sqlite3")
+        return report, _sqlite_items(file, report, incomplete(path))
     if file.suffix != ".mcap":
-        raise BagError(f"Cannot read bag {path}: {cause or 'unknown storage format'}.")
-    salvage = McapSalvage(file)
-    if salvage.complete and not no_meta:  # the file is whole: the failure was something else
-        salvage.close()
-        raise BagError(f"Cannot read bag {path}: {cause}")
-    if salvage.complete:
-        salvage.report.problem = "no metadata.yaml (the mcap file itself is complete)"
-    if not salvage.topics and salvage.report.bytes_dropped and not salvage.empty:
-        report = salvage.report
-        salvage.close()
-        raise BagError(
-            f"Cannot read bag {path}: {file.name} has {report.problem}; no complete chunk "
-            "before it, so there is nothing to read."
-        )
-    return salvage
+        raise BagError(f"Cannot read bag {path}: unknown storage format {file.suffix!r}.")
+    report = Report(file, "mcap")
+    with file.open("rb") as bio:
+        head = bio.read(len(MAGIC))
+    if len(head) < len(MAGIC) and MAGIC.startswith(head):
+        report.notes.append("empty: the recorder stopped before its first write")
+        report.bytes_dropped, report.empty = len(head), True
+        return report, iter(())
+    if head != MAGIC:
+        raise BagError(f"{file} is not an mcap file (it starts with {head!r}).")
+    no_meta = path.is_dir() and not (path / "metadata.yaml").exists()
+    return report, _mcap_items(file, report, no_meta=no_meta)
+
+
+def messages_in_file(path: Path) -> int:
+    """Messages a salvage of the mcap bag at ``path`` gets back (0 when none)."""
+    try:
+        _, items = salvage(path)
+        return sum(1 for item in items if not isinstance(item, SalvagedTopic))
+    except BagError:
+        return 0
+
+
+def _mcap_items(file: Path, report: Report, *, no_meta: bool) -> Iterator[Item]:
+    schemas: dict[int, Schema] = {}
+    topics: set[int] = set()
+    with file.open("rb") as bio:
+        size = bio.seek(0, 2)
+        bio.seek(0)
+        pos = 0
+        try:
+            for record in StreamReader(bio, emit_chunks=True, record_size_limit=size).records:
+                if isinstance(record, DataEnd):  # the writer closed the file
+                    if no_meta:
+                        report.notes.append("no metadata.yaml (the mcap file itself is complete)")
+                    return
+                records: list[McapRecord] = [record]
+                if isinstance(record, Chunk):
+                    try:
+                        records = _chunk_records(record)
+                        report.chunks += 1
+                    except ValueError as err:
+                        report.chunks_dropped += 1
+                        report.bytes_dropped += bio.tell() - pos
+                        report.notes.append(f"a chunk at byte {pos} dropped: {err}")
+                        records = []
+                for rec in records:
+                    if isinstance(rec, Schema):
+                        schemas[rec.id] = rec
+                    elif isinstance(rec, Channel) and rec.id not in topics:
+                        topics.add(rec.id)
+                        yield _mcap_topic(rec, schemas.get(rec.schema_id))
+                    elif isinstance(rec, Message) and rec.channel_id in topics:
+                        yield rec.channel_id, rec.log_time, rec.data
+                    elif isinstance(rec, Message):
+                        report.orphans += 1
+                pos = bio.tell()
+        except (McapError, ValueError, struct.error):  # a record cut off, or not mcap data
+            pass
+    cut = size - pos
+    report.bytes_dropped += cut
+    where = f"; the record at byte {pos} is cut off or unreadable ({cut} bytes dropped)"
+    report.notes.insert(0, f"no footer: {STOPPED}" + (where if cut else ""))
+
+
+def _chunk_records(chunk: Chunk) -> list[McapRecord]:
+    """The records of a chunk whose size and CRC check out.
+
+    Raises:
+        ValueError: The chunk is cut off, does not decompress, or fails its CRC.
+    """
+    try:
+        if chunk.compression == "" and len(chunk.data) != chunk.uncompressed_size:
+            raise ValueError("it is cut off")
+        return breakup_chunk(chunk, validate_crc=True)
+    except CRCValidationError:
+        raise ValueError("checksum mismatch") from None
+    except (McapError, struct.error) as err:
+        raise ValueError(f"its records do not read: {err}") from err
+    except ValueError:
+        raise
+    except Exception as err:  # zstd and lz4 raise their own types on bad input
+        raise ValueError(f"it does not decompress ({chunk.compression}): {err}") from err
+
+
+def _mcap_topic(channel: Channel, schema: Schema | None) -> SalvagedTopic:
+    qos = None
+    with contextlib.suppress(Exception):  # a QoS text rosbags cannot parse: the standard one
+        qos = parse_qos(channel.metadata.get("offered_qos_profiles", ""))
+    return SalvagedTopic(
+        channel.id,
+        channel.topic,
+        schema.name if schema else "",
+        schema.data.decode(errors="replace") if schema else "",
+        schema.encoding if schema else "",
+        channel.metadata.get("topic_type_hash", ""),
+        qos or None,
+    )
+
+
+def _sqlite_items(file: Path, report: Report, problem: str) -> Iterator[Item]:
+    try:  # SQLite recovers the file when it is first read, read-write
+        with contextlib.closing(sqlite3.connect(f"file:{file}?mode=rw", uri=True)) as db:
+            db.execute("SELECT count(*) FROM sqlite_master").fetchone()
+            db.execute("PRAGMA journal_mode=DELETE")  # a write-ahead log checkpointed into it
+    except sqlite3.Error as err:
+        raise BagError(f"Cannot read sqlite3 bag file {file}: {err}.") from err
+    if problem:
+        report.notes.append(problem)
+    try:
+        with Reader(file) as reader:
+            for conn in reader.connections:
+                idl = conn.msgdef.format == MessageDefinitionFormat.IDL
+                qos = getattr(conn.ext, "offered_qos_profiles", None) or None
+                yield SalvagedTopic(
+                    conn.id,
+                    conn.topic,
+                    conn.msgtype,
+                    conn.msgdef.data,
+                    "ros2idl" if idl else "ros2msg",
+                    conn.digest,
+                    qos,
+                )
+            for conn, log_time, data in reader.messages():
+                yield conn.id, log_time, bytes(data)
+    except BagError:
+        raise
+    except Exception as err:  # rosbags and apsw raise several types for a broken database
+        raise BagError(f"Cannot read sqlite3 bag file {file}: {err}") from err

@@ -29,9 +29,8 @@ The writer API (used by the simulator for its bags and by ``ext-sense record``):
   readable).
 - Durability: at least every ``flush_period_s`` (1 s; on the write that finds it due, or on
   :meth:`BagWriter.flush_if_due`, which a recorder calls from a timer) the pending mcap chunk is
-  closed, written and fsynced, and the sqlite3 transaction is committed (write-ahead log,
-  ``synchronous=NORMAL``; the log is checkpointed and the journal mode set back to ``DELETE``
-  on close). A writer killed at any moment leaves every flushed message readable:
+  closed, written and fsynced (mcap's ``Writer.flush``), or the sqlite3 transaction committed.
+  A writer killed at any moment leaves every flushed message readable:
   :class:`ext_sense_bags.BagReader` reads a bag without footer or metadata, and
   :func:`ext_sense_bags.recover.recover_bag` (``ext-sense bag recover``) rewrites it whole.
 - A failed write (disk full, file too large, I/O error) raises :class:`BagError` naming the bag
@@ -42,6 +41,7 @@ The writer API (used by the simulator for its bags and by ``ext-sense record``):
 from __future__ import annotations
 
 import contextlib
+import os
 import sqlite3
 import time
 from collections.abc import Sequence
@@ -50,8 +50,11 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, ClassVar
 
+from mcap.writer import CompressionType
+from mcap.writer import Writer as McapWriter
 from rosbags.interfaces import (
     Connection,
+    MessageDefinitionFormat,
     Qos,
     QosDurability,
     QosHistory,
@@ -60,8 +63,9 @@ from rosbags.interfaces import (
     QosTime,
 )
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+from rosbags.rosbag2.enums import CompressionMode
+from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
-from ext_sense_bags.durable_storage import DurableSqlite3, McapWithHashes
 from ext_sense_bags.errors import BagError
 from ext_sense_bags.topics import STANDARD_TOPICS, TopicSpec
 from ext_sense_bags.typestore import make_typestore
@@ -93,11 +97,74 @@ def offered_qos(reliable: bool, depth: int) -> Qos:
     )
 
 
+class McapStorage:
+    """rosbag2's mcap storage written by mcap's ``Writer``: chunks with CRCs, flushed on demand.
+
+    A storage of rosbags' ``Writer`` (its storage protocol: ``add_msgtype``, ``add_connection``,
+    ``write``, ``close``, ``abort``), which keeps the bag directory and ``metadata.yaml``. Profile
+    ``ros2``, schemas ``ros2msg``, CDR messages, and per channel the offered QoS and the
+    ``topic_type_hash``, as rosbag2 writes them.
+    """
+
+    def __init__(self, path: Path, compression: CompressionMode) -> None:
+        self.path = path / f"{path.name}.mcap"
+        self._file = self.path.open("xb")
+        self._mcap = McapWriter(self._file, compression=CompressionType.NONE)
+        self._mcap.start(profile="ros2", library="ext_sense_bags")
+        self._file.flush()  # the magic and header are on disk before the first chunk
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[int, int] = {}
+
+    def add_msgtype(self, connection: Connection) -> None:
+        """Register the schema of a type (its definition text)."""
+        idl = connection.msgdef.format == MessageDefinitionFormat.IDL
+        self._schemas[connection.msgtype] = self._mcap.register_schema(
+            connection.msgtype, "ros2idl" if idl else "ros2msg", connection.msgdef.data.encode()
+        )
+
+    def add_connection(self, connection: Connection, offered_qos_profiles: str) -> None:
+        """Register a channel with its offered QoS and type hash."""
+        metadata = {"offered_qos_profiles": offered_qos_profiles}
+        metadata["topic_type_hash"] = connection.digest
+        schema = self._schemas[connection.msgtype]
+        self._channels[connection.id] = self._mcap.register_channel(
+            connection.topic, "cdr", schema, metadata
+        )
+
+    def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
+        """Append one message to the pending chunk."""
+        self._mcap.add_message(self._channels[connection.id], timestamp, data, timestamp)
+
+    def flush(self) -> None:
+        """Close the pending chunk (if any), write it out and fsync."""
+        self._mcap.flush()
+        os.fsync(self._file.fileno())
+
+    def close(self, version: int, metadata: str) -> None:
+        """Write the last chunk, rosbag2's metadata record and the summary; close the file."""
+        self._mcap.flush()
+        self._mcap.add_metadata("rosbag2", {"serialized_metadata": metadata})
+        self._mcap.finish()
+        self._file.close()
+
+    def abort(self) -> None:
+        """Close the file as it is (after a failed write)."""
+        with contextlib.suppress(OSError):
+            self._file.close()
+
+
+class Sqlite3Storage(Sqlite3Writer):
+    """rosbags' sqlite3 storage with :meth:`flush` (rosbags commits only on close)."""
+
+    def flush(self) -> None:
+        """Commit what was written since the last flush."""
+        self.conn.commit()
+
+
 class _Writer(Writer):
     STORAGE_PLUGINS: ClassVar = {
-        **Writer.STORAGE_PLUGINS,
-        StoragePlugin.MCAP: McapWithHashes,
-        StoragePlugin.SQLITE3: DurableSqlite3,
+        StoragePlugin.MCAP: McapStorage,
+        StoragePlugin.SQLITE3: Sqlite3Storage,
     }
 
 
@@ -330,17 +397,17 @@ class BagWriter:
 
     def _stop(self, err: BaseException) -> None:
         self._open = False
-        in_file = getattr(self._writer.storage, "messages_in_file", None)
-        if in_file is not None:
-            with contextlib.suppress(OSError):
-                self.flushed = max(self.flushed, in_file())
+        with contextlib.suppress(Exception):  # the storage is broken already; the error says so
+            self._writer.abort()
+        if self.storage == Storage.MCAP:  # a chunk may be whole in the file with its index cut
+            from ext_sense_bags.salvage import messages_in_file
+
+            self.flushed = max(self.flushed, messages_in_file(self.path))
         self.failed = (
             f"Cannot write bag {self.path}: {_reason(err)}; recording stopped after "
             f"{self._written} messages, {self.flushed} of them flushed to the disk "
             f"(`ext-sense bag recover {self.path}` rewrites them as a complete bag)."
         )
-        with contextlib.suppress(Exception):  # the storage is broken already; the error says so
-            self._writer.abort()
         raise BagError(self.failed) from err
 
     def set_custom_data(self, key: str, value: str) -> None:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ext_sense_bags.recorded import decoding_store, to_current
+from ext_sense_bags.reader import to_current
 from rosbags.rosbag2 import Reader, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
@@ -110,7 +110,7 @@ def _check_old_contents(path: Path, store: Typestore) -> None:
         batches = [(rec, msg) for rec, msg in bag.messages([EVENTS])]
         assert len(batches) == 12
         for i, (rec, msg) in enumerate(batches):
-            assert bag.type_source(rec).recorded
+            assert bag.differs(rec.msgtype)
             assert msg.value.tolist() == [i] * (1 + i % 5)
             assert msg.offset_ns.tolist() == [k * 1000 for k in range(1 + i % 5)]
             assert int(msg.words_total) == i
@@ -125,7 +125,7 @@ def _check_old_contents(path: Path, store: Typestore) -> None:
         assert (estimate.task, estimate.tap_position_m) == ("tap_localization", 0.25)
         assert not hasattr(estimate, "degraded_reason")
         ((rec, truth),) = bag.messages([TRUTH])
-        assert not bag.type_source(rec).recorded
+        assert not bag.differs(rec.msgtype)
         assert truth.trial == 7
 
 
@@ -159,9 +159,7 @@ def test_a_current_bag_decodes_with_the_current_store(tmp_path):
         bag.write(EVENTS, T0, batch)
     with BagReader(tmp_path / "new") as bag:
         ((rec, msg),) = bag.messages()
-        source = bag.type_source(rec)
-        assert source.store is bag.typestore
-        assert not source.recorded
+        assert not bag.differs(rec.msgtype)
         assert msg.flag.tolist() == [1, 0]
         assert msg.taxel.tolist() == [3, 4]
         assert bag.current_cdr(rec) == rec.data  # passed through untouched
@@ -230,26 +228,20 @@ def test_without_a_stored_definition_the_error_says_so(tmp_path, old_store):
         db.execute("DELETE FROM message_definitions WHERE topic_type = ?", (BATCH,))
     with BagReader(path) as bag:
         rec = next(bag.records([EVENTS]))
-        assert "no definition" in bag.type_source(rec).problem
         with pytest.raises(BagError, match=r"recorded it with another definition.*no definition"):
             bag.decode(rec)
         ((_, truth),) = bag.messages([TRUTH])  # the other topics are unaffected
         assert truth.trial == 7
 
 
-def test_recorded_stores_are_built_once_per_type_and_hash(old_store):
-    msgdef, _ = old_store.generate_msgdef(BATCH, ros_version=2)
-    digest = old_store.hash_rihs01(BATCH)
-    first = decoding_store(BATCH, digest, msgdef)
-    assert first.recorded
-    assert decoding_store(BATCH, digest, msgdef).store is first.store
-    assert first.store.hash_rihs01(BATCH) == digest
-    # no hash stored, the current definition: the current store
-    now, _ = make_typestore().generate_msgdef(BATCH, ros_version=2)
-    assert decoding_store(BATCH, "", now).store is make_typestore()
-    broken = decoding_store(BATCH, digest + "0", "uint8[ broken")
-    assert not broken.recorded
-    assert "does not parse" in broken.problem
+def test_a_bag_with_an_unparsable_definition_gives_a_clear_error(tmp_path, old_store):
+    """The bag's own definitions build its typestore: one that does not parse is named."""
+    with BagWriter(tmp_path / "broken") as bag:
+        digest = old_store.hash_rihs01(BATCH)
+        bag.add_topic(EVENTS, BATCH, definition=("uint8[ broken", digest))
+        bag.write_raw(EVENTS, T0, old_store.serialize_cdr(_old_batch(old_store, 1), BATCH))
+    with pytest.raises(BagError, match=r"Cannot read bag .*broken"):
+        BagReader(tmp_path / "broken").open()
 
 
 def test_an_old_simulator_bag_gives_the_same_windows(tmp_path, old_store):
