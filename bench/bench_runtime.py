@@ -32,8 +32,8 @@ left out of the graph (the bench itself is their source).
    input past it published (``wait``), -> window received (``window_node``), -> estimate ready
    (``inference``), -> estimate received (``estimate``). The model is ``--model``, else the
    demo's (``tap_localization_nuskin``, found as the graphs find it); when that is missing the
-   demo's training (``ext_sense.commands.demo.ensure_model``) trains one into a temporary
-   directory first.
+   demo's training (``ext_sense_sim.default_models.ensure_model``) trains one
+   into a temporary directory first.
 2. Worst case: 80 taxels at 4 kHz (320k events/s) as receiver words over a pty into the graph's
    ``nuskin_driver`` (``source:=serial``), then its ``contact_window``; events sent vs events
    the window node counted, packets the driver published vs the window node got and lost by

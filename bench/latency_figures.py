@@ -91,9 +91,9 @@ def batch_reads(batch: Batch) -> list[tuple[int, bytes]]:
 
 def latency_model(model: str, train_taps: int, tmp: Path) -> tuple[Path, str]:
     """The bundle to serve and how it was found: ``--model``, the demo's, or trained here."""
-    from ext_sense.commands.demo import ensure_model
     from ext_sense_perception.errors import PerceptionError
     from ext_sense_perception.online.model_store import find_model
+    from ext_sense_sim.default_models import ensure_model
 
     if model:
         path = Path(model).resolve()
@@ -107,8 +107,9 @@ def latency_model(model: str, train_taps: int, tmp: Path) -> tuple[Path, str]:
         missing = str(err)
     out = tmp / "model"
     t0 = time.monotonic()
-    if ensure_model(out, "nuskin", train_taps, log=sys.stderr):
-        raise SystemExit("bench_runtime: training the demo's model failed")
+    ensure_model(
+        out, "tap_localization", "nuskin", train_taps, log=lambda line: print(line, file=sys.stderr)
+    )
     return out, (
         f"the demo's, trained here on {train_taps} streamed taps in "
         f"{time.monotonic() - t0:.0f} s ({missing})"

@@ -1,8 +1,8 @@
 """Models for system tests, trained by the one training recipe on a small simulated set, and
 the graph processes those tests start and stop.
 
-The set is the scene's trials as the driver delivers them (``demo.as_delivered``), as the demo
-trains, so a model sees the same windows in a test as in use.
+The set is the scene's trials as the driver delivers them (``default_models.as_delivered``), as
+the demo trains, so a model sees the same windows in a test as in use.
 """
 
 from __future__ import annotations
@@ -138,9 +138,9 @@ def train_sim_model(
 def _train_sim_model(
     root: Path, scene: str, task: str, trials: int, seed: int
 ) -> tuple[Path, Path]:
-    from ext_sense.commands.demo import as_delivered
     from ext_sense_perception.data.sources import from_sim_dataset
     from ext_sense_perception.training.recipe import train_bundle
+    from ext_sense_sim.default_models import as_delivered
     from ext_sense_sim.run import run_scene
     from ext_sense_sim.scene import load_scene
 

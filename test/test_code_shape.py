@@ -10,6 +10,8 @@ Static checks over ``src/*/<package>/**.py`` (AST only, nothing imported):
 - the perception rooms import one way: nodes -> online; cli -> reporting -> training ->
   features / data -> online -> profiles / errors;
 - the inference node's import closure holds neither scikit-learn's training stack nor torch;
+- nothing but the command line (``ext_sense/cli.py`` and ``ext_sense/commands/``) imports
+  ``ext_sense.commands``: library code lives in the packages, and bench and tests use it there;
 - no module over 500 lines unless its docstring says why it must be one piece.
 """
 
@@ -233,3 +235,40 @@ def test_modules_stay_under_500_lines_unless_they_say_why() -> None:
             if n > MAX_LINES and ONE_PIECE not in (ast.get_docstring(ast.parse(text)) or ""):
                 long.append(f"{path.relative_to(SRC)}: {n} lines")
     assert long == []
+
+
+CLI = (SRC / "ext_sense" / "ext_sense" / "cli.py", SRC / "ext_sense" / "ext_sense" / "commands")
+
+
+def _imports_commands(tree: ast.Module) -> list[int]:
+    """Lines of a module that import ``ext_sense.commands`` or a module of it."""
+    lines = []
+    for node in ast.walk(tree):
+        names: list[str] = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+        if any(n == "ext_sense.commands" or n.startswith("ext_sense.commands.") for n in names):
+            lines.append(node.lineno)
+    return lines
+
+
+def _python_files() -> list[Path]:
+    files = [*SRC.rglob("*.py"), *(ROOT / "test").rglob("*.py"), *(ROOT / "bench").rglob("*.py")]
+    files += [*(ROOT / "launch").glob("*.py"), *ROOT.glob("*.py")]
+    return sorted(p for p in files if not any(p == c or c in p.parents for c in CLI))
+
+
+def test_only_the_command_line_imports_the_commands() -> None:
+    wrong = [
+        f"{path.relative_to(ROOT)}:{line}"
+        for path in _python_files()
+        for line in _imports_commands(ast.parse(path.read_text(), str(path)))
+    ]
+    assert wrong == []
+
+
+def test_a_commands_import_is_found(tmp_path: Path) -> None:
+    code = "import ext_sense.commands.demo\nfrom ext_sense import commands\nimport ext_sense.cli\n"
+    assert _imports_commands(ast.parse(code)) == [1, 2]

@@ -31,7 +31,7 @@ def write_tap_bag(path: Path, onsets_ms=(100.0, 800.0, 1500.0), t0_ns=T0) -> Non
 
 
 def test_offline_replay_is_deterministic(tmp_path):
-    from ext_sense.commands.bags import offline_estimates
+    from ext_sense.offline_replay import offline_estimates
     from ext_sense_perception.online.window import WindowConfig
 
     write_tap_bag(tmp_path / "bag")

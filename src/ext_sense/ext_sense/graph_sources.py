@@ -20,18 +20,10 @@ from ext_sense.topics import (
     TOPIC_HANDOVER_OFFER,
     TOPIC_MOTION_START,
 )
+from ext_sense_sim.scene import DEFAULT_SCENES as DEFAULT_SCENES
 
 STARTUP_SPARE_TRIALS = 3
 """Extra simulated trials: those streamed while the graph is still starting are lost."""
-
-DEFAULT_SCENES = {
-    ("tap_localization", "nuskin"): "tap_rod30_nuskin",
-    ("tap_localization", "biotac"): "tap_rod30_biotac",
-    ("handover_stability", "nuskin"): "handover_rod_nuskin",
-    ("handover_stability", "biotac"): "handover_plate_biotac",
-    ("food_identification", "nuskin"): "food_fork_nuskin",
-    ("food_identification", "biotac"): "food_fork_biotac",
-}
 
 SIM_TRIGGERS = {
     "handover_stability": (TOPIC_HANDOVER_OFFER, "start"),

@@ -21,6 +21,17 @@ from ext_sense_sim.geometry import Geometry, geometry_from
 DEFAULT_RATE_HZ = {Sensor.NUSKIN: 16000.0, Sensor.BIOTAC: 17600.0}
 """Simulation rates: NUSkin 16 kHz (the 0.25 ms refractory is 4 samples), BioTac 8 x 2200 Hz."""
 
+DEFAULT_SCENES = {
+    ("tap_localization", "nuskin"): "tap_rod30_nuskin",
+    ("tap_localization", "biotac"): "tap_rod30_biotac",
+    ("handover_stability", "nuskin"): "handover_rod_nuskin",
+    ("handover_stability", "biotac"): "handover_plate_biotac",
+    ("food_identification", "nuskin"): "food_fork_nuskin",
+    ("food_identification", "biotac"): "food_fork_biotac",
+}
+"""The shipped scene of each ``(task, sensor)``: what a graph simulates and the default models
+are trained on when no scene is named."""
+
 
 @dataclass(frozen=True)
 class Scene:

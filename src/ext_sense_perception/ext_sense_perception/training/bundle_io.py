@@ -5,11 +5,23 @@ Bundles are read back by :func:`ext_sense_perception.online.predictor.load_model
 also keeps the windows it was trained on (``training_windows.npz``, compressed; NUSkin counts
 as int16), so ``ext-sense calibrate`` can refit it with a new session's trials through the same
 recipe without the original data at hand.
+
+A place that bundles are trained into is checked first (:func:`check_place`: writable, with
+room), locked while they are made (:func:`place_lock`), and each bundle is written beside its
+final directory and renamed into it (:func:`staged_bundle`), so a failed or concurrent write
+never leaves a bundle that mixes files.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import fcntl
+import os
+import secrets
+import shutil
+import tempfile
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import joblib
@@ -23,6 +35,100 @@ from ext_sense_perception.training.onnx_export import to_onnx_bytes
 from ext_sense_runtime.stamps import MS
 
 TRAINING_WINDOWS_FILE = "training_windows.npz"
+LOCK_FILE = ".ext_sense_models.lock"
+"""The lock file of a place bundles are written into (kept: removing it would race a waiter)."""
+
+
+def check_place(place: Path, need_bytes: int) -> None:
+    """Make sure bundles can be written into ``place`` before anything is trained for them.
+
+    The directory is created if missing, a probe file is written and removed, and its file
+    system must have ``need_bytes`` free.
+
+    Raises:
+        PerceptionError: One line naming the place and what is wrong.
+    """
+    try:
+        place.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=place, prefix=".ext_sense_probe_"):
+            pass
+        free = shutil.disk_usage(place).free
+    except OSError as err:
+        raise PerceptionError(f"cannot write into {place}: {err.strerror or err}") from err
+    if free < need_bytes:
+        raise PerceptionError(
+            f"not enough free space in {place}: {free / 2**20:.1f} MB free, "
+            f"{need_bytes / 2**20:.0f} MB needed"
+        )
+
+
+@contextlib.contextmanager
+def place_lock(place: Path, log: Callable[[str], None] | None = None) -> Iterator[None]:
+    """Hold the exclusive lock of ``place`` (``fcntl.flock`` on its :data:`LOCK_FILE`).
+
+    Another holder (another process writing bundles there) is waited for; ``log`` is told so.
+
+    Raises:
+        PerceptionError: The lock file cannot be opened.
+    """
+    try:
+        fd = os.open(place / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as err:
+        raise PerceptionError(f"cannot lock {place}: {err.strerror or err}") from err
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            if log is not None:
+                log(f"waiting: another process is writing models into {place}")
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # closing releases the lock
+
+
+@contextlib.contextmanager
+def staged_bundle(target: Path) -> Iterator[Path]:
+    """A fresh directory beside ``target`` to write a bundle into, renamed to ``target`` at the end.
+
+    A bundle already at ``target`` is replaced only once the new one is complete; if the
+    block fails, the staged directory is removed and ``target`` is left as it was. What a
+    killed writer left beside ``target`` is cleared first (its former bundle put back if the
+    kill came between the two renames), so writers of one place must hold its
+    :func:`place_lock`.
+
+    Raises:
+        PerceptionError: A file could not be written or renamed (disk full, read-only, ...).
+    """
+    tag = f"{os.getpid()}_{secrets.token_hex(4)}"
+    staged = target.parent / f".{target.name}.new_{tag}"
+    old = target.parent / f".{target.name}.old_{tag}"
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        for kind in ("new", "old"):
+            for left in sorted(target.parent.glob(f".{target.name}.{kind}_*")):
+                if kind == "old" and not target.exists():
+                    left.rename(target)
+                else:
+                    shutil.rmtree(left)
+        staged.mkdir()  # not mkdtemp: the bundle keeps the umask's mode, readable by others
+    except OSError as err:
+        raise PerceptionError(f"cannot write the bundle {target}: {err.strerror or err}") from err
+    try:
+        try:
+            yield staged
+            if target.exists():
+                target.rename(old)
+            staged.rename(target)
+        except OSError as err:
+            if old.exists() and not target.exists():
+                old.rename(target)
+            raise PerceptionError(
+                f"cannot write the bundle {target}: {err.strerror or err}"
+            ) from err
+    finally:
+        shutil.rmtree(staged, ignore_errors=True)
+        shutil.rmtree(old, ignore_errors=True)
 
 
 def save_training_windows(ws: WindowSet, out_dir: str | Path) -> Path:

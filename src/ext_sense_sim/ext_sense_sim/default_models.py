@@ -1,0 +1,257 @@
+"""The default model of each task, trained on the scene simulator (``ext-sense models create``).
+
+Each model is trained by the perception package's one recipe
+(``ext_sense_perception.training.recipe.train_bundle``) on the windows the live graph would cut
+from the task's default scene (:data:`~ext_sense_sim.scene.DEFAULT_SCENES`):
+
+- NUSkin taps: the scene's trials laid out as the emulated device streams them
+  (``ext_sense_sim.trial_plan.lay_out_stream``), decoded and cut by the driver's decoder and
+  the ``contact_window`` node's core (``ext_sense_perception.data.device_stream``), so there
+  is no train/serve skew;
+- the NUSkin handover: the same stream cut ideally and again by late readers
+  (``ext_sense_perception.training.arrival_jitter.late_read_window_set``);
+- the rest: a simulated dataset, NUSkin events as the driver delivers them (:func:`as_delivered`).
+
+A bundle is kept while the fingerprint of its inputs (:func:`training_fingerprint`) is current.
+Bundles are written into a temporary directory beside their place and renamed into it, under
+a lock on the place, after the place was found writable
+(``ext_sense_perception.training.bundle_io``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+import ext_sense_perception
+from ext_sense_perception.data.device_stream import window_set_from_stream
+from ext_sense_perception.data.sources import from_sim_dataset
+from ext_sense_perception.data.window_set import WindowSet
+from ext_sense_perception.online.model_card import CARD_FILE
+from ext_sense_perception.online.model_store import default_name
+from ext_sense_perception.online.window import WindowConfig
+from ext_sense_perception.training.arrival_jitter import late_read_window_set
+from ext_sense_perception.training.bundle_io import check_place, place_lock, staged_bundle
+from ext_sense_perception.training.recipe import Recipe, train_bundle
+from ext_sense_sim.run import run_scene
+from ext_sense_sim.scene import DEFAULT_SCENES, load_scene
+from ext_sense_sim.trial_plan import lay_out_stream
+
+Log = Callable[[str], None]
+
+TASKS = ("tap_localization", "handover_stability", "food_identification")
+TRIALS: dict[tuple[str, str], int] = {
+    ("tap_localization", "nuskin"): 300,
+    ("tap_localization", "biotac"): 300,
+    ("handover_stability", "nuskin"): 400,
+    ("handover_stability", "biotac"): 80,
+    ("food_identification", "nuskin"): 70,
+    ("food_identification", "biotac"): 70,
+}
+"""Simulated training trials per task and sensor. Taps: the demo's own default (the demo and
+``ros2 launch`` share one model). Food and the BioTac handover: small sets that keep the command
+at about a minute on a 2-core machine. The NUSkin handover: 400, because its release rule (3
+confident estimates in a row) needs probabilities that hold on live reads (docs/benchmarks.md,
+"Where the release streak is lost")."""
+
+JOBS = os.cpu_count() or 1
+"""Grid-search jobs of the recipe-trained models and processes cutting the NUSkin handover's
+stream: every core (the same model as one job; docs/runtime.md has the times)."""
+
+HANDOVER_LATE_READS = 2
+"""Extra cuts of the NUSkin handover's training stream by a late reader: its FFT + SVM reads
+2 ms bins, and live stamps move events by a bin (docs/benchmarks.md, "Late-read training")."""
+
+TRAIN_SEED = 1000
+"""Seed of the training trials (the demo's own taps use another)."""
+
+TRIAL_PERIOD_S = 1.0
+"""Trial spacing of a training stream: ``sim_device``'s default ``trial_period_s``."""
+
+FINGERPRINT_FILE = "demo_fingerprint.txt"
+
+BUNDLE_BYTES = 64 * 2**20
+"""Free space asked of a place per bundle before training: a default bundle (ONNX graph, joblib
+pipeline, training windows and the anytime models) stays well below it."""
+
+
+def _quiet(_line: str) -> None:
+    """The default log: say nothing."""
+
+
+def training_fingerprint(sensor: str, scene: str, trials: int, how: str = "") -> str:
+    """A hash of everything a default model is trained from.
+
+    The sources of the simulator and of the perception package outside their nodes (effects,
+    streaming, windows, features, models), the scene, how the set is made and the trial count.
+    A model whose fingerprint differs was trained on data this checkout no longer produces.
+    """
+    digest = hashlib.sha256(f"{sensor}|{scene}|{how}|{trials}|{TRAIN_SEED}".encode())
+    for root in (Path(__file__).parent, Path(ext_sense_perception.__file__).parent):
+        for path in sorted(root.rglob("*")):
+            if path.suffix in (".py", ".yaml") and "nodes" not in path.parts:
+                digest.update(str(path.relative_to(root)).encode())
+                digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def as_delivered(dataset: Path, out: Path) -> Path:
+    """The dataset ``dataset.npz`` as the NUSkin driver delivers it live: every polarity 0.
+
+    The receiver's words carry no polarity (real receivers leave the flag bit 0, the emulated
+    one too), so a model meant for the live graph must see events without it.
+    """
+    with np.load(dataset) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    arrays["ev_polarity"] = np.zeros_like(arrays["ev_polarity"])
+    np.savez(out, **arrays)
+    return out
+
+
+def stream_set(scene: str, trials: int, log: Log = _quiet) -> WindowSet:
+    """The scene's taps as the emulated device streams them, cut as the live graph cuts them."""
+    t0 = time.monotonic()
+    laid = lay_out_stream(load_scene(scene), TRAIN_SEED, trials, TRIAL_PERIOD_S)
+    ws, counts = window_set_from_stream(laid.writes, laid.truths, source=f"stream:{scene}")
+    log(
+        f"{counts.labelled} labelled windows from {counts.words} words "
+        f"({counts.unmatched_windows} unmatched windows, {counts.missed_trials} trials without "
+        f"a window) in {time.monotonic() - t0:.1f} s"
+    )
+    return ws
+
+
+def late_read_set(
+    scene: str,
+    task: str,
+    trials: int,
+    late_reads: int = HANDOVER_LATE_READS,
+    n_jobs: int = JOBS,
+) -> WindowSet:
+    """The scene's trials as the emulated device streams them, cut ideally and by late reads.
+
+    The ``contact_window`` node's own configuration cuts them (``WindowConfig.for_task``), so
+    the windows are the ones the live graph makes.
+    """
+    laid = lay_out_stream(load_scene(scene), TRAIN_SEED, trials, TRIAL_PERIOD_S)
+    config = WindowConfig.for_task(task, "nuskin")
+    ws, _ = late_read_window_set(
+        laid.writes, laid.truths, config, late_reads, source=f"stream:{scene}", n_jobs=n_jobs
+    )
+    return ws
+
+
+def _how(task: str, sensor: str) -> str:
+    if sensor != "nuskin":
+        return "dataset"
+    if task == "tap_localization":
+        return "stream"
+    if task == "handover_stability":
+        return f"stream, {HANDOVER_LATE_READS} late reads"
+    return "dataset"
+
+
+def training_set(
+    task: str, sensor: str, scene: str, trials: int, log: Log = _quiet
+) -> tuple[WindowSet, Recipe]:
+    """The windows a default model is trained on, and the recipe that trains it."""
+    how = _how(task, sensor)
+    if how == "stream":
+        return stream_set(scene, trials, log), Recipe()
+    if how.startswith("stream"):
+        return late_read_set(scene, task, trials), Recipe(arrival_jitter=0.0, n_jobs=JOBS)
+    with tempfile.TemporaryDirectory(prefix="ext_sense_models_") as tmp:
+        run_scene(load_scene(scene), Path(tmp) / "sim", trials, TRAIN_SEED, formats=("npz",))
+        npz = Path(tmp) / "sim" / "dataset.npz"
+        if sensor == "nuskin":
+            npz = as_delivered(npz, Path(tmp) / "delivered.npz")
+        return from_sim_dataset(npz), Recipe(n_jobs=JOBS)
+
+
+def _ensure(
+    model_dir: Path, task: str, sensor: str, trials: int, scene: str, force: bool, log: Log
+) -> bool:
+    """:func:`ensure_model` with the place checked and locked by the caller."""
+    how = _how(task, sensor)
+    fingerprint = training_fingerprint(sensor, scene, trials, how)
+    stamp = model_dir / FINGERPRINT_FILE
+    if (model_dir / CARD_FILE).is_file() and not force:
+        if stamp.is_file() and stamp.read_text().strip() == fingerprint:
+            log(f"using model {model_dir} (trained from the same inputs)")
+            return False
+        log(f"{model_dir} was trained from other simulator, perception or scene inputs; retraining")
+    t0 = time.monotonic()
+    log(f"{task}/{sensor}: {trials} simulated trials of {scene} ({how}) -> {model_dir}")
+    ws, recipe = training_set(task, sensor, scene, trials, log)
+    t1 = time.monotonic()
+    log(f"simulated {len(ws.y)} windows in {t1 - t0:.1f} s")
+    with staged_bundle(model_dir) as staged:
+        card = train_bundle(ws, staged, recipe)
+        (staged / FINGERPRINT_FILE).write_text(fingerprint + "\n")
+    log(f"trained {card.id} in {time.monotonic() - t1:.1f} s; metrics {card.metrics}")
+    return True
+
+
+def ensure_model(
+    model_dir: Path,
+    task: str,
+    sensor: str,
+    trials: int | None = None,
+    scene: str = "",
+    force: bool = False,
+    log: Log = _quiet,
+) -> bool:
+    """Train the task's default model into ``model_dir`` unless a current one is there.
+
+    Args:
+        model_dir: The bundle directory; its parent is checked writable and locked.
+        task: Which task's default model.
+        sensor: For which sensor.
+        trials: Simulated training trials (default: :data:`TRIALS`).
+        scene: Simulator scene (default: the task's, ``ext_sense_sim.scene.DEFAULT_SCENES``).
+        force: Train even when a current model is there.
+        log: Called with each progress line.
+
+    Returns:
+        Whether a model was trained.
+
+    Raises:
+        PerceptionError: The place is not writable or too full, or training failed.
+        SceneError: The scene cannot be loaded.
+    """
+    trials = trials or TRIALS[(task, sensor)]
+    scene = scene or DEFAULT_SCENES[(task, sensor)]
+    check_place(model_dir.parent, BUNDLE_BYTES)
+    with place_lock(model_dir.parent, log):
+        return _ensure(model_dir, task, sensor, trials, scene, force, log)
+
+
+def create_models(
+    out: Path,
+    sensor: str,
+    tasks: Sequence[str] = TASKS,
+    force: bool = False,
+    log: Log = _quiet,
+) -> None:
+    """Train the default model of each task into ``out/<task>_<sensor>`` unless current.
+
+    ``out`` is checked writable with room for every bundle before anything is trained, and
+    locked while they are made (a second run into ``out`` waits, then keeps what the first
+    made).
+
+    Raises:
+        PerceptionError: ``out`` is not writable or too full, or a training failed.
+        SceneError: A scene cannot be loaded.
+    """
+    check_place(out, BUNDLE_BYTES * len(tasks))
+    with place_lock(out, log):
+        for task in tasks:
+            model_dir = out / default_name(task, sensor)
+            scene = DEFAULT_SCENES[(task, sensor)]
+            _ensure(model_dir, task, sensor, TRIALS[(task, sensor)], scene, force, log)
