@@ -6,9 +6,11 @@ with the outcome the design promises asserted.
 - ``kill -STOP`` of the inference node for 3 s: the estimates it makes after ``SIGCONT`` are
   published ``degraded`` ("late: ready ... ms after the window ended (deadline 500 ms)") and the
   monitor lists them, never scoring them as normal ones.
-- ``kill -STOP`` of the window node for 2 s: the event batches queued meanwhile reach it late,
-  or not at all (the best-effort stream drops them); the windows across them go out
-  ``degraded`` ("late packet(s)", "lost input: N words ..."), and so do their estimates.
+- ``kill -STOP`` of the window node for 2 s: the packets queued meanwhile reach it late, or not
+  at all (the best-effort stream drops them); the windows across what was lost go out
+  ``degraded`` ("packet(s) missing ... (seq gap)", a stall), the estimates of the windows it
+  cut late are late ("late: ready ..."), and a late packet alone degrades no window (its data
+  is in it).
 - A bad model card given to the graph: refused before any node starts, one line, exit 2.
 
 Ctrl-C of the process group is probed in ``test_shutdown.py``; a killed recorder in
@@ -30,8 +32,6 @@ import time
 import pytest
 from rosutil import wait_for
 from sim_models import CRASH_MARKERS, Graph, child_exit_codes, train_sim_model
-
-from ext_sense_perception.online.window import WindowConfig
 
 NODES = ("sim_device", "nuskin_driver", "contact_window", "contact_inference", "estimate_monitor")
 LATENCY = re.compile(r"\| latency ([0-9.]+) ms$")
@@ -108,9 +108,10 @@ def test_sigstop_of_the_inference_node_publishes_its_late_estimates_as_degraded(
     late = [x for x in degraded if "late: ready " in x and "(deadline 500 ms)" in x]
     print(f"SIGSTOP inference 3 s: {len(late)} late of {len(degraded)} degraded, e.g. {late[:1]}")
     assert late, degraded  # the windows that waited out the stop
-    # any other degraded estimate names its own window's fault (on a loaded machine the sensor
-    # stream itself comes in late now and then: "N late packet(s) on ..."), never none
-    assert all("late packet(s) on " in x for x in degraded if x not in late), degraded
+    # any other degraded estimate names its own window's fault (input lost or stalled), never
+    # none; a late packet alone degrades no window: its data is in it
+    faults = ("stall: no input on ", "lost input: ", "(seq gap)")
+    assert all(any(f in x for f in faults) for x in degraded if x not in late), degraded
     scored = [float(m.group(1)) for x in after if (m := LATENCY.search(x.strip()))]
     assert scored  # the graph went on after the stop
     assert max(scored) < 500.0  # no late estimate passed off as a normal one
@@ -135,11 +136,11 @@ def test_sigstop_of_the_window_node_degrades_the_windows_it_gets_late(tap_model,
     # what it missed is said: its windows flagged, or the input lost (and the taps in it)
     assert degraded or lost
     assert all(
-        "late packet(s) on /extsense/nuskin/packets" in x
+        "late: ready " in x
         or "packet(s) missing on /extsense/nuskin/packets (seq gap)" in x
         or "stall: no input on /extsense/nuskin/packets" in x
         for x in degraded
-    )
+    ), degraded
     if lost:  # the raw packets it never got, by their seq, and the taps they may have held
         said = re.search(
             r"contact_window\]: lost input: (\d+) packet\(s\) missing .* (\d+) contact\(s\) lost",
@@ -147,13 +148,12 @@ def test_sigstop_of_the_window_node_degrades_the_windows_it_gets_late(tap_model,
         )
         assert said, lost[0]
         packets, contacts = int(said.group(1)), int(said.group(2))
-        # a gap counts a contact when it could hold an onset's events (the queue of 1000
-        # packets overflowed by 1, and by 580-598, in runs of these 2 s); the count is the
-        # node's total so far, so it may also hold the final windows the stall spoiled: one per
-        # tap at most, and the taps come 1 s apart (seen: a gap of 1 packet with "1 contact(s)
-        # lost", a gap of 1154 with 2)
-        gap = int(packets >= WindowConfig.activity_min_events)
-        assert gap <= contacts <= gap + 3, (lost[0], degraded)
+        # contacts, not gaps: a gap counts once no window covered it and it could hold an
+        # onset's events, and gaps closer than the debounce count once; the taps come 1 s
+        # apart, so the 2 s stop can have swallowed 3 at most (the queue of 1000 packets
+        # overflowed by 1, and by 580-598, in runs of these 2 s)
+        assert packets >= 1
+        assert 0 <= contacts <= 3, (lost[0], degraded)
     scored = [float(m.group(1)) for x in after if (m := LATENCY.search(x.strip()))]
     assert scored
     assert max(scored) < 500.0

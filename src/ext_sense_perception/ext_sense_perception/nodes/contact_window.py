@@ -30,11 +30,16 @@ contact detected in the signal is open; a food window, opened by the arm's motio
 be silent for seconds). Silence then beyond ``stall_warn_ms`` is a stall: WARN on ``/diagnostics``
 (status ``liveness``, naming the silent topic), ERROR beyond ``stall_error_ms``, published at
 once (not at the next 1 Hz tick), cleared when data returns. Every window overlapping a stall
-or holding a packet later than ``late_ms``, or input lost on the way (the driver's word count
-ran ahead of the events received), goes out with ``degraded`` and the reason, as does a window
-reaching back before the first input the node got (it joined mid-stream: the onset found may be
-the tail of a contact already under way; the windower's rule, offline too); a contact
-whose final window a stall spoiled is counted as lost (``contacts_lost_in_stall``). QoS deadline
+or input lost on the way (a ``seq`` gap, or the driver's word count ran ahead of the events
+received) goes out with ``degraded`` and the reason, as does a window reaching back before the
+first input the node got (it joined mid-stream: the onset found may be the tail of a contact
+already under way; the windower's rule, offline too). Degraded is decided on whether the
+window's data is complete, not on lateness: packets later than ``late_ms`` are counted
+(``late_packets``), but a window closes on data past its end and the stream is in order, so a
+late packet inside it is in it; the one window a late packet can miss is one the clock closed
+first (``windows_missed_late_data``, WARN on the console). Contacts are counted, not gaps: a
+final window across a fault is a degraded contact (``contacts_degraded``), lost input no window
+came to cover a lost one (``contacts_lost``, see :mod:`.online.liveness`). QoS deadline
 events are not used for this: a subscription's deadline is incompatible with the drivers'
 publishers, which offer none, and it would cut the stream instead of reporting it.
 
@@ -209,6 +214,9 @@ class ContactWindowNode(Node):
         self._armed_ns: int | None = None
         self.wakeups = 0
         self.closed_by_clock = 0
+        self._clock_closed_end_ns = 0
+        self.windows_missed_late_data = 0
+        """Windows the clock closed before a late packet with bytes inside them came."""
 
         self.updater = Updater(hardware_id=f"{config.task.label}/{config.sensor.label}")
         self.rate = self.updater.add(
@@ -231,12 +239,11 @@ class ContactWindowNode(Node):
 
     def _publish(self, windows: list) -> None:
         for win in windows:
-            reason = self.liveness.fault_in(win.start_ns, win.onset_ns + win.post_onset_ns)
+            end = win.onset_ns + win.post_onset_ns
+            reason = self.liveness.fault_in(win.start_ns, end, final=not win.provisional)
             if reason:  # beside the windower's own reason (a window begun before the first input)
                 both = "; ".join(r for r in (win.degraded_reason, reason) if r)
                 win = win._replace(degraded=True, degraded_reason=both)
-                if not win.provisional and "stall" in reason:
-                    self.liveness.contacts_lost += 1  # its final window missed signal
             f = window_fields(win)
             msg = ContactWindow()
             fill_stamp(msg.header.stamp, f["stamp_ns"])
@@ -280,6 +287,15 @@ class ContactWindowNode(Node):
             )
         previous_ns = self.liveness.last_stamp_ns
         self._arrived(msg)
+        if msg.data and stamp_to_ns(msg.header.stamp) < self._clock_closed_end_ns:
+            self._clock_closed_end_ns = 0  # once per closing
+            self.windows_missed_late_data += 1
+            self.get_logger().warning(
+                "a late packet held bytes read before the end of a window the clock had closed: "
+                f"its estimate went out without them ({self.windows_missed_late_data} so far; "
+                "packet_wait_ms sets how long a window waits)",
+                throttle_duration_sec=1.0,
+            )
         bad = self.stage.counters.bad_packets
         windows = self.stage.on_packet(msg)
         if self.stage.counters.bad_packets > bad:
@@ -395,6 +411,9 @@ class ContactWindowNode(Node):
         elif self.config.sensor is Sensor.NUSKIN:
             closed = self.stage.advance(last + idle - self.slack_ns)
             self.closed_by_clock += len(closed)
+            for win in closed:
+                end = win.onset_ns + win.post_onset_ns
+                self._clock_closed_end_ns = max(self._clock_closed_end_ns, end)
             if closed and self.input == "packets":  # no packet, not even "nothing read", came
                 self.get_logger().info(
                     f"the clock closed {len(closed)} window(s): no packet for {idle / MS:.1f} ms "
@@ -443,6 +462,7 @@ class ContactWindowNode(Node):
             "windows_truncated": wc.truncated_windows,
             "windows_joined_mid_stream": wc.joined_mid_stream_windows,
             "windows_closed_by_clock": self.closed_by_clock,
+            "windows_missed_late_data": self.windows_missed_late_data,
             "onsets": wc.onsets,
             "motion_starts": self.motion_starts,
             "events_total": sc.events,

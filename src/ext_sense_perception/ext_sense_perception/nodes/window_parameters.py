@@ -239,8 +239,9 @@ def declare_input_liveness(node: Node, config: WindowConfig, input_topic: str) -
                 node,
                 "late_ms",
                 100.0,
-                "A message arriving this much later than the stream's usual delay is late "
-                "(its windows degraded), ms.",
+                "A message arriving this much later than the stream's usual delay is late, ms: "
+                "counted on /diagnostics, its windows not degraded (a window closes on data past "
+                "its end, so a late packet inside it is in it).",
                 low=1.0,
                 high=60000.0,
                 read_only=True,
@@ -250,4 +251,8 @@ def declare_input_liveness(node: Node, config: WindowConfig, input_topic: str) -
     )
     if config.sensor is Sensor.NUSKIN and not config.external_onsets:
         liveness.contact_words = int(config.activity_min_events)
+        # by then every window that could cover a gap has been cut (its onset at the latest
+        # pre_ns after the gap, its end post_ns later), with a stream timeout's flush to spare
+        liveness.contact_horizon_ns = max(config.pre_ns, 0) + config.post_ns + 100 * MS
+        liveness.debounce_ns = config.debounce_ns
     return liveness

@@ -1,4 +1,4 @@
-"""Liveness of the window node's input stream: stalls, late packets, and the windows they spoil.
+"""Liveness of the window node's input stream: stalls, lost input, and the windows they spoil.
 
 A stopped driver (``kill -STOP``), a stalled executor or a blocked link looks, downstream, like
 silence followed by a burst; a window cut across it silently misses signal and the estimate of
@@ -14,15 +14,23 @@ the window node's account of it, with no ROS and an injectable clock:
   is kept as an interval of stream time, so that every window overlapping it is marked.
 - A *late packet* arrived more than ``late_ns`` after the stream's usual delay (the smallest
   ``arrival - stamp`` seen recently: a constant clock offset, as in a replayed bag, is not
-  lateness).
+  lateness). It is counted, but degrades no window: a window is cut when the stream passes its
+  end, and the stream is in order, so a late packet inside a window is in it (a 3 s food window
+  under load is as complete as on a quiet machine). Whether the estimate came too late is the
+  inference node's deadline; a window the clock closed before a late packet came is the window
+  node's ``windows_missed_late_data``.
 - *Lost input*: NUSkin batches carry the driver's running word count; words the driver decoded
   that never reached this node (a best-effort stream dropped them while this node was stopped
   or starved) show as a count that grew by more than the events that arrived
   (:meth:`StreamLiveness.on_counts`). Batches split from one drain share their count, so a
   shortfall is judged only once the count moves on.
 
-Windows overlapping a stall or holding a late packet get a reason from :meth:`fault_in`; the
-node publishes them with ``degraded`` set.
+Windows overlapping a stall or lost input get a reason from :meth:`fault_in`; the node
+publishes them with ``degraded`` set. Contacts are counted, not gaps: a final window across a
+stall or lost input is a *degraded* contact (``contacts_degraded``: it still got an estimate);
+lost input no window came to cover, once the stream is ``contact_horizon_ns`` past it, is a
+*lost* contact if it could hold an onset (``contact_words``), and gaps closer together than
+``debounce_ns`` (the onset detector's) count as one (``contacts_lost``).
 """
 
 from __future__ import annotations
@@ -47,15 +55,16 @@ KEEP_FAULTS_NS = 120_000 * MS
 class Fault:
     """A stall (``start_ns`` to ``end_ns``, stream time) or a late packet (one instant).
 
-    ``late_ns`` is how much later than usual a late packet arrived, ``lost_words`` how many
-    words a lost-input gap misses (0 for a stall).
+    ``lost_words`` is how many words a lost-input gap misses (0 for a stall). A lost-input
+    gap that ``may_hold_contact`` and no window ``covered`` is a lost contact once settled.
     """
 
     start_ns: int
     end_ns: int | None
     reason: str
-    late_ns: int = 0
     lost_words: int = 0
+    may_hold_contact: bool = False
+    covered: bool = False
 
 
 @dataclass
@@ -80,7 +89,12 @@ class StreamLiveness(StallCounts):
     clock: Clock = time.monotonic_ns
     messages: int = 0
     late_packets: int = 0
+    max_late_ns: int = 0
+    """The latest a packet came, over the stream's usual delay, ns."""
     contacts_lost: int = 0
+    """Contacts that may have been lost whole: lost input no window covered (see module)."""
+    contacts_degraded: int = 0
+    """Contacts whose final window missed input (a stall or lost input in it)."""
     degraded_windows: int = 0
     last_arrival_ns: int | None = None
     last_stamp_ns: int | None = None
@@ -89,8 +103,12 @@ class StreamLiveness(StallCounts):
     packets_lost: int = 0
     """Packets missing by their ``seq`` (raw packets input, :meth:`on_lost_packets`)."""
     contact_words: int = 0
-    """Lost words that count as (at least) one lost contact: the onset detector's activity
+    """Lost words (or packets) that could hold an onset: the onset detector's activity
     threshold; 0: lost input is not counted as contacts."""
+    contact_horizon_ns: int = 0
+    """Stream time after a gap by which any window covering it has been cut, ns."""
+    debounce_ns: int = 0
+    """Shortest time between two onsets: lost gaps closer than this are one contact, ns."""
     last_loss_ns: int | None = None
     """Monotonic time input was last found lost (WARN for :data:`RECENT_NS` after)."""
     _count_base: int | None = None
@@ -99,6 +117,8 @@ class StreamLiveness(StallCounts):
     _count_stamp_ns: int = 0
     _before_count_ns: int = 0
     _delays: deque[int] = field(default_factory=lambda: deque(maxlen=BASELINE_MESSAGES))
+    _unsettled: list[Fault] = field(default_factory=list)
+    _last_lost_contact_ns: int | None = None
     stall: StallTracker = field(init=False)
     """The stall in progress (from the last arrival) and the stalls so far."""
 
@@ -130,9 +150,10 @@ class StreamLiveness(StallCounts):
         self._delays.append(delay)
         if delay - usual > self.late_ns:
             self.late_packets += 1
-            self.faults.append(Fault(stamp_ns, stamp_ns, "late packet", delay - usual))
+            self.max_late_ns = max(self.max_late_ns, delay - usual)
         self.messages += 1
         self.last_arrival_ns, self.last_stamp_ns = now, stamp_ns
+        self._settle(stamp_ns)
         self._forget(stamp_ns)
 
     def on_counts(self, stamp_ns: int, words_total: int, bad_words: int, n_events: int) -> None:
@@ -156,14 +177,14 @@ class StreamLiveness(StallCounts):
                 if short > 0:
                     self.words_lost += short
                     self.last_loss_ns = self.clock()
-                    if self.contact_words and short >= self.contact_words:
-                        self.contacts_lost += 1  # enough events lost to have been a contact
-                    self.faults.append(
+                    self._add_gap(
                         Fault(
                             self._before_count_ns,  # from the batch before the short count
                             self._count_stamp_ns,  # to its last batch
                             "lost input",
                             lost_words=short,
+                            may_hold_contact=bool(self.contact_words)
+                            and short >= self.contact_words,
                         )
                     )
                 self._count_base += max(short, 0)
@@ -183,23 +204,45 @@ class StreamLiveness(StallCounts):
         for :data:`RECENT_NS`. A driver's packet holds the bytes of its reads, or none at all
         when it says the link read nothing (the NUSkin driver's ``quiet_packets_s``, only while
         the sensor sends nothing), so the lost words are not known. As for a shortfall in the
-        word count (:meth:`on_counts`), a gap of at least ``contact_words`` packets counts as
-        one lost contact: it may have held the words of an onset; a shorter gap cannot have
-        (the onset detector needs ``contact_words`` events).
+        word count (:meth:`on_counts`), a gap of at least ``contact_words`` packets may have
+        held the words of an onset (a shorter one cannot: the onset detector needs
+        ``contact_words`` events): a lost contact if no window comes to cover it.
         """
         if n <= 0:
             return
         self.packets_lost += int(n)
         self.last_loss_ns = self.clock()
-        if self.contact_words and n >= self.contact_words:
-            self.contacts_lost += 1
-        self.faults.append(
+        self._add_gap(
             Fault(
                 int(before_ns),
                 int(stamp_ns),
                 f"lost input: {n} packet(s) missing on {self.stream} (seq gap)",
+                may_hold_contact=bool(self.contact_words) and n >= self.contact_words,
             )
         )
+
+    def _add_gap(self, fault: Fault) -> None:
+        self.faults.append(fault)
+        if fault.may_hold_contact:
+            self._unsettled.append(fault)
+
+    def _settle(self, now_stamp_ns: int) -> None:
+        """Count the lost contacts of the gaps the stream is ``contact_horizon_ns`` past.
+
+        A gap no window covered may have swallowed a contact whole; gaps closer together than
+        ``debounce_ns`` count once (the onset detector allows no closer contacts).
+        """
+        while self._unsettled:
+            gap = self._unsettled[0]
+            if gap.end_ns is None or now_stamp_ns - gap.end_ns < self.contact_horizon_ns:
+                return
+            self._unsettled.pop(0)
+            if gap.covered:
+                continue
+            last = self._last_lost_contact_ns
+            if last is None or gap.start_ns - last >= self.debounce_ns:
+                self.contacts_lost += 1
+            self._last_lost_contact_ns = gap.end_ns
 
     def silence_ns(self) -> int:
         """Time since the last message (0 before the first)."""
@@ -221,8 +264,12 @@ class StreamLiveness(StallCounts):
         """Whether a stall is in progress."""
         return self.stall.stalled
 
-    def fault_in(self, start_ns: int, end_ns: int) -> str:
-        """Why a window spanning ``[start_ns, end_ns]`` (stream time) is degraded, or ``""``."""
+    def fault_in(self, start_ns: int, end_ns: int, final: bool = False) -> str:
+        """Why a window spanning ``[start_ns, end_ns]`` (stream time) is degraded, or ``""``.
+
+        The lost input inside is then covered (its contact got a window); a ``final`` window
+        with a fault is a degraded contact.
+        """
         inside = [
             f
             for f in self.faults
@@ -231,18 +278,15 @@ class StreamLiveness(StallCounts):
         if not inside:
             return ""
         self.degraded_windows += 1
-        reasons = list(dict.fromkeys(f.reason for f in inside if not (f.late_ns or f.lost_words)))
+        self.contacts_degraded += int(final)
+        for f in inside:
+            f.covered = True
+        reasons = list(dict.fromkeys(f.reason for f in inside if not f.lost_words))
         lost = [f.lost_words for f in inside if f.lost_words]
         if lost:
             reasons.append(
                 f"lost input: {sum(lost)} words the driver decoded never reached this node "
                 f"({len(lost)} gap(s))"
-            )
-        late = [f.late_ns for f in inside if f.late_ns]
-        if late:  # a backlog drained is many late packets: one reason for them all
-            reasons.append(
-                f"{len(late)} late packet(s) on {self.stream}, up to {max(late) / MS:.0f} ms "
-                "later than usual"
             )
         return "; ".join(reasons)
 
@@ -255,8 +299,10 @@ class StreamLiveness(StallCounts):
             "stalls": self.stalls,
             "longest_stall_ms": f"{self.longest_stall_ns / MS:.0f}",
             "late_packets": self.late_packets,
+            "max_late_ms": f"{self.max_late_ns / MS:.0f}",
             "degraded_windows": self.degraded_windows,
-            "contacts_lost_in_stall": self.contacts_lost,
+            "contacts_degraded": self.contacts_degraded,
+            "contacts_lost": self.contacts_lost,
             "words_lost": self.words_lost,
             "packets_lost": self.packets_lost,
             "warn_ms": self.warn_ns / MS,
@@ -265,8 +311,10 @@ class StreamLiveness(StallCounts):
         if self.stalled_since_ns is not None:
             silent = self.clock() - self.stalled_since_ns
             level = self.stall.level(self.clock())
-            lost = f", {self.contacts_lost} contact(s) lost" if self.contacts_lost else ""
-            return level, f"stall: no input on {self.stream} for {silent / MS:.0f} ms{lost}", values
+            hit = (
+                f", {self.contacts_degraded} contact(s) degraded" if self.contacts_degraded else ""
+            )
+            return level, f"stall: no input on {self.stream} for {silent / MS:.0f} ms{hit}", values
         if self.last_loss_ns is not None and self.clock() - self.last_loss_ns < RECENT_NS:
             if self.packets_lost:
                 what = f"{self.packets_lost} packets (seq gaps)"

@@ -38,9 +38,9 @@ class ContactWindow(NamedTuple):
     ``pre_onset_ns`` means the window starts after the onset (food: 2 s after motion start).
     ``provisional`` windows are the shortened (anytime) ones cut before a contact's final
     window; ``truncated`` ones were closed early (the stream stopped) with a zero-padded tail.
-    ``degraded`` ones hold a stall or a late packet, or begin before the first input (the
-    consumer joined mid-stream); ``degraded_reason`` says which: their estimates are not
-    normal ones.
+    ``degraded`` ones miss data (a stall or input lost in them), begin before the first input
+    (the consumer joined mid-stream) or hold a stuck taxel; ``degraded_reason`` says which:
+    their estimates are not normal ones.
     """
 
     task: str
