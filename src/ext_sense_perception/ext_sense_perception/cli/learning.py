@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,6 +25,8 @@ from ext_sense_perception.errors import PerceptionError
 from ext_sense_runtime.stamps import MS
 
 if TYPE_CHECKING:  # the handlers import these lazily: ``ext-sense --help`` stays fast
+    from ext_sense_perception.data.window_set import WindowSet
+    from ext_sense_perception.online.model_input import Geometry
     from ext_sense_perception.training.recipe import Recipe
 
 
@@ -227,11 +230,13 @@ def _cmd_features(args: argparse.Namespace) -> int:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    from ext_sense_perception.online.model_card import read_card
     from ext_sense_perception.training.recipe import train_bundle
 
     try:
         ws = load_pooled(args)
-        card = train_bundle(ws, args.out, _recipe(args, _anytime_posts(args.anytime_ms)))
+        train_bundle(ws, args.out, _recipe(args, _anytime_posts(args.anytime_ms, ws)))
+        card = read_card(args.out)  # as saved: with its anytime models' times
     except PerceptionError as err:
         return fail(err)
     if card.anytime_post_ms:
@@ -243,18 +248,46 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def _anytime_posts(text: str | None) -> tuple[int, ...] | None:
-    """``--anytime-ms``: None for the task profile's times, ``()`` for none."""
+def _anytime_posts(text: str | None, ws: WindowSet) -> tuple[int, ...] | None:
+    """``--anytime-ms``: None for the task profile's times, ``()`` for none.
+
+    Each time must cut an anytime window out of the training windows: at least one sample
+    after the onset and shorter than the windows' post-onset span (:func:`anytime_range_ns`).
+
+    Raises:
+        PerceptionError: A value that is not a number or lies outside that range.
+    """
     if text is None:
         return None
     if text.strip().lower() in ("", "none"):
         return ()
     try:
-        return tuple(round(float(v) * MS) for v in text.split(","))
+        values = [float(v) for v in text.split(",")]
     except ValueError as err:
         raise PerceptionError(
             f"The '--anytime-ms' option must list numbers. Got {text!r} instead."
         ) from err
+    low, high = anytime_range_ns(ws.geometry)
+    bad = [v for v in values if not (math.isfinite(v) and low <= v * MS < high)]
+    if bad:
+        period = ws.geometry.period_ns / MS
+        raise PerceptionError(
+            f"The '--anytime-ms' option must list times within the training windows' "
+            f"post-onset span, each in [{low / MS:g}, {high / MS:g}) ms (at least one "
+            f"{period:g} ms sample after the onset, shorter than the "
+            f"{ws.geometry.post_ns / MS:g} ms windows). Got {text!r} instead."
+        )
+    return tuple(round(v * MS) for v in values)
+
+
+def anytime_range_ns(geometry: Geometry) -> tuple[int, int]:
+    """The anytime post-onset times windows of ``geometry`` can be cut at, ``[low, high)`` ns.
+
+    A cut keeps whole samples: it must end at least one sample after the onset and before the
+    window's own end (the full window is the final model).
+    """
+    first = max(1, geometry.pre_ns // geometry.period_ns + 1)  # samples up to the first end
+    return first * geometry.period_ns - geometry.pre_ns, geometry.post_ns
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
@@ -265,7 +298,11 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     if args.protocol == "cross-session":
         from ext_sense_perception.cli.sessions import cross_session_command
 
-        return cross_session_command(args, load_sessions(args), _recipe(args))
+        try:
+            sessions = load_sessions(args)
+        except PerceptionError as err:
+            return fail(err)
+        return cross_session_command(args, sessions, _recipe(args))
     try:
         ws = load_pooled(args)
         recipe = _recipe(args)

@@ -6,9 +6,10 @@ Handlers import the heavy modules lazily, so ``ext-sense --help`` stays fast.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_runtime.stamps import MS
@@ -76,22 +77,47 @@ def add_data_options(p: argparse.ArgumentParser, *, need_task: bool = False) -> 
     )
 
 
-def _load_one(path: Path, args: argparse.Namespace, need_labels: bool) -> WindowSet:
-    """One ``--data`` path as a window set (bags, recordings, datasets, capture folders)."""
+class Wanted(NamedTuple):
+    """The windows a model bundle takes: what the sessions loaded to score or adapt it must be.
+
+    Attributes:
+        task: The bundle's task.
+        sensor: The bundle's sensor.
+        anchor: Capture folders: what its food windows were tied to (empty: none).
+        who: The bundle, as error messages name it.
+    """
+
+    task: str
+    sensor: str
+    anchor: str
+    who: str
+
+
+def _load_one(
+    path: Path, args: argparse.Namespace, need_labels: bool, wanted: Wanted | None
+) -> WindowSet:
+    """One ``--data`` path as a window set (bags, recordings, datasets, capture folders).
+
+    Sources that say their own task and sensor (capture folders, simulator datasets) and bags
+    are read as they are and then checked against ``--task``/``--sensor`` and ``wanted``;
+    the others are read as the task and sensor given (else the bundle's).
+    """
     from ext_sense_perception.data.bags import BagTopics, is_bag, window_set_from_bag
     from ext_sense_perception.data.recordings import from_recording
-    from ext_sense_perception.data.sources import load_window_set
+    from ext_sense_perception.data.sources import load_window_set, names_own_kind
     from ext_sense_perception.data.validation import InputPolicy
 
     policy = InputPolicy(lenient=args.lenient)
+    task = args.task or (wanted.task if wanted else None)
+    sensor = args.sensor or (wanted.sensor if wanted else None)
     # NUSkin refractory drop on events; BioTac decimates in the features
-    nuskin_rate = args.rate_hz if args.sensor != "biotac" else None
+    nuskin_rate = args.rate_hz if sensor != "biotac" else None
     if is_bag(path):
         topics = BagTopics(args.events_topic, args.frames_topic, args.truth_topic)
         ws, counts = window_set_from_bag(
             path,
-            args.task,
-            args.sensor,
+            args.task,  # else the bag's own, checked below
+            sensor,
             topics=topics,
             onsets=args.onsets,
             rate_hz=args.rate_hz,
@@ -102,42 +128,86 @@ def _load_one(path: Path, args: argparse.Namespace, need_labels: bool) -> Window
             file=sys.stderr,
         )
     elif path.suffix in (".tact", ".csv"):
-        if not (args.task and args.sensor):
+        if not (task and sensor):
             raise PerceptionError(
                 f"The '--task' and '--sensor' options are needed for a recording ({path.name}). "
                 "Got none."
             )
         ws = from_recording(
             path,
-            args.task,
-            args.sensor,
+            task,
+            sensor,
             essentials=getattr(args, "essentials", None),
             policy=policy,
         )
+    elif names_own_kind(path):
+        anchor = args.anchor
+        if anchor is None and wanted and wanted.anchor and path.is_dir():
+            anchor = wanted.anchor  # a bundle of capture windows: cut them alike
+        ws = load_window_set(path, rate_hz=nuskin_rate, policy=policy, anchor=anchor)
     else:
         ws = load_window_set(
-            path, args.task, args.sensor, rate_hz=nuskin_rate, policy=policy, anchor=args.anchor
+            path, task, sensor, rate_hz=nuskin_rate, policy=policy, anchor=args.anchor
         )
+    _check_kind(path, ws, args, wanted)
     if args.lenient:
         print(f"{path}: {policy.summary()}", file=sys.stderr)
     return ws
 
 
-def load_sessions(args: argparse.Namespace, *, need_labels: bool = True) -> list[Session]:
-    """Every ``--data`` as a session: its windows (cropped by ``--post-ms``) and metadata."""
-    import numpy as np
+def _check_kind(path: Path, ws: WindowSet, args: argparse.Namespace, wanted: Wanted | None) -> None:
+    """The windows of ``path`` are of the task and sensor asked for.
 
-    from ext_sense_perception.data.sessions import Session, infer_info, read_info
+    Raises:
+        PerceptionError: They are not; the message names the data, what it holds and who asks.
+    """
+    from ext_sense_runtime.enums import Sensor, Task
+
+    asks = []
+    for what, given, kind in (("task", args.task, Task), ("sensor", args.sensor, Sensor)):
+        if given and kind.parse(given, PerceptionError).label != getattr(ws, what):
+            asks.append(f"the '--{what}' option asks for {kind.parse(given).label}")
+    if wanted and (wanted.task, wanted.sensor) != (ws.task, ws.sensor):
+        asks.append(
+            f"{wanted.who} is a {wanted.task}/{wanted.sensor} model: give it "
+            f"{wanted.task}/{wanted.sensor} sessions, or a {ws.task}/{ws.sensor} bundle"
+        )
+    if asks:
+        raise PerceptionError(
+            f"The data {str(path)!r} holds {ws.task}/{ws.sensor} windows, but "
+            + "; ".join(asks)
+            + "."
+        )
+
+
+def load_sessions(
+    args: argparse.Namespace, *, need_labels: bool = True, wanted: Wanted | None = None
+) -> list[Session]:
+    """Every ``--data`` as a session: its windows (cropped by ``--post-ms``) and metadata.
+
+    Args:
+        args: The parsed options (:func:`add_data_options`).
+        need_labels: Bags must hold ground truth.
+        wanted: The windows a bundle takes (``score``, ``calibrate``), else None.
+
+    Raises:
+        PerceptionError: Unreadable data, ``session.json`` breaking its schema or naming
+            another sensor, or data of another task or sensor than asked for.
+    """
+    from ext_sense_perception.data.sessions import session_of
 
     sessions = []
     for data in args.data:
         path = Path(data)
-        ws = _load_one(path, args, need_labels)
+        ws = _load_one(path, args, need_labels, wanted)
         if args.post_ms is not None:
+            if not math.isfinite(args.post_ms):
+                raise PerceptionError(
+                    f"The '--post-ms' option must be a finite number of ms. Got {args.post_ms} "
+                    "instead."
+                )
             ws = ws.crop(round(args.post_ms * MS))
-        info = read_info(path) or infer_info(path, ws)
-        ws = ws._replace(sessions=np.full(len(ws.y), info.name))
-        sessions.append(Session(info, str(path), ws))
+        sessions.append(session_of(path, ws))
     return sessions
 
 

@@ -61,13 +61,18 @@ def _bundle_path(args: argparse.Namespace) -> Path:
     return find_model(args.bundle, args.task or "food_identification", args.sensor or "nuskin")
 
 
-def _bundle_sessions(args: argparse.Namespace, card: Any) -> list[Session]:
-    """The ``--data`` sessions cut as the bundle's windows were (its task, sensor, anchor)."""
-    args.task = args.task or card.task
-    args.sensor = args.sensor or card.sensor
-    if args.anchor is None and card.anchor and card.task == "food_identification":
-        args.anchor = card.anchor
-    return load_sessions(args)
+def _bundle_sessions(args: argparse.Namespace, path: Path, card: Any) -> list[Session]:
+    """The ``--data`` sessions cut as the bundle's windows were (its task, sensor, anchor).
+
+    Raises:
+        PerceptionError: ``--task``/``--sensor`` or the data name another task or sensor than
+            the bundle's.
+    """
+    from ext_sense_perception.cli.options import Wanted
+
+    anchor = card.anchor if card.task == "food_identification" else ""
+    wanted = Wanted(card.task, card.sensor, anchor, f"the bundle {str(path)!r}")
+    return load_sessions(args, wanted=wanted)
 
 
 def _cmd_score(args: argparse.Namespace) -> int:
@@ -80,7 +85,7 @@ def _cmd_score(args: argparse.Namespace) -> int:
     try:
         path = _bundle_path(args)
         model = load_model(path)
-        sessions = _bundle_sessions(args, model.card)
+        sessions = _bundle_sessions(args, path, model.card)
         ws = pooled(sessions)
         rows = np.stack([model.prepare(x) for x in ws.X]) if len(ws.X) else np.zeros((0, 0))
         pred, proba = model.raw_predict(rows) if len(rows) else (np.zeros(0), None)
@@ -162,7 +167,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     try:
         path = _bundle_path(args)
         card = read_card(path)
-        sessions = _bundle_sessions(args, card)
+        sessions = _bundle_sessions(args, path, card)
         if len(sessions) == 1:
             calib = sessions[0]
         else:

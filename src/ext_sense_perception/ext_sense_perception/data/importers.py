@@ -352,8 +352,34 @@ def food_poking_trials(
         motion = read_arm_motion(tact.with_suffix(".bag")) if arm_motion else None
         recs.append(Recording(name, label, events, motion, capture_start_ns(tact, events)))
     if not recs:
-        raise PerceptionError(f"No '<food>_zero_<n>.tact' trials in {str(directory)!r}.")
+        raise PerceptionError(_no_trials(directory, excluded))
     return recs, excluded
+
+
+def _no_trials(directory: Path, excluded: list[str]) -> str:
+    """Why a folder given as food-poking captures gave no trial, and what to give instead."""
+    where = str(directory)
+    if excluded:
+        return (
+            f"No trial of the capture folder {where!r} is left: every capture was excluded "
+            f"({', '.join(excluded)})."
+        )
+    if (directory / "run.json").is_file():
+        sessions = [str(directory / p) for p in ("dataset.npz", "bag") if (directory / p).exists()]
+        use = (
+            "give one of its sessions instead: " + " or ".join(f"--data {p}" for p in sessions)
+            if sessions
+            else "rerun it with --formats npz or bag and give its dataset.npz or bag"
+        )
+        return (
+            f"{where!r} is the output folder of 'ext-sense sim run', not a food-poking capture "
+            f"folder; {use}."
+        )
+    return (
+        f"{where!r} is not a food-poking capture folder: it holds no '<food>_zero_<n>.tact' "
+        "capture. A folder given as data must hold those captures, or be a rosbag2 bag "
+        "(metadata.yaml, .mcap or .db3)."
+    )
 
 
 def load_sim_dataset(path: str | Path) -> dict[str, np.ndarray]:

@@ -28,6 +28,7 @@ from ext_sense_perception.data.validation import InputPolicy
 from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.profiles import Anchor
+from ext_sense_runtime.enums import Sensor
 
 SESSION_FILE = "session.json"
 
@@ -84,25 +85,97 @@ def read_info(path: str | Path) -> SessionInfo | None:
     """The metadata file of the session at ``path`` (None: there is none).
 
     Raises:
-        PerceptionError: A file that is not a JSON object of known fields.
+        PerceptionError: A file that is not JSON, or not an object of the fields of
+            :data:`SESSION_SCHEMA` with the kinds it names; the message names the file, the
+            field, what was expected and what arrived.
     """
     meta = metadata_file(path)
     if not meta.is_file():
         return None
     try:
         values = json.loads(meta.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as err:
         raise PerceptionError(f"Cannot read session metadata {str(meta)!r}: {err}") from err
-    known = {f for f in SessionInfo.__dataclass_fields__ if f != "inferred"}
-    if not isinstance(values, dict) or not set(values) <= known:
-        got = sorted(set(values) - known) if isinstance(values, dict) else type(values).__name__
+    return info_from_json(values, meta, _default_name(path))
+
+
+SESSION_SCHEMA: dict[str, str] = {
+    "name": "a non-empty string",
+    "date": "a day as a 'YYYY-MM-DD' string, or ''",
+    "sensor": "one of 'nuskin', 'biotac', or ''",
+    "sensor_id": "a string",
+    "robot": "a string",
+    "labels": 'a list of distinct non-empty strings, e.g. ["tofu", "apple"]',
+    "notes": "a string",
+    "baseline": "a string (a capture's path relative to the session)",
+}
+"""The fields of ``session.json`` and what each must hold: the one schema every loader uses."""
+
+
+def info_from_json(values: object, meta: str | Path, default_name: str) -> SessionInfo:
+    """The metadata of a ``session.json``'s parsed ``values``, checked against the schema.
+
+    Args:
+        values: The file's JSON value.
+        meta: The file (named in errors).
+        default_name: The session's name when the file gives none.
+
+    Returns:
+        The metadata.
+
+    Raises:
+        PerceptionError: The first field that breaks :data:`SESSION_SCHEMA`.
+    """
+    if not isinstance(values, dict) or not set(values) <= set(SESSION_SCHEMA):
+        got = (
+            f"the unknown fields {sorted(set(values) - set(SESSION_SCHEMA))}"
+            if isinstance(values, dict)
+            else _shown(values)
+        )
         raise PerceptionError(
             f"Session metadata {str(meta)!r} must be an object with fields among "
-            f"{sorted(known)}. Got {got} instead."
+            f"{list(SESSION_SCHEMA)}. Got {got} instead."
         )
-    values.setdefault("name", _default_name(path))
-    values["labels"] = tuple(str(v) for v in values.get("labels", ()))
-    return SessionInfo(**values)
+    for name, value in values.items():
+        if not _fits(name, value):
+            raise PerceptionError(
+                f"Session metadata {str(meta)!r}: the field {name!r} must be "
+                f"{SESSION_SCHEMA[name]}. Got {_shown(value)} instead."
+            )
+    fields = dict(values)
+    fields.setdefault("name", default_name)
+    fields["labels"] = tuple(fields.get("labels", ()))
+    return SessionInfo(**fields)
+
+
+def _shown(value: object) -> str:
+    """A JSON value as error messages show it: its kind and its JSON text."""
+    if value is None:
+        return "null"
+    kinds = {bool: "bool", int: "number", float: "number", str: "string", list: "list"}
+    return f"{kinds.get(type(value), 'object')} {json.dumps(value)}"
+
+
+def _fits(name: str, value: object) -> bool:
+    """Whether ``value`` is what :data:`SESSION_SCHEMA` asks of the field ``name``."""
+    if name == "labels":
+        return (
+            isinstance(value, list)
+            and all(isinstance(v, str) and v.strip() for v in value)
+            and len(set(value)) == len(value)
+        )
+    if not isinstance(value, str):
+        return False
+    if name == "name":
+        return bool(value.strip())
+    if name == "sensor":
+        return value in ("", *(s.label for s in Sensor))
+    if name == "date" and value:
+        try:
+            return dt.date.fromisoformat(value).isoformat() == value
+        except ValueError:
+            return False
+    return True
 
 
 def write_info(path: str | Path, info: SessionInfo) -> Path:
@@ -173,10 +246,24 @@ def load_session(
         PerceptionError: Unreadable data or metadata, or metadata naming another sensor.
     """
     ws = load_window_set(path, task, sensor, rate_hz=rate_hz, policy=policy, anchor=anchor)
+    return session_of(path, ws)
+
+
+def session_of(path: str | Path, ws: WindowSet) -> Session:
+    """The session of the windows ``ws`` loaded from ``path``: every loader's one way there.
+
+    The metadata is read from the ``session.json`` beside the data (checked against
+    :data:`SESSION_SCHEMA`), else inferred; each window is named by the session.
+
+    Raises:
+        PerceptionError: Metadata that breaks the schema, or names another sensor than the
+            data's.
+    """
     info = read_info(path) or infer_info(path, ws)
     if info.sensor and info.sensor != ws.sensor:
         raise PerceptionError(
-            f"Session {info.name!r} says sensor {info.sensor!r}, but its data is {ws.sensor!r}."
+            f"Session metadata {str(metadata_file(path))!r}: the field 'sensor' must be the "
+            f"data's {ws.sensor!r}. Got {info.sensor!r} instead."
         )
     ws = ws._replace(sessions=np.full(len(ws.y), info.name))
     return Session(info, str(path), ws)

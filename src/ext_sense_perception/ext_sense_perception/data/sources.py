@@ -308,6 +308,25 @@ def from_preprocessed_npz(
     )
 
 
+def names_own_kind(data: str | Path) -> bool:
+    """Whether the data at ``data`` says its own task and sensor.
+
+    Capture folders (food, NUSkin) and the simulator's datasets do; bags, recordings and the
+    paper's preprocessed ``.npz`` are read as the task and sensor given (a bag only defaults
+    to its own).
+    """
+    path = Path(data)
+    if path.is_dir():
+        return not is_bag(path)
+    if path.suffix != ".npz" or not path.is_file():
+        return False
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return "signals" not in z.files
+    except (OSError, ValueError):
+        return False  # load_window_set names what is wrong with the file
+
+
 def load_window_set(
     data: str | Path,
     task: str | None = None,

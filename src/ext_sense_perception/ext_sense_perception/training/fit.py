@@ -120,6 +120,11 @@ def fit_model(
             )
         if not ws.is_regression:
             names, counts = np.unique(ws.y, return_counts=True)
+            if len(names) < 2:
+                raise PerceptionError(
+                    f"Classification needs windows of at least 2 classes to train a model. Got "
+                    f"only {names.tolist()} in {ws.source!r}."
+                )
             few = names[counts < 2].tolist()
             if few:
                 raise PerceptionError(

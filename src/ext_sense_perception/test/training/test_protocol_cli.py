@@ -161,7 +161,7 @@ def test_cli_errors_are_clear(tmp_path, capsys):
         ]
     )
     assert rc == 2
-    assert "trials" in capsys.readouterr().err
+    assert "is not a food-poking capture folder" in capsys.readouterr().err
 
 
 @pytest.mark.slow  # the whole quick report (about 7 s)

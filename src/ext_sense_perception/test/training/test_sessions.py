@@ -93,7 +93,9 @@ def test_session_metadata_round_trip_and_bad_files(tmp_path, food_npz):
     with pytest.raises(PerceptionError, match="Cannot read session metadata"):
         read_info(data)
     write_info(data, SessionInfo("day2", sensor="biotac"))
-    with pytest.raises(PerceptionError, match="says sensor 'biotac'"):
+    with pytest.raises(
+        PerceptionError, match=r"the field 'sensor' must be the data's 'nuskin'\. Got 'biotac'"
+    ):
         load_session(data)
 
 
