@@ -24,11 +24,6 @@ except ImportError:  # Jazzy
     EventsExecutor = None  # type: ignore[assignment,misc]
 
 
-def has_events_executor() -> bool:
-    """Whether this rclpy offers the EventsExecutor."""
-    return EventsExecutor is not None
-
-
 def make_executor(context: Context | None = None) -> Executor:
     """The fastest executor this rclpy offers."""
     if EventsExecutor is not None:

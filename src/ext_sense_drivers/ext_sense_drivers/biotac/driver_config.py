@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from ext_sense_drivers.biotac.clock import FRAME_PERIOD_NS, FrameClock, transmission_ns
+from ext_sense_drivers.biotac.clock import FRAME_PERIOD_NS, transmission_ns
 from ext_sense_drivers.biotac.errors import BioTacError
 from ext_sense_drivers.biotac.frame_layout import MAX_SENSORS, STANDARD_FRAME_SIZE
 from ext_sense_drivers.transports.link_config import LinkConfig, TransportKind
@@ -56,7 +56,3 @@ class BioTacDriverConfig(LinkConfig):
         if self.transport_kind == TransportKind.SERIAL:
             lead += transmission_ns(STANDARD_FRAME_SIZE, self.baud)
         return lead
-
-    def make_clock(self) -> FrameClock:
-        """A fresh clock model for one sensor."""
-        return FrameClock(FRAME_PERIOD_NS, self.lead_ns, self.clock_window_frames)

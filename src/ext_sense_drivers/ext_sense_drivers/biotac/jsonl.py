@@ -16,7 +16,7 @@ is not an object, a missing key, a value of the wrong type or out of range
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -168,10 +168,3 @@ def record_to_frame(
     words = encode_values(np.array([0 if v is None else v for v in values], dtype=np.int64))
     words[missing] ^= np.uint16(0x0100)  # flip b0's parity bit: the word fails its check
     return encode_frame(seq, sensor, words)
-
-
-def records_to_stream(records: Iterable[dict[str, Any]]) -> Iterator[bytes]:
-    """Frames for a sequence of JSON objects (``seq`` counted per sensor where absent)."""
-    next_seq = [0] * MAX_SENSORS
-    for i, record in enumerate(records, start=1):
-        yield record_to_frame(record, next_seq, where=f"record {i}")

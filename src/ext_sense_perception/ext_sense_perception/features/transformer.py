@@ -136,7 +136,6 @@ class WindowFeatures(TransformerMixin, BaseEstimator):
         self.channel_index_ = select_channels(self.channels, self.n_channels)
         self.used_samples_ = self._used_samples()
         self.time_maps_ = [self._pad(m) for m in self._time_maps(self.used_samples_)]
-        self.time_maps32_ = [m.astype(np.float32) for m in self.time_maps_]
         self._fit_features(self._validate(X))
         self.n_features_out_ = int(
             self.transform(np.zeros((1, self.n_channels * self.n_samples), np.float32)).shape[1]
@@ -389,7 +388,6 @@ class ESTFeatures(WindowFeatures):
     def _time_maps(self, used: int) -> list[np.ndarray]:
         span = max(10 * self.est_tau_s, 0.01)
         weights = fit_est_kernel(self.est_tau_s, span_s=span, seed=self.random_state)
-        self.est_weights_ = weights
         times = np.linspace(0, used - 1, self.est_samples).round().astype(int)
         lags = (times[None, :] - np.arange(used)[:, None]) * (self.period_ns * 1e-9)
         m = np.zeros((used, self.est_samples))

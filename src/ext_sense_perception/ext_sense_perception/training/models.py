@@ -21,7 +21,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.ensemble import RandomForestClassifier
 from sklearn.neural_network import MLPClassifier, MLPRegressor
@@ -175,8 +174,3 @@ def default_feature_grid(task: str, sensor: str, features: str) -> dict[str, lis
     if features == "activity" and sensor == "nuskin":
         return {"features__activity_late_ns": [1_000_000_000, 1_500_000_000, 2_000_000_000]}
     return {}
-
-
-def as_float(x: np.ndarray) -> np.ndarray:
-    """Float64 contiguous copy for estimators."""
-    return np.ascontiguousarray(x, dtype=np.float64)
