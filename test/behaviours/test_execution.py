@@ -7,15 +7,10 @@ import time
 
 import numpy as np
 import pytest
+from handover_run import HandoverRun, RobotiqGripperPort
 
 from ext_sense_behaviours.errors import BehaviourError
-from ext_sense_behaviours.execution import HandoverRun
-from ext_sense_behaviours.gripper import (
-    RobotiqGripperPort,
-    describe,
-    status_from_values,
-    status_to_values,
-)
+from ext_sense_behaviours.gripper import describe, status_from_values, status_to_values
 from ext_sense_behaviours.handover import HandoverConfig, HandoverMachine, HandoverState
 from ext_sense_drivers.robotiq import ActivationStatus, GripperStatus, ObjectStatus, RobotiqClient
 from ext_sense_runtime.records import Estimate

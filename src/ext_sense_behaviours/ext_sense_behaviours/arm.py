@@ -2,9 +2,9 @@
 
 :class:`ArmAdapter` is the whole interface: move down at a set Cartesian speed, stop, retract
 to a height, read the latest state (height and external force). Implementations:
-:class:`SimulatedArm` (here, for tests and demos), :class:`ext_sense_behaviours.replay.ReplayArm`
-(recorded Panda states from the real food-poking bags) and the franka_ros2 adapter in
-``ext_sense_behaviours.nodes.franka_adapter`` (needs franka_msgs, not available here).
+:class:`SimulatedArm` (here, for tests and demos), the franka_ros2 adapter in
+``ext_sense_behaviours.nodes.franka_adapter``, and in the tests ``ReplayArm`` (recorded Panda
+states from the real food-poking bags, ``test/franka_replay.py``).
 """
 
 from __future__ import annotations

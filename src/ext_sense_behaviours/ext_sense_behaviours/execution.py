@@ -1,10 +1,8 @@
-"""Carrying out the state machines' decisions on devices, outside ROS.
+"""Carrying out the food machine's decisions on an arm, outside ROS.
 
 :class:`FoodProbe` joins a :class:`~ext_sense_behaviours.food.FoodMachine` to an
-:class:`~ext_sense_behaviours.arm.ArmAdapter`; :class:`HandoverRun` joins a
-:class:`~ext_sense_behaviours.handover.HandoverMachine` to a
-:class:`~ext_sense_behaviours.gripper.GripperPort`. The nodes use them from their timers and
-callbacks; scenario tests drive them in plain loops.
+:class:`~ext_sense_behaviours.arm.ArmAdapter`. The ``food_behaviour`` node uses it from its
+timers and callbacks; scenario tests drive it in plain loops.
 """
 
 from __future__ import annotations
@@ -15,10 +13,7 @@ from ext_sense_behaviours.arm import ArmAdapter
 from ext_sense_behaviours.decisions import Decision
 from ext_sense_behaviours.errors import BehaviourError
 from ext_sense_behaviours.food import FoodAction, FoodMachine, FoodResult
-from ext_sense_behaviours.gripper import GripperPort, describe_position, is_open, settled
-from ext_sense_behaviours.handover import HandoverAction, HandoverMachine, HandoverState
 from ext_sense_behaviours.records import ArmState
-from ext_sense_drivers.robotiq import RobotiqError
 from ext_sense_runtime.records import Estimate
 
 
@@ -113,51 +108,3 @@ class FoodProbe:
             self.arm.retract(m.retract_height_m, cfg.retract_speed_mps)
         elif action == FoodAction.PUBLISH and self.on_publish is not None and m.result is not None:
             self.on_publish(m.result)
-
-
-class HandoverRun:
-    """Runs one handover on a gripper; gripper errors put the machine in its safe state.
-
-    Args:
-        machine: The state machine.
-        gripper: The gripper port (raises ``RobotiqError`` on faults and lost links).
-    """
-
-    def __init__(self, machine: HandoverMachine, gripper: GripperPort) -> None:
-        self.machine, self.gripper = machine, gripper
-        self.open_commands = 0
-
-    def start(self, now_ns: int) -> Decision:
-        """The object is held: start waiting."""
-        return self.machine.start(now_ns)
-
-    def estimate(self, estimate: Estimate, now_ns: int) -> Decision:
-        """Feed one estimate; opens the gripper when the machine says so."""
-        decision = self.machine.on_estimate(estimate, now_ns)
-        if HandoverAction[decision.action] == HandoverAction.OPEN_GRIPPER:
-            try:
-                self.open_commands += 1
-                self.gripper.open()
-            except RobotiqError as err:
-                return self.machine.on_fault(str(err), now_ns)
-        return decision
-
-    def tick(self, now_ns: int) -> Decision | None:
-        """Poll the gripper while releasing, re-read it after a fault, check the timeouts."""
-        if self.machine.state == HandoverState.FAULT and self.machine.awaiting_status:
-            try:
-                status = self.gripper.read()
-            except RobotiqError:
-                return None  # the link still fails: read again on the next tick
-            return self.machine.on_status_after_fault(
-                is_open(status), settled(status), describe_position(status), now_ns
-            )
-        if self.machine.state == HandoverState.RELEASING:
-            try:
-                opened = self.gripper.is_open()
-            except RobotiqError as err:
-                return self.machine.on_fault(str(err), now_ns)
-            decision = self.machine.on_gripper(opened, now_ns)
-            if decision is not None:
-                return decision
-        return self.machine.on_tick(now_ns)

@@ -1,71 +1,23 @@
 """The gripper as the handover sees it, and the Robotiq status as ROS key-values.
 
-:class:`RobotiqGripperPort` runs a Robotiq 2F through
-:class:`ext_sense_drivers.robotiq.RobotiqClient`. The ``robotiq_gripper`` node publishes the
-status as a ``diagnostic_msgs/DiagnosticStatus`` whose key-values are the register fields
+:func:`is_open`, :func:`settled` and :func:`describe_position` read a Robotiq 2F status as the
+handover needs it. The ``robotiq_gripper`` node publishes the status as a
+``diagnostic_msgs/DiagnosticStatus`` whose key-values are the register fields
 (:func:`status_to_values`); :func:`status_from_values` reads them back in other nodes.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Protocol
 
 from ext_sense_behaviours.errors import BehaviourError
-from ext_sense_drivers.robotiq import (
-    ActivationStatus,
-    GripperStatus,
-    ObjectStatus,
-    RobotiqClient,
-)
+from ext_sense_drivers.robotiq import ActivationStatus, GripperStatus, ObjectStatus
 from ext_sense_drivers.robotiq.registers import fault_name
 
 OPEN_TOLERANCE = 10
 """gPO at or below which the fingers count as open (position counts, 0..255)."""
 
 STATUS_KEYS = ("gACT", "gGTO", "gSTA", "gOBJ", "gFLT", "gPR", "gPO", "gCU")
-
-
-class GripperPort(Protocol):
-    """What the handover needs from a gripper; both methods raise on a fault."""
-
-    def open(self) -> None:
-        """Start opening the fingers."""
-
-    def is_open(self) -> bool:
-        """Whether the fingers have finished opening."""
-
-    def read(self) -> GripperStatus:
-        """The status as it is, gripper faults included (raises only when the link fails)."""
-
-
-class RobotiqGripperPort:
-    """A :class:`GripperPort` over a Robotiq client.
-
-    Args:
-        client: An activated client.
-        speed, force: rSP and rFR used to open, 0..255.
-
-    Raises on use:
-        RobotiqError: The exchange failed or the gripper reports a fault; the caller must
-            keep holding (the handover machine's FAULT state).
-    """
-
-    def __init__(self, client: RobotiqClient, speed: int = 128, force: int = 50) -> None:
-        self.client = client
-        self.speed, self.force = speed, force
-
-    def open(self) -> None:
-        """Send the open command."""
-        self.client.open_fingers(self.speed, self.force)
-
-    def is_open(self) -> bool:
-        """Poll the status; True once the opening has ended near position 0."""
-        return is_open(self.client.read_status(raise_on_fault=True))
-
-    def read(self) -> GripperStatus:
-        """One status read; a gripper fault is reported in the status, not raised."""
-        return self.client.read_status()
 
 
 def is_open(status: GripperStatus) -> bool:

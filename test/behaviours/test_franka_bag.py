@@ -11,12 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from franka_replay import FrankaTrace, ReplayArm, read_franka_bag
 
 from ext_sense_behaviours.errors import BehaviourError
 from ext_sense_behaviours.execution import FoodProbe
 from ext_sense_behaviours.food import FoodConfig, FoodMachine, FoodState, StopReason
-from ext_sense_behaviours.franka_bag import FrankaTrace, read_franka_bag
-from ext_sense_behaviours.replay import ReplayArm
 from ext_sense_drivers.nuskin.tact import read_tact
 
 pytestmark = pytest.mark.real_data

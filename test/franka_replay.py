@@ -1,14 +1,17 @@
-"""Reading the Panda's recorded state from ROS 1 bags (``franka_msgs/msg/FrankaState``).
+"""The Panda's recorded state from the ROS 1 food-poking bags, replayed as an arm adapter.
 
-The food-poking captures hold topic ``franka_state_controller`` at about 30 Hz. ``rosbags`` has
-no FrankaState type in its stores, so the type is registered from the message definition the
-bag carries in its connection header (``get_types_from_msg``). The external wrench
-``O_F_ext_hat_K`` is in the base frame (force x, y, z in N, then torque in Nm); the height is
-the translation z of ``O_T_EE`` (column-major 4 x 4, element 14).
+Test helpers (the real-bag replay tests): :func:`read_franka_bag` reads
+``franka_msgs/msg/FrankaState``, which ``rosbags`` has no type for in its stores, so the type
+is registered from the definition the bag carries in its connection header. The external
+wrench ``O_F_ext_hat_K`` is in the base frame (force x, y, z in N, then torque in Nm); the
+height is the translation z of ``O_T_EE`` (column-major 4 x 4, element 14).
+:class:`ReplayArm` hands the recorded states to a behaviour and only logs its commands (the
+recorded arm moved on its own) with the index of the sample it had just seen.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -118,3 +121,46 @@ def read_franka_bag(path: str | Path, topic: str = FRANKA_STATE_TOPIC) -> Franka
         np.asarray(rows["velocity_z_mps"], dtype=np.float64),
         np.asarray(rows["robot_mode"], dtype=np.uint8),
     )
+
+
+class ReplayArm:
+    """Hands out recorded :class:`ArmState` samples one per :meth:`read_state` call.
+
+    Args:
+        states: The recorded samples in order.
+    """
+
+    def __init__(self, states: Sequence[ArmState]) -> None:
+        self._states = list(states)
+        self.index = -1
+        self.commands: list[tuple[int, str]] = []
+
+    def read_state(self) -> ArmState | None:
+        """The next sample, or ``None`` after the last."""
+        if self.index + 1 >= len(self._states):
+            return None
+        self.index += 1
+        return self._states[self.index]
+
+    def take_failure(self) -> None:
+        """A recording's motion never fails."""
+        return None
+
+    def move_down(self, speed_mps: float) -> None:
+        """Log the command (the recording moves by itself)."""
+        self.commands.append((self.index, f"move_down {speed_mps:.4f}"))
+
+    def stop(self) -> None:
+        """Log the command."""
+        self.commands.append((self.index, "stop"))
+
+    def retract(self, height_m: float, speed_mps: float) -> None:
+        """Log the command."""
+        self.commands.append((self.index, f"retract {height_m:.4f}"))
+
+    def first_index(self, command: str) -> int | None:
+        """Sample index at which ``command`` (its first word) was first given."""
+        for index, text in self.commands:
+            if text.split()[0] == command:
+                return index
+        return None
