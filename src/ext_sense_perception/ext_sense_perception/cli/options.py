@@ -194,7 +194,7 @@ def load_sessions(
         PerceptionError: Unreadable data, ``session.json`` breaking its schema or naming
             another sensor, or data of another task or sensor than asked for.
     """
-    from ext_sense_perception.data.sessions import session_of
+    from ext_sense_perception.data.sessions import as_session
 
     sessions = []
     for data in args.data:
@@ -207,7 +207,7 @@ def load_sessions(
                     "instead."
                 )
             ws = ws.crop(round(args.post_ms * MS))
-        sessions.append(session_of(path, ws))
+        sessions.append(as_session(path, ws))
     return sessions
 
 

@@ -246,10 +246,10 @@ def load_session(
         PerceptionError: Unreadable data or metadata, or metadata naming another sensor.
     """
     ws = load_window_set(path, task, sensor, rate_hz=rate_hz, policy=policy, anchor=anchor)
-    return session_of(path, ws)
+    return as_session(path, ws)
 
 
-def session_of(path: str | Path, ws: WindowSet) -> Session:
+def as_session(path: str | Path, ws: WindowSet) -> Session:
     """The session of the windows ``ws`` loaded from ``path``: every loader's one way there.
 
     The metadata is read from the ``session.json`` beside the data (checked against
