@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from ext_sense.collect_graph import SIM_TRIGGER_TOPIC, SIM_TRUTH_TOPIC, collect_nodes
-from ext_sense.collect_session import (
+from ext_sense.collect.graph import SIM_TRIGGER_TOPIC, SIM_TRUTH_TOPIC, collect_nodes
+from ext_sense.collect.session import (
     HANDOVER_CLASSES,
     Answers,
     CollectError,

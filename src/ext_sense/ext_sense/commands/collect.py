@@ -1,8 +1,8 @@
 """``ext-sense collect TASK OUT``: guided recording of one labelled session on a live graph.
 
-The shell around :mod:`ext_sense.collect_session`: it starts the task's graph (as
+The shell around :mod:`ext_sense.collect.session`: it starts the task's graph (as
 ``ext-sense run`` does, one process per node) with the simulator's own ground truth moved to
-``/extsense/sim/ground_truth``, records the session with :class:`ext_sense.nodes.collector.
+``/extsense/sim/ground_truth``, records the session with :class:`ext_sense.collect.node.
 CollectorNode` into one mcap bag at ``OUT``, asks the operator (or ``--answers FILE``) about
 each trial, and writes the kept labels as ``ContactGroundTruth`` on ``/extsense/ground_truth``
 when the session ends, with ``session.json`` and ``collect.json`` in the bag directory. See
@@ -20,7 +20,7 @@ import threading
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from ext_sense.collect_session import (
+from ext_sense.collect.session import (
     FOOD_CLASSES,
     GRAPH_OF_TASK,
     HANDOVER_CLASSES,
@@ -94,7 +94,7 @@ def _graph_nodes(args: argparse.Namespace, schedule: list[str], scripted: bool) 
 
     The simulator's truth is renamed, behaviours are driven by collect, there is no monitor.
     """
-    from ext_sense.collect_graph import collect_nodes
+    from ext_sense.collect.graph import collect_nodes
     from ext_sense.graph import parse_assignments
     from ext_sense.graph_model import with_model
     from ext_sense.graphs import GRAPHS
@@ -152,9 +152,9 @@ def _collect(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace) -> int:
     import rclpy
 
-    from ext_sense.collect_loop import TrialLoop
+    from ext_sense.collect.loop import TrialLoop
+    from ext_sense.collect.node import CollectorNode
     from ext_sense.graph import GraphError
-    from ext_sense.nodes.collector import CollectorNode
     from ext_sense.runner import spawn_node, stop_nodes
     from ext_sense_bags import BagError
     from ext_sense_runtime.executor import make_executor

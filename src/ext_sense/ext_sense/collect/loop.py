@@ -3,11 +3,11 @@
 No rclpy here: the loop sees the collector node only through its event queue and a few calls
 (:class:`Collector`), so the shell (:mod:`ext_sense.commands.collect`) spins the node in a
 thread of its own and the recording never pauses while the operator thinks. What an answer
-means and what is kept is :mod:`ext_sense.collect_session`'s.
+means and what is kept is :mod:`ext_sense.collect.session`'s.
 
 A handover grasp is bounded by the handover behaviour's own decisions: it starts at the offer
 (``/extsense/handover/offer``) and ends at the decision that lets go or gives up
-(:data:`~ext_sense.collect_session.HANDOVER_END_STATES` on ``/handover/decision``); its windows
+(:data:`~ext_sense.collect.session.HANDOVER_END_STATES` on ``/handover/decision``); its windows
 are those whose onset lies between the two, whenever they arrive. Offers are taken in order,
 one per grasp, so a grasp is never skipped; a grasp without a window is not asked about and
 consumes no answer.
@@ -23,7 +23,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
-from ext_sense.collect_session import (
+from ext_sense.collect.session import (
     DISCARD,
     FOOD_CLASSES,
     HANDOVER_CLASSES,
@@ -55,7 +55,7 @@ post-contact window, inference, two cores under load) before the grasp is judged
 
 
 class Collector(Protocol):
-    """What the loop needs of :class:`ext_sense.nodes.collector.CollectorNode`."""
+    """What the loop needs of :class:`ext_sense.collect.node.CollectorNode`."""
 
     events: queue.Queue[tuple[str, Any]]
 

@@ -5,7 +5,7 @@ session's bag (receive time as log time, as the recorder node does); the contact
 estimates, motion starts, handover offers and any independent truth (the simulator's ground
 truth, renamed so it cannot be taken for the session's labels, or a motion-capture
 ``geometry_msgs/PoseStamped``) are also decoded and put on :attr:`events` for the command's
-main loop, which decides with :mod:`ext_sense.collect_session` what becomes a label. Labels are
+main loop, which decides with :mod:`ext_sense.collect.session` what becomes a label. Labels are
 written by :meth:`write_label` as ``ContactGroundTruth`` on ``/extsense/ground_truth``, stamped
 with the trial's onset. Against the simulator in scripted mode it also triggers each simulated
 grasp (:meth:`trigger_sim`) with the class the pending answer names.
@@ -28,7 +28,7 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import Bool, String
 
-from ext_sense.collect_graph import SIM_TRIGGER_TOPIC, SIM_TRUTH_TOPIC
+from ext_sense.collect.graph import SIM_TRIGGER_TOPIC, SIM_TRUTH_TOPIC
 from ext_sense.nodes.bag_player import message_class
 from ext_sense.nodes.recorder import subscription_qos
 from ext_sense_bags import BagError, BagWriter, ground_truth
