@@ -1,4 +1,4 @@
-"""``ext-sense sim list|run|serve``: the simulator's subcommands."""
+"""``ext-sense sim list|run|fidelity|serve``: the simulator's subcommands."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import sys
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``sim`` with ``list``, ``run`` and ``serve`` to the ``ext-sense`` parser."""
+    """Add ``sim`` and its subcommands to the ``ext-sense`` parser."""
     sim = subparsers.add_parser("sim", help="scene simulator and emulated devices")
     sub = sim.add_subparsers(dest="sim_command", metavar="SIM_COMMAND")
     sub.required = True
@@ -26,6 +26,33 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="comma-separated outputs among npz, paper, raw, bag (default: all)",
     )
     p.set_defaults(func=_run)
+
+    p = sub.add_parser(
+        "fidelity",
+        help="compare a scene with real NUSkin captures (taps, food)",
+        description=(
+            "Simulate a NUSkin tap or food scene and compare it with real captures at their "
+            "own 10 ms time resolution: statistics per real session and pooled, issue 30's "
+            "targets, a classifier two-sample test (docs/simulator.md)."
+        ),
+    )
+    p.add_argument("scene", help="shipped scene name or path of a scene YAML file")
+    p.add_argument(
+        "--real",
+        action="append",
+        required=True,
+        metavar="DIR",
+        help="a real session: a day's rod-tap folder (or its rodNN/), or a food-poking "
+        "folder; repeat for several sessions",
+    )
+    p.add_argument("--trials", type=int, default=None, help="simulated trials (taps 60, food 35)")
+    p.add_argument("--seed", type=int, default=None, help="seed (scene default)")
+    p.add_argument("--json", default=None, metavar="PATH", help="also write the result as JSON")
+    p.add_argument("--figure", default=None, metavar="PATH", help="also draw the figure (PNG)")
+    p.add_argument(
+        "--check", action="store_true", help="exit 1 when a tap target fails (for scripts)"
+    )
+    p.set_defaults(func=_fidelity)
 
     p = sub.add_parser("serve", help="emulate a device on a pty or CAN channel in real time")
     p.add_argument("device", choices=("nuskin", "biotac", "robotiq"))
@@ -66,6 +93,38 @@ def _run(args: argparse.Namespace) -> int:
     for name in summary["files"]:
         print(f"  {args.out}/{name}")
     return 0
+
+
+def _fidelity(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from ext_sense_sim.errors import SceneError
+    from ext_sense_sim.fidelity.check import run_fidelity
+    from ext_sense_sim.fidelity.errors import FidelityError
+    from ext_sense_sim.fidelity.figure import draw
+    from ext_sense_sim.fidelity.table import format_table
+    from ext_sense_sim.scene import load_scene
+
+    try:
+        if args.trials is not None and args.trials < 1:
+            raise SceneError(f"--trials must be >= 1. Got {args.trials} instead.")
+        run = run_fidelity(load_scene(args.scene), args.real, args.trials, args.seed)
+    except (SceneError, FidelityError) as err:
+        print(f"ext-sense sim fidelity: {err}", file=sys.stderr)
+        return 2
+    print(format_table(run.result))
+    try:
+        if args.json:
+            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.json).write_text(json.dumps(run.result, indent=2) + "\n")
+            print(f"wrote {args.json}")
+        if args.figure:
+            print(f"wrote {draw(run, args.figure)}")
+    except OSError as err:
+        print(f"ext-sense sim fidelity: cannot write: {err}", file=sys.stderr)
+        return 2
+    return 1 if args.check and run.result["pass"] is False else 0
 
 
 def _serve(args: argparse.Namespace) -> int:
