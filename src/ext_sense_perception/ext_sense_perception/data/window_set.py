@@ -10,6 +10,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.online.model_card import LENGTH_TOLERANCE_M, HeldObject
 from ext_sense_perception.online.model_input import Geometry
 from ext_sense_perception.online.window import ContactWindow, WindowConfig
 from ext_sense_perception.profiles import TaskProfile, profile_for
@@ -25,7 +26,8 @@ class WindowSet(NamedTuple):
     cuts the same windows. ``sessions`` names the recording session of each window (None: one
     unnamed session; see :mod:`ext_sense_perception.data.sessions`); ``anchor`` is what the
     onsets were tied to (food: ``arm_motion``, ``capture_start`` or ``contact``; empty: the
-    source's own onsets).
+    source's own onsets); ``held_object`` is the object the windows were felt through, when
+    the source names it (otherwise :func:`held_object_of` tells a rod from its lengths).
     """
 
     task: str
@@ -42,6 +44,7 @@ class WindowSet(NamedTuple):
     profile: TaskProfile | None = None
     sessions: np.ndarray | None = None
     anchor: str = ""
+    held_object: HeldObject | None = None
 
     @property
     def task_profile(self) -> TaskProfile:
@@ -86,6 +89,23 @@ class WindowSet(NamedTuple):
         return self._replace(
             X=np.ascontiguousarray(self.X[:, :, :n]), geometry=g._replace(n_samples=n)
         )
+
+
+def held_object_of(ws: WindowSet) -> HeldObject | None:
+    """The object a model trained on ``ws`` was trained on, for its card.
+
+    The set's own ``held_object`` when its source named one; else a rod when every window
+    has a rod length (one length, or none recorded when they differ by more than
+    :data:`~ext_sense_perception.online.model_card.LENGTH_TOLERANCE_M`); else None (unknown).
+    """
+    if ws.held_object is not None:
+        return ws.held_object
+    rods = np.asarray(ws.rod_length_m, dtype=np.float64)
+    if not rods.size or not np.isfinite(rods).all():
+        return None
+    if float(rods.max() - rods.min()) > LENGTH_TOLERANCE_M:
+        return HeldObject("rod")
+    return HeldObject("rod", round(float(np.median(rods)), 4))
 
 
 def file_hash(*paths: str | Path) -> str:

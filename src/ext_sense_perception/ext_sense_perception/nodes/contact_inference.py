@@ -6,10 +6,14 @@ provisional windows (anytime estimates, ``provisional`` true) and the final one.
 
 Faults never stop the node: a missing or corrupt model, or a bundle whose card is invalid, is
 for another task or sensor, or does not describe its model
-(:func:`~ext_sense_perception.online.predictor.load_model` checks all that before use), is
-refused with one error line and reported as ERROR on ``/diagnostics`` (windows meanwhile are
-counted as dropped); loading is retried every ``reload_period_s``, and a loaded bundle whose
-files change on disk is loaded again (and refused if the new one is bad). A window the model
+(:func:`~ext_sense_perception.online.predictor.load_model` checks all that before use), or was
+trained on another object than ``held_object`` (the card's ``held_object``; a card that records
+none is accepted with a warning), is refused with one error line and reported as ERROR on
+``/diagnostics`` (windows meanwhile are counted as dropped); loading is retried every
+``reload_period_s``, and a loaded bundle whose files change on disk is loaded again (and
+refused if the new one is bad). A loaded bundle whose files vanish (the directory deleted or
+moved away) is not dropped: its model is served on, with one WARN on the console and WARN on
+``/diagnostics``, until a valid bundle appears there. A window the model
 rejects (NaN or inf, wrong shape) is counted and reported, and the next window is processed
 normally; any other exception in a callback is caught by the node's callback guard.
 
@@ -38,7 +42,14 @@ from rclpy.node import Node
 from ext_sense_msgs.msg import ContactEstimate, ContactWindow
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.messages import window_from_msg
-from ext_sense_perception.online.model_card import CARD_FILE, ONNX_FILE, SKLEARN_FILE
+from ext_sense_perception.online.model_card import (
+    CARD_FILE,
+    ONNX_FILE,
+    SKLEARN_FILE,
+    HeldObject,
+    object_mismatch,
+    object_unknown,
+)
 from ext_sense_perception.online.model_store import default_name, locate_model
 from ext_sense_perception.online.predictor import ModelBundle, load_model
 from ext_sense_runtime import intra_process
@@ -80,6 +91,19 @@ class ContactInferenceNode(Node):
         self.publish_provisional = declare(
             self, "publish_provisional", True, "Publish estimates of provisional (anytime) windows."
         )
+        try:
+            self.held_object = HeldObject.parse(
+                declare(
+                    self,
+                    "held_object",
+                    "",
+                    "The object the fingers hold, kind or kind:length_m (e.g. rod:0.30): a model "
+                    "whose card records another is refused; empty: not checked.",
+                    read_only=True,
+                )
+            )
+        except PerceptionError as err:
+            raise ValueError(f"The 'held_object' parameter: {err}") from err
         reload_s = declare(
             self,
             "reload_period_s",
@@ -110,6 +134,10 @@ class ContactInferenceNode(Node):
         self.reloads = 0
         self.model_id = ""
         self.model_error = ""
+        self.serving_vanished = False
+        """The bundle's files are gone: the model loaded before is served until a valid one
+        appears (WARN); a bundle rewritten with bad files is refused instead."""
+        self.object_note = ""
         self.windows_in = 0
         self.estimates_out = 0
         self.dropped_no_model = 0
@@ -148,20 +176,45 @@ class ContactInferenceNode(Node):
             # a name is looked up again at every try: a model created meanwhile is found
             self.model_path = locate_model(self.model_arg, self.task, self.sensor)
             self._stamp = bundle_stamp(self.model_path, self.backend)
-            self.model = load_model(self.model_path, self.backend, self.task, self.sensor)
+            model = load_model(self.model_path, self.backend, self.task, self.sensor)
+            trained = getattr(model.card, "held_object", None)
+            why = object_mismatch(trained, self.held_object)
+            if why:
+                raise PerceptionError(
+                    f"The model in {self.model_path} does not fit this graph: {why}. To fix: "
+                    "give a model trained on this object, or the object held (held_object)."
+                )
         except PerceptionError as err:
+            if self.model is not None and bundle_gone(self.model_path, self.backend):
+                self._keep_serving(err)
+                return
             if str(err) != self.model_error:
                 self.get_logger().error(f"model refused: {err}")
             # the reason first: whoever sees no model (a test's thread) finds why
             self.model_error = str(err)
-            self.model, self.model_id = None, ""
+            self.model, self.model_id, self.serving_vanished = None, "", False
             return
-        self.model_id = self.model.model_id
-        self.model_error = ""
+        self.model, self.model_id = model, model.model_id
+        self.model_error, self.serving_vanished = "", False
         self.get_logger().info(f"model {self.model_id or self.model_path} loaded ({self.backend})")
+        self.object_note = object_unknown(trained, self.held_object)
+        if self.object_note:
+            self.get_logger().warning(f"model {self.model_id}: {self.object_note}")
+
+    def _keep_serving(self, err: PerceptionError) -> None:
+        """The loaded model's files are gone: serve it on, said once (WARN), until new ones load."""
+        self.model_error = str(err)
+        if self.serving_vanished:
+            return
+        self.serving_vanished = True
+        self.get_logger().warning(
+            f"model files in {self.model_path} are gone: serving the loaded model "
+            f"{self.model_id} until a valid one appears ({err})"
+        )
+        self.diagnostics.publish()
 
     def _retry_load(self) -> None:
-        if self.model is None:
+        if self.model is None or self.serving_vanished:
             self._load()
         elif self.model_path is not None and (
             bundle_stamp(self.model_path, self.backend) != self._stamp
@@ -212,14 +265,27 @@ class ContactInferenceNode(Node):
             self.latencies_ns.append(latency)
 
     def _check_model(self) -> tuple[Level, str, dict[str, object]]:
+        trained = getattr(self.model.card, "held_object", None) if self.model else None
         values = {
             "model_path": str(self.model_path or self.model_arg),
             "backend": self.backend,
             "model_id": self.model_id,
             "reloads": self.reloads,
+            "held_object": self.held_object.to_text() if self.held_object else "",
+            "trained_held_object": trained.to_text() if trained else "",
+            "serving_vanished_model": self.serving_vanished,
         }
         if self.model is None:
             return Level.ERROR, f"model refused: {self.model_error}", values
+        if self.serving_vanished:
+            return (
+                Level.WARN,
+                f"model files gone: serving the loaded model until a valid one appears "
+                f"({self.model_error})",
+                values,
+            )
+        if self.object_note:
+            return Level.OK, f"loaded; {self.object_note}", values
         return Level.OK, "loaded", values
 
     def _check_inference(self) -> tuple[Level, str, dict[str, object]]:
@@ -244,6 +310,14 @@ class ContactInferenceNode(Node):
         if self.last_degraded and time.monotonic_ns() - self.last_degraded[0] < 10_000 * MS:
             return Level.WARN, f"degraded estimates: {self.last_degraded[1]}", values
         return Level.OK, "ok", values
+
+
+def bundle_gone(directory: Path | None, backend: str) -> bool:
+    """Whether a bundle's card or the backend's model file is missing (deleted, not corrupt)."""
+    if directory is None:
+        return True
+    model = ONNX_FILE if backend == "onnx" else SKLEARN_FILE
+    return not all((Path(directory) / name).is_file() for name in (CARD_FILE, model))
 
 
 def bundle_stamp(directory: Path, backend: str) -> tuple[tuple[str, int, int], ...]:

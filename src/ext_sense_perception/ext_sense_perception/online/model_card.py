@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -27,6 +28,86 @@ SCHEMA_VERSION = 2
 ONNX_FILE = "model.onnx"
 SKLEARN_FILE = "model.joblib"
 CARD_FILE = "model_card.json"
+LENGTH_TOLERANCE_M = 0.005
+"""Held objects whose lengths differ by no more than this are the same length."""
+
+
+class HeldObject(NamedTuple):
+    """The object held between the fingers: its kind and length.
+
+    Attributes:
+        kind: ``"rod"``, ``"box"``, ``"plate"``, ``"fork"`` (the scenes' kinds).
+        length_m: Its length, m (None: unknown, or the model was trained on several).
+    """
+
+    kind: str
+    length_m: float | None = None
+
+    def __str__(self) -> str:
+        return self.kind if self.length_m is None else f"{self.length_m * 100:g} cm {self.kind}"
+
+    @classmethod
+    def parse(cls, text: str) -> HeldObject | None:
+        """``"rod:0.30"`` (kind, length in m) or ``"rod"``; ``""``: None (no object named).
+
+        Raises:
+            PerceptionError: A kind that is no word, or a length that is no positive number.
+        """
+        text = text.strip()
+        if not text:
+            return None
+        kind, _, length = text.partition(":")
+        kind = kind.strip()
+        if not kind.isidentifier():
+            raise PerceptionError(
+                f"A held object must be written kind or kind:length_m (e.g. 'rod:0.30'). Got "
+                f"{text!r} instead."
+            )
+        if not length.strip():
+            return cls(kind)
+        try:
+            value = float(length)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value > 0):
+            raise PerceptionError(
+                f"A held object's length must be a positive number of metres (e.g. 'rod:0.30'). "
+                f"Got {text!r} instead."
+            )
+        return cls(kind, value)
+
+    def to_text(self) -> str:
+        """The form :meth:`parse` reads."""
+        return self.kind if self.length_m is None else f"{self.kind}:{self.length_m:g}"
+
+
+def object_mismatch(trained: HeldObject | None, held: HeldObject | None) -> str:
+    """Why a model trained on ``trained`` must not serve a graph holding ``held`` ('' if not).
+
+    An object neither names, or a length one of them leaves open, is no mismatch: the caller
+    warns about a card that records no object (:func:`object_unknown`).
+    """
+    if trained is None or held is None:
+        return ""
+    if trained.kind != held.kind:
+        return f"it was trained on a {trained}, and the graph holds a {held}"
+    if (
+        trained.length_m is not None
+        and held.length_m is not None
+        and abs(trained.length_m - held.length_m) > LENGTH_TOLERANCE_M
+    ):
+        return f"it was trained on a {trained}, and the graph holds a {held}"
+    return ""
+
+
+def object_unknown(trained: HeldObject | None, held: HeldObject | None) -> str:
+    """A warning when a graph names its object and the card records none ('' otherwise)."""
+    if trained is None and held is not None:
+        return (
+            f"the model card records no held object (a bundle made before cards recorded it): "
+            f"accepted without checking it was trained on a {held}"
+        )
+    return ""
 
 
 @dataclass(frozen=True)
@@ -61,6 +142,8 @@ class ModelCard:
             label set; empty: all of ``class_names``).
         calibration: How the bundle was adapted to a session (``ext-sense calibrate``): the
             session, trials per class, their weight and the base model's id (empty: none).
+        held_object: The object the training windows were felt through (None: not known, as
+            on cards written before it was recorded: accepted with a warning).
         id: The card id (task, sensor, features, model and a hash of the rest).
         schema_version: :data:`SCHEMA_VERSION`.
     """
@@ -88,6 +171,7 @@ class ModelCard:
     sessions: tuple[str, ...] = ()
     label_set: tuple[str, ...] = ()
     calibration: dict[str, Any] = field(default_factory=dict)
+    held_object: HeldObject | None = None
     id: str = ""
     schema_version: int = SCHEMA_VERSION
 
@@ -125,6 +209,9 @@ class ModelCard:
         out["window"] = self.window._asdict()
         for key in ("class_names", "excluded", "anytime_post_ms", "sessions", "label_set"):
             out[key] = list(out[key])
+        out["held_object"] = None if self.held_object is None else self.held_object._asdict()
+        if self.held_object is None:  # cards of unknown objects read as before the field
+            del out["held_object"]
         return json.loads(json.dumps(out, default=_jsonable))
 
     @classmethod
@@ -152,6 +239,8 @@ class ModelCard:
             for key in ("class_names", "excluded", "sessions", "label_set"):
                 v[key] = tuple(v.get(key, ()))
             v["anytime_post_ms"] = tuple(float(p) for p in v.get("anytime_post_ms", ()))
+            held = v.get("held_object")
+            v["held_object"] = None if held is None else HeldObject(**held)
             return cls(**v)
         except PerceptionError:
             raise
@@ -189,6 +278,7 @@ _FIELD_KINDS: dict[str, tuple[type, ...]] = {
     "sessions": (list,),
     "label_set": (list,),
     "calibration": (dict,),
+    "held_object": (dict, type(None)),
     "id": (str,),
     "schema_version": (int,),
 }
@@ -241,6 +331,24 @@ def _check_types(values: dict[str, Any]) -> None:
             raise PerceptionError(
                 f"The model card's 'window.{name}' must be an integer. Got {_kind(v)} {v!r} "
                 "instead."
+            )
+    held = values.get("held_object")
+    if held is not None:
+        kind = held.get("kind")
+        if set(held) - {"kind", "length_m"} or not (isinstance(kind, str) and kind):
+            raise PerceptionError(
+                "The model card's 'held_object' must be {'kind': str, 'length_m': number or "
+                f"null}}. Got {held!r} instead."
+            )
+        length = held.get("length_m")
+        if length is not None and (
+            isinstance(length, bool)
+            or not isinstance(length, (int, float))
+            or not (math.isfinite(length) and length > 0)
+        ):
+            raise PerceptionError(
+                "The model card's 'held_object.length_m' must be a positive number of metres "
+                f"or null. Got {length!r} instead."
             )
     for name, v in values["metrics"].items():
         if isinstance(v, bool) or not isinstance(v, (int, float)):

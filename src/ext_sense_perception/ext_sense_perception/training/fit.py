@@ -26,7 +26,7 @@ from sklearn.model_selection import (
 from sklearn.pipeline import Pipeline
 from threadpoolctl import threadpool_limits
 
-from ext_sense_perception.data.window_set import WindowSet
+from ext_sense_perception.data.window_set import WindowSet, held_object_of
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.maps import FeatureKind
 from ext_sense_perception.online.model_card import ModelCard, jsonable
@@ -211,6 +211,7 @@ def fit_model(
             train_s=time.perf_counter() - t0,
             anchor=ws.anchor,
             sessions=tuple(sorted({str(s) for s in ws.session_of.tolist()} - {""})),
+            held_object=held_object_of(ws),
         )
         return TrainedModel(pipeline, card)
 

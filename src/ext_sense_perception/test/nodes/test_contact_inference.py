@@ -109,3 +109,73 @@ def test_a_bad_bundle_is_refused_and_a_fixed_one_loaded_without_a_restart(good_b
         assert node.reloads == 1
         assert "'window.period_ns' must be the profile's 454545" in node.model_error
         assert node.guard.total == 0
+
+
+def _node_with(model: Path, probes: list, **extra):
+    from rclpy.parameter import Parameter
+
+    from ext_sense_perception.nodes.contact_inference import ContactInferenceNode
+
+    params = [Parameter("model_path", value=str(model)), Parameter("reload_period_s", value=0.2)]
+    params += [Parameter(k, value=v) for k, v in extra.items()]
+
+    def probe(context):
+        probes.append(_Probe(context))
+        return probes[-1].node
+
+    return spinning(
+        lambda context: ContactInferenceNode(context=context, parameter_overrides=params), probe
+    )
+
+
+def test_a_vanished_model_directory_keeps_the_loaded_model_serving_until_a_valid_one_appears(
+    good_bundle, tmp_path
+):
+    model = tmp_path / "model"
+    shutil.copytree(good_bundle, model)
+    probes: list[_Probe] = []
+    with _node_with(model, probes) as (node, _):
+        p = probes[0]
+        assert node.model is not None
+        loaded = node.model_id
+        time.sleep(0.3)  # discovery
+        shutil.rmtree(model)  # deleted while the graph runs
+        assert wait_for(lambda: node.serving_vanished, 5.0)
+        assert node.model is not None
+        assert node.model_id == loaded
+        assert wait_for(lambda: any(s.level == b"\x01" for s in p.statuses), 5.0)
+        warn = next(s for s in p.statuses if s.level == b"\x01")
+        p.windows.publish(_window())
+        assert wait_for(lambda: len(p.estimates) == 1, 10.0)  # still served
+        assert node.dropped_no_model == 0
+        time.sleep(0.5)  # several retries: still serving, said once
+        assert node.serving_vanished
+        shutil.copytree(good_bundle, model)  # a valid bundle again: loaded
+        assert wait_for(lambda: not node.serving_vanished, 5.0)
+        assert node.model is not None
+        assert node.guard.total == 0
+    assert warn.message.startswith("model files gone: serving the loaded model")
+    assert {kv.key: kv.value for kv in warn.values}["serving_vanished_model"] == "True"
+    assert np.isfinite(p.estimates[0].tap_position_m)
+
+
+def test_a_model_trained_on_another_rod_is_refused_and_an_old_card_accepted_with_a_warning(
+    good_bundle, tmp_path
+):
+    model = tmp_path / "model"
+    shutil.copytree(good_bundle, model)
+    probes: list[_Probe] = []
+    with _node_with(model, probes, held_object="rod:0.20") as (node, _):
+        assert node.model is None  # trained on the dataset's 30 cm rod
+        assert node.model_error.startswith(f"The model in {model} does not fit this graph: it ")
+        assert "trained on a 30 cm rod, and the graph holds a 20 cm rod" in node.model_error
+    with _node_with(model, probes, held_object="rod:0.30") as (node, _):
+        assert node.model is not None
+        assert node.object_note == ""
+    card_file = model / "model_card.json"
+    card = json.loads(card_file.read_text())
+    del card["held_object"]  # a card written before cards recorded the object
+    card_file.write_text(json.dumps(card))
+    with _node_with(model, probes, held_object="rod:0.20") as (node, _):
+        assert node.model is not None
+        assert node.object_note.startswith("the model card records no held object")

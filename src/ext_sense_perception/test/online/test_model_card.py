@@ -11,7 +11,12 @@ import pytest
 
 from ext_sense_perception.data.sources import from_sim_dataset
 from ext_sense_perception.errors import PerceptionError
-from ext_sense_perception.online.model_card import read_card
+from ext_sense_perception.online.model_card import (
+    HeldObject,
+    object_mismatch,
+    object_unknown,
+    read_card,
+)
 from ext_sense_perception.online.predictor import load_model
 from ext_sense_perception.training.bundle_io import save_bundle
 from ext_sense_perception.training.fit import fit_anytime, fit_model
@@ -69,6 +74,9 @@ def _set(path: str, value: object) -> Callable[[dict], None]:
         ("n_train", True, r"'n_train' must be int\. Got a bool True"),
         ("metrics.cv_mae_m", "0.02", r"'metrics.cv_mae_m' must be a number"),
         ("task", "food_identification", r"profile is for 'tap_localization'"),
+        ("held_object.length_m", -0.3, r"'held_object.length_m' must be a positive number"),
+        ("held_object", {"kind": ""}, r"'held_object' must be \{'kind': str"),
+        ("held_object", "rod", r"'held_object' must be dict or null\. Got str 'rod'"),
     ],
 )
 def test_a_card_breaking_its_schema_is_refused_with_the_field_named(
@@ -147,3 +155,60 @@ def test_an_anytime_model_that_does_not_fit_its_place_is_refused(tap_bundle, tmp
     (sub / "model_card.json").write_text(json.dumps(card))
     with pytest.raises(PerceptionError, match=r"post_50ms' must end 50 ms after the onset"):
         load_model(bad)
+
+
+def test_the_card_records_the_rod_it_was_trained_on(tap_bundle, tmp_path):
+    card = read_card(tap_bundle)
+    assert card.held_object == HeldObject("rod", 0.3)  # the dataset's rod_length_m
+    assert json.loads((tap_bundle / "model_card.json").read_text())["held_object"] == {
+        "kind": "rod",
+        "length_m": 0.3,
+    }
+    # a card written before the field: read as before, no object known (same id)
+    old = _spoiled(tap_bundle, tmp_path, lambda c: c.pop("held_object"))
+    assert read_card(old).held_object is None
+    assert read_card(old).id == card.id
+
+
+@pytest.mark.parametrize(
+    ("trained", "held", "why"),
+    [
+        (HeldObject("rod", 0.2), HeldObject("rod", 0.3), "trained on a 20 cm rod, and the graph"),
+        (HeldObject("rod", 0.3), HeldObject("fork", 0.19), "trained on a 30 cm rod, and"),
+        (HeldObject("rod", 0.3), HeldObject("rod", 0.302), ""),  # within 5 mm
+        (HeldObject("rod"), HeldObject("rod", 0.5), ""),  # several lengths: any of them
+        (HeldObject("rod", 0.3), HeldObject("rod"), ""),
+        (None, HeldObject("rod", 0.3), ""),  # unknown: warned about, not refused
+        (HeldObject("rod", 0.3), None, ""),  # the graph names none: nothing to check
+    ],
+)
+def test_a_model_of_another_object_is_a_mismatch(trained, held, why):
+    got = object_mismatch(trained, held)
+    assert why in got if why else got == ""
+
+
+def test_a_card_without_an_object_is_accepted_with_a_warning_when_the_graph_names_one():
+    note = object_unknown(None, HeldObject("rod", 0.3))
+    assert note.startswith("the model card records no held object")
+    assert "30 cm rod" in note
+    assert object_unknown(HeldObject("rod", 0.3), HeldObject("rod", 0.3)) == ""
+    assert object_unknown(None, None) == ""
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [("rod:0.30", HeldObject("rod", 0.3)), (" fork ", HeldObject("fork")), ("", None)],
+)
+def test_a_held_object_is_read_from_kind_and_length(text, expected):
+    assert HeldObject.parse(text) == expected
+    if expected is not None:
+        assert HeldObject.parse(expected.to_text()) == expected
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [("rod:-1", "length must be a positive number"), ("rod:x", "positive"), (":0.3", "kind")],
+)
+def test_a_bad_held_object_is_refused_in_one_line(text, match):
+    with pytest.raises(PerceptionError, match=match):
+        HeldObject.parse(text)
