@@ -57,11 +57,11 @@ setup-jazzy:
 test-jazzy: setup-jazzy
 	@$(JAZZY_VENV)/bin/pytest -m ros
 
-## Build the workspace with colcon (as the Docker image does), into ros2_ws/{build,install};
-## colcon-bash writes install/setup.bash (`source install/setup.bash`), colcon-core only setup.sh.
+## Build the workspace with colcon (as the Docker image does), into ros2_ws/{build,install,log}:
+## then `source ros2_ws/install/setup.bash`. colcon is the one scripts/setup.sh installs beside
+## the venv (requirements/colcon.txt); the venv's ROS stands for a sourced /opt/ros. make test
+## builds the same way into a temporary directory (test/test_colcon_workspace.py).
 colcon: setup
-	@$(VENV)/bin/python -m pip install -q colcon-core colcon-ros colcon-cmake colcon-python-setup-py \
-	  colcon-bash
 	@PATH=$(abspath $(VENV))/bin:$$PATH AMENT_PREFIX_PATH=$(abspath $(VENV)) PYTHON=$(abspath $(PY)) \
 	  scripts/build_workspace.sh
 

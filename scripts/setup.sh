@@ -65,6 +65,26 @@ if [ ${#PKGS[@]} -gt 0 ] && ! fresh editable "$s"; then
   mark editable "$s"
 fi
 
+# 2b. colcon, to build ros2_ws as a ROS user does (`make colcon`, test_colcon_workspace.py), in a
+#     directory of its own: colcon-core pins setuptools<80 and brings pytest plugins, which must
+#     not replace the venv's setuptools nor join its test runs (requirements/colcon.txt). The
+#     `colcon` command in $VENV/bin runs it with this venv's Python (so what colcon installs runs
+#     on the venv's ROS), that directory first on PYTHONPATH.
+COLCON_REQ="$ROOT/requirements/colcon.txt"
+s=$(stamp_of "$COLCON_REQ" "$0")
+if ! fresh colcon "$s"; then
+  echo "setup: installing colcon into $VENV/colcon" >&2
+  rm -rf "$VENV/colcon"
+  "$VPY" -m pip install "${PIP_FLAGS[@]}" --target "$VENV/colcon" -r "$COLCON_REQ"
+  cat > "$VENV/bin/colcon" <<EOF
+#!/bin/sh
+# colcon from $VENV/colcon (scripts/setup.sh, requirements/colcon.txt)
+PYTHONPATH="$VENV/colcon\${PYTHONPATH:+:\$PYTHONPATH}" exec "$VENV/colcon/bin/colcon" "\$@"
+EOF
+  chmod +x "$VENV/bin/colcon"
+  mark colcon "$s"
+fi
+
 # 3. Optional training extra (torch, for the GRU model), only as a CPU-only build: the explicit
 #    local version (torch==X+cpu) cannot pull the gigabytes of CUDA that plain `torch` does.
 #    Found through pip's own configuration (here find-links /opt/wheels; elsewhere e.g.

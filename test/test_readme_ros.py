@@ -1,12 +1,16 @@
 """The README's "On a ROS 2 install" steps, followed from an unrelated directory, print estimates.
 
-The steps are read from the README itself: ``ros2 run ext_sense ext-sense ARGS`` runs as
-``ext-sense ARGS`` and the first ``ros2 launch ext_sense GRAPH.launch.py`` line as
-``ext-sense run GRAPH`` (the same graph description; ``ros2`` is not installed here), with this
-checkout's venv standing in for the sourced colcon workspace. The working directory is a fresh
-temporary one, ``EXT_SENSE_MODELS`` is unset and ``XDG_DATA_HOME`` points into it, so the graph
-can only find the models where the models command put them. ``ext-sense demo`` (``make demo``)
-then runs on the same model, as the models command says it does.
+The steps are read from the README itself and run on the installed tree: the workspace is built
+with colcon for real (``cd ros2_ws && colcon build``: the test run's one build, shared with
+test_colcon_workspace.py, see colcon_workspace.py) and every later step runs in the environment
+of a shell that sourced its ``install/setup.bash``. ``ros2 run ext_sense ext-sense ARGS`` runs
+the executable ``ros2 run`` finds (``install/ext_sense/lib/ext_sense/ext-sense``) and the first
+``ros2 launch ext_sense GRAPH.launch.py`` line, whose launch file must be installed, runs as that
+executable's ``run GRAPH`` (the same graph description; ``ros2`` is not installed here). The
+working directory is a fresh temporary one, ``EXT_SENSE_MODELS`` is unset and ``XDG_DATA_HOME``
+points into it, so the graph can only find the models where the models command put them.
+``ext-sense demo`` (``make demo``, the checkout's venv) then runs on the same model, as the
+models command says it does.
 
 The README's ``models create`` trains all three tasks' models; here it trains the one its
 launch loads (``--task tap_localization``, about 35 s). All three took 453 s of the suite's
@@ -26,6 +30,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 import pytest
+from colcon_workspace import Workspace, ros2_launch_file, ros2_run, shared_build
 from sim_models import EXE, finish_graph
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(600)]
@@ -45,13 +50,19 @@ def ros_section_steps() -> list[list[str]]:
     return [shlex.split(line) for line in lines if line]
 
 
-def as_local(step: list[str]) -> list[str] | None:
-    """A README step as this checkout runs it; None for the workspace build (the venv is it)."""
+BUILD_STEP = ["cd", "ros2_ws", "&&", "colcon", "build", "&&", "source", "install/setup.bash"]
+"""The README's workspace build, which ``colcon_workspace.build`` runs (into its own place)."""
+
+
+def as_local(step: list[str], ws: Workspace) -> list[str] | None:
+    """A README step as this machine runs it on the installed tree; None for the build."""
     if step[:4] == ["ros2", "run", "ext_sense", "ext-sense"]:
-        return [*EXE, *step[4:]]
+        return [str(ros2_run(ws.env, "ext_sense", "ext-sense")), *step[4:]]
     if step[:3] == ["ros2", "launch", "ext_sense"]:
-        return [*EXE, "run", step[3].removesuffix(".launch.py"), *step[4:]]
-    if step[:2] == ["cd", "ros2_ws"] and "colcon" in step:
+        ros2_launch_file(ws.env, "ext_sense", step[3])
+        exe = ros2_run(ws.env, "ext_sense", "ext-sense")
+        return [str(exe), "run", step[3].removesuffix(".launch.py"), *step[4:]]
+    if step == BUILD_STEP:
         return None
     raise AssertionError(f"a README step this test does not know how to run: {step}")
 
@@ -60,35 +71,39 @@ class Newcomer(NamedTuple):
     """A user's fresh directories after the README's ``models create``."""
 
     work: Path  # an unrelated working directory
-    env: dict[str, str]  # no $EXT_SENSE_MODELS; $XDG_DATA_HOME in the temporary directory
+    env: dict[str, str]  # install/setup.bash sourced; no $EXT_SENSE_MODELS; $XDG_DATA_HOME in tmp
+    checkout_env: dict[str, str]  # the same without the workspace: `make demo`'s
     store: Path  # where the models command put the models
-    launch: list[str]  # the README's first launch, as this checkout runs it
+    launch: list[str]  # the README's first launch, on the installed tree
 
 
 @pytest.fixture(scope="module")
-def newcomer(tmp_path_factory) -> Newcomer:
+def newcomer(tmp_path_factory, pytestconfig) -> Newcomer:
     steps = ros_section_steps()
+    assert steps[0] == BUILD_STEP, steps
+    ws = shared_build(tmp_path_factory, pytestconfig)
     creates = [s for s in steps if s[:4] == ["ros2", "run", "ext_sense", "ext-sense"]]
     launches = [s for s in steps if s[:2] == ["ros2", "launch"]]
     assert creates, steps
     assert creates[0][4:6] == ["models", "create"], steps
     assert launches[0] == ["ros2", "launch", "ext_sense", "tap_localization.launch.py"], steps
     assert steps.index(creates[0]) < steps.index(launches[0])
-    assert all(as_local(s) is None or s in creates or s in launches for s in steps)
+    assert all(as_local(s, ws) is None or s in creates or s in launches for s in steps)
 
     root = tmp_path_factory.mktemp("readme")
     work = root / "elsewhere"
     work.mkdir()
-    env = {k: v for k, v in os.environ.items() if k != "EXT_SENSE_MODELS"}
-    env["XDG_DATA_HOME"] = str(root / "data")
+    data = {"XDG_DATA_HOME": str(root / "data")}
+    env = {k: v for k, v in ws.env.items() if k != "EXT_SENSE_MODELS"} | data
+    checkout_env = {k: v for k, v in os.environ.items() if k != "EXT_SENSE_MODELS"} | data
     store = root / "data" / "ext_sense" / "models"
 
     # the README's models create, for the model its launch loads
-    create = [*as_local(creates[0]), "--task", "tap_localization"]
+    create = [*as_local(creates[0], ws), "--task", "tap_localization"]
     created = subprocess.run(create, cwd=work, env=env, capture_output=True, text=True, timeout=300)
     assert created.returncode == 0, created.stderr[-3000:]
     assert (store / "tap_localization_nuskin" / "model_card.json").is_file(), created.stderr[-3000:]
-    return Newcomer(work, env, store, as_local(launches[0]))
+    return Newcomer(work, env, checkout_env, store, as_local(launches[0], ws))
 
 
 def test_readme_ros_steps_print_estimates_from_an_unrelated_directory(newcomer):
@@ -127,7 +142,7 @@ def test_demo_uses_the_same_model_and_is_accurate_live(newcomer):
     proc = subprocess.run(
         [*EXE, "demo", "--taps", str(DEMO_TAPS), "--port", f"/tmp/ext_sense_demo_{os.getpid()}"],
         cwd=newcomer.work,
-        env=newcomer.env,
+        env=newcomer.checkout_env,
         capture_output=True,
         text=True,
         timeout=240,
