@@ -4,10 +4,12 @@
 ``model`` argument (a bundle directory, a model name, or empty for the task's default) is looked
 up along the model search path
 (:mod:`ext_sense_perception.online.model_store`), its card is read and checked against the
-graph's task and sensor, and the bundle's absolute directory is handed to both perception nodes,
-so the window node and the inference node read the same bundle. A graph with no usable model
-refuses to start with one line that lists every place searched and names the command that
-creates the default models. Nothing here imports ``launch`` or ``rclpy``.
+graph's task and sensor, and against the object the graph holds (its ``held_object`` argument,
+else for tap localization on the simulator the scene's rod: a model trained on a 20 cm rod
+serving the 30 cm scene places every tap wrong), and the bundle's absolute directory is handed to
+both perception nodes, so the window node and the inference node read the same bundle. A graph
+with no usable model refuses to start with one line that lists every place searched and names
+the command that creates the default models. Nothing here imports ``launch`` or ``rclpy``.
 """
 
 from __future__ import annotations
@@ -16,8 +18,10 @@ from collections.abc import Mapping
 
 from ext_sense.graph import GraphError, GraphSpec
 from ext_sense_perception.errors import PerceptionError
-from ext_sense_perception.online.model_card import read_card
+from ext_sense_perception.online.model_card import HeldObject, object_mismatch, read_card
 from ext_sense_perception.online.model_store import create_command, create_hint, find_model
+from ext_sense_sim.errors import SceneError
+from ext_sense_sim.scene import DEFAULT_SCENES, load_scene
 
 INFERENCE_EXECUTABLE = "contact_inference"
 
@@ -28,6 +32,9 @@ class ModelMissingError(GraphError):
 
 def with_model(graph: GraphSpec, overrides: Mapping[str, str]) -> dict[str, str]:
     """``overrides`` with ``model`` set to the absolute bundle directory the graph will load.
+
+    ``held_object`` is set too when the graph's object is known (:func:`held_object_of_graph`),
+    so the inference node checks a model loaded later against it.
 
     Raises:
         GraphError: Bad arguments.
@@ -50,7 +57,40 @@ def with_model(graph: GraphSpec, overrides: Mapping[str, str]) -> dict[str, str]
             f"with sensor:={sensor} needs a {task}/{sensor} model. To fix: "
             f"{create_hint(sensor)}, or give model:=DIR."
         )
-    return {**overrides, "model": str(path)}
+    held = held_object_of_graph(values, task, sensor)
+    why = object_mismatch(card.held_object, held)
+    if why:
+        raise ModelMissingError(
+            f"The model in {path} does not fit graph {graph.name!r}: {why}. To fix: give "
+            "model:=DIR of a model trained on this object, or held_object:=KIND:LENGTH_M "
+            "naming what the fingers hold."
+        )
+    out = {**overrides, "model": str(path)}
+    if held is not None:
+        out["held_object"] = held.to_text()
+    return out
+
+
+def held_object_of_graph(values: Mapping[str, str], task: str, sensor: str) -> HeldObject | None:
+    """The object a graph holds: its ``held_object`` argument, else the simulated rod of a tap.
+
+    Only tap localization takes the scene's object by default: its estimates are positions on
+    the rod, and its models' cards record the rod (food and handover cards record no object).
+
+    Raises:
+        GraphError: A malformed ``held_object``, or a scene that cannot be read.
+    """
+    try:
+        named = HeldObject.parse(values.get("held_object", ""))
+    except PerceptionError as err:
+        raise GraphError(f"The 'held_object' argument: {err}") from err
+    if named is not None or values.get("source") != "sim" or task != "tap_localization":
+        return named
+    try:
+        geometry = load_scene(values.get("scene") or DEFAULT_SCENES[(task, sensor)]).geometry
+    except SceneError as err:
+        raise GraphError(f"The 'scene' argument: {err}") from err
+    return HeldObject(geometry.kind, round(geometry.length_m, 4))
 
 
 def _one_line(message: str, sensor: str) -> str:

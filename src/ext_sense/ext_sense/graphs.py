@@ -83,6 +83,13 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
         ),
         ArgumentSpec("seed", "0", "Simulator random seed.", kind=int, low=0, high=2**32 - 1),
         ArgumentSpec("model", "", "Model bundle directory (empty: the task's default model)."),
+        ArgumentSpec(
+            "held_object",
+            "",
+            "The object the fingers hold, kind or kind:length_m (e.g. rod:0.30): a model whose "
+            "card records another object is refused; empty: the scene's object for "
+            "tap_localization with source sim, else not checked.",
+        ),
         ArgumentSpec("backend", "onnx", "Inference backend.", BACKENDS),
         ArgumentSpec(
             "monitor",
@@ -172,6 +179,7 @@ def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...
                 "sensor": sensor,
                 "backend": args["backend"],
                 "model_path": args["model"],
+                "held_object": args["held_object"],
             },
             remappings=(("window", TOPIC_WINDOW), ("contact_estimate", TOPIC_ESTIMATE)),
         ),
