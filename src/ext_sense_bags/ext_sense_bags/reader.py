@@ -39,7 +39,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-from ext_sense_bags.errors import BagError
+from ext_sense_bags.errors import BagError, why
 from ext_sense_bags.messages import make_message
 from ext_sense_bags.salvage import incomplete, storage_file
 from ext_sense_bags.typestore import make_typestore
@@ -112,7 +112,7 @@ class BagReader:
             result = recover_bag(self.path, self._copy / "bag")
             if cause is not None and not result.report.problem:  # the file is whole
                 raise cause
-            self._reader = _open(result.out)
+            self._reader = _open(result.out, self.path)
         except BaseException:
             self.close()
             raise
@@ -176,7 +176,7 @@ class BagReader:
             for conn, log_time, data in reader.messages(connections=conns):
                 yield BagRecord(conn.topic, conn.msgtype, int(log_time), bytes(data), conn.digest)
         except Exception as err:  # rosbags raises several types for corrupt files
-            raise BagError(f"Corrupt bag {self.path}: {err}") from err
+            raise BagError(f"Corrupt bag {self.path}: {why(err)}") from err
 
     def store(self, record: BagRecord) -> Typestore:
         """The typestore ``record`` decodes with: the bag's definitions, else the current one.
@@ -222,7 +222,7 @@ class BagReader:
         except Exception as err:
             raise BagError(
                 f"Message on {record.topic} at {record.log_time_ns} ns does not decode as "
-                f"{record.msgtype}: {err}"
+                f"{record.msgtype}: {why(err)}"
             ) from err
 
     def current_cdr(self, record: BagRecord) -> bytes:
@@ -273,13 +273,13 @@ class BagReader:
         self.close()
 
 
-def _open(path: Path) -> AnyReader:
-    """Open rosbags' ``AnyReader`` on a bag; its errors as :class:`BagError`."""
+def _open(path: Path, name: Path | None = None) -> AnyReader:
+    """Open rosbags' ``AnyReader`` on a bag; its errors as :class:`BagError` naming ``name``."""
     reader = AnyReader([path], default_typestore=make_typestore())
     try:
         reader.open()
     except Exception as err:  # rosbags raises several types for unreadable files
-        raise BagError(f"Cannot read bag {path}: {err}") from err
+        raise BagError(f"Cannot read bag {name or path}: {why(err)}") from err
     return reader
 
 

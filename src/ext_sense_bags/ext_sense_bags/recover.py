@@ -27,7 +27,7 @@ from typing import NamedTuple
 
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from ext_sense_bags.errors import BagError
+from ext_sense_bags.errors import BagError, why
 from ext_sense_bags.salvage import Report, SalvagedTopic, incomplete, salvage
 from ext_sense_bags.typestore import make_typestore
 from ext_sense_bags.writer import BagWriter
@@ -141,7 +141,7 @@ def _rewrite(path: Path, out: Path) -> Recovery:
             shutil.rmtree(out, ignore_errors=True)
         if isinstance(err, BagError):
             raise
-        raise BagError(f"Cannot recover {path}: {err}") from err
+        raise BagError(f"Cannot recover {path}: {why(err)}") from err
     return Recovery(out, dict(bag.counts), report, None, tuple(skipped))
 
 

@@ -33,7 +33,7 @@ from rosbags.interfaces import MessageDefinitionFormat, Qos
 from rosbags.rosbag2 import Reader
 from rosbags.rosbag2.metadata import parse_qos
 
-from ext_sense_bags.errors import BagError
+from ext_sense_bags.errors import BagError, why
 
 MAGIC = b"\x89MCAP0\r\n"
 STOPPED = "the recorder stopped without closing the bag"
@@ -239,18 +239,14 @@ def _chunk_records(chunk: Chunk) -> list[McapRecord]:
     Raises:
         ValueError: The chunk is cut off, does not decompress, or fails its CRC.
     """
+    if chunk.compression == "" and len(chunk.data) != chunk.uncompressed_size:
+        raise ValueError("it is cut off")
     try:
-        if chunk.compression == "" and len(chunk.data) != chunk.uncompressed_size:
-            raise ValueError("it is cut off")
         return breakup_chunk(chunk, validate_crc=True)
     except CRCValidationError:
         raise ValueError("checksum mismatch") from None
-    except (McapError, struct.error) as err:
-        raise ValueError(f"its records do not read: {err}") from err
-    except ValueError:
-        raise
-    except Exception as err:  # zstd and lz4 raise their own types on bad input
-        raise ValueError(f"it does not decompress ({chunk.compression}): {err}") from err
+    except Exception as err:  # the decompressors and the record parser raise several types
+        raise ValueError(f"it does not read: {why(err)}") from err
 
 
 def _mcap_topic(channel: Channel, schema: Schema | None) -> SalvagedTopic:
@@ -274,7 +270,7 @@ def _sqlite_items(file: Path, report: Report, problem: str) -> Iterator[Item]:
             db.execute("SELECT count(*) FROM sqlite_master").fetchone()
             db.execute("PRAGMA journal_mode=DELETE")  # a write-ahead log checkpointed into it
     except sqlite3.Error as err:
-        raise BagError(f"Cannot read sqlite3 bag file {file}: {err}.") from err
+        raise BagError(f"Cannot read sqlite3 bag file {file}: {why(err)}.") from err
     if problem:
         report.notes.append(problem)
     try:
@@ -296,4 +292,4 @@ def _sqlite_items(file: Path, report: Report, problem: str) -> Iterator[Item]:
     except BagError:
         raise
     except Exception as err:  # rosbags and apsw raise several types for a broken database
-        raise BagError(f"Cannot read sqlite3 bag file {file}: {err}") from err
+        raise BagError(f"Cannot read sqlite3 bag file {file}: {why(err)}") from err

@@ -11,31 +11,25 @@ The writer API (used by the simulator for its bags and by ``ext-sense record``):
                   ground_truth(onset_ns, "tap_localization", trial, tap_position_m=0.12))
         bag.write_raw("/extsense/contact_estimate", t_ns, cdr_bytes)  # rclpy raw=True bytes
 
-- ``write(topic, log_time_ns, msg)`` takes a rosbags message object (build one with
-  :func:`ext_sense_bags.make_message` or the helpers in :mod:`ext_sense_bags.messages`);
-  ``write_raw`` takes CDR bytes as rclpy hands them out with ``raw=True`` or
-  ``rclpy.serialization.serialize_message``.
-- ``log_time_ns`` is the bag's receive time in integer nanoseconds (epoch); ``ros2 bag play``
-  paces on it. Use the header stamp for simulated data.
-- A topic is registered on its first write. Its type comes from the message object, from
-  ``msgtype=`` or from :data:`ext_sense_bags.topics.STANDARD_TOPICS`; its offered QoS
-  (recorded for ``ros2 bag play``) from ``add_topic`` or the standard table (sensor streams
-  best effort, the rest reliable).
-- Each channel carries the RIHS01 type hash of the rosidl build (metadata and mcap channel
-  ``topic_type_hash``), and the full message definition as its schema, so ``mcap`` with
-  ``mcap-ros2-support`` decodes the file without ROS.
-- ``counts`` holds messages written per topic. The bag is complete only after ``close()``
-  (the context manager closes it; on an exception the partial bag is still closed and
-  readable).
-- Durability: at least every ``flush_period_s`` (1 s; on the write that finds it due, or on
-  :meth:`BagWriter.flush_if_due`, which a recorder calls from a timer) the pending mcap chunk is
-  closed, written and fsynced (mcap's ``Writer.flush``), or the sqlite3 transaction committed.
-  A writer killed at any moment leaves every flushed message readable:
-  :class:`ext_sense_bags.BagReader` reads a bag without footer or metadata, and
-  :func:`ext_sense_bags.recover.recover_bag` (``ext-sense bag recover``) rewrites it whole.
+- ``write`` takes a rosbags message object (:func:`ext_sense_bags.make_message`, the helpers
+  of :mod:`ext_sense_bags.messages`), ``write_raw`` CDR bytes (rclpy ``raw=True``). The log
+  time is the receive time in integer ns (epoch): ``ros2 bag play`` paces on it.
+- A topic is registered on its first write, its type from the message, ``msgtype=`` or
+  :data:`~ext_sense_bags.topics.STANDARD_TOPICS`, its offered QoS from ``add_topic`` or that
+  table. Each carries the full message definition and the RIHS01 hash of the rosidl build
+  (``metadata.yaml`` and the mcap channel's ``topic_type_hash``), so rosbag2 and
+  ``mcap-ros2-support`` decode the file without ext_sense.
+- mcap files are written by mcap's ``Writer`` (:class:`McapStorage`), sqlite3 ones by rosbags';
+  rosbags' ``Writer`` keeps the directory and ``metadata.yaml``. The bag is complete after
+  ``close()`` (the context manager closes it, also on an exception).
+- At least every ``flush_period_s`` (1 s; on the write that finds it due, or from
+  :meth:`BagWriter.flush_if_due`, which a recorder calls on a timer) the pending mcap chunk is
+  closed, written and fsynced, or the sqlite3 transaction committed: a writer killed at any
+  moment leaves every flushed message readable (:class:`~ext_sense_bags.BagReader`,
+  ``ext-sense bag recover``).
 - A failed write (disk full, file too large, I/O error) raises :class:`BagError` naming the bag
-  and the cause, sets ``failed``, and closes the storage without finishing it; later writes
-  raise at once. What was flushed before stays recoverable.
+  and the cause and sets ``failed``; later writes raise at once. What was flushed stays
+  recoverable.
 """
 
 from __future__ import annotations
@@ -67,6 +61,7 @@ from rosbags.rosbag2.enums import CompressionMode
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
 from ext_sense_bags.errors import BagError
+from ext_sense_bags.salvage import messages_in_file
 from ext_sense_bags.topics import STANDARD_TOPICS, TopicSpec
 from ext_sense_bags.typestore import make_typestore
 
@@ -400,8 +395,6 @@ class BagWriter:
         with contextlib.suppress(Exception):  # the storage is broken already; the error says so
             self._writer.abort()
         if self.storage == Storage.MCAP:  # a chunk may be whole in the file with its index cut
-            from ext_sense_bags.salvage import messages_in_file
-
             self.flushed = max(self.flushed, messages_in_file(self.path))
         self.failed = (
             f"Cannot write bag {self.path}: {_reason(err)}; recording stopped after "
