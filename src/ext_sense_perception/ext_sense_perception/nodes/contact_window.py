@@ -270,8 +270,7 @@ class ContactWindowNode(Node):
         if self.liveness.words_lost > lost:
             self.get_logger().warning(
                 f"lost input: {self.liveness.words_lost - lost} words the driver decoded never "
-                f"reached this node ({self.liveness.words_lost} so far, "
-                f"{self.liveness.contacts_lost} contact(s) lost)",
+                f"reached this node ({self.liveness.words_lost} so far; {self._contacts_said()})",
                 throttle_duration_sec=1.0,
             )
         self._publish(self.stage.on_events(msg))
@@ -310,14 +309,18 @@ class ContactWindowNode(Node):
             self.liveness.on_lost_packets(previous_ns or stamp, stamp, lost)
             self.get_logger().warning(
                 f"lost input: {lost} packet(s) missing before seq {msg.seq} "
-                f"({self.liveness.packets_lost} so far, {self.liveness.contacts_lost} contact(s) "
-                "lost)",
+                f"({self.liveness.packets_lost} so far; {self._contacts_said()})",
                 throttle_duration_sec=1.0,
             )
             self.diagnostics.publish()
         self._publish(windows)
         self._report_stuck_change()
         self._arm(earlier_only=True)
+
+    def _contacts_said(self) -> str:
+        """The contacts faults cost so far: lost (no window came) and degraded (windowed)."""
+        live = self.liveness
+        return f"{live.contacts_lost} contact(s) lost, {live.contacts_degraded} degraded"
 
     def _on_frame(self, msg: BioTacFrame) -> None:
         self._arrived(msg)

@@ -80,8 +80,7 @@ def test_a_stuck_taxel_triggers_no_contact_and_is_reported_by_its_id():
             delay = t0 + (i + 1) * 1e-3 - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
-        assert wait_for(lambda: node.stage.counters.packets >= len(packets) - 5, 10.0)
-        assert wait_for(lambda: any(s.level == b"\x01" for s in p.statuses), 5.0)
+        assert wait_for(lambda: any(s.level == b"\x01" for s in p.statuses), 10.0)
         warn = next(s for s in p.statuses if s.level == b"\x01")
         values = {kv.key: kv.value for kv in warn.values}
         time.sleep(0.3)  # any window would have closed by now
