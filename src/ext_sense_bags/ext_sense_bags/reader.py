@@ -41,6 +41,7 @@ from rosbags.typesys.store import Typestore
 
 from ext_sense_bags.errors import BagError, why
 from ext_sense_bags.messages import make_message
+from ext_sense_bags.recover import recover_bag
 from ext_sense_bags.salvage import incomplete, storage_file
 from ext_sense_bags.typestore import make_typestore
 
@@ -105,8 +106,6 @@ class BagReader:
 
     def _open_recovered(self, cause: BagError | None = None) -> BagReader:
         """Read a recovered copy in a temporary directory (removed on :meth:`close`)."""
-        from ext_sense_bags.recover import recover_bag
-
         self._copy = Path(tempfile.mkdtemp(prefix="ext_sense_bag-"))
         try:
             result = recover_bag(self.path, self._copy / "bag")
