@@ -9,10 +9,16 @@ node marked ``required`` exits the others are stopped (launch's ``Shutdown``). A
 child's exit code (``[run] exit codes: sim_device=0 nuskin_driver=0 ...``) and exits non-zero if
 any of them did (see :func:`run_graph`).
 
+Every stop signal (:data:`ext_sense_runtime.stop.STOP_SIGNALS`: SIGINT, SIGTERM, SIGHUP,
+SIGQUIT) sent to the runner alone stops the whole graph as a Ctrl-C does: the runner forwards a
+SIGINT to each child and waits for them, so no node is left running without its supervisor.
+Should the runner die anyway (SIGKILL), each child is sent SIGTERM by the kernel
+(``PR_SET_PDEATHSIG``) and stops as on any stop signal.
+
 Repeated signals are one request: a Ctrl-C in a terminal reaches the runner and every child at
 once, then the runner forwards its own SIGINT; each child treats both as one stop
 (:mod:`ext_sense_runtime.node_main`), and so does the runner. Once the graph is down the runner
-ignores SIGINT and SIGTERM for the little that is left of its process.
+ignores the stop signals for the little that is left of its process.
 
 Nodes the graph puts in one process (:attr:`~ext_sense.graph.NodeSpec.process`, e.g. the hot
 path with ``hot_path:=one_process``, :mod:`ext_sense.graph_process`) are one child,
@@ -30,6 +36,7 @@ shutting down its context: ``rclpy.try_shutdown(context=node.context)``.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import json
 import os
 import signal
@@ -42,12 +49,20 @@ from typing import Any
 
 from ext_sense.graph import GraphSpec, NodeSpec, as_bool
 from ext_sense.graph_process import process_groups
+from ext_sense_runtime.stop import (
+    STACKS_SIGNAL,
+    StopRequest,
+    install_stop_handlers,
+    stop_signals_blocked,
+)
 
 STOP_GRACE_S = 5.0
 STACKS_WAIT_S = 0.5
 """Time a node that did not stop is given to print its threads' stacks (``node_main``'s
 ``STACKS_SIGNAL``) before it is killed."""
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+SUPERVISOR_ENV = "EXT_SENSE_SUPERVISOR_PID"
+"""Set in a child's environment to the pid of the process that started it (the runner)."""
+_PR_SET_PDEATHSIG = 1
 
 
 def _node_kwargs(spec: NodeSpec, use_sim_time: bool, context: Any = None) -> dict[str, Any]:
@@ -86,9 +101,9 @@ def _make_node(spec: NodeSpec, node_class: type, use_sim_time: bool, context: An
 
 def run_one(spec: NodeSpec, use_sim_time: bool) -> int:
     """Start one node in this process and spin it until shutdown (the child side)."""
-    from ext_sense_runtime.node_main import install_stop_handlers, run_node
+    from ext_sense_runtime.node_main import run_node
 
-    stop = install_stop_handlers()
+    stop = _child_stop()
     if stop.requested():  # a stop held while starting (see spawn_node)
         stop.ignore_further()  # the runner's forwarded SIGINT may still come, during exit
         return 0
@@ -110,9 +125,9 @@ def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence
             for every node; each node's own name and remappings are its node arguments.
     """
     from ext_sense_runtime import intra_process
-    from ext_sense_runtime.node_main import install_stop_handlers, run_nodes
+    from ext_sense_runtime.node_main import run_nodes
 
-    stop = install_stop_handlers()
+    stop = _child_stop()
     if stop.requested():  # a stop held while starting (see spawn_node)
         stop.ignore_further()  # the runner's forwarded SIGINT may still come, during exit
         return 0
@@ -124,8 +139,25 @@ def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence
     )
 
 
+def _child_stop() -> StopRequest:
+    """The stop handlers of a node process; one whose supervisor dies is stopped too.
+
+    A child started by :func:`spawn_node` asks the kernel for SIGTERM when the thread that
+    started it ends (``PR_SET_PDEATHSIG``: the runner killed with SIGKILL, where no handler
+    runs), and counts a supervisor already gone as a stop.
+    """
+    stop = install_stop_handlers()
+    supervisor = os.environ.pop(SUPERVISOR_ENV, "")  # not for processes this one starts
+    if supervisor.isdigit():
+        with contextlib.suppress(OSError, AttributeError):  # not Linux: left to the supervisor
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM))
+        if os.getppid() != int(supervisor):  # it died before the request was in place
+            os.kill(os.getpid(), signal.SIGTERM)
+    return stop
+
+
 def spawn_node(spec: NodeSpec, use_sim_time: bool) -> subprocess.Popen[bytes]:
-    """Start a node process with SIGINT and SIGTERM blocked (the mask survives ``exec``).
+    """Start a node process with the stop signals blocked (the mask survives ``exec``).
 
     Public for front ends that supervise a graph themselves (``ext-sense collect``); pair it
     with :func:`stop_nodes`.
@@ -148,12 +180,9 @@ def group_payload(specs: Sequence[NodeSpec], use_sim_time: bool) -> str:
 
 
 def _spawn(payload: str) -> subprocess.Popen[bytes]:
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
-    try:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", SUPERVISOR_ENV: str(os.getpid())}
+    with stop_signals_blocked():
         return subprocess.Popen([sys.executable, "-m", "ext_sense.runner", payload], env=env)
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def stop_nodes(procs: dict[str, subprocess.Popen[bytes]], log: Any) -> dict[str, int]:
@@ -175,8 +204,6 @@ def stop_nodes(procs: dict[str, subprocess.Popen[bytes]], log: Any) -> dict[str,
                 "(on its stderr), then killed",
                 file=log,
             )
-            from ext_sense_runtime.node_main import STACKS_SIGNAL  # rclpy: only on this path
-
             with contextlib.suppress(OSError):
                 proc.send_signal(STACKS_SIGNAL)
                 time.sleep(STACKS_WAIT_S)
@@ -208,18 +235,11 @@ def run_graph(
         return run_in_process(nodes, use_sim_time)
 
     procs: dict[str, subprocess.Popen[bytes]] = {}
-    stopping = False
-
-    def _on_signal(signum: int, _frame: Any) -> None:
-        nonlocal stopping
-        stopping = True
-
-    for signum in STOP_SIGNALS:
-        signal.signal(signum, _on_signal)
+    stop = install_stop_handlers()
     rc = 0
     try:
         for name, specs in process_groups(nodes):
-            if stopping:
+            if stop.requested():
                 break
             if len(specs) == 1:
                 spec = specs[0]
@@ -230,7 +250,7 @@ def run_graph(
                 held = " ".join(s.name for s in specs)
                 print(f"[run] started {name}: {held} in one process (node_group)", file=log)
         required = {name for name, specs in process_groups(nodes) if any(s.required for s in specs)}
-        while not stopping:
+        while not stop.requested():
             time.sleep(0.05)
             finished = {n: p.returncode for n, p in procs.items() if p.poll() is not None}
             failed = {n: c for n, c in finished.items() if c != 0}
@@ -247,8 +267,7 @@ def run_graph(
         codes = stop_nodes(procs, log)
         # A second Ctrl-C must not turn a clean stop into a KeyboardInterrupt (or, during the
         # interpreter's finalisation, death by SIGINT): the graph is down, this process is done.
-        for signum in STOP_SIGNALS:
-            signal.signal(signum, signal.SIG_IGN)
+        stop.ignore_further()
     if codes:
         listed = " ".join(f"{name}={code}" for name, code in codes.items())
         print(f"[run] exit codes: {listed}", file=log)

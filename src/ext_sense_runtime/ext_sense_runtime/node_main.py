@@ -1,8 +1,13 @@
-"""The ``main`` shared by every node executable: init, spin, clean shutdown.
+"""The spin-and-signal helper of every rclpy entry point: init, spin, one clean teardown.
 
-Ctrl-C (SIGINT, to the whole process group from a terminal, often twice: the terminal's and the
-one ``ros2 launch`` or ``ext-sense run`` forwards), SIGTERM, and a node finishing its job (it shuts
-its context down) all end the process with exit code 0, no abort and no traceback.
+Node executables (``run_node``, ``run_nodes``: ``ros2 run``, ``ros2 launch``, ``ext-sense
+run``'s children), ``ext-sense record`` and ``replay`` and ``ext-sense collect`` all go through
+:class:`RosSession`. A stop signal (:data:`~ext_sense_runtime.stop.STOP_SIGNALS`: Ctrl-C,
+SIGTERM, SIGHUP, SIGQUIT, often twice: the terminal's and the one ``ros2 launch`` or
+``ext-sense run`` forwards) and a node finishing its job (it shuts its context down) end the
+process with exit code 0, no abort and no traceback; and before the process ends its nodes are
+destroyed and its context shut down *and destroyed*, so its middleware participant leaves the
+graph at once instead of lingering in ``ros2 node list`` until its lease runs out.
 
 rclpy's own signal handlers are not used: ``rclpy.init`` installs SIGINT/SIGTERM handlers that
 shut the context down and then chain to Python's default SIGINT handler, which raises
@@ -11,110 +16,196 @@ EventsExecutor's C++ called (``[FATAL] Exception in 'timers' callback``), inside
 that cannot pass it on (``terminate called after throwing an instance of
 'pybind11::error_already_set'``, ``Fatal Python error: Aborted``, exit -6), or in
 ``destroy_node`` when a second SIGINT lands in the cleanup. Here rclpy is initialised with
-``SignalHandlerOptions.NO`` and the handlers of :class:`StopRequest` only record that a stop was
-asked; the spin loop notices it within its poll period (0.1 s) and then, from the main thread and
-outside any callback, the executor is shut down, each node destroyed and rclpy shut down, once
-each. Further signals are the same request, and once the cleanup is done they are ignored
-(:meth:`StopRequest.ignore_further`): the process is exiting, and a signal during the
-interpreter's finalisation would otherwise end it with -2.
+``SignalHandlerOptions.NO`` and the handlers of :class:`~ext_sense_runtime.stop.StopRequest`
+only record that a stop was asked; the spin loop notices it within its poll period (0.1 s) and
+then, from the main thread and outside any callback, the executor is shut down, each node
+destroyed and rclpy shut down, once each. Further signals are the same request, and once the
+cleanup is done they are ignored (:meth:`~ext_sense_runtime.stop.StopRequest.ignore_further`):
+the process is exiting, and a signal during the interpreter's finalisation would otherwise end
+it with -2.
 """
 
 from __future__ import annotations
 
-import faulthandler
+import contextlib
 import gc
-import signal
 import threading
 from collections.abc import Callable, Sequence
-from types import FrameType
+from types import TracebackType
+from typing import TypeVar
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.context import Context
+from rclpy.executors import Executor, ExternalShutdownException
+from rclpy.lifecycle import LifecycleNode
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from ext_sense_runtime.executor import make_executor, spin_until_shutdown
+from ext_sense_runtime.stop import (
+    STACKS_SIGNAL as STACKS_SIGNAL,
+)
+from ext_sense_runtime.stop import (
+    STOP,
+    StopRequest,
+    install_stop_handlers,
+)
+from ext_sense_runtime.stop import (
+    STOP_SIGNALS as STOP_SIGNALS,
+)
 from ext_sense_runtime.teardown_guard import TeardownGuard
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-"""The signals that ask a node process to stop."""
-STACKS_SIGNAL = signal.SIGUSR1
-"""Makes a node process print every thread's stack to stderr and go on (``faulthandler``):
-``ext-sense run`` sends it to a node that did not stop in time, before killing it, so the log
-says where it hung."""
+__all__ = [
+    "STACKS_SIGNAL",
+    "STOP",
+    "STOP_SIGNALS",
+    "RosSession",
+    "StopRequest",
+    "destroy_node",
+    "install_stop_handlers",
+    "run_node",
+    "run_nodes",
+]
+
+N = TypeVar("N", bound=Node)
+
+BACKGROUND_JOIN_S = 5.0
+"""Longest wait for :meth:`RosSession.spin_in_background`'s thread to end at the teardown."""
 
 
-class StopRequest:
-    """SIGINT and SIGTERM recorded as a request to stop; repeated signals are the same request."""
+class RosSession:
+    """``rclpy.init`` with the stop handlers, one executor, and one clean teardown.
 
-    def __init__(self) -> None:
-        self.signum: int | None = None
-        """The first stop signal received, ``None`` before."""
-        self.count = 0
-        """Stop signals received so far."""
-        self.installed = False
+    Use as a context manager::
 
-    def install(self) -> bool:
-        """Install the handlers for :data:`STOP_SIGNALS` (once; main thread only).
+        with RosSession(args=[]) as ros:
+            node = ros.add(MyNode())
+            ros.spin(until=lambda: node.done)
 
-        Returns:
-            Whether the handlers are installed (``False`` off the main thread, where Python
-            cannot install signal handlers).
-        """
-        if not self.installed and threading.current_thread() is threading.main_thread():
-            for signum in STOP_SIGNALS:
-                signal.signal(signum, self._on_signal)
-            faulthandler.register(STACKS_SIGNAL, all_threads=True)
-            self.installed = True
-            # `ext-sense run` starts its children with these signals blocked, so that one
-            # arriving while the interpreter starts and imports is held, not a KeyboardInterrupt:
-            # delivered now, to the handler.
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
-        return self.installed
+    On the way out (also on an exception, which then propagates) the executor is shut down,
+    every added node destroyed (in the order added), rclpy shut down and its context destroyed
+    (the participant leaves the graph now), and further stop signals ignored. A hang in the
+    middleware's part of that ends the process after every node's own cleanup
+    (:class:`~ext_sense_runtime.teardown_guard.TeardownGuard`).
 
-    def _on_signal(self, signum: int, _frame: FrameType | None) -> None:
-        # Runs in the main thread between two bytecodes, possibly inside a callback: it must
-        # neither raise nor call into rclpy.
-        self.count += 1
-        if self.signum is None:
-            self.signum = signum
+    Off the main thread (nodes run inside a test process) no handlers can be installed and
+    rclpy's own are kept.
 
-    def requested(self) -> bool:
-        """Whether a stop signal has been received."""
-        return self.signum is not None
-
-    def ignore_further(self) -> None:
-        """Ignore stop signals from now on: call once the process is done and about to exit.
-
-        Python's finalisation resets a signal whose handler is a Python function to the
-        default action, so a second Ctrl-C arriving while the interpreter tears down would kill
-        the process with -2 after a clean stop; an ignored signal stays ignored.
-        """
-        if self.installed:
-            for signum in STOP_SIGNALS:
-                signal.signal(signum, signal.SIG_IGN)
-
-
-STOP = StopRequest()
-"""This process's stop request (signal handlers are per process)."""
-
-
-def install_stop_handlers() -> StopRequest:
-    """Install the stop handlers now (idempotent), e.g. before slow imports.
-
-    Returns:
-        :data:`STOP`, this process's stop request.
+    Args:
+        args: Command-line arguments for ``rclpy.init`` (``--ros-args ...``); ``None`` reads
+            ``sys.argv``.
+        interrupt: The first stop signal also raises ``KeyboardInterrupt`` in the main thread,
+            for a main thread that waits on an operator while :meth:`spin_in_background` runs
+            the callbacks (``ext-sense collect``).
     """
-    STOP.install()
-    return STOP
+
+    def __init__(self, args: Sequence[str] | None = None, *, interrupt: bool = False) -> None:
+        self.stop = install_stop_handlers(interrupt)
+        # Off the main thread (no handlers of ours) rclpy's defaults are kept.
+        options = SignalHandlerOptions.NO if self.stop.installed else None
+        rclpy.init(args=args, signal_handler_options=options)
+        self.context: Context = rclpy.get_default_context()
+        self.nodes: list[Node] = []
+        self.executor: Executor = make_executor()
+        self._background: threading.Thread | None = None
+        self._background_done = threading.Event()
+        self.closed = False
+
+    def __enter__(self) -> RosSession:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        err: BaseException | None,
+        tb: TracebackType | None,
+    ) -> bool:
+        self.close()
+        # rclpy's own handlers (off the main thread) end a spin this way: a clean stop
+        return kind is not None and issubclass(kind, ExternalShutdownException)
+
+    def add(self, node: N) -> N:
+        """Spin ``node`` on the session's executor and destroy it at the teardown."""
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def running(self) -> bool:
+        """Neither a stop was asked nor the context shut down (a node that finished its job)."""
+        return self.context.ok() and not self.stop.requested()
+
+    def spin(self, until: Callable[[], bool] | None = None, timeout_s: float = 0.1) -> None:
+        """Run callbacks in this thread until a stop, a shutdown, or ``until()`` holds.
+
+        Args:
+            until: Polled between callbacks; true ends the spin (a command's own end).
+            timeout_s: Longest wait for one callback: bounds how late the end is noticed.
+        """
+        stop = self.stop.requested
+
+        def done() -> bool:
+            return stop() or (until is not None and until())
+
+        with contextlib.suppress(KeyboardInterrupt):  # rclpy's handlers (off the main thread)
+            spin_until_shutdown(self.executor, self.context, timeout_s, stop=done)
+
+    def spin_in_background(self, timeout_s: float = 0.05) -> None:
+        """Run callbacks in a thread of their own until the teardown (:meth:`close`)."""
+
+        def spin() -> None:
+            try:
+                while not self._background_done.is_set() and self.context.ok():
+                    self.executor.spin_once(timeout_sec=timeout_s)
+            except ExternalShutdownException:
+                pass
+
+        self._background = threading.Thread(target=spin, name="ros_spin", daemon=True)
+        self._background.start()
+
+    def close(self) -> None:
+        """The teardown (once): executor, nodes, rclpy and its context; signals ignored."""
+        if self.closed:
+            return
+        self.closed = True
+        self._background_done.set()
+        if self._background is not None:
+            self._background.join(timeout=BACKGROUND_JOIN_S)
+        # a hang in rclpy's own teardown ends the process after every node's cleanup (off the
+        # main thread, e.g. in a test process, the guard does nothing)
+        with TeardownGuard(self.nodes, enabled=self.stop.installed) as guard:
+            self.executor.shutdown()  # before the nodes: it lets go of their entities
+            for node in self.nodes:
+                guard.destroying(node)
+                destroy_node(node)
+            guard.destroying(None)
+            with guard.middleware():
+                rclpy.try_shutdown(context=self.context)
+                # the participant is deleted when the context is finalised: now, not at some
+                # garbage collection that may never come (the start-up objects are frozen)
+                self.context.destroy()
+        self.stop.ignore_further()
+
+
+def destroy_node(node: Node) -> None:
+    """``node.destroy_node()``; for a lifecycle node also its state machine, which rclpy keeps.
+
+    rclpy's ``LifecycleNode`` (Jazzy, Kilted) never destroys its ``LifecycleStateMachine``, and
+    the state machine holds the node's handle, which holds the context's: the context was never
+    finalised, so the process ended with its middleware participant alive and the node stayed
+    in ``ros2 node list`` until the participant's lease ran out (15-19 s for ``nuskin_driver``
+    after a launch ended, while the graph's other nodes left at once).
+    """
+    node.destroy_node()
+    if isinstance(node, LifecycleNode):
+        node._state_machine.destroy_when_not_in_use()
 
 
 def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | None = None) -> int:
     """Create nodes after ``rclpy.init``, spin them on one executor until a stop, clean up once.
 
-    Stops on SIGINT or SIGTERM (see the module docstring) or when the context is shut down (a
-    node that finished its job). An exception from a factory or a callback is not a clean
-    stop: it propagates after the cleanup.
+    Stops on a stop signal (see the module docstring) or when the context is shut down (a node
+    that finished its job). An exception from a factory or a callback is not a clean stop: it
+    propagates after the cleanup.
 
     Args:
         factories: Each builds one node (usually a Node subclass itself).
@@ -123,37 +214,13 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
     Returns:
         Process exit code: 0 on a clean stop.
     """
-    stop = install_stop_handlers()
-    # Off the main thread (no handlers of ours) rclpy's defaults are kept.
-    options = SignalHandlerOptions.NO if stop.installed else None
-    rclpy.init(args=args, signal_handler_options=options)
-    nodes: list[Node] = []
-    executor = None
-    try:
-        executor = make_executor()
+    with RosSession(args) as ros:
         for factory in factories:
-            if stop.requested():  # Ctrl-C while the nodes were being built
+            if not ros.running():  # Ctrl-C while the nodes were being built
                 break
-            node = factory()
-            nodes.append(node)
-            executor.add_node(node)
+            ros.add(factory())
         freeze_startup_objects()
-        spin_until_shutdown(executor, stop=stop.requested)
-    except (KeyboardInterrupt, ExternalShutdownException):  # rclpy's handlers (not main thread)
-        pass
-    finally:
-        # a hang in rclpy's own teardown ends the process after every node's cleanup (off the
-        # main thread, e.g. in a test process, the guard does nothing)
-        with TeardownGuard(nodes, enabled=stop.installed) as guard:
-            if executor is not None:
-                executor.shutdown()  # before the nodes: it lets go of their entities
-            for node in nodes:
-                guard.destroying(node)
-                node.destroy_node()
-            guard.destroying(None)
-            with guard.middleware():
-                rclpy.try_shutdown()
-        stop.ignore_further()
+        ros.spin()
     return 0
 
 

@@ -1,4 +1,5 @@
-"""A node process started through ``run_node`` ends cleanly on SIGINT and SIGTERM, repeated."""
+"""A node process started through ``run_node`` ends cleanly on every stop signal, repeated, and
+leaves the ROS graph as it ends."""
 
 from __future__ import annotations
 
@@ -40,6 +41,8 @@ CRASH_MARKERS = ("Traceback", "terminate called", "Fatal Python error", "Aborted
     [
         [signal.SIGINT],
         [signal.SIGTERM],
+        [signal.SIGHUP],  # the terminal closed
+        [signal.SIGQUIT],
         [signal.SIGINT, signal.SIGINT],  # a terminal's Ctrl-C, then the one launch forwards
         [signal.SIGINT, signal.SIGTERM],  # launch escalating
         [signal.SIGINT, signal.SIGINT, signal.SIGINT],
@@ -98,3 +101,61 @@ def test_a_node_spins_with_its_start_up_objects_frozen_out_of_full_collections()
     assert out.returncode == 0, out.stderr
     frozen = int(out.stdout.split("frozen")[1].split()[0])
     assert frozen > 50_000, out.stdout
+
+
+GONE_CHILD = """
+import sys
+from rclpy.node import Node
+from ext_sense_runtime.node_main import run_node
+
+class Leaver(Node):
+    def __init__(self, **kwargs):
+        super().__init__(sys.argv[1], **kwargs)
+        self.kept = [self]  # a cycle through the node, as callbacks bound to it make
+        print("ready", flush=True)
+
+sys.exit(run_node(Leaver, []))
+"""
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGHUP], ids=lambda s: s.name)
+def test_a_stopped_node_is_out_of_the_graph_within_a_second(signum):
+    """The process destroys its node and its context before it ends: its participant leaves
+    the graph at once, not when its lease runs out (15-19 s seen for a node that did not)."""
+    import os
+
+    import rclpy
+    from rclpy.context import Context
+
+    name = f"leaver{os.getpid()}"
+    context = Context()
+    rclpy.init(context=context, args=[])
+    probe = rclpy.create_node(f"probe{os.getpid()}", context=context)
+
+    def listed() -> bool:
+        return name in {n for n, _ in probe.get_node_names_and_namespaces()}
+
+    def wait(predicate, timeout_s: float) -> bool:
+        end = time.monotonic() + timeout_s
+        while not predicate() and time.monotonic() < end:
+            time.sleep(0.02)
+        return predicate()
+
+    child = subprocess.Popen(
+        [sys.executable, "-c", GONE_CHILD, name],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert child.stdout.readline().strip() == "ready"
+        assert wait(listed, 20.0)
+        child.send_signal(signum)
+        assert child.wait(timeout=10) == 0, child.stderr.read()
+        assert wait(lambda: not listed(), 1.0), f"{name} still in the graph 1 s after its exit"
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+        probe.destroy_node()
+        rclpy.try_shutdown(context=context)

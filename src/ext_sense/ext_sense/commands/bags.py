@@ -35,7 +35,6 @@ from ext_sense.offline_replay import offline_estimates as offline_estimates
 
 if TYPE_CHECKING:  # imported by the handlers: ``ext-sense --help`` stays fast
     from ext_sense.graph import NodeSpec
-    from ext_sense_runtime.node_main import StopRequest
     from ext_sense_runtime.records import Estimate
 
 DEFAULT_INPUTS = (
@@ -138,31 +137,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rep.set_defaults(func=_replay, accepts_assignments=True)
 
 
-def _init_rclpy() -> StopRequest:
-    """``rclpy.init`` with the project's stop handlers instead of rclpy's (see ``node_main``).
-
-    rclpy's own SIGINT handler raises ``KeyboardInterrupt`` wherever the main thread is, also
-    inside a callback the executor's C++ called (an abort); the project's handlers only record
-    the request, which the spin loops below poll: Ctrl-C ends record and replay with exit 0.
-    """
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
-
-    from ext_sense_runtime.node_main import install_stop_handlers
-
-    stop = install_stop_handlers()
-    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO if stop.installed else None)
-    return stop
-
-
 def _record(args: argparse.Namespace) -> int:
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
+    """Record until Ctrl-C (any stop signal), ``--duration`` or a write failure.
+
+    rclpy runs through :class:`~ext_sense_runtime.node_main.RosSession`: a stop signal is
+    recorded and ends the spin, then the recorder closes its bag; exit 0.
+    """
     from rclpy.parameter import Parameter
 
     from ext_sense.nodes.recorder import RecorderNode
     from ext_sense_bags import BagError
-    from ext_sense_runtime.executor import make_executor
+    from ext_sense_runtime.node_main import RosSession
 
     overrides = [
         Parameter("bag", value=str(args.out)),
@@ -171,45 +156,25 @@ def _record(args: argparse.Namespace) -> int:
     ]
     if args.topics:
         overrides.append(Parameter("topics", value=list(args.topics)))
-    stop = _init_rclpy()
-    node = executor = None
-    rc = 0
     try:
-        node = RecorderNode(parameter_overrides=overrides)
-        if node.failed:  # the bag could not be created
-            print(f"ext-sense record: {node.failed}", file=sys.stderr)
-            node.destroy_node()
-            node = None
-            return 2
-        executor = make_executor()
-        executor.add_node(node)
-        print(f"recording {sorted(node.received)} into {args.out} (Ctrl-C stops)", flush=True)
-        end = time.monotonic() + args.duration if args.duration > 0 else None
-        while (
-            rclpy.ok()
-            and not stop.requested()
-            and not node.failed
-            and (end is None or time.monotonic() < end)
-        ):
-            executor.spin_once(timeout_sec=0.1)
+        with RosSession(args=[]) as ros:
+            node = ros.add(RecorderNode(parameter_overrides=overrides))
+            if node.failed:  # the bag could not be created
+                print(f"ext-sense record: {node.failed}", file=sys.stderr)
+                return 2
+            print(f"recording {sorted(node.received)} into {args.out} (Ctrl-C stops)", flush=True)
+            end = time.monotonic() + args.duration if args.duration > 0 else float("inf")
+            ros.spin(until=lambda: bool(node.failed) or time.monotonic() >= end)
+            counts = dict(node.received)
+            ros.close()  # destroys the node: the bag is closed
     except BagError as err:
         print(f"ext-sense record: {err}", file=sys.stderr)
         return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if executor is not None:
-            executor.shutdown()  # before the node: it lets go of its entities
-        if node is not None:
-            counts = dict(node.received)
-            node.destroy_node()
-            done = "recorded"
-            if node.failed:  # a write failed (disk full, ...): said once, exit 1
-                print(f"ext-sense record: recording stopped: {node.failed}", file=sys.stderr)
-                done, rc = "received before the failure", 1
-            print(f"{done} {sum(counts.values())} messages: {counts}", flush=True)
-        rclpy.try_shutdown()
-        stop.ignore_further()
+    done, rc = "recorded", 0
+    if node.failed:  # a write failed (disk full, ...): said once, exit 1
+        print(f"ext-sense record: recording stopped: {node.failed}", file=sys.stderr)
+        done, rc = "received before the failure", 1
+    print(f"{done} {sum(counts.values())} messages: {counts}", flush=True)
     return rc
 
 
@@ -310,13 +275,11 @@ def _replay_live(args: argparse.Namespace, view: NodeSpec | None = None) -> int:
     """Play the bag; with ``view`` also run the view in its own process, up until Ctrl-C."""
     import subprocess
 
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
     from rclpy.parameter import Parameter
 
     from ext_sense.nodes.bag_player import BagPlayerNode
     from ext_sense.runner import exit_status, spawn_node, stop_nodes
-    from ext_sense_runtime.executor import make_executor
+    from ext_sense_runtime.node_main import RosSession
 
     rate = 0.0 if args.flat_out else float(args.rate)
     overrides = [
@@ -329,55 +292,40 @@ def _replay_live(args: argparse.Namespace, view: NodeSpec | None = None) -> int:
         topics = _view_inputs(args.bag, str(view.parameters["sensor"]))
     if topics:
         overrides.append(Parameter("topics", value=topics))
-    stop = _init_rclpy()
-    node = executor = None
     procs: dict[str, subprocess.Popen[bytes]] = {}
     rc = 0
 
     def view_gone() -> bool:
         return any(p.poll() is not None for p in procs.values())
 
-    try:
-        if view is not None:
-            procs[view.name] = spawn_node(view, use_sim_time=False)
-            where = f"ws://{view.parameters['host']}:{view.parameters['port']}"
-            if view.parameters["port"] == 0:
-                where += " (any free port: the view's log names it)"
-            print(f"[replay] started {view.name}: the Foxglove view on {where}", flush=True)
-        node = BagPlayerNode(parameter_overrides=overrides)
-        executor = make_executor()
-        executor.add_node(node)
-        while (
-            rclpy.ok() and not stop.requested() and not node.finished.is_set() and not view_gone()
-        ):
-            executor.spin_once(timeout_sec=0.05)
-        if stop.requested() or view_gone():
-            why = ": the view exited" if view_gone() and not stop.requested() else ""
-            print(f"stopped after {node.published} messages{why}", flush=True)
-        elif node.error:
-            print(f"ext-sense replay: {node.error}", file=sys.stderr)
-            rc = 2
-        else:
-            seconds = max(node.play_seconds, 1e-9)
-            print(
-                f"published {node.published} messages in {seconds:.3f} s "
-                f"({node.published / seconds:.0f} msg/s)",
-                flush=True,
-            )
-            if procs:
-                print("[replay] the bag is played; the view stays up until Ctrl-C", flush=True)
-                while rclpy.ok() and not stop.requested() and not view_gone():
-                    executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if executor is not None:
-            executor.shutdown()
-        if node is not None:
-            node.destroy_node()
-        codes = stop_nodes(procs, sys.stderr)
-        rclpy.try_shutdown()
-        stop.ignore_further()
+    with RosSession(args=[]) as ros:
+        try:
+            if view is not None:
+                procs[view.name] = spawn_node(view, use_sim_time=False)
+                where = f"ws://{view.parameters['host']}:{view.parameters['port']}"
+                if view.parameters["port"] == 0:
+                    where += " (any free port: the view's log names it)"
+                print(f"[replay] started {view.name}: the Foxglove view on {where}", flush=True)
+            node = ros.add(BagPlayerNode(parameter_overrides=overrides))
+            ros.spin(until=lambda: node.finished.is_set() or view_gone(), timeout_s=0.05)
+            if ros.stop.requested() or view_gone():
+                why = ": the view exited" if view_gone() and not ros.stop.requested() else ""
+                print(f"stopped after {node.published} messages{why}", flush=True)
+            elif node.error:
+                print(f"ext-sense replay: {node.error}", file=sys.stderr)
+                rc = 2
+            else:
+                seconds = max(node.play_seconds, 1e-9)
+                print(
+                    f"published {node.published} messages in {seconds:.3f} s "
+                    f"({node.published / seconds:.0f} msg/s)",
+                    flush=True,
+                )
+                if procs:
+                    print("[replay] the bag is played; the view stays up until Ctrl-C", flush=True)
+                    ros.spin(until=view_gone)
+        finally:
+            codes = stop_nodes(procs, sys.stderr)
     for name, code in codes.items():
         if code != 0:
             print(f"ext-sense replay: {name} exited with {code}", file=sys.stderr)

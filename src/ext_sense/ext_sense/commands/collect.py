@@ -16,7 +16,6 @@ import dataclasses
 import datetime as dt
 import shutil
 import sys
-import threading
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -150,14 +149,12 @@ def _collect(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    import rclpy
-
     from ext_sense.collect.loop import TrialLoop
     from ext_sense.collect.node import CollectorNode
     from ext_sense.graph import GraphError
     from ext_sense.runner import spawn_node, stop_nodes
     from ext_sense_bags import BagError
-    from ext_sense_runtime.executor import make_executor
+    from ext_sense_runtime.node_main import RosSession
 
     out: Path = args.out
     classes = tuple(c for c in args.classes.split(",") if c) or (
@@ -193,27 +190,16 @@ def _run(args: argparse.Namespace) -> int:
     writer.set_custom_data("sensor", str(sensor))
     writer.set_custom_data("recorded_by", "ext-sense collect")
     _write_info(args, out, str(sensor), classes)
-    rclpy.init(args=[])
-    node = CollectorNode(writer, stream, args.mocap_topic if truth_mode == "mocap" else "")
-    executor = make_executor()
-    executor.add_node(node)
-    done = threading.Event()
-
-    def spin() -> None:
-        """Spin the collector in its own thread.
-
-        The stream then goes on into the bag while the operator thinks (``spin_once``:
-        ``EventsExecutor.spin`` busy-waits, see :mod:`ext_sense_runtime.executor`).
-        """
-        while not done.is_set():
-            executor.spin_once(timeout_sec=0.05)
-
-    spinner = threading.Thread(target=spin, name="collector", daemon=True)
+    # Callbacks run in a thread of their own, so the stream goes on into the bag while the
+    # operator thinks; a stop signal (Ctrl-C, SIGTERM, SIGHUP) interrupts the main thread's
+    # prompt or wait, and the session is saved on the way out.
+    ros = RosSession(args=[], interrupt=True)
+    node = ros.add(CollectorNode(writer, stream, args.mocap_topic if truth_mode == "mocap" else ""))
     procs: dict[str, Any] = {}
     rc = 0
     gripper = _sim_gripper(nodes) if source == "sim" else None
     try:
-        spinner.start()
+        ros.spin_in_background()
         for spec in nodes:
             procs[spec.name] = spawn_node(spec, False)
         print(f"[collect] graph {graph.name} ({source}); {len(state.trials)} trials kept so far")
@@ -233,18 +219,15 @@ def _run(args: argparse.Namespace) -> int:
             "food_identification": loop.food,
         }[args.task]()
     except KeyboardInterrupt:
-        rc = 130
+        rc = ros.stop.exit_code() if ros.stop.requested() else 130
     finally:
         stop_nodes(procs, sys.stderr)
-        done.set()
-        spinner.join(timeout=5.0)
         if gripper is not None:
             gripper.__exit__(None, None, None)
         for trial in state.trials:
             for onset in trial.onsets_ns:
                 node.write_label(args.task, trial.index, onset, trial.label, args.rod_length)
-        node.destroy_node()
-        rclpy.try_shutdown()
+        ros.close()
         writer.close()
         state.save(out)
     print(f"[collect] {state.progress()}; session in {out}", flush=True)

@@ -1,0 +1,146 @@
+"""A stop signal to ``ext-sense run``'s runner alone ends the whole graph, and leaves no node.
+
+SIGHUP (a closed terminal), SIGQUIT, SIGTERM and SIGINT sent to the runner's process alone, not
+its group, stop every node as a Ctrl-C does: each node process exits 0, none is left running
+without its supervisor, and no node is left in the ROS graph (``ros2 node list``) 1 s after the
+runner exited: each process destroys its nodes and its context, so its participant leaves at
+once instead of when its lease runs out. A runner killed outright (SIGKILL, no handler) still
+takes its nodes with it (``PR_SET_PDEATHSIG``).
+
+The graph: a lifecycle sensor driver (configured, no device: it retries), the estimate monitor
+and the tap marker, each a process of its own, in the test run's ROS domain (conftest.py).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import pytest
+from rosutil import wait_for
+from sim_models import STOP_LIMIT_S
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
+
+TAG = f"sig{os.getpid()}"
+NAMES = {f"{TAG}_driver", f"{TAG}_monitor", f"{TAG}_marker"}
+
+RUNNER = """
+import sys
+from ext_sense.graph import ArgumentSpec, GraphSpec, NodeSpec
+from ext_sense.runner import run_graph
+
+tag, port = sys.argv[1], sys.argv[2]
+NODES = (
+    NodeSpec(
+        "ext_sense_drivers",
+        "nuskin_driver",
+        f"{tag}_driver",
+        "ext_sense_drivers.nodes.nuskin_driver:NuskinDriverNode",
+        {"port": port, "autostart": False},  # the runner configures and activates it
+        lifecycle=True,
+    ),
+    NodeSpec(
+        "ext_sense",
+        "estimate_monitor",
+        f"{tag}_monitor",
+        "ext_sense.nodes.estimate_monitor:EstimateMonitorNode",
+        {"expected": 0},
+    ),
+    NodeSpec(
+        "ext_sense_behaviours",
+        "tap_marker",
+        f"{tag}_marker",
+        "ext_sense_behaviours.nodes.tap_marker:TapMarkerNode",
+    ),
+)
+USE_SIM_TIME = ArgumentSpec("use_sim_time", "false", "Use /clock.", ("true", "false"))
+graph = GraphSpec("signals", "Three nodes, no device.", (USE_SIM_TIME,), lambda values: NODES)
+sys.exit(run_graph(graph, {}))
+"""
+
+
+@pytest.fixture(scope="module")
+def graph_probe() -> Iterator[object]:
+    """A plain node, to read the graph's node names."""
+    import rclpy
+    from rclpy.context import Context
+
+    context = Context()
+    rclpy.init(context=context, args=[])
+    node = rclpy.create_node(f"{TAG}_probe", context=context)
+    try:
+        yield node
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def _names(probe) -> set[str]:
+    return {name for name, _ in probe.get_node_names_and_namespaces() if name in NAMES}
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+@contextmanager
+def _runner(tmp_path) -> Iterator[subprocess.Popen[str]]:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", RUNNER, TAG, str(tmp_path / "no_device")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own group: what outlives the runner is still found
+    )
+    try:
+        yield proc
+    finally:
+        if _group_alive(proc.pid):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=10)
+
+
+@pytest.mark.parametrize(
+    "signum",
+    [signal.SIGHUP, signal.SIGQUIT, signal.SIGTERM, signal.SIGINT],
+    ids=lambda s: s.name,
+)
+def test_a_stop_signal_to_the_runner_alone_ends_every_node_and_leaves_none(
+    signum, graph_probe, tmp_path
+):
+    with _runner(tmp_path) as proc:
+        assert wait_for(lambda: _names(graph_probe) == NAMES, 60.0), _names(graph_probe)
+        time.sleep(0.5)  # the lifecycle driver configured and activated
+        os.kill(proc.pid, signum)  # the runner alone, not its group
+        _, err = proc.communicate(timeout=STOP_LIMIT_S + 5)
+        exited = time.monotonic()
+        assert proc.returncode == 0, err[-3000:]
+        assert not _group_alive(proc.pid), "a node outlived its runner"
+        wait_for(lambda: not _names(graph_probe), 1.0)
+        left = _names(graph_probe)
+        assert not left, f"{sorted(left)} still in the graph {time.monotonic() - exited:.1f} s on"
+    codes = next(line for line in err.splitlines() if line.startswith("[run] exit codes:"))
+    assert set(codes.split(":", 1)[1].split()) == {f"{name}=0" for name in NAMES}, err[-2000:]
+    assert "Traceback" not in err, err[-3000:]
+
+
+def test_a_runner_killed_outright_takes_its_nodes_with_it(graph_probe, tmp_path):
+    with _runner(tmp_path) as proc:
+        assert wait_for(lambda: _names(graph_probe) == NAMES, 60.0), _names(graph_probe)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=10)
+        assert wait_for(lambda: not _group_alive(proc.pid), STOP_LIMIT_S), "orphaned nodes"
+        gone = time.monotonic()
+        wait_for(lambda: not _names(graph_probe), 1.0)
+        left = _names(graph_probe)
+        assert not left, f"{sorted(left)} still in the graph {time.monotonic() - gone:.1f} s on"
