@@ -94,12 +94,37 @@ def test_every_node_is_a_console_script_of_its_package_with_its_plugin(graph_nam
             assert scripts.get((spec.package, spec.executable)) == module, spec
 
 
-def test_estimates_are_published_on_the_documented_topic():
+def test_estimates_are_published_on_the_documented_topics():
+    """Final estimates alone on /extsense/contact_estimate, the anytime ones on their own topic;
+    every reader of estimates gets both names remapped (a remapping matches a whole name)."""
+    from ext_sense.topics import TOPIC_PROVISIONAL_ESTIMATE
+
     assert TOPIC_ESTIMATE == "/extsense/contact_estimate"
-    for graph in GRAPHS.values():
+    assert TOPIC_PROVISIONAL_ESTIMATE == "/extsense/contact_estimate/provisional"
+    both = {
+        ("contact_estimate", TOPIC_ESTIMATE),
+        ("contact_estimate/provisional", TOPIC_PROVISIONAL_ESTIMATE),
+    }
+    for name, graph in GRAPHS.items():
         inference = [n for n in graph.nodes() if n.executable == "contact_inference"]
         assert inference
-        assert ("contact_estimate", TOPIC_ESTIMATE) in inference[0].remappings
+        assert both <= set(inference[0].remappings)
+        for _, overrides in _argument_combinations(name):
+            for spec in graph.nodes(overrides):
+                if any(rel == "contact_estimate" for rel, _ in spec.remappings):
+                    assert both <= set(spec.remappings), spec
+
+
+@pytest.mark.parametrize(
+    ("source", "truth"), [("sim", True), ("bag", True), ("serial", False), ("can", False)]
+)
+def test_the_monitor_scores_against_ground_truth_only_where_there_is_some(source, truth):
+    graph = GRAPHS["tap_localization"]
+    extra = {"bag": "x.mcap"} if source == "bag" else {}
+    nodes = graph.nodes({"source": source, "trials": "5", **extra})
+    monitor = next(n for n in nodes if n.name == "estimate_monitor")
+    assert monitor.parameters["ground_truth"] is truth
+    assert monitor.parameters["expected"] == 5
 
 
 def test_monitor_is_required_only_when_trials_are_bounded():

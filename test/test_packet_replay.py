@@ -30,6 +30,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(400)]
 PACKETS = "/extsense/nuskin/packets"
 TRUTH = "/extsense/ground_truth"
 ESTIMATE = "/extsense/contact_estimate"
+PROVISIONAL = "/extsense/contact_estimate/provisional"
 WINDOW = "/extsense/contact_window"
 LIVE_ONLY = ("compute_latency_ns", "degraded", "degraded_reason")
 """Estimate fields that depend on when things happened live, not on the recorded bytes."""
@@ -57,7 +58,7 @@ def test_packet_bag_replays_offline_bit_identical_to_the_live_run(tmp_path):
 
     model_dir, _ = train_sim_model(tmp_path, "tap_rod30_nuskin", "tap_localization", 40)
     bag = tmp_path / "live"
-    recorder = spawn("record", str(bag), "--topics", PACKETS, TRUTH, ESTIMATE, WINDOW)
+    recorder = spawn("record", str(bag), "--topics", PACKETS, TRUTH, ESTIMATE, PROVISIONAL, WINDOW)
     try:
         time.sleep(3.0)  # rclpy imported, subscriptions up before the graph's first packet
         assert recorder.poll() is None, recorder.communicate()
@@ -83,7 +84,11 @@ def test_packet_bag_replays_offline_bit_identical_to_the_live_run(tmp_path):
             int(msg.seq): stamp_to_ns(msg.header.stamp) for _, msg in reader.messages([PACKETS])
         }
         seqs = list(stamps)
-        answered = [(rec.log_time_ns, estimate_of(msg)) for rec, msg in reader.messages([ESTIMATE])]
+        finals = [(rec.log_time_ns, estimate_of(msg)) for rec, msg in reader.messages([ESTIMATE])]
+        anytime = [
+            (rec.log_time_ns, estimate_of(msg)) for rec, msg in reader.messages([PROVISIONAL])
+        ]
+        answered = sorted(finals + anytime, key=lambda pair: pair[0])
         live = [e for _, e in answered]
         windows = [
             (stamp_to_ns(msg.header.stamp), bool(msg.provisional), rec.log_time_ns)
@@ -137,6 +142,10 @@ def test_packet_bag_replays_offline_bit_identical_to_the_live_run(tmp_path):
     first = [e for e in first if e["onset_ns"] >= compared_from]
     live_c = [_comparable(e) for e in live if e.onset_ns >= compared_from]
     assert sum(not e["provisional"] for e in live_c) >= 3, (out, rec_out)
+    # the final estimates alone on the estimate topic, the anytime ones on their own
+    assert not any(e.provisional for _, e in finals)
+    assert anytime
+    assert all(e.provisional for _, e in anytime)
 
     # every estimate the live run made and the recorder got, the replay made too, field for field
     replayed = {key(e): e for e in first}

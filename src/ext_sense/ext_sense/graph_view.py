@@ -12,9 +12,9 @@ from collections.abc import Mapping
 
 from ext_sense.graph import ArgumentSpec, GraphSpec, NodeSpec, as_bool
 from ext_sense.topics import (
+    ESTIMATE_REMAPS,
     SENSOR_PACKETS,
     SENSOR_STREAMS,
-    TOPIC_ESTIMATE,
     TOPIC_GROUND_TRUTH,
     TOPIC_WINDOW,
 )
@@ -76,7 +76,7 @@ def view_nodes(args: Mapping[str, str], stream: tuple[str, str]) -> tuple[NodeSp
             remappings=(
                 ("packets", SENSOR_PACKETS[sensor]),
                 stream,
-                ("contact_estimate", TOPIC_ESTIMATE),
+                *ESTIMATE_REMAPS,
                 ("ground_truth", TOPIC_GROUND_TRUTH),
                 ("window", TOPIC_WINDOW),
             ),

@@ -2,10 +2,11 @@
 
 Every graph runs the same chain, fed by one of four sources::
 
-    source ──> driver ──events/frames──> contact_window ──window──> contact_inference
-      (sim device on a pty or CAN,                                        │
-       serial, CAN, or a bag)                          /extsense/contact_estimate
-                                                                          │
+    source ──> driver ──packets──> contact_window ──window──> contact_inference
+      (sim device on a pty or CAN,                                   │
+       serial, CAN, or a bag)         /extsense/contact_estimate (final, one per contact)
+                                      /extsense/contact_estimate/provisional (anytime)
+                                                                     │
                                                  behaviours, estimate_monitor
 
 The functions here only describe; :mod:`ext_sense.launch_support` turns a description into
@@ -30,6 +31,7 @@ from ext_sense.graph_sources import PACKET_ARGUMENTS, needed_files, source_nodes
 from ext_sense.graph_sources import SIM_TRIGGERS as SIM_TRIGGERS
 from ext_sense.graph_view import VIEW_ARGUMENTS, view_nodes
 from ext_sense.topics import (
+    ESTIMATE_REMAPS,
     SENSOR_PACKETS,
     TOPIC_ESTIMATE,
     TOPIC_EVENTS,
@@ -181,7 +183,7 @@ def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...
                 "model_path": args["model"],
                 "held_object": args["held_object"],
             },
-            remappings=(("window", TOPIC_WINDOW), ("contact_estimate", TOPIC_ESTIMATE)),
+            remappings=(("window", TOPIC_WINDOW), *ESTIMATE_REMAPS),
         ),
     )
 
@@ -211,11 +213,11 @@ def _monitor_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                 "task": task,
                 "expected": trials,
                 "idle_timeout_s": MONITOR_IDLE_TIMEOUT_S[task],
+                # a sensor or a recording of one has no simulator behind it: estimates are
+                # counted and printed without a truth to score them against
+                "ground_truth": args["source"] in ("sim", "bag"),
             },
-            remappings=(
-                ("contact_estimate", TOPIC_ESTIMATE),
-                ("ground_truth", TOPIC_GROUND_TRUTH),
-            ),
+            remappings=(*ESTIMATE_REMAPS, ("ground_truth", TOPIC_GROUND_TRUTH)),
             required=trials > 0,
         ),
     )
@@ -225,7 +227,7 @@ def _behaviour(
     executable: str,
     plugin_class: str,
     parameters: Mapping[str, ParameterValue] | None = None,
-    remappings: tuple[tuple[str, str], ...] = (("contact_estimate", TOPIC_ESTIMATE),),
+    remappings: tuple[tuple[str, str], ...] = ESTIMATE_REMAPS,
 ) -> NodeSpec:
     """A node of ``ext_sense_behaviours`` named after its executable."""
     return NodeSpec(
@@ -243,7 +245,7 @@ def _tap_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
         _behaviour(
             "tap_marker",
             "TapMarkerNode",
-            remappings=(("contact_estimate", TOPIC_ESTIMATE), ("marker", TOPIC_TAP_MARKER)),
+            remappings=(*ESTIMATE_REMAPS, ("marker", TOPIC_TAP_MARKER)),
         ),
     )
 
@@ -295,10 +297,7 @@ def _handover_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
             "handover_behaviour",
             "HandoverBehaviourNode",
             handover,
-            remappings=(
-                ("contact_estimate", TOPIC_ESTIMATE),
-                ("handover/offer", TOPIC_HANDOVER_OFFER),
-            ),
+            remappings=(*ESTIMATE_REMAPS, ("handover/offer", TOPIC_HANDOVER_OFFER)),
         ),
     )
 
@@ -321,7 +320,7 @@ def _food_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
         "food_behaviour",
         "FoodBehaviourNode",
         food,
-        remappings=(("contact_estimate", TOPIC_ESTIMATE), ("motion_start", TOPIC_MOTION_START)),
+        remappings=(*ESTIMATE_REMAPS, ("motion_start", TOPIC_MOTION_START)),
     )
     return (*arm, probe)
 
@@ -347,7 +346,7 @@ def _chain(
 GRAPHS: dict[str, GraphSpec] = {
     "tap_localization": GraphSpec(
         name="tap_localization",
-        description="Where was the held rod tapped? Tap position on /extsense/contact_estimate.",
+        description=f"Where was the held rod tapped? Tap position on {TOPIC_ESTIMATE}.",
         arguments=_common_arguments("30"),
         build=_chain("tap_localization", _tap_behaviours),
         files=needed_files("tap_localization"),

@@ -20,10 +20,15 @@ STANDARD_TOPICS: dict[str, TopicSpec] = {
     "/extsense/biotac/frames": TopicSpec("ext_sense_msgs/msg/BioTacFrame", False, 1000),
     "/extsense/contact_window": TopicSpec("ext_sense_msgs/msg/ContactWindow", True, 20),
     "/extsense/contact_estimate": TopicSpec("ext_sense_msgs/msg/ContactEstimate", True, 50),
+    "/extsense/contact_estimate/provisional": TopicSpec(
+        "ext_sense_msgs/msg/ContactEstimate", True, 50
+    ),
     "/extsense/ground_truth": TopicSpec("ext_sense_msgs/msg/ContactGroundTruth", True, 1000),
     "/diagnostics": TopicSpec("diagnostic_msgs/msg/DiagnosticArray", True, 10),
 }
 """Topic name -> spec, as in docs/conventions.md; sensor streams are best effort. The drivers'
 raw packets come first: ``ext-sense record`` records every topic here by default, and the
 packets are what makes a bag lossless (a decoder fix re-decodes them); the decoded arrays are
-recorded when a driver publishes them (``decoded:=true``, bags from before packets)."""
+recorded when a driver publishes them (``decoded:=true``, bags from before packets). Final
+estimates and the provisional (anytime) ones have topics of their own; bags from before hold
+both on ``/extsense/contact_estimate``, told apart by the message's ``provisional``."""

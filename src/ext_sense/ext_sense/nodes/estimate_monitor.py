@@ -1,11 +1,16 @@
 """``estimate_monitor`` node: prints each estimate beside the simulator's ground truth.
 
-Subscribes ``contact_estimate`` and ``ground_truth``; every final estimate matched to a trial
+Subscribes ``contact_estimate`` (final estimates) and ``ground_truth``, and with
+``show_provisional`` ``contact_estimate/provisional``; every final estimate matched to a trial
 prints one line on stdout. After ``expected`` scored estimates (or, once ``expected`` trials
 were seen, after ``idle_timeout_s`` without news) it prints the summary as its last line and
 ends its process by shutting down its context (the runner then stops the graph)::
 
     summary: taps=N mae_cm=X compute_p50_ms=Y compute_p99_ms=Z
+
+With ``ground_truth`` false (a sensor on a serial port or CAN: no simulator knows the truth)
+every final estimate prints its line as it comes, and the monitor ends after ``expected`` of
+them, the summary counting them (:class:`~ext_sense.nodes.scoreboard.Scoreboard`).
 """
 
 from __future__ import annotations
@@ -77,15 +82,36 @@ class EstimateMonitorNode(Node):
             high=10000.0,
         )
         self.show_provisional = declare(
-            self, "show_provisional", False, "Also print the provisional (anytime) estimates."
+            self,
+            "show_provisional",
+            False,
+            "Also print the provisional (anytime) estimates.",
+            read_only=True,
         )
-        self.board = Scoreboard(task, match_tolerance_ns=int(tol_ms * 1e6))
+        self.ground_truth = declare(
+            self,
+            "ground_truth",
+            True,
+            "Trials come with ground truth (a simulator or a bag of one); false: count and print "
+            "final estimates unscored, and stop after 'expected' of them.",
+            read_only=True,
+        )
+        self.board = Scoreboard(
+            task, match_tolerance_ns=int(tol_ms * 1e6), ground_truth=self.ground_truth
+        )
         self.trials_seen = 0
         self.done = False
         self._last_news = time.monotonic_ns()
         self.create_subscription(
             ContactEstimate, "contact_estimate", self.guard(self._on_estimate), ESTIMATE_QOS
         )
+        if self.show_provisional:
+            self.create_subscription(
+                ContactEstimate,
+                "contact_estimate/provisional",
+                self.guard(self._on_estimate),
+                ESTIMATE_QOS,
+            )
         self.create_subscription(
             ContactGroundTruth, "ground_truth", self.guard(self._on_truth), GROUND_TRUTH_QOS
         )
@@ -120,9 +146,11 @@ class EstimateMonitorNode(Node):
 
     def _on_timer(self) -> None:
         idle = time.monotonic_ns() - self._last_news
-        all_seen = self.expected and self.trials_seen >= self.expected
+        # without ground truth the estimates are the trials
+        seen = self.trials_seen if self.ground_truth else self.board.scored
+        all_seen = self.expected and seen >= self.expected
         done = all_seen and idle > self.idle_timeout_ns
-        stalled = self.give_up_ns and self.trials_seen and idle > self.give_up_ns
+        stalled = self.give_up_ns and seen and idle > self.give_up_ns
         if done or stalled:
             self._finish()
 
@@ -137,9 +165,9 @@ class EstimateMonitorNode(Node):
         self.board.close()
         degraded = len(self.board.degraded)
         missed = max(0, self.trials_seen - self.board.scored - degraded)
-        if degraded:  # said apart: a degraded estimate is neither scored nor missing
+        if degraded and self.ground_truth:  # a degraded estimate is neither scored nor missing
             print(f"degraded estimates (listed, not scored): {degraded}", flush=True)
-        if missed or self.board.unmatched_estimates:
+        if self.ground_truth and (missed or self.board.unmatched_estimates):
             print(
                 f"trials without estimate: {missed}; estimates without trial: "
                 f"{self.board.unmatched_estimates}",

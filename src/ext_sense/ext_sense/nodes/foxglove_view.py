@@ -40,7 +40,13 @@ from foxglove.messages import RawImage, Timestamp
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
-from ext_sense.topics import TOPIC_DIAGNOSTICS, TOPIC_ESTIMATE, TOPIC_GROUND_TRUTH, TOPIC_WINDOW
+from ext_sense.topics import (
+    TOPIC_DIAGNOSTICS,
+    TOPIC_ESTIMATE,
+    TOPIC_GROUND_TRUTH,
+    TOPIC_PROVISIONAL_ESTIMATE,
+    TOPIC_WINDOW,
+)
 from ext_sense.view import channels as ch
 from ext_sense.view.estimate import (
     diagnostics_message,
@@ -79,6 +85,7 @@ from ext_sense_runtime.stamps import split_ns
 
 PASSED = {  # graph topic (relative, remapped by the graph) -> (channel, type, QoS)
     "contact_estimate": (TOPIC_ESTIMATE, ContactEstimate, ESTIMATE_QOS),
+    "contact_estimate/provisional": (TOPIC_PROVISIONAL_ESTIMATE, ContactEstimate, ESTIMATE_QOS),
     "ground_truth": (TOPIC_GROUND_TRUTH, ContactGroundTruth, GROUND_TRUTH_QOS),
     "window": (TOPIC_WINDOW, ContactWindow, WINDOW_QOS),
     TOPIC_DIAGNOSTICS: (TOPIC_DIAGNOSTICS, DiagnosticArray, DIAGNOSTICS_QOS),

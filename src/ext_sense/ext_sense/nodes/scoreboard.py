@@ -9,6 +9,11 @@ printed for it, and :meth:`Scoreboard.summary` gives the last line of the main j
     summary: taps=N mae_cm=X compute_p50_ms=Y compute_p99_ms=Z          (tap localization)
     summary: trials=N accuracy=X compute_p50_ms=Y compute_p99_ms=Z      (classification)
 
+Without ground truth (a sensor on a serial port: nothing knows the true tap) every final
+estimate is printed and counted as it comes, and the summary counts them::
+
+    summary: estimates=N degraded=D compute_p50_ms=Y compute_p99_ms=Z (no ground truth)
+
 ``compute_*`` are percentiles of the estimates' ``compute_latency`` (see docs/runtime.md).
 """
 
@@ -30,10 +35,13 @@ class Scoreboard:
     Args:
         task: ``tap_localization``, ``handover_stability`` or ``food_identification``.
         match_tolerance_ns: Largest |estimated onset - true onset| that still matches.
+        ground_truth: Whether trials come with ground truth; without, final estimates are
+            counted and printed unscored.
     """
 
     task: str
     match_tolerance_ns: int = 300 * MS
+    ground_truth: bool = True
     truths: list[GroundTruth] = field(default_factory=list)
     pending: list[Estimate] = field(default_factory=list)
     errors_m: list[float] = field(default_factory=list)
@@ -49,9 +57,14 @@ class Scoreboard:
         """Whether estimates are positions (tap localization)."""
         return self.task == "tap_localization"
 
+    unscored: int = 0
+    """Final estimates counted without ground truth."""
+
     @property
     def scored(self) -> int:
-        """Final estimates matched to a trial so far."""
+        """Final estimates matched to a trial so far (without ground truth: counted)."""
+        if not self.ground_truth:
+            return self.unscored
         return len(self.errors_m) if self.is_regression else len(self.correct)
 
     def add_truth(self, truth: GroundTruth) -> list[str]:
@@ -68,6 +81,8 @@ class Scoreboard:
         if est.provisional:
             self.provisional_seen += 1
             return []
+        if not self.ground_truth:
+            return [self._count(est)]
         truth = self._match(est.onset_ns)
         if truth is None:
             self.pending.append(est)
@@ -97,6 +112,23 @@ class Scoreboard:
             f"{'ok   ' if ok else 'WRONG'} | {lag} | {latency}"
         ]
 
+    def _count(self, est: Estimate) -> str:
+        """The line of a final estimate with no truth to score it against."""
+        self.unscored += 1
+        latency = f"latency {est.compute_latency_ns / MS:.2f} ms"
+        if est.degraded:
+            self.degraded.append(est)
+            latency += f" | DEGRADED ({est.degraded_reason})"
+        else:
+            self.latencies_ns.append(int(est.compute_latency_ns))
+        if self.is_regression:
+            what = f"{est.tap_position_m * 100:6.2f} cm ± {est.tap_position_std_m * 100:4.2f}"
+            return f"tap {self.unscored:3d}: estimate {what} | {latency}"
+        label = est.class_label
+        if not label and not math.isnan(est.stability_probability):
+            label = "stable" if est.stability_probability >= 0.5 else "unstable"
+        return f"trial {self.unscored:3d}: estimate {label or '?':<12} | {latency}"
+
     def _match(self, onset_ns: int) -> GroundTruth | None:
         best, best_dt = None, self.match_tolerance_ns + 1
         for truth in self.truths:
@@ -117,6 +149,11 @@ class Scoreboard:
         lat = np.asarray(self.latencies_ns, dtype=np.float64) / MS
         p50 = float(np.percentile(lat, 50)) if lat.size else float("nan")
         p99 = float(np.percentile(lat, 99)) if lat.size else float("nan")
+        if not self.ground_truth:
+            return (
+                f"summary: estimates={self.unscored} degraded={len(self.degraded)} "
+                f"compute_p50_ms={p50:.2f} compute_p99_ms={p99:.2f} (no ground truth)"
+            )
         if self.is_regression:
             mae = float(np.mean(self.errors_m)) * 100 if self.errors_m else float("nan")
             return (

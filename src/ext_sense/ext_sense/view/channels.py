@@ -21,6 +21,7 @@ from ext_sense.topics import (
     TOPIC_DIAGNOSTICS,
     TOPIC_ESTIMATE,
     TOPIC_GROUND_TRUTH,
+    TOPIC_PROVISIONAL_ESTIMATE,
     TOPIC_WINDOW,
 )
 from ext_sense_bags import STANDARD_TOPICS
@@ -39,7 +40,13 @@ IMAGES = (TAXELS, WINDOW, ESTIMATE)
 
 PASSED_THROUGH: dict[str, str] = {
     topic: STANDARD_TOPICS[topic].msgtype
-    for topic in (TOPIC_ESTIMATE, TOPIC_GROUND_TRUTH, TOPIC_WINDOW, TOPIC_DIAGNOSTICS)
+    for topic in (
+        TOPIC_ESTIMATE,
+        TOPIC_PROVISIONAL_ESTIMATE,
+        TOPIC_GROUND_TRUTH,
+        TOPIC_WINDOW,
+        TOPIC_DIAGNOSTICS,
+    )
 }
 """ROS topic -> message type of the topics the view sends on unchanged (CDR); names from
 :mod:`ext_sense.topics`, types from the bags' standard table, as the recorder writes them."""

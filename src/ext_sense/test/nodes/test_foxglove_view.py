@@ -94,6 +94,9 @@ def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
             pubs = {
                 "events": src.create_publisher(TaxelEventBatch, "events", SENSOR_STREAM_QOS),
                 "est": src.create_publisher(ContactEstimate, "contact_estimate", ESTIMATE_QOS),
+                "anytime": src.create_publisher(
+                    ContactEstimate, "contact_estimate/provisional", ESTIMATE_QOS
+                ),
                 "truth": src.create_publisher(ContactGroundTruth, "ground_truth", GROUND_TRUTH_QOS),
                 "win": src.create_publisher(ContactWindow, "window", WINDOW_QOS),
             }
@@ -104,6 +107,10 @@ def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
             pubs["truth"].publish(_truth())
             assert wait_for(lambda: client.messages("/extsense/ground_truth"))
             pubs["win"].publish(_window())
+            early = _estimate()
+            early.provisional, early.tap_position_m = True, 0.10
+            pubs["anytime"].publish(early)  # an anytime estimate, then the final one
+            assert wait_for(lambda: client.messages("/extsense/contact_estimate/provisional"))
             pubs["est"].publish(_estimate())
             # /diagnostics: the view's own, at 1 Hz
             wanted = set(ch.view_channels("nuskin"))
@@ -120,6 +127,7 @@ def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
     assert est["error_cm"] == pytest.approx(1.0)
     assert est["latency_ms"] == pytest.approx(4.0)
     assert decoded["/extsense/contact_estimate"].tap_position_m == pytest.approx(0.12)
+    assert decoded["/extsense/contact_estimate/provisional"].provisional
     assert list(decoded["/extsense/contact_window"].shape) == [80, 1200]
     window = decoded[ch.WINDOW]
     assert window.encoding == "rgb8"

@@ -6,7 +6,8 @@ stands in for one, through :class:`~ext_sense_behaviours.nodes.franka_adapter.Fr
 robot state, collision thresholds, ``FollowJointTrajectory`` goals) from a timer at
 ``control_rate_hz``. Publishes ``motion_start`` (``ContactGroundTruth``, task
 ``food_identification``, stamp = motion start) so the ``contact_window`` node cuts the food
-window, takes the final food ``ContactEstimate`` for that motion start from ``contact_estimate``,
+window, takes the final food ``ContactEstimate`` for that motion start from ``contact_estimate``
+(or, with ``accept_provisional``, a provisional one from ``contact_estimate/provisional``),
 and republishes it on ``food/result`` once retracted; every decision goes to
 ``food/decision`` (``std_msgs/String``) and the log; every arm state sample read while
 probing goes to ``arm/state`` (``sensor_msgs/JointState``, joint ``ee_z``: position = height z
@@ -202,9 +203,10 @@ class FoodBehaviourNode(Node):
         self.result_pub = self.create_publisher(ContactEstimate, "food/result", ESTIMATE_QOS)
         self.decision_pub = self.create_publisher(String, "food/decision", COMMAND_QOS)
         self.arm_pub = self.create_publisher(JointState, "arm/state", COMMAND_QOS)
-        self.create_subscription(
-            ContactEstimate, "contact_estimate", self.guard(self._on_estimate), ESTIMATE_QOS
-        )
+        for topic in ("contact_estimate", "contact_estimate/provisional"):
+            self.create_subscription(
+                ContactEstimate, topic, self.guard(self._on_estimate), ESTIMATE_QOS
+            )
         self.create_subscription(Bool, "food/start", self.guard(self._on_start), COMMAND_QOS)
         self._estimate_msgs: dict[int, ContactEstimate] = {}
         self.results = 0

@@ -1,6 +1,7 @@
 """``handover_behaviour`` node: open the gripper once the person's grasp is stable.
 
-Subscribes ``contact_estimate`` (``ContactEstimate``, task ``handover_stability``) and
+Subscribes ``contact_estimate`` (``ContactEstimate``, task ``handover_stability``; the
+provisional ones on ``contact_estimate/provisional`` count only with ``accept_provisional``) and
 commands the gripper through ``control_msgs/action/GripperCommand`` on ``gripper_action``
 (default ``/robotiq_gripper_controller/gripper_cmd``: our ``robotiq_gripper`` node, or a
 ``ros2_control`` ``GripperActionController`` unchanged): a grasp goal (gap 0) whose result
@@ -176,9 +177,10 @@ class HandoverBehaviourNode(Node):
         self.estimates = 0
         self.decision_pub = self.create_publisher(String, "handover/decision", COMMAND_QOS)
         self.offer_pub = self.create_publisher(ContactGroundTruth, "handover/offer", COMMAND_QOS)
-        self.create_subscription(
-            ContactEstimate, "contact_estimate", self.guard(self._on_estimate), ESTIMATE_QOS
-        )
+        for topic in ("contact_estimate", "contact_estimate/provisional"):
+            self.create_subscription(
+                ContactEstimate, topic, self.guard(self._on_estimate), ESTIMATE_QOS
+            )
         self.create_subscription(
             DiagnosticStatus, "gripper/status", self.guard(self._on_gripper), COMMAND_QOS
         )

@@ -1,6 +1,7 @@
 """``tap_marker`` node: tap estimates drawn on the rod as ``visualization_msgs/Marker``.
 
-Subscribes ``contact_estimate`` (``ContactEstimate``); publishes on ``marker`` the rod (id 0,
+Subscribes ``contact_estimate`` and ``contact_estimate/provisional`` (``ContactEstimate``: the
+final estimates and the provisional ones); publishes on ``marker`` the rod (id 0,
 CYLINDER, also once a second), the tap (id 1, SPHERE, 2-sigma diameter, yellow when provisional,
 green when final, red when clamped onto the rod) and its label (id 2, TEXT_VIEW_FACING), all in
 ``frame_id`` with the rod along ``rod_axis`` from the held end at the origin.
@@ -66,9 +67,10 @@ class TapMarkerNode(Node):
         self.dropped = 0
         self.last_text = ""
         self.pub = self.create_publisher(Marker, "marker", COMMAND_QOS)
-        self.create_subscription(
-            ContactEstimate, "contact_estimate", self.guard(self._on_estimate), ESTIMATE_QOS
-        )
+        for topic in ("contact_estimate", "contact_estimate/provisional"):
+            self.create_subscription(
+                ContactEstimate, topic, self.guard(self._on_estimate), ESTIMATE_QOS
+            )
         self.create_timer(1.0, self.guard(self._publish_rod))
         self.updater = Updater(hardware_id=self.frame_id)
         self.updater.add_check("markers", self._check)

@@ -1,8 +1,10 @@
 """``contact_inference`` node: contact windows in, contact estimates out.
 
 Subscribes ``window`` (``ContactWindow``), runs the task's model bundle (``backend`` onnx or
-sklearn, from ``model_path``) and publishes ``contact_estimate`` (``ContactEstimate``) for the
-provisional windows (anytime estimates, ``provisional`` true) and the final one.
+sklearn, from ``model_path``) and publishes ``ContactEstimate``: the final estimate of each
+contact alone on ``contact_estimate`` (one message per contact), and the estimates of its
+provisional windows (anytime estimates, ``provisional`` true) on ``contact_estimate/provisional``
+(``publish_provisional``), so a subscriber that wants decisions needs no filter.
 
 Faults never stop the node: a missing or corrupt model, or a bundle whose card is invalid, is
 for another task or sensor, or does not describe its model
@@ -89,7 +91,10 @@ class ContactInferenceNode(Node):
         )
         self.model_path: Path | None = None
         self.publish_provisional = declare(
-            self, "publish_provisional", True, "Publish estimates of provisional (anytime) windows."
+            self,
+            "publish_provisional",
+            True,
+            "Publish estimates of provisional (anytime) windows on contact_estimate/provisional.",
         )
         try:
             self.held_object = HeldObject.parse(
@@ -152,6 +157,12 @@ class ContactInferenceNode(Node):
         self.pub = self.create_publisher(
             ContactEstimate,
             "contact_estimate",
+            ESTIMATE_QOS,
+            event_callbacks=self.qos_events.publisher(),
+        )
+        self.provisional_pub = self.create_publisher(
+            ContactEstimate,
+            "contact_estimate/provisional",
             ESTIMATE_QOS,
             event_callbacks=self.qos_events.publisher(),
         )
@@ -256,7 +267,7 @@ class ContactInferenceNode(Node):
                 self.get_logger().warning(f"window dropped: {err}")
             self.last_window_error = str(err)
             return
-        self.pub.publish(estimate_msg(estimate))
+        (self.provisional_pub if estimate.provisional else self.pub).publish(estimate_msg(estimate))
         self.estimates_out += 1
         if estimate.degraded:
             self.degraded_out += 1
