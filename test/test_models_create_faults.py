@@ -49,7 +49,7 @@ def _create(out: Path, mount_options: str) -> subprocess.CompletedProcess:
     ("mount_options", "message"),
     [
         ("ro,size=1m", "cannot write into {out}: Read-only file system"),
-        ("size=5m", "not enough free space in {out}: 5.0 MB free, 192 MB needed"),
+        ("size=5m", "not enough free space in {out}: 5.0 MB free, 649 MB needed"),
     ],
     ids=["read_only", "full"],
 )

@@ -76,9 +76,15 @@ TRIAL_PERIOD_S = 1.0
 
 FINGERPRINT_FILE = "demo_fingerprint.txt"
 
-BUNDLE_BYTES = 64 * 2**20
-"""Free space asked of a place per bundle before training: a default bundle (ONNX graph, joblib
-pipeline, training windows and the anytime models) stays well below it."""
+BYTES_PER_TRIAL = {
+    "tap_localization": 128_000,
+    "handover_stability": 1_600_000,
+    "food_identification": 32_000,
+}
+"""Free space asked of a place per training trial of a bundle before training it: about 1.5x
+the NUSkin bundles measured (ONNX graph, joblib pipeline, training windows and the anytime
+models grow with the windows: taps 83 kB, handover trials 1.05 MB with their three cuts, food
+trials 20 kB; docs/runtime.md), an upper bound for the BioTac ones."""
 
 
 def _quiet(_line: str) -> None:
@@ -227,7 +233,7 @@ def ensure_model(
     """
     trials = trials or TRIALS[(task, sensor)]
     scene = scene or DEFAULT_SCENES[(task, sensor)]
-    check_place(model_dir.parent, BUNDLE_BYTES)
+    check_place(model_dir.parent, BYTES_PER_TRIAL[task] * trials)
     with place_lock(model_dir.parent, log):
         return _ensure(model_dir, task, sensor, trials, scene, force, log)
 
@@ -249,7 +255,7 @@ def create_models(
         PerceptionError: ``out`` is not writable or too full, or a training failed.
         SceneError: A scene cannot be loaded.
     """
-    check_place(out, BUNDLE_BYTES * len(tasks))
+    check_place(out, sum(BYTES_PER_TRIAL[t] * TRIALS[(t, sensor)] for t in tasks))
     with place_lock(out, log):
         for task in tasks:
             model_dir = out / default_name(task, sensor)
