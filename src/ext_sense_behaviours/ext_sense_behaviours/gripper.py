@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from ext_sense_behaviours.errors import BehaviourError
 from ext_sense_drivers.robotiq import ActivationStatus, GripperStatus, ObjectStatus
 from ext_sense_drivers.robotiq.registers import fault_name
+from ext_sense_runtime.diagnostics import Level
 
 OPEN_TOLERANCE = 10
 """gPO at or below which the fingers count as open (position counts, 0..255)."""
@@ -55,6 +56,17 @@ def describe(status: GripperStatus) -> str:
         ObjectStatus.DETECTED_CLOSING: "holding an object",
         ObjectStatus.AT_POSITION: "at requested position, no object",
     }[status.object]
+
+
+def status_level(status: GripperStatus | None, error: str) -> tuple[Level, str]:
+    """The gripper's diagnostic level and message (ERROR: link error or fault; WARN: not ready)."""
+    if error:
+        return Level.ERROR, error
+    if status is None:
+        return Level.WARN, "no status yet"
+    if status.fault:
+        return Level.ERROR, describe(status)
+    return (Level.OK if status.ready else Level.WARN), describe(status)
 
 
 def status_to_values(status: GripperStatus) -> list[tuple[str, str]]:

@@ -10,12 +10,19 @@ from one status read whether a goal is finished, with the result fields the acti
 ``stalled`` (the fingers stopped on an object, gOBJ 1 or 2: object detection) and
 ``reached_goal`` (gOBJ 3). Both count as success, as ``GripperActionController`` does with
 ``allow_stalling``: stopping on the object is the point of a grasp.
+
+A goal the gripper cannot carry out as asked is rejected before anything moves
+(:func:`goal_problem`): a gap, speed or effort that is not a finite number, and a gap outside
+the stroke (0 .. ``stroke_m``, give or take one position count). ``reached_goal`` means the
+fingers are at the commanded gap (control_msgs); clamping a 1.0 m goal to the 2F-85's
+0.085 m and reporting it reached would say the gripper did what it cannot.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from ext_sense_behaviours.errors import BehaviourError
 from ext_sense_drivers.robotiq import GripperStatus, ObjectStatus
@@ -60,6 +67,11 @@ class GripperScale:
             return default
         return round(min(effort_n / self.max_force_n, 1.0) * COUNTS)
 
+    @property
+    def count_m(self) -> float:
+        """The gap of one position count, m: the resolution of a goal."""
+        return self.stroke_m / COUNTS
+
     def speed_counts(self, velocity_m_s: float | None, default: int) -> int:
         """The rSP count for a finger speed; ``default`` when none (or 0 or less) is given."""
         if velocity_m_s is None or not velocity_m_s > 0.0:
@@ -86,6 +98,53 @@ class GoalOutcome(NamedTuple):
     stalled: bool
     reached_goal: bool
     reason: str
+
+
+def command_problem(
+    scale: GripperScale,
+    gap_m: float,
+    effort_n: float,
+    velocity_m_s: float | None = None,
+    fields: tuple[str, str, str] = ("command.position", "command.max_effort", ""),
+) -> str:
+    """Why a gripper goal cannot be carried out as asked; empty when it can.
+
+    Args:
+        scale: The gripper's units.
+        gap_m: The commanded finger gap, m.
+        effort_n: The commanded force, N (0 or less: the node's default force).
+        velocity_m_s: The commanded finger speed, m/s; ``None`` when the action has none.
+        fields: The goal's names of the gap, effort and speed, for the message.
+
+    Returns:
+        One line naming the field, what it must be and what arrived; ``""`` for a good goal.
+    """
+    gap_name, effort_name, speed_name = fields
+    for name, value in ((gap_name, gap_m), (effort_name, effort_n), (speed_name, velocity_m_s)):
+        if value is not None and not math.isfinite(value):
+            return f"{name} must be a finite number. Got {value!r}."
+    if not -scale.count_m <= gap_m <= scale.stroke_m + scale.count_m:
+        return (
+            f"{gap_name} must be a finger gap within the stroke, 0..{scale.stroke_m:g} m. "
+            f"Got {gap_m:g} m."
+        )
+    return ""
+
+
+def goal_problem(scale: GripperScale, goal: Any) -> str:
+    """:func:`command_problem` of a ``GripperCommand`` or ``ParallelGripperCommand`` goal."""
+    command = goal.command
+    if hasattr(command, "max_effort"):  # GripperCommand
+        return command_problem(scale, command.position, command.max_effort)
+    if not command.position:
+        return "command.position[0] (the finger gap, m) is missing"
+    return command_problem(
+        scale,
+        command.position[0],
+        command.effort[0] if command.effort else 0.0,
+        command.velocity[0] if command.velocity else None,
+        ("command.position[0]", "command.effort[0]", "command.velocity[0]"),
+    )
 
 
 def goal_outcome(

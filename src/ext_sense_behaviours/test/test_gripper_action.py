@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from ext_sense_behaviours.errors import BehaviourError
-from ext_sense_behaviours.gripper_action import GripperScale, goal_outcome
+from ext_sense_behaviours.gripper_action import GripperScale, command_problem, goal_outcome
 from ext_sense_drivers.robotiq import ActivationStatus, GripperStatus, ObjectStatus
 
 SCALE = GripperScale()
@@ -76,3 +76,25 @@ def test_a_fault_fails_the_goal_and_names_it() -> None:
     assert outcome is not None
     assert not outcome.succeeded
     assert "fault" in outcome.reason
+
+
+@pytest.mark.parametrize(
+    ("gap", "effort", "velocity", "message"),
+    [
+        (float("nan"), 0.0, None, "command.position must be a finite number. Got nan."),
+        (0.02, float("nan"), None, "command.max_effort must be a finite number. Got nan."),
+        (0.02, float("inf"), None, "command.max_effort must be a finite number. Got inf."),
+        (0.02, 10.0, float("nan"), "speed must be a finite number. Got nan."),
+        (1.0, 0.0, None, "command.position must be a finger gap within the stroke, 0..0.085 m"),
+        (-0.01, 0.0, None, "Got -0.01 m."),
+    ],
+)
+def test_a_goal_the_gripper_cannot_carry_out_is_named(gap, effort, velocity, message) -> None:
+    fields = ("command.position", "command.max_effort", "speed")
+    assert message in command_problem(SCALE, gap, effort, velocity, fields)
+
+
+@pytest.mark.parametrize("gap", [0.0, 0.04, 0.085, 0.085 + 0.0003, -0.0003])
+def test_a_gap_within_the_stroke_give_or_take_a_count_is_a_good_goal(gap: float) -> None:
+    assert command_problem(SCALE, gap, 0.0) == ""
+    assert command_problem(SCALE, gap, -1.0, 0.05) == ""  # no effort given: the default force

@@ -12,10 +12,11 @@ PickNik's ``ros2_robotiq_gripper`` (a ``GripperActionController``) works unchang
   ``parallel_gripper_action_controller``): ``command.position[0]`` the gap in metres, optional
   ``velocity[0]`` (m/s) and ``effort[0]`` (N).
 
-Both results carry the final gap, ``stalled`` (the fingers stopped on an object: Robotiq object
-detection, gOBJ 1 or 2) and ``reached_goal`` (gOBJ 3); both count as success
-(:func:`~ext_sense_behaviours.gripper_action.goal_outcome`). A goal fails (aborted) on a link
-error, a gripper fault, a gripper not activated, or after ``goal_timeout_s``; a newer goal
+Both results carry the measured final gap, ``stalled`` (stopped on an object: gOBJ 1 or 2) and
+``reached_goal`` (gOBJ 3: at the commanded gap), both a success. A goal with a non-finite gap,
+speed or effort, or a gap outside the stroke, is rejected, nothing moved (``goal_problem``); one
+sent before the first status read or the activation's end waits for them. A goal fails (aborted)
+on a link error, a fault, a gripper not activated, or after ``goal_timeout_s``; a newer goal
 preempts the one running (aborted); a cancel stops the fingers where they are.
 
 Topics:
@@ -45,9 +46,9 @@ completes.
 
 from __future__ import annotations
 
-import math
 import threading
 import time
+from dataclasses import dataclass, field
 from typing import Any
 
 from control_msgs.action import GripperCommand, ParallelGripperCommand
@@ -59,8 +60,13 @@ from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool
 
-from ext_sense_behaviours.gripper import describe, status_to_values
-from ext_sense_behaviours.gripper_action import GoalOutcome, GripperScale, goal_outcome
+from ext_sense_behaviours.gripper import describe, status_level, status_to_values
+from ext_sense_behaviours.gripper_action import (
+    GoalOutcome,
+    GripperScale,
+    goal_outcome,
+    goal_problem,
+)
 from ext_sense_behaviours.gripper_worker import GripperCommandRequest, GripperWorker
 from ext_sense_drivers.robotiq import GripperStatus, RobotiqClient, RobotiqError
 from ext_sense_runtime.diagnostics import Level, Updater
@@ -74,14 +80,16 @@ def _fraction_to_byte(value: float) -> int:
     return round(min(max(value, 0.0), 1.0) * 255)
 
 
+@dataclass
 class _Goal:
-    """The goal being carried out: its target count and the future its execute awaits."""
+    """The goal being carried out; ``pending`` while its move waits for a ready gripper."""
 
-    def __init__(
-        self, handle: ServerGoalHandle, target: int, force_n: float, deadline: float
-    ) -> None:
-        self.handle, self.target, self.force_n, self.deadline = handle, target, force_n, deadline
-        self.future: Future = Future()
+    handle: ServerGoalHandle
+    move: GripperCommandRequest
+    force_n: float
+    deadline: float
+    pending: bool
+    future: Future = field(default_factory=Future)
 
     def finish(self, outcome: GoalOutcome) -> None:
         if not self.future.done():
@@ -296,9 +304,10 @@ class RobotiqGripperNode(LifecycleNode):
         with self._lock:
             self.status = None
 
-    def _on_goal_request(self, _request: Any) -> GoalResponse:
-        if not self.active:
-            self.get_logger().error("gripper goal refused: the node is not active (lifecycle)")
+    def _on_goal_request(self, request: Any) -> GoalResponse:
+        why = goal_problem(self.scale, request) if self.active else "the node is not active"
+        if why:
+            self.get_logger().error(f"gripper goal refused: {why}")
             self.goals["rejected"] += 1
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
@@ -325,13 +334,10 @@ class RobotiqGripperNode(LifecycleNode):
         )
 
     async def _execute_parallel_command(self, goal_handle: ServerGoalHandle) -> Any:
-        command = goal_handle.request.command
-        if not command.position:
-            outcome = self._refuse(goal_handle, "command.position[0] (gap, m) is missing")
-        else:
-            velocity = command.velocity[0] if command.velocity else None
-            effort = command.effort[0] if command.effort else 0.0
-            outcome = await self._carry_out(goal_handle, command.position[0], velocity, effort)
+        command = goal_handle.request.command  # checked by _on_goal_request
+        velocity = command.velocity[0] if command.velocity else None
+        effort = command.effort[0] if command.effort else 0.0
+        outcome = await self._carry_out(goal_handle, command.position[0], velocity, effort)
         state = JointState(name=[self.joint_name], position=[outcome.position_m])
         state.effort = [outcome.effort_n]
         state.header.stamp = self.get_clock().now().to_msg()
@@ -357,21 +363,20 @@ class RobotiqGripperNode(LifecycleNode):
         effort_n: float,
     ) -> GoalOutcome:
         """Send one move to the worker and wait for the status that ends it."""
-        if not math.isfinite(gap_m):
-            return self._refuse(goal_handle, "the requested position is not finite")
         with self._lock:
             status, error = self.status, self.error
-        if self.worker is None or error or status is None or not status.ready:
-            why = error or ("no status yet" if status is None else describe(status))
+        if self.worker is None or error or (status is not None and status.fault):
+            why = error or ("not configured" if status is None else describe(status))
             return self._refuse(goal_handle, f"gripper not ready ({why})")
         target = self.scale.position_counts(gap_m)
         force = self.scale.force_counts(effort_n, _fraction_to_byte(self.force))
         speed = self.scale.speed_counts(velocity_m_s, _fraction_to_byte(self.speed))
         goal = _Goal(
             goal_handle,
-            target,
+            GripperCommandRequest("move", target, speed, force),
             force / 255 * self.scale.max_force_n,
             time.monotonic() + self.goal_timeout_s,
+            pending=status is None or not status.ready,  # just started: not yet read or active
         )
         with self._lock:
             previous, self._goal = self._goal, goal
@@ -381,10 +386,8 @@ class RobotiqGripperNode(LifecycleNode):
                     False, self._current_gap(), 0.0, False, False, "preempted by a newer goal"
                 )
             )
-        if not self.worker.submit(GripperCommandRequest("move", target, speed, force)):
-            goal.finish(
-                GoalOutcome(False, self._current_gap(), 0.0, False, False, "command queue full")
-            )
+        if not goal.pending:
+            self._submit(goal)
         outcome: GoalOutcome = await goal.future
         with self._lock:
             if self._goal is goal:
@@ -416,15 +419,26 @@ class RobotiqGripperNode(LifecycleNode):
             self._advance(goal, status, error)
         self._publish_status(status, error)
 
+    def _submit(self, goal: _Goal) -> None:
+        if self.worker is None or not self.worker.submit(goal.move):
+            gap = self._current_gap()
+            goal.finish(GoalOutcome(False, gap, 0.0, False, False, "command queue full"))
+
     def _advance(
         self, goal: _Goal, status: GripperStatus | None, error: RobotiqError | None
     ) -> None:
         """Finish the running goal when this status (or error) decides it (worker thread)."""
         gap = self.scale.gap_m(status.position) if status is not None else float("nan")
-        if error is not None:
+        if goal.pending and error is None and status is not None and not status.fault:
+            if status.ready:  # ready now: the move goes out
+                goal.pending = False
+                self._submit(goal)
+            elif time.monotonic() > goal.deadline or goal.handle.is_cancel_requested:
+                goal.finish(GoalOutcome(False, gap, 0.0, False, False, describe(status)))
+        elif error is not None:
             goal.finish(GoalOutcome(False, gap, 0.0, False, False, str(error)))
         elif status is not None:
-            outcome = goal_outcome(status, goal.target, self.scale, goal.force_n)
+            outcome = goal_outcome(status, goal.move.position, self.scale, goal.force_n)
             if outcome is not None:
                 goal.finish(outcome)
             elif time.monotonic() > goal.deadline:
@@ -436,14 +450,7 @@ class RobotiqGripperNode(LifecycleNode):
 
     def _publish_status(self, status: GripperStatus | None, error: RobotiqError | None) -> None:
         msg = DiagnosticStatus(name="robotiq_2f", hardware_id=self.port or "no port")
-        if error is not None or self.error:
-            level, text = Level.ERROR, self.error
-        elif status is None:
-            level, text = Level.WARN, "no status yet"
-        elif status.fault:
-            level, text = Level.ERROR, describe(status)
-        else:
-            level, text = (Level.OK if status.ready else Level.WARN), describe(status)
+        level, text = status_level(status, str(error or self.error))
         msg.level, msg.message = bytes([int(level)]), text
         if status is not None:
             # ``link``: "ok" when these values were read just now, "error" when they are the
@@ -478,11 +485,7 @@ class RobotiqGripperNode(LifecycleNode):
                     "timeouts": cc.timeouts,
                     "crc_errors": cc.crc_errors,
                 }
-        if error:
-            return Level.ERROR, error, values
-        if status is None:
-            return Level.WARN, "no status yet", values
-        return (Level.OK if status.ready else Level.WARN), describe(status), values
+        return (*status_level(status, error), values)
 
     def destroy_node(self) -> None:
         """Stop the worker, close the port, destroy the action servers (rclpy's leaves them)."""
