@@ -15,7 +15,12 @@ import time
 import numpy as np
 import pytest
 
-from ext_sense_perception.data.device_stream import stream_windows, window_set_from_stream
+from ext_sense_perception.data.device_stream import (
+    cut_stream,
+    recut,
+    stream_windows,
+    window_set_from_stream,
+)
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.stage import WindowStage
 from ext_sense_perception.online.window import WindowConfig
@@ -161,3 +166,30 @@ def test_jittered_reads_keep_every_word_and_refuse_bad_jitter(laid):
     assert counts.labelled == 6
     with pytest.raises(PerceptionError, match="read_jitter"):
         stream_windows(laid.writes[:10], read_jitter=1.5)
+
+
+def test_recut_at_the_detected_onsets_gives_the_stage_windows(laid):
+    cfg = WindowConfig.for_task("tap_localization", "nuskin")
+    cut = cut_stream(laid.writes, cfg, keep_events=True)
+    assert cut.events.size == cut.words == sum(len(b) for _, b in laid.writes) // 4
+    assert np.all(np.diff(cut.events.t_ns) >= 0)
+    onsets = np.array([w.onset_ns for w in cut.windows])
+    again = recut(cut.events, onsets, cfg)
+    np.testing.assert_array_equal(again, np.stack([w.data for w in cut.windows]))
+    assert cut_stream(laid.writes[:50], cfg).events.size == 0  # events only when asked for
+
+
+def test_recut_moves_the_grid_against_the_events(laid):
+    cfg = WindowConfig.for_task("tap_localization", "nuskin")
+    cut = cut_stream(laid.writes, cfg, keep_events=True)
+    onsets = np.array([w.onset_ns for w in cut.windows])
+    base = recut(cut.events, onsets, cfg)
+    later = recut(cut.events, onsets, cfg, cfg.period_ns)  # one whole bin: the series moves
+    np.testing.assert_array_equal(later[:, :, :-1], base[:, :, 1:])
+    mixed = recut(cut.events, onsets, cfg, np.array([0, cfg.period_ns] * 3))
+    np.testing.assert_array_equal(mixed[0::2], base[0::2])
+    np.testing.assert_array_equal(mixed[1::2], later[1::2])
+    with pytest.raises(PerceptionError, match="shifts_ns"):
+        recut(cut.events, onsets, cfg, np.zeros(2, np.int64))
+    with pytest.raises(PerceptionError, match="nuskin"):
+        recut(cut.events, onsets, WindowConfig.for_task("tap_localization", "biotac"))

@@ -14,6 +14,10 @@ Reads are modelled as the live link delivers them: the streamer wakes at least e
 millisecond and writes everything due (``ext_sense_sim.streaming.stream``) and the driver reads
 as soon as bytes wait, so the writes of each ``read_period_ns`` tick are read together at the
 tick's end. Windows here then match the live graph's when no byte is lost.
+
+:func:`cut_stream` can keep the events as the driver stamped them; :func:`recut` cuts the same
+windows again with their onsets moved (how far a model's estimate moves when the arrival clock
+moves a window's onset, and windows at moved onsets to train on).
 """
 
 from __future__ import annotations
@@ -29,9 +33,9 @@ from ext_sense_drivers.transports.base import Chunk
 from ext_sense_perception.data.window_set import WindowSet, window_set_of
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.stage import WindowStage
-from ext_sense_perception.online.window import ContactWindow, WindowConfig
+from ext_sense_perception.online.window import ContactWindow, WindowConfig, bin_events
 from ext_sense_runtime.enums import Sensor, Task
-from ext_sense_runtime.records import GroundTruth
+from ext_sense_runtime.records import EventBlock, GroundTruth
 from ext_sense_runtime.stamps import MS
 
 DEFAULT_BAUD = 4_000_000
@@ -51,7 +55,24 @@ class StreamCounts(NamedTuple):
     skipped_bytes: int
 
 
-def stream_windows(
+class StreamCut(NamedTuple):
+    """What the live graph makes of a byte stream.
+
+    Attributes:
+        windows: The final (non-provisional) windows, oldest first.
+        events: Every decoded event as the driver stamped it, in arrival order (empty unless
+            asked for).
+        words: Decoded words.
+        skipped_bytes: Bytes the decoder skipped.
+    """
+
+    windows: list[ContactWindow]
+    events: EventBlock
+    words: int
+    skipped_bytes: int
+
+
+def cut_stream(
     writes: Iterable[tuple[int, bytes]],
     config: WindowConfig | None = None,
     *,
@@ -59,8 +80,9 @@ def stream_windows(
     read_period_ns: int = READ_PERIOD_NS,
     read_jitter: float = 0.0,
     seed: int = 0,
-) -> tuple[list[ContactWindow], int, int]:
-    """Final windows the live graph cuts from a NUSkin receiver byte stream.
+    keep_events: bool = False,
+) -> StreamCut:
+    """The final windows (and, with ``keep_events``, the stamped events) of a NUSkin stream.
 
     Args:
         writes: ``(t_ns, bytes)`` per write to the link, in time order (any clock).
@@ -71,25 +93,27 @@ def stream_windows(
         read_jitter: Each tick lasts ``read_period_ns * U(1 - j, 1 + j)`` (live reads come at
             irregular times; training on several read patterns makes a model robust to them).
         seed: Seed of the jitter.
+        keep_events: Keep every decoded event (memory: 15 bytes an event).
 
-    Returns:
-        The final (non-provisional) windows, the decoded word count and the skipped bytes.
+    Raises:
+        PerceptionError: A BioTac configuration, or a read period or jitter out of range.
     """
     config = config or WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.NUSKIN)
     if config.sensor is not Sensor.NUSKIN:
         raise PerceptionError(
             f"The 'config.sensor' parameter must be nuskin. Got {config.sensor.label!r} instead."
         )
-    decode = DriverConfig(baud=int(baud)).make_stream()
-    stage = WindowStage(config)
-    out: list[ContactWindow] = []
-    words = 0
     if int(read_period_ns) <= 0:
         raise PerceptionError(
             f"The 'read_period_ns' parameter must be > 0. Got {read_period_ns} instead."
         )
     if not 0.0 <= read_jitter < 1.0:
         raise PerceptionError(f"The 'read_jitter' parameter must be in [0, 1). Got {read_jitter}.")
+    decode = DriverConfig(baud=int(baud)).make_stream()
+    stage = WindowStage(config)
+    out: list[ContactWindow] = []
+    kept: list[EventBlock] = []
+    words = 0
     period = int(read_period_ns)
     rng = np.random.default_rng(seed)
 
@@ -98,6 +122,8 @@ def stream_windows(
         block = decode.feed(Chunk(data, read_ns))
         if block.t_ns.size:
             words += int(block.t_ns.size)
+            if keep_events:
+                kept.append(block)
             out.extend(stage.on_block(block))
         out.extend(stage.advance(read_ns))  # the node's timer: data up to now is complete
 
@@ -120,7 +146,81 @@ def stream_windows(
         read(b"".join(pending), tick_end)
     out.extend(stage.flush())
     skipped = int(decode.batch_counters.skipped_bytes)
-    return [w for w in out if not w.provisional], words, skipped
+    finals = [w for w in out if not w.provisional]
+    return StreamCut(finals, EventBlock.concat(kept), words, skipped)
+
+
+def stream_windows(
+    writes: Iterable[tuple[int, bytes]],
+    config: WindowConfig | None = None,
+    *,
+    baud: int = DEFAULT_BAUD,
+    read_period_ns: int = READ_PERIOD_NS,
+    read_jitter: float = 0.0,
+    seed: int = 0,
+) -> tuple[list[ContactWindow], int, int]:
+    """Final windows the live graph cuts from a NUSkin receiver byte stream.
+
+    Arguments as :func:`cut_stream`'s.
+
+    Returns:
+        The final (non-provisional) windows, the decoded word count and the skipped bytes.
+    """
+    cut = cut_stream(
+        writes,
+        config,
+        baud=baud,
+        read_period_ns=read_period_ns,
+        read_jitter=read_jitter,
+        seed=seed,
+    )
+    return cut.windows, cut.words, cut.skipped_bytes
+
+
+def recut(
+    events: EventBlock,
+    onsets_ns: np.ndarray,
+    config: WindowConfig,
+    shifts_ns: np.ndarray | int = 0,
+) -> np.ndarray:
+    """Windows of ``events`` cut again with each onset moved by its shift.
+
+    With no shift this is the window the ``contact_window`` node cut at that onset (its final
+    window holds every event from ``onset - pre`` to ``onset + post``); a shift moves the
+    window's grid against the events, as an arrival clock that stamps them later or earlier
+    moves them against the detected onset.
+
+    Args:
+        events: Events in time order, as the driver stamped them.
+        onsets_ns: ``(n,)`` onsets of the windows, ns.
+        config: The window configuration (a NUSkin one).
+        shifts_ns: Onset shift, ns: one for all, or ``(n,)`` (positive: the window starts later).
+
+    Returns:
+        ``(n, n_taxels, n_samples)`` float32 signed event counts.
+
+    Raises:
+        PerceptionError: A BioTac configuration, or shifts of another length than the onsets.
+    """
+    if config.sensor is not Sensor.NUSKIN:
+        raise PerceptionError(
+            f"The 'config.sensor' parameter must be nuskin. Got {config.sensor.label!r} instead."
+        )
+    onsets = np.asarray(onsets_ns, dtype=np.int64).reshape(-1)
+    if np.ndim(shifts_ns) and np.shape(shifts_ns) != onsets.shape:
+        raise PerceptionError(
+            f"The 'shifts_ns' parameter must be one shift or one per onset ({onsets.size}). "
+            f"Got shape {np.shape(shifts_ns)} instead."
+        )
+    shifts = np.broadcast_to(np.asarray(shifts_ns, dtype=np.int64), onsets.shape)
+    period, n = config.period_ns, config.n_samples()
+    starts = onsets + shifts - config.pre_ns
+    lo = np.searchsorted(events.t_ns, starts, side="left")
+    hi = np.searchsorted(events.t_ns, starts + n * period, side="left")
+    out = np.zeros((onsets.size, config.n_taxels, n), np.float32)
+    for i, (start, a, b) in enumerate(zip(starts.tolist(), lo.tolist(), hi.tolist(), strict=True)):
+        out[i] = bin_events(events.select(slice(a, b)), start, n, period, config.n_taxels)
+    return out
 
 
 def match_truths(
