@@ -83,7 +83,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "recover",
         help="rewrite every complete message of a crashed recording as a complete bag",
         description="Read every complete message of a bag whose recorder was killed (an mcap "
-        "file without footer, no metadata.yaml, a sqlite3 write-ahead log left open) and write "
+        "file without footer, no metadata.yaml, a sqlite3 log or journal left open) and write "
         "them into a complete bag with metadata.yaml; print the messages recovered per topic "
         "and what was dropped. In place by default: the damaged original is renamed "
         "BAG.damaged. A complete bag is left alone.",
@@ -191,7 +191,7 @@ def _bag_recover(args: argparse.Namespace) -> int:
         print(f"ext-sense bag recover: {err}", file=sys.stderr)
         return 2
     report = result.report
-    print(f"{report.file}: {problem}")
+    print(f"{report.file}: {report.problem or problem}")
     print(f"recovered {result.messages} messages into {result.out}:")
     for topic, n in sorted(result.counts.items()):
         print(f"  {topic}: {n}")
