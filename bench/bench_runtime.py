@@ -101,6 +101,7 @@ def bench_latency(
     from rclpy.node import Node
 
     from ext_sense.graphs import TOPIC_ESTIMATE, TOPIC_WINDOW
+    from ext_sense.topics import TOPIC_PROVISIONAL_ESTIMATE
     from ext_sense_msgs.msg import ContactEstimate, ContactWindow
     from ext_sense_perception.online.model_card import read_card
     from ext_sense_runtime.qos import ESTIMATE_QOS, SENSOR_STREAM_QOS, WINDOW_QOS
@@ -134,9 +135,10 @@ def bench_latency(
         rclpy.init(args=[])
         node = Node("bench_latency")
         pub = node.create_publisher(source.type, source.topic, SENSOR_STREAM_QOS)
-        node.create_subscription(
-            ContactEstimate, TOPIC_ESTIMATE, lambda m: got.append((time.time_ns(), m)), ESTIMATE_QOS
-        )
+        for topic in (TOPIC_ESTIMATE, TOPIC_PROVISIONAL_ESTIMATE):  # final, and anytime
+            node.create_subscription(
+                ContactEstimate, topic, lambda m: got.append((time.time_ns(), m)), ESTIMATE_QOS
+            )
         if trace_hops:
 
             def on_window(m: ContactWindow) -> None:
