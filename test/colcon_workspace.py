@@ -11,7 +11,6 @@ memoised on the base directory, and both take theirs from pytest's session tempo
 
 from __future__ import annotations
 
-import functools
 import os
 import re
 import subprocess
@@ -46,29 +45,45 @@ def ros_env() -> dict[str, str]:
     return env
 
 
-@functools.cache
 def build(base: Path) -> Workspace:
-    """Build ``ros2_ws`` into ``base/{build,install,log}`` and source the result.
+    """Build ``ros2_ws`` into ``base/{build,install,log}`` and source the result, once per base
+    directory (a failed build fails every later call too, without building again).
 
     Raises:
-        AssertionError: no colcon beside the venv, the build failed, or wrote no setup.bash
-            (with colcon's output).
+        AssertionError: no colcon beside the venv, or the build failed (with colcon's output).
     """
+    if base not in _BUILDS:
+        _BUILDS[base] = _build(base)
+    ws = _BUILDS[base]
+    assert isinstance(ws, Workspace), ws
+    return ws
+
+
+_BUILDS: dict[Path, Workspace | str] = {}
+"""Each base directory's workspace, or why its build failed."""
+
+
+def _build(base: Path) -> Workspace | str:
     colcon = VENV / "bin" / "colcon"
-    assert colcon.is_file(), f"{colcon} is missing: scripts/setup.sh installs it (make setup)"
+    if not colcon.is_file():
+        return f"{colcon} is missing: scripts/setup.sh installs it (make setup)"
     env = ros_env()
     env.update(COLCON_BASE=str(base), COLCON_WORKERS="2", PYTHON=str(VENV / "bin" / "python"))
     t0 = time.monotonic()
-    done = subprocess.run(
-        [str(ROOT / "scripts" / "build_workspace.sh")],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=BUILD_TIMEOUT_S,
-    )
+    try:
+        done = subprocess.run(
+            [str(ROOT / "scripts" / "build_workspace.sh")],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=BUILD_TIMEOUT_S,
+        )
+    except subprocess.TimeoutExpired as err:
+        return f"colcon build did not finish in {BUILD_TIMEOUT_S} s:\n{str(err.stdout)[-6000:]}"
     seconds = time.monotonic() - t0
     output = done.stdout + done.stderr
-    assert done.returncode == 0, f"colcon build failed ({done.returncode}):\n{output[-6000:]}"
+    if done.returncode != 0:
+        return f"colcon build failed ({done.returncode}):\n{output[-6000:]}"
     install = base / "install"
     return Workspace(install, output, seconds, sourced(install / "setup.bash", ros_env()))
 
@@ -76,16 +91,15 @@ def build(base: Path) -> Workspace:
 def shared_build(tmp_path_factory: pytest.TempPathFactory, config: pytest.Config) -> Workspace:
     """The test run's one build (:func:`build` in its session temporary directory).
 
-    The first call builds, and says so in the test run's output (CI's log): the package count
-    and the seconds it took.
+    The first call builds, and says so in the test run's output (CI's log): the packages and
+    the seconds they took.
     """
     base = tmp_path_factory.getbasetemp() / "colcon"
-    first = base not in _REPORTED
+    first = base not in _BUILDS
     ws = build(base)
     plugins = config.pluginmanager
     reporter, capture = plugins.get_plugin("terminalreporter"), plugins.get_plugin("capturemanager")
     if first and reporter is not None and capture is not None:
-        _REPORTED.add(base)
         finished = re.findall(r"^Finished <<< (\S+) \[([^\]]+)\]", ws.output, re.MULTILINE)
         with capture.global_and_fixture_disabled():
             reporter.write_line(
@@ -93,9 +107,6 @@ def shared_build(tmp_path_factory: pytest.TempPathFactory, config: pytest.Config
                 f"({', '.join(f'{p} {s}' for p, s in finished)}); installed in {ws.install}"
             )
     return ws
-
-
-_REPORTED: set[Path] = set()
 
 
 def sourced(script: Path, env: dict[str, str]) -> dict[str, str]:

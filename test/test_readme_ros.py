@@ -33,7 +33,8 @@ import pytest
 from colcon_workspace import Workspace, ros2_launch_file, ros2_run, shared_build
 from sim_models import EXE, finish_graph
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(600)]
+# 900 s: when this module runs first (alone), its first test's set-up also builds the workspace
+pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(900)]
 
 ROOT = Path(__file__).resolve().parents[1]
 TAPS = 5
