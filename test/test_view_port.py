@@ -14,7 +14,7 @@ def test_a_taken_port_is_refused_with_what_to_do() -> None:
     from rclpy.context import Context
     from rclpy.parameter import Parameter
 
-    from ext_sense.nodes.foxglove_view import FoxgloveViewNode
+    from ext_sense.view.node import FoxgloveViewNode
 
     context = Context()
     rclpy.init(context=context, args=[])

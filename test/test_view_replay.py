@@ -3,7 +3,7 @@ the channels the view of the live graph served, with the recorded session's data
 
 A short run of the tap graph (``view:=true``) is recorded by ``ext-sense record``; a Foxglove
 protocol client on the live view keeps what it receives. The bag is then replayed with the view
-on (the ``foxglove_view`` node of :mod:`ext_sense.graph_view`, as the graphs start it) and a
+on (the ``foxglove_view`` node of :mod:`ext_sense.view.graph`, as the graphs start it) and a
 second client does the same. Both views must advertise the same channels (topic, encoding,
 schema name) and decode at least one message on each; the channels that pass the graph's topics
 through must carry the very bytes the bag holds, and the estimate the view draws must read the

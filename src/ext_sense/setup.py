@@ -36,7 +36,7 @@ setup(
             "ext-sense = ext_sense.cli:main",
             "estimate_monitor = ext_sense.nodes.estimate_monitor:main",
             "bag_player = ext_sense.nodes.bag_player:main",
-            "foxglove_view = ext_sense.nodes.foxglove_view:main",
+            "foxglove_view = ext_sense.view.node:main",
             # several nodes of a graph on one executor (hot_path:=one_process)
             "node_group = ext_sense.runner:main",
         ],

@@ -29,7 +29,6 @@ from ext_sense.graph_process import PROCESS_ARGUMENTS, place_hot_path
 from ext_sense.graph_sources import DEFAULT_SCENES as DEFAULT_SCENES
 from ext_sense.graph_sources import PACKET_ARGUMENTS, needed_files, source_nodes, window_input
 from ext_sense.graph_sources import SIM_TRIGGERS as SIM_TRIGGERS
-from ext_sense.graph_view import VIEW_ARGUMENTS, view_nodes
 from ext_sense.topics import (
     ESTIMATE_REMAPS,
     SENSOR_PACKETS,
@@ -42,6 +41,7 @@ from ext_sense.topics import (
     TOPIC_TAP_MARKER,
     TOPIC_WINDOW,
 )
+from ext_sense.view.graph import VIEW_ARGUMENTS, view_nodes
 
 SENSORS = ("nuskin", "biotac")
 SOURCES = ("sim", "serial", "can", "bag")

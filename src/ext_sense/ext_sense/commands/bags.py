@@ -10,7 +10,7 @@
 - ``replay BAG [--rate R | --flat-out]`` publishes the bag's graph inputs (sensor streams and
   ground truth) as recorded bytes, at recorded pace or flat out, and prints the throughput.
   ``view:=true`` (with ``view_host``, ``view_port``, ``view_rate``: the arguments and the
-  ``foxglove_view`` node of every graph, :mod:`ext_sense.graph_view`) also starts the live view
+  ``foxglove_view`` node of every graph, :mod:`ext_sense.view.graph`) also starts the live view
   in a process of its own, plays what the view reads (the sensor's raw packets, or its decoded
   stream for a bag recorded before packets; ground truth, windows, estimates, ``/diagnostics``;
   :func:`ext_sense.view.channels.view_inputs`) and keeps
@@ -236,8 +236,8 @@ def _replay_view(args: argparse.Namespace) -> NodeSpec | None:
         BagError: The bag does not tell its sensor and ``--sensor`` does not either.
     """
     from ext_sense.graph import GraphError, as_bool, parse_assignments
-    from ext_sense.graph_view import replay_view_graph
     from ext_sense.topics import SENSOR_STREAMS
+    from ext_sense.view.graph import replay_view_graph
 
     overrides = parse_assignments(args.assignments)
     # the arguments are checked before the bag is read (the sensor does not change them)

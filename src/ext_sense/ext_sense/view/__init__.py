@@ -1,8 +1,12 @@
-"""What a person looks at: the live Foxglove view's pictures and ``ext-sense plot``'s figures.
+"""What a person looks at: the live Foxglove view and ``ext-sense plot``'s figures.
 
-Plain NumPy (and matplotlib for the figures), no rclpy: the view node
-(:mod:`ext_sense.nodes.foxglove_view`) only feeds messages in and sends the results out, so
-everything drawn here is tested without ROS and draws the same from a live graph or a bag.
+The view's node (:mod:`.node`) and its part of every graph (:mod:`.graph`) live here beside
+its pictures; the node only feeds messages in and sends the results out. Everything else is
+plain NumPy (and matplotlib for the figures), no rclpy, so everything drawn is tested without
+ROS and draws the same from a live graph or a bag.
+
+- :mod:`.node`: the ``foxglove_view`` node (a Foxglove WebSocket server).
+- :mod:`.graph`: the ``view`` arguments and the node that ``view:=true`` adds to a graph.
 
 - :mod:`.images`: RGB images as arrays, the colour map, rectangles.
 - :mod:`.taxels`: the taxel grid (NUSkin rate, BioTac electrodes) with dead and saturated marks.

@@ -66,7 +66,7 @@ def view_nodes(args: Mapping[str, str], stream: tuple[str, str]) -> tuple[NodeSp
             package="ext_sense",
             executable="foxglove_view",
             name="foxglove_view",
-            plugin="ext_sense.nodes.foxglove_view:FoxgloveViewNode",
+            plugin="ext_sense.view.node:FoxgloveViewNode",
             parameters={
                 "sensor": sensor,
                 "host": args["view_host"],

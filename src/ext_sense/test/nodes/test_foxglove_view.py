@@ -57,8 +57,8 @@ def _window():
 def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
     from rclpy.parameter import Parameter
 
-    from ext_sense.nodes.foxglove_view import FoxgloveViewNode
     from ext_sense.view import channels as ch
+    from ext_sense.view.node import FoxgloveViewNode
     from ext_sense_msgs.msg import (
         ContactEstimate,
         ContactGroundTruth,
@@ -161,8 +161,8 @@ def test_a_client_connecting_as_the_server_starts_is_offered_every_channel(
     """
     import foxglove
 
-    from ext_sense.nodes.foxglove_view import FoxgloveViewNode
     from ext_sense.view import channels as ch
+    from ext_sense.view.node import FoxgloveViewNode
     from ext_sense_msgs.msg import ContactGroundTruth
     from ext_sense_runtime.qos import GROUND_TRUTH_QOS
 
