@@ -1,19 +1,12 @@
 """Reading what a killed recorder left: an mcap file without footer, a sqlite3 bag left open.
 
-The writer (:mod:`ext_sense_bags.writer`) closes an mcap chunk, or commits a sqlite3
-transaction, at least every ``flush_period_s``; what reached the file before a crash is a run
-of complete records followed, at worst, by one cut off mid-write.
-
-- mcap: mcap's ``StreamReader`` reads the file record by record from its magic, without the
-  summary a crashed writer never wrote. Every chunk whose size and CRC check out is kept; a
-  spoiled chunk is dropped and the scan goes on; it ends at the first record cut off or
-  unreadable (what follows is counted as dropped).
-- sqlite3: SQLite's own crash recovery (the committed part of a write-ahead log kept, a hot
-  rollback journal rolled back) runs when the database is opened read-write, in place; rosbags'
-  reader then reads the file.
-
-:func:`salvage` yields the topics and messages in file order and fills a :class:`Report`;
-:func:`ext_sense_bags.recover.recover_bag` writes them into a complete bag.
+The writer flushes at least every ``flush_period_s``, so such a file is a run of complete
+records followed, at worst, by one cut off mid-write. mcap: mcap's ``StreamReader`` reads it
+record by record from the magic (no summary needed); a chunk whose size or CRC does not match is
+dropped and the scan goes on; it ends at the first record cut off or unreadable. sqlite3:
+SQLite's own crash recovery runs when the file is opened read-write, in place; rosbags' reader
+then reads it. :func:`salvage` yields the topics and messages in file order and fills a
+:class:`Report`; :func:`ext_sense_bags.recover.recover_bag` writes them into a complete bag.
 """
 
 from __future__ import annotations
@@ -46,13 +39,12 @@ class SalvagedTopic(NamedTuple):
     topic: str
     msgtype: str
     msgdef: str
-    """Message definition text ('' when the file holds none)."""
+    """Message definition text ('' when none)."""
     encoding: str
     """``ros2msg`` or ``ros2idl``."""
     type_hash: str
-    """RIHS01 hash ('' when the file holds none)."""
+    """RIHS01 hash ('' when none)."""
     qos: list[Qos] | None
-    """Offered QoS profiles (None when absent or unreadable)."""
 
 
 Item = SalvagedTopic | tuple[int, int, bytes]
