@@ -41,13 +41,32 @@ def test_a_20_cm_rod_model_on_the_30_cm_scene_is_refused_in_one_line(tmp_path):
     assert params["contact_inference"]["held_object"] == "rod:0.2"
 
 
-def test_a_card_without_an_object_is_accepted_and_other_graphs_take_no_scene_object(tmp_path):
+def test_a_card_without_an_object_is_accepted_and_a_sensor_graph_names_none_by_itself(tmp_path):
     old = _rod_card(tmp_path / "old", None)
-    assert with_model(GRAPHS["tap_localization"], {"model": str(old)})["model"] == str(old)
+    ok = with_model(GRAPHS["tap_localization"], {"model": str(old)})
+    assert (ok["model"], ok["held_object"]) == (str(old), "rod:0.3")  # the node warns
     values = GRAPHS["food_identification"].resolve({})
-    assert held_object_of_graph(values, "food_identification", "nuskin") is None
+    assert held_object_of_graph(values, "food_identification", "nuskin") == HeldObject("fork", 0.19)
+    food = write_card(tmp_path / "food", "food_identification")  # records no object
+    ok = with_model(GRAPHS["food_identification"], {"model": str(food)})
+    assert "held_object" not in ok  # nothing to check: no warning either
     values = GRAPHS["tap_localization"].resolve({"source": "serial"})
     assert held_object_of_graph(values, "tap_localization", "nuskin") is None
+
+
+def test_a_handover_model_of_the_rod_is_refused_on_the_box_scene(tmp_path):
+    write_card(tmp_path / "handover", "handover_stability")
+    card = read_card(tmp_path / "handover")
+    dataclasses.replace(card, held_object=HeldObject("rod", 0.4), id="").write(
+        tmp_path / "handover"
+    )
+    with pytest.raises(
+        ModelMissingError, match=r"trained on a 40 cm rod, and the graph holds a 20"
+    ):
+        with_model(
+            GRAPHS["handover"],
+            {"model": str(tmp_path / "handover"), "scene": "handover_box_nuskin"},
+        )
 
 
 def test_a_malformed_held_object_argument_is_refused(tmp_path):

@@ -5,11 +5,11 @@
 up along the model search path
 (:mod:`ext_sense_perception.online.model_store`), its card is read and checked against the
 graph's task and sensor, and against the object the graph holds (its ``held_object`` argument,
-else for tap localization on the simulator the scene's rod: a model trained on a 20 cm rod
-serving the 30 cm scene places every tap wrong), and the bundle's absolute directory is handed to
-both perception nodes, so the window node and the inference node read the same bundle. A graph
-with no usable model refuses to start with one line that lists every place searched and names
-the command that creates the default models. Nothing here imports ``launch`` or ``rclpy``.
+else on the simulator the scene's object: a model trained on a 20 cm rod serving the 30 cm scene
+places every tap wrong), and the bundle's absolute directory is handed to both perception
+nodes, so the window node and the inference node read the same bundle. A graph with no usable
+model refuses to start with one line that lists every place searched and names the command that
+creates the default models. Nothing here imports ``launch`` or ``rclpy``.
 """
 
 from __future__ import annotations
@@ -33,8 +33,10 @@ class ModelMissingError(GraphError):
 def with_model(graph: GraphSpec, overrides: Mapping[str, str]) -> dict[str, str]:
     """``overrides`` with ``model`` set to the absolute bundle directory the graph will load.
 
-    ``held_object`` is set too when the graph's object is known (:func:`held_object_of_graph`),
-    so the inference node checks a model loaded later against it.
+    ``held_object`` is set too when the graph's object is known (:func:`held_object_of_graph`)
+    and worth checking: named by the user, recorded by the card, or a tap's rod (a tap card
+    without it is then accepted with the node's warning); the inference node checks a model it
+    loads later against it.
 
     Raises:
         GraphError: Bad arguments.
@@ -66,16 +68,18 @@ def with_model(graph: GraphSpec, overrides: Mapping[str, str]) -> dict[str, str]
             "naming what the fingers hold."
         )
     out = {**overrides, "model": str(path)}
-    if held is not None:
+    named = bool(values.get("held_object", "").strip())
+    if held is not None and (named or card.held_object or task == "tap_localization"):
         out["held_object"] = held.to_text()
     return out
 
 
 def held_object_of_graph(values: Mapping[str, str], task: str, sensor: str) -> HeldObject | None:
-    """The object a graph holds: its ``held_object`` argument, else the simulated rod of a tap.
+    """The object a graph holds: its ``held_object`` argument, else the simulator scene's.
 
-    Only tap localization takes the scene's object by default: its estimates are positions on
-    the rod, and its models' cards record the rod (food and handover cards record no object).
+    Cards record the rods their windows were felt through (a tap's, a handover's rod); a
+    card that records no object (food's fork, a handover's box or plate) is checked against
+    nothing.
 
     Raises:
         GraphError: A malformed ``held_object``, or a scene that cannot be read.
@@ -84,7 +88,7 @@ def held_object_of_graph(values: Mapping[str, str], task: str, sensor: str) -> H
         named = HeldObject.parse(values.get("held_object", ""))
     except PerceptionError as err:
         raise GraphError(f"The 'held_object' argument: {err}") from err
-    if named is not None or values.get("source") != "sim" or task != "tap_localization":
+    if named is not None or values.get("source") != "sim":
         return named
     try:
         geometry = load_scene(values.get("scene") or DEFAULT_SCENES[(task, sensor)]).geometry

@@ -89,8 +89,8 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
             "held_object",
             "",
             "The object the fingers hold, kind or kind:length_m (e.g. rod:0.30): a model whose "
-            "card records another object is refused; empty: the scene's object for "
-            "tap_localization with source sim, else not checked.",
+            "card records another object is refused; empty: the scene's object with source sim, "
+            "else not checked.",
         ),
         ArgumentSpec("backend", "onnx", "Inference backend.", BACKENDS),
         ArgumentSpec(
