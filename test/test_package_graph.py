@@ -41,7 +41,7 @@ KNOWN_UPWARD_TEST_IMPORTS = {
     ("ext_sense_bags", "ext_sense_perception"): "test_recorded.py windows a simulator bag",
     ("ext_sense_bags", "ext_sense_sim"): "test_recorded.py windows a simulator bag",
     ("ext_sense_perception", "ext_sense"): "its command tests drive the ext-sense CLI",
-    ("ext_sense_sim", "ext_sense"): "test_cli.py drives ext-sense sim",
+    ("ext_sense_sim", "ext_sense"): "its command tests drive the ext-sense CLI (ext-sense sim)",
 }
 """Tests that import a package above their own: declaring it would close a circle, so they
 are known and listed here until they move to the top-level ``test/`` (as the behaviours tests
