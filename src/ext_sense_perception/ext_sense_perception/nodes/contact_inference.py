@@ -20,9 +20,9 @@ rejects (NaN or inf, wrong shape) is counted and reported, and the next window i
 normally; any other exception in a callback is caught by the node's callback guard.
 
 An estimate is published with ``degraded`` set, and the reason, when its window was degraded
-(a stall or a late packet in it, marked by the window node) or when it is ready more than
-``deadline_ms`` after its window ended: it is never passed off as a normal estimate. Degraded
-final estimates are counted on ``/diagnostics`` (WARN while recent).
+(data missing from it: a stall or lost input, marked by the window node) or when it is ready
+more than ``deadline_ms`` after its window ended: it is never passed off as a normal estimate.
+Degraded final estimates are counted on ``/diagnostics`` (WARN while recent).
 
 ``compute_latency`` is the wall time from the end of the window (onset + post-onset time, on
 the host clock the driver stamps with) to the estimate being ready. When the window's clock is
