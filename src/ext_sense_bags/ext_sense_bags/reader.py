@@ -177,7 +177,7 @@ class BagReader:
         except Exception as err:  # rosbags raises several types for corrupt files
             raise BagError(f"Corrupt bag {self.path}: {why(err)}") from err
 
-    def store(self, record: BagRecord) -> Typestore:
+    def _store(self, record: BagRecord) -> Typestore:
         """The typestore ``record`` decodes with: the bag's definitions, else the current one.
 
         Raises:
@@ -215,7 +215,7 @@ class BagReader:
                 decode (the message says when the bag recorded another definition it does
                 not store).
         """
-        store = self.store(record)
+        store = self._store(record)
         try:
             return store.deserialize_cdr(record.data, record.msgtype)
         except Exception as err:
