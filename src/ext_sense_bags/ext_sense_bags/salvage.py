@@ -189,7 +189,7 @@ def _mcap_items(file: Path, report: Report, *, no_meta: bool) -> Iterator[Item]:
     with file.open("rb") as bio:
         size = bio.seek(0, 2)
         bio.seek(0)
-        pos = 0
+        pos = len(MAGIC)  # the magic was checked; the first record follows
         try:
             for record in StreamReader(bio, emit_chunks=True, record_size_limit=size).records:
                 if isinstance(record, DataEnd):  # the writer closed the file
