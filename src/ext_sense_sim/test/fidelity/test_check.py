@@ -28,19 +28,19 @@ def test_simulated_trials_are_reduced_to_ten_millisecond_host_bins():
 
 
 def test_the_cli_compares_a_scene_with_two_real_sessions(tmp_path, noisy_day, capsys):
-    a = noisy_day(tmp_path / "taps_2021-03-24", 20, 6, seed=1)
-    b = noisy_day(tmp_path / "taps_2021-03-25", 20, 6, seed=2)
+    a = noisy_day(tmp_path / "taps_2021-03-24", 20, 4, seed=1)
+    b = noisy_day(tmp_path / "taps_2021-03-25", 20, 4, seed=2)
     out = tmp_path / "out"
     args = ["sim", "fidelity", "tap_rod20_nuskin", "--real", str(a), "--real", str(b)]
-    args += ["--trials", "4", "--seed", "3", "--check"]
+    args += ["--trials", "3", "--seed", "3", "--check"]
     code = ext_sense_main([*args, "--json", str(out / "r.json"), "--figure", str(out / "r.png")])
     result = json.loads((out / "r.json").read_text())
     assert code == (0 if result["pass"] else 1)
     assert result["sessions"] == ["taps_2021-03-24", "taps_2021-03-25"]
     assert result["rod_cm"] == 20
-    assert result["trials"] == 4
+    assert result["trials"] == 3
     for name in result["sessions"]:
-        assert result["groups"][name]["windows"] == 6
+        assert result["groups"][name]["windows"] == 4
     assert [t["stat"] for t in result["targets"]] == [
         "events",
         "first_30ms",
