@@ -330,7 +330,13 @@ class ContactWindowNode(Node):
     def _arrived(self, msg: TaxelEventBatch | BioTacFrame | SensorPacket) -> None:
         self.rate.tick()
         self._wall_at_data = time.monotonic_ns()
+        lost = self.liveness.contacts_lost
         self.liveness.on_message(stamp_to_ns(msg.header.stamp), time.time_ns())
+        if self.liveness.contacts_lost > lost:  # a gap no window covered, now settled
+            self.get_logger().warning(
+                f"lost input may have held a whole contact: no window covered it "
+                f"({self._contacts_said()})"
+            )
         self._report_stall_change()
 
     def _streaming(self) -> bool:
