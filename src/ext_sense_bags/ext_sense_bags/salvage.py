@@ -219,7 +219,7 @@ def _mcap_items(file: Path, report: Report, *, no_meta: bool) -> Iterator[Item]:
                 pos = bio.tell()
         except (McapError, ValueError, struct.error):  # a record cut off, or not mcap data
             pass
-    cut = size - pos
+        cut = bio.seek(0, 2) - pos  # measured again: a bag being recorded grows meanwhile
     report.bytes_dropped += cut
     where = f"; the record at byte {pos} is cut off or unreadable ({cut} bytes dropped)"
     report.notes.insert(0, f"no footer: {STOPPED}" + (where if cut else ""))
