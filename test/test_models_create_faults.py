@@ -61,6 +61,27 @@ def test_an_unwritable_place_is_refused_before_training(tmp_path, mount_options,
     assert run.stdout == ""  # nothing simulated, trained or announced
 
 
+def test_current_models_on_a_read_only_place_are_used_as_they_are(tmp_path):
+    out = tmp_path / "models"
+    bundle = out / "food_identification_nuskin"
+    fingerprint = default_models.training_fingerprint("nuskin", "food_fork_nuskin", 70, "dataset")
+    make = (
+        "import sys, pathlib; from sim_models import write_card; "
+        "b = write_card(pathlib.Path(sys.argv[1]), 'food_identification', 'nuskin'); "
+        f"(b / '{default_models.FINGERPRINT_FILE}').write_text('{fingerprint}\\n')"
+    )
+    create = [*EXE, "models", "create", "--out", str(out), "--task", "food_identification"]
+    test_dir = str(Path(__file__).parent)
+    script = (
+        f'PYTHONPATH="{test_dir}" "{sys.executable}" -c "{make}" "{bundle}" '
+        f'&& mount -o remount,ro "{out}" && exec "$@"'
+    )
+    cmd = _in_namespace(out, "size=1m", ["sh", "-c", script, "sh", *create])
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert f"[models] using model {bundle} (trained from the same inputs)" in run.stderr
+
+
 def test_a_failed_bundle_write_leaves_the_former_bundle_and_nothing_else(tmp_path):
     place = tmp_path / "place"
     code = textwrap.dedent(
@@ -102,12 +123,8 @@ def test_a_failed_bundle_write_leaves_the_former_bundle_and_nothing_else(tmp_pat
 def test_a_second_create_into_the_same_place_waits_then_keeps_the_first_ones_model(tmp_path):
     out = tmp_path / "models"
     bundle = out / "food_identification_nuskin"
-    write_card(bundle, "food_identification", "nuskin")
-    fingerprint = default_models.training_fingerprint("nuskin", "food_fork_nuskin", 70, "dataset")
-    (bundle / default_models.FINGERPRINT_FILE).write_text(fingerprint + "\n")
-    card = (bundle / "model_card.json").read_text()
-
-    with place_lock(out):  # the first writer, still at work
+    out.mkdir()
+    with place_lock(out):  # the first create, still training
         second = subprocess.Popen(
             [*EXE, "models", "create", "--out", str(out), "--task", "food_identification"],
             stdout=subprocess.PIPE,
@@ -120,9 +137,17 @@ def test_a_second_create_into_the_same_place_waits_then_keeps_the_first_ones_mod
         done = threading.Event()
         threading.Thread(target=lambda: (second.wait(), done.set()), daemon=True).start()
         assert not done.wait(1.0), "the second create did not wait for the lock"
+        # the first create's bundle, complete before it lets go of the place
+        write_card(bundle, "food_identification", "nuskin")
+        fingerprint = default_models.training_fingerprint(
+            "nuskin", "food_fork_nuskin", 70, "dataset"
+        )
+        (bundle / default_models.FINGERPRINT_FILE).write_text(fingerprint + "\n")
+        card = (bundle / "model_card.json").read_text()
     out_text, err_text = second.communicate(timeout=120)
     assert second.returncode == 0, err_text
-    assert f"using model {bundle}" in err_text
+    assert f"using model {bundle} (trained from the same inputs)" in err_text
+    assert "simulated" not in err_text  # nothing trained a second time
     assert (bundle / "model_card.json").read_text() == card
     assert sorted(p.name for p in out.iterdir()) == [LOCK_FILE, bundle.name]
     assert str(out) in out_text

@@ -180,18 +180,27 @@ def training_set(
         return from_sim_dataset(npz), Recipe(n_jobs=JOBS)
 
 
+def is_current(model_dir: Path, task: str, sensor: str, trials: int, scene: str) -> bool:
+    """Whether ``model_dir`` holds a model trained from the inputs this checkout has."""
+    stamp = model_dir / FINGERPRINT_FILE
+    return (
+        (model_dir / CARD_FILE).is_file()
+        and stamp.is_file()
+        and stamp.read_text().strip()
+        == training_fingerprint(sensor, scene, trials, _how(task, sensor))
+    )
+
+
 def _ensure(
     model_dir: Path, task: str, sensor: str, trials: int, scene: str, force: bool, log: Log
 ) -> bool:
     """:func:`ensure_model` with the place checked and locked by the caller."""
-    how = _how(task, sensor)
-    fingerprint = training_fingerprint(sensor, scene, trials, how)
-    stamp = model_dir / FINGERPRINT_FILE
+    if not force and is_current(model_dir, task, sensor, trials, scene):
+        log(f"using model {model_dir} (trained from the same inputs)")
+        return False
     if (model_dir / CARD_FILE).is_file() and not force:
-        if stamp.is_file() and stamp.read_text().strip() == fingerprint:
-            log(f"using model {model_dir} (trained from the same inputs)")
-            return False
         log(f"{model_dir} was trained from other simulator, perception or scene inputs; retraining")
+    how = _how(task, sensor)
     t0 = time.monotonic()
     log(f"{task}/{sensor}: {trials} simulated trials of {scene} ({how}) -> {model_dir}")
     ws, recipe = training_set(task, sensor, scene, trials, log)
@@ -199,6 +208,7 @@ def _ensure(
     log(f"simulated {len(ws.y)} windows in {t1 - t0:.1f} s")
     with staged_bundle(model_dir) as staged:
         card = train_bundle(ws, staged, recipe)
+        fingerprint = training_fingerprint(sensor, scene, trials, how)
         (staged / FINGERPRINT_FILE).write_text(fingerprint + "\n")
     log(f"trained {card.id} in {time.monotonic() - t1:.1f} s; metrics {card.metrics}")
     return True
@@ -215,8 +225,11 @@ def ensure_model(
 ) -> bool:
     """Train the task's default model into ``model_dir`` unless a current one is there.
 
+    A current model is used as it is, wherever it lies. Otherwise the parent of ``model_dir``
+    is checked writable with room for the bundle and locked while it is made.
+
     Args:
-        model_dir: The bundle directory; its parent is checked writable and locked.
+        model_dir: The bundle directory.
         task: Which task's default model.
         sensor: For which sensor.
         trials: Simulated training trials (default: :data:`TRIALS`).
@@ -233,6 +246,9 @@ def ensure_model(
     """
     trials = trials or TRIALS[(task, sensor)]
     scene = scene or DEFAULT_SCENES[(task, sensor)]
+    if not force and is_current(model_dir, task, sensor, trials, scene):
+        log(f"using model {model_dir} (trained from the same inputs)")
+        return False
     check_place(model_dir.parent, BYTES_PER_TRIAL[task] * trials)
     with place_lock(model_dir.parent, log):
         return _ensure(model_dir, task, sensor, trials, scene, force, log)
@@ -247,17 +263,27 @@ def create_models(
 ) -> None:
     """Train the default model of each task into ``out/<task>_<sensor>`` unless current.
 
-    ``out`` is checked writable with room for every bundle before anything is trained, and
-    locked while they are made (a second run into ``out`` waits, then keeps what the first
-    made).
+    When some must be trained, ``out`` is checked writable with room for them before anything
+    is trained, and locked while they are made (a second run into ``out`` waits, then keeps
+    what the first made).
 
     Raises:
         PerceptionError: ``out`` is not writable or too full, or a training failed.
         SceneError: A scene cannot be loaded.
     """
-    check_place(out, sum(BYTES_PER_TRIAL[t] * TRIALS[(t, sensor)] for t in tasks))
+    jobs = [
+        (t, out / default_name(t, sensor), TRIALS[(t, sensor)], DEFAULT_SCENES[(t, sensor)])
+        for t in tasks
+    ]
+    todo = []
+    for task, model_dir, trials, scene in jobs:
+        if not force and is_current(model_dir, task, sensor, trials, scene):
+            log(f"using model {model_dir} (trained from the same inputs)")
+        else:
+            todo.append((task, model_dir, trials, scene))
+    if not todo:
+        return
+    check_place(out, sum(BYTES_PER_TRIAL[task] * trials for task, _, trials, _ in todo))
     with place_lock(out, log):
-        for task in tasks:
-            model_dir = out / default_name(task, sensor)
-            scene = DEFAULT_SCENES[(task, sensor)]
-            _ensure(model_dir, task, sensor, TRIALS[(task, sensor)], scene, force, log)
+        for task, model_dir, trials, scene in todo:
+            _ensure(model_dir, task, sensor, trials, scene, force, log)
