@@ -39,7 +39,6 @@ import os
 import sqlite3
 import time
 from collections.abc import Sequence
-from enum import IntEnum
 from pathlib import Path
 from types import TracebackType
 from typing import Any, ClassVar
@@ -65,15 +64,8 @@ from ext_sense_bags.salvage import messages_in_file
 from ext_sense_bags.topics import STANDARD_TOPICS, TopicSpec
 from ext_sense_bags.typestore import make_typestore
 
-
-class Storage(IntEnum):
-    """Storage plugin of a bag."""
-
-    MCAP = 1
-    SQLITE3 = 2
-
-
-_PLUGINS = {Storage.MCAP: StoragePlugin.MCAP, Storage.SQLITE3: StoragePlugin.SQLITE3}
+Storage = StoragePlugin
+"""Storage plugin of a bag: rosbags' enum, ``Storage.MCAP`` or ``Storage.SQLITE3``."""
 _ZERO = QosTime(0, 0)
 
 
@@ -222,7 +214,7 @@ class BagWriter:
         self._last_flush = time.monotonic()
         self._connections: dict[str, Connection] = {}
         try:
-            self._writer = _Writer(self.path, version=9, storage_plugin=_PLUGINS[storage])
+            self._writer = _Writer(self.path, version=9, storage_plugin=storage)
         except WriterError as err:
             raise BagError(f"Cannot create bag at {self.path}: {err}") from err
         self._open = False
