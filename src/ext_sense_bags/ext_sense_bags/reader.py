@@ -274,8 +274,8 @@ class BagReader:
 
 def _open(path: Path, name: Path | None = None) -> AnyReader:
     """Open rosbags' ``AnyReader`` on a bag; its errors as :class:`BagError` naming ``name``."""
-    reader = AnyReader([path], default_typestore=make_typestore())
     try:
+        reader = AnyReader([path], default_typestore=make_typestore())
         reader.open()
     except Exception as err:  # rosbags raises several types for unreadable files
         raise BagError(f"Cannot read bag {name or path}: {why(err)}") from err

@@ -169,6 +169,9 @@ def test_corrupt_file_gives_bag_error(tmp_path):
     bad.write_bytes(mcap_file.read_bytes()[:200] + b"\xff" * 100)
     with pytest.raises(BagError, match=r"bad\.mcap"), BagReader(bad) as bag:
         list(bag.records())
+    (tmp_path / "notes.txt").write_text("not a bag")
+    with pytest.raises(BagError, match=r"notes\.txt: Unrecognized storage format"):
+        BagReader(tmp_path / "notes.txt").open()
 
 
 def test_custom_data_round_trip(tmp_path):
