@@ -82,6 +82,8 @@ def place_lock(place: Path, log: Callable[[str], None] | None = None) -> Iterato
             if log is not None:
                 log(f"waiting: another process is writing models into {place}")
             fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError as err:  # a file system without locks
+            raise PerceptionError(f"cannot lock {place}: {err.strerror or err}") from err
         yield
     finally:
         os.close(fd)  # closing releases the lock
