@@ -136,10 +136,13 @@ _LOGS = ("-wal", "-journal")
 
 
 def _ends_with_magic(file: Path) -> bool:
-    with file.open("rb") as bio:
-        size = bio.seek(0, 2)
-        bio.seek(max(0, size - len(MAGIC)))
-        return size > len(MAGIC) and bio.read() == MAGIC
+    try:
+        with file.open("rb") as bio:
+            size = bio.seek(0, 2)
+            bio.seek(max(0, size - len(MAGIC)))
+            return size > len(MAGIC) and bio.read() == MAGIC
+    except OSError as err:
+        raise BagError(f"Cannot read {file}: {why(err)}") from err
 
 
 def salvage(path: Path) -> tuple[Report, Iterator[Item]]:
@@ -162,8 +165,11 @@ def salvage(path: Path) -> tuple[Report, Iterator[Item]]:
     if file.suffix != ".mcap":
         raise BagError(f"Cannot read bag {path}: unknown storage format {file.suffix!r}.")
     report = Report(file, "mcap")
-    with file.open("rb") as bio:
-        head = bio.read(len(MAGIC))
+    try:
+        with file.open("rb") as bio:
+            head = bio.read(len(MAGIC))
+    except OSError as err:
+        raise BagError(f"Cannot read {file}: {why(err)}") from err
     if len(head) < len(MAGIC) and MAGIC.startswith(head):
         report.notes.append("empty: the recorder stopped before its first write")
         report.bytes_dropped, report.empty = len(head), True
