@@ -370,31 +370,9 @@ class ContactWindowNode(Node):
 
     def _check_taxels(self) -> tuple[Level, str, dict[str, object]]:
         """Taxels stuck at their ceiling (NUSkin): WARN naming them while any is."""
-        windower = self.event_windower
-        if windower is None:  # not added for BioTac
+        if self.event_windower is None:  # not added for BioTac
             return Level.OK, "no taxels", {}
-        guard = windower.stuck
-        ids = guard.ids
-        rate = max((guard.last_rate_hz[i] for i in ids), default=0.0)
-        stuck_s = max((guard.stuck_for_ns(i) for i in ids), default=0) / 1e9
-        values: dict[str, object] = {
-            "stuck_taxel_ids": ",".join(map(str, ids)),
-            "stuck_taxel_rate_events_per_s": f"{rate:.0f}",
-            "stuck_for_s": f"{stuck_s:.1f}",
-            "stuck_threshold_events_per_s": f"{guard.rate_hz:g}",
-            "stuck_after_ms": f"{guard.after_ns / MS:g}",
-            "masked_events": guard.masked_events,
-            "one_taxel_bursts_refused": windower.counters.one_taxel_bursts,
-            "windows_with_stuck_taxels": windower.counters.stuck_taxel_windows,
-        }
-        if ids:
-            return (
-                Level.WARN,
-                f"stuck taxel(s) {', '.join(map(str, ids))}: {rate:.0f} events/s for "
-                f"{stuck_s:.1f} s; masked from onset detection until they quiet",
-                values,
-            )
-        return Level.OK, "ok", values
+        return self.event_windower.stuck_status()
 
     def _on_motion_start(self, msg: ContactGroundTruth) -> None:
         if self.stage.on_motion_start(stamp_to_ns(msg.header.stamp)):

@@ -17,6 +17,7 @@ import numpy as np
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.stuck_taxels import StuckTaxels
 from ext_sense_perception.online.window import ContactWindow, WindowConfig, bin_events
+from ext_sense_runtime.diagnostics import Level
 from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_runtime.records import EventBlock
 from ext_sense_runtime.stamps import MS
@@ -366,6 +367,36 @@ class EventWindower(WindowerBase):
 
     def _stuck_ids(self) -> tuple[int, ...]:
         return self.stuck.ids
+
+    def stuck_status(self) -> tuple[Level, str, dict[str, object]]:
+        """The window node's ``taxels`` check: WARN naming the stuck taxels while any is.
+
+        Key-values carry their units: ``stuck_taxel_rate_events_per_s`` (the fastest stuck
+        taxel over the last bucket), ``stuck_for_s``, the thresholds, and the counts of events
+        masked, one-taxel bursts refused and windows cut with a stuck taxel.
+        """
+        guard = self.stuck
+        ids = guard.ids
+        rate = max((guard.last_rate_hz[i] for i in ids), default=0.0)
+        stuck_s = max((guard.stuck_for_ns(i) for i in ids), default=0) / 1e9
+        values: dict[str, object] = {
+            "stuck_taxel_ids": ",".join(map(str, ids)),
+            "stuck_taxel_rate_events_per_s": f"{rate:.0f}",
+            "stuck_for_s": f"{stuck_s:.1f}",
+            "stuck_threshold_events_per_s": f"{guard.rate_hz:g}",
+            "stuck_after_ms": f"{guard.after_ns / MS:g}",
+            "masked_events": guard.masked_events,
+            "one_taxel_bursts_refused": self._counts["one_taxel_bursts"],
+            "windows_with_stuck_taxels": self._counts["stuck_taxel_windows"],
+        }
+        if not ids:
+            return Level.OK, "ok", values
+        return (
+            Level.WARN,
+            f"stuck taxel(s) {', '.join(map(str, ids))}: {rate:.0f} events/s for {stuck_s:.1f} s; "
+            "masked from onset detection until they quiet",
+            values,
+        )
 
     def _cut(self, start_ns: int, n_samples: int) -> tuple[np.ndarray, np.ndarray]:
         cfg = self.config

@@ -134,3 +134,24 @@ def test_a_burst_of_fewer_taxels_than_activity_min_taxels_is_no_onset():
 def test_the_window_config_refuses_bad_stuck_taxel_settings(change, match):
     with pytest.raises(PerceptionError, match=match):
         replace(WindowConfig.for_task("tap_localization", "nuskin"), **change)
+
+
+def test_the_taxels_status_names_the_stuck_ids_with_units_and_clears():
+    from ext_sense_runtime.diagnostics import Level
+
+    w = EventWindower()
+    assert w.stuck_status()[:2] == (Level.OK, "ok")
+    t, tax = _stuck(0, 2000)
+    _feed(w, t, tax, 2000)
+    level, message, values = w.stuck_status()
+    assert level == Level.WARN
+    assert message == (
+        f"stuck taxel(s) {STUCK}: 4000 events/s for {values['stuck_for_s']} s; masked from onset "
+        "detection until they quiet"
+    )
+    assert values["stuck_taxel_ids"] == str(STUCK)
+    assert float(values["stuck_for_s"]) >= 1.0
+    assert values["stuck_after_ms"] == "1000"
+    assert values["one_taxel_bursts_refused"] > 0
+    w.feed(EventBlock.of(t[:0], tax[:0], t[:0].astype(np.int8)), now_ns=EPOCH + 2300 * MS)
+    assert w.stuck_status()[:2] == (Level.OK, "ok")  # a quiet bucket: it detects onsets again
