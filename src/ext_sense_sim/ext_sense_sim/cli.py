@@ -96,11 +96,10 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _fidelity(args: argparse.Namespace) -> int:
-    import json
     from pathlib import Path
 
     from ext_sense_sim.errors import SceneError
-    from ext_sense_sim.fidelity.check import run_fidelity
+    from ext_sense_sim.fidelity.check import result_json, run_fidelity
     from ext_sense_sim.fidelity.errors import FidelityError
     from ext_sense_sim.fidelity.figure import draw
     from ext_sense_sim.fidelity.table import format_table
@@ -117,7 +116,7 @@ def _fidelity(args: argparse.Namespace) -> int:
     try:
         if args.json:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-            Path(args.json).write_text(json.dumps(run.result, indent=2) + "\n")
+            Path(args.json).write_text(result_json(run.result))
             print(f"wrote {args.json}")
         if args.figure:
             print(f"wrote {draw(run, args.figure)}")

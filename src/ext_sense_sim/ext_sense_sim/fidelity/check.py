@@ -7,6 +7,7 @@ result as the CLI's table.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from itertools import combinations
 from pathlib import Path
@@ -137,10 +138,6 @@ def _compare(
         err = tables[SIMULATED].onset_error_ms
         result["onset_error_ms_median"] = float(np.nanmedian(err)) if err.size else None
         result["targets"] = _targets(groups, real_names, TAP_TARGETS)
-    else:
-        result["span_s"] = food.SPAN_S
-        result["per_class"] = _per_class(tables, real_names)
-    if kind == "tap":
         result["auc"] = {
             "target": _auc(tables, real_names, taps.TARGET_FEATURES, each=True),
             "table": _auc(tables, real_names, taps.TABLE_FEATURES, False, SHOWN_REPEATS),
@@ -151,9 +148,26 @@ def _compare(
             checks.append(result["auc"]["target"]["pass"])
         result["pass"] = all(checks)
     else:
+        result["span_s"] = food.SPAN_S
+        result["per_class"] = _per_class(tables, real_names)
         result["auc"] = {"trial": _auc(tables, real_names, food.FEATURES, True, SHOWN_REPEATS)}
         result["pass"] = None
     return FidelityRun(result, tables)
+
+
+def result_json(result: dict[str, Any]) -> str:
+    """The result as strict JSON (NaN, e.g. an AUC with too few windows, becomes null)."""
+
+    def clean(x: Any) -> Any:
+        if isinstance(x, float) and not np.isfinite(x):
+            return None
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items()}
+        if isinstance(x, list):
+            return [clean(v) for v in x]
+        return x
+
+    return json.dumps(clean(result), indent=2, allow_nan=False) + "\n"
 
 
 def _profile(profiles: np.ndarray) -> dict[str, list[float]]:
