@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import sys
 import threading
 from collections.abc import Callable, Sequence
 from types import TracebackType
@@ -37,7 +38,6 @@ from typing import TypeVar
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException
-from rclpy.lifecycle import LifecycleNode
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
@@ -196,7 +196,9 @@ def destroy_node(node: Node) -> None:
     after a launch ended, while the graph's other nodes left at once).
     """
     node.destroy_node()
-    if isinstance(node, LifecycleNode):
+    # a lifecycle node's class imported rclpy.lifecycle (10 ms not spent by the other nodes)
+    lifecycle = sys.modules.get("rclpy.lifecycle")
+    if lifecycle is not None and isinstance(node, lifecycle.LifecycleNode):
         node._state_machine.destroy_when_not_in_use()
 
 
