@@ -196,7 +196,7 @@ def destroy_node(node: Node) -> None:
     after a launch ended, while the graph's other nodes left at once).
     """
     node.destroy_node()
-    # a lifecycle node's class imported rclpy.lifecycle (10 ms not spent by the other nodes)
+    # a lifecycle node's class imported rclpy.lifecycle; the other nodes never need it
     lifecycle = sys.modules.get("rclpy.lifecycle")
     if lifecycle is not None and isinstance(node, lifecycle.LifecycleNode):
         node._state_machine.destroy_when_not_in_use()
