@@ -8,6 +8,8 @@ Keys (one row per trial unless stated):
 - ``trial`` int32, ``onset_ns`` int64 (contact onset, food: motion start, from the trial's
   origin), ``rod_length_m`` float64 (NaN when the object is not a rod), ``trial_ns`` int64
   (length of every trial);
+- ``object_kind`` (str: ``rod``, ``box``, ``plate``, ``fork``) and ``object_length_m``
+  (float64): the held object, which a model trained on the dataset records in its card;
 - ``finger_taxels`` uint16 ``(2, 40)``: taxel ids of the left and right finger, each row
   row-major on the 8 x 5 lattice (row along the object's axis, row 7 nearest the free span);
 - NUSkin: ``ev_trial`` int32, ``ev_t_ns`` int64 (from the trial's origin), ``ev_taxel`` uint16
@@ -79,6 +81,8 @@ class DatasetCollector:
             "onset_ns": onset,
             "rod_length_m": np.full(n, rod, dtype=np.float64),
             "trial_ns": np.array(round(scene.trial_s * 1e9), dtype=np.int64),
+            "object_kind": np.array(scene.geometry.kind),
+            "object_length_m": np.array(scene.geometry.length_m, dtype=np.float64),
             "finger_taxels": FINGER_TAXELS,
         }
         if scene.sensor is Sensor.NUSKIN:

@@ -25,7 +25,7 @@ import numpy as np
 from ext_sense_perception.data.bags import is_bag
 from ext_sense_perception.data.sources import load_window_set
 from ext_sense_perception.data.validation import InputPolicy
-from ext_sense_perception.data.window_set import WindowSet
+from ext_sense_perception.data.window_set import WindowSet, common_held_object
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.profiles import Anchor
 from ext_sense_runtime.enums import Sensor
@@ -310,4 +310,5 @@ def pooled(sessions: list[Session]) -> WindowSet:
         data_hash="+".join(ws.data_hash for ws in sets),
         excluded=tuple(f"{n}/{e}" for n, ws in zip(names, sets, strict=True) for e in ws.excluded),
         sessions=np.concatenate([ws.session_of for ws in sets]),
+        held_object=common_held_object(sets),
     )

@@ -27,6 +27,7 @@ from ext_sense_perception.data.validation import (
 )
 from ext_sense_perception.data.window_set import WindowSet, file_hash, labels_of, window_set_of
 from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.online.model_card import HeldObject
 from ext_sense_perception.online.model_input import Geometry
 from ext_sense_perception.online.window import ContactWindow, WindowConfig, window_from_recording
 from ext_sense_perception.online.windowers import EventWindower
@@ -126,7 +127,11 @@ def from_sim_dataset(
         )
     trials = np.asarray(d.get("trial", np.arange(n)))
     rods = np.asarray(d.get("rod_length_m", np.full(n, np.nan)), dtype=np.float64)
-    return window_set_of(
+    held = None
+    if "object_kind" in d:  # the scene's object (older datasets: told from rod_length_m)
+        length = float(d.get("object_length_m", np.nan))
+        held = HeldObject(str(d["object_kind"]), length if np.isfinite(length) else None)
+    ws = window_set_of(
         config,
         [w for w, k in zip(windows, keep_trial, strict=True) if k],
         labels[keep_trial],
@@ -137,6 +142,7 @@ def from_sim_dataset(
         n_channels=int(pac.shape[1]) if sensor is Sensor.BIOTAC and n else None,
         excluded=tuple(f"trial {int(t)}" for t in trials[~keep_trial]),
     )
+    return ws._replace(held_object=held)
 
 
 def food_capture_config(anchor: Anchor | str = Anchor.ARM_MOTION) -> WindowConfig:

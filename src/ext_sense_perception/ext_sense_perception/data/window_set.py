@@ -108,6 +108,18 @@ def held_object_of(ws: WindowSet) -> HeldObject | None:
     return HeldObject("rod", round(float(np.median(rods)), 4))
 
 
+def common_held_object(sets: list[WindowSet]) -> HeldObject | None:
+    """The object of window sets joined into one.
+
+    Their kind when they share it (a length only when they share that too), else None (then
+    :func:`held_object_of` tells a rod from the windows' lengths).
+    """
+    objects = {ws.held_object for ws in sets}
+    if None in objects or len({o.kind for o in objects if o is not None}) != 1:
+        return None
+    return objects.pop() if len(objects) == 1 else HeldObject(next(iter(objects)).kind)
+
+
 def file_hash(*paths: str | Path) -> str:
     """Short SHA-256 over the bytes of the given files (16 hex digits), for model cards."""
     h = hashlib.sha256()

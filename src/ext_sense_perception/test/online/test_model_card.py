@@ -212,3 +212,23 @@ def test_a_held_object_is_read_from_kind_and_length(text, expected):
 def test_a_bad_held_object_is_refused_in_one_line(text, match):
     with pytest.raises(PerceptionError, match=match):
         HeldObject.parse(text)
+
+
+def test_a_model_of_a_simulator_dataset_records_its_scene_object(food_npz, tmp_path):
+    import numpy as np
+
+    from ext_sense_perception.data.window_set import common_held_object, held_object_of
+
+    with np.load(food_npz) as z:
+        arrays = {k: z[k] for k in z.files}
+    # an older dataset names no object: a rod is told from its rod lengths (the synthetic 0.3)
+    assert held_object_of(from_sim_dataset(food_npz)) == HeldObject("rod", 0.3)
+    arrays |= {"object_kind": np.array("fork"), "object_length_m": np.array(0.19)}
+    np.savez(tmp_path / "fork.npz", **arrays)
+    fork = from_sim_dataset(tmp_path / "fork.npz")
+    assert held_object_of(fork) == HeldObject("fork", 0.19)
+    assert fit_model(fork, "fft", "svm").card.held_object == HeldObject("fork", 0.19)
+    longer = fork._replace(held_object=HeldObject("fork", 0.25))
+    assert common_held_object([fork, fork]) == HeldObject("fork", 0.19)
+    assert common_held_object([fork, longer]) == HeldObject("fork")
+    assert common_held_object([fork, longer._replace(held_object=HeldObject("rod", 0.3))]) is None
