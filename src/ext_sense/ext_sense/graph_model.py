@@ -77,9 +77,9 @@ def with_model(graph: GraphSpec, overrides: Mapping[str, str]) -> dict[str, str]
 def held_object_of_graph(values: Mapping[str, str], task: str, sensor: str) -> HeldObject | None:
     """The object a graph holds: its ``held_object`` argument, else the simulator scene's.
 
-    Cards record the rods their windows were felt through (a tap's, a handover's rod); a
-    card that records no object (food's fork, a handover's box or plate) is checked against
-    nothing.
+    Cards record the object their windows were felt through (a simulator dataset's scene
+    object, else a rod told from the windows' rod lengths); a card that records none is
+    checked against nothing.
 
     Raises:
         GraphError: A malformed ``held_object``, or a scene that cannot be read.
