@@ -43,15 +43,11 @@ from rclpy.signals import SignalHandlerOptions
 
 from ext_sense_runtime.executor import make_executor, spin_until_shutdown
 from ext_sense_runtime.stop import (
-    STACKS_SIGNAL as STACKS_SIGNAL,
-)
-from ext_sense_runtime.stop import (
+    STACKS_SIGNAL,
     STOP,
+    STOP_SIGNALS,
     StopRequest,
     install_stop_handlers,
-)
-from ext_sense_runtime.stop import (
-    STOP_SIGNALS as STOP_SIGNALS,
 )
 from ext_sense_runtime.teardown_guard import TeardownGuard
 
