@@ -10,9 +10,11 @@ from ext_sense_perception.training.arrival_jitter import (
     ReadDelay,
     augment,
     jitter_window,
+    onset_shifted,
     read_groups,
     rechunk_writes,
     restamp,
+    shift_window,
 )
 from ext_sense_runtime.stamps import MS
 
@@ -228,3 +230,84 @@ def test_the_folds_keep_each_trial_whole_when_a_set_holds_copies(tap_set):
     # and the plain splitter would have split trials: what the grouped folds prevent
     leaky = [set(copies.groups[tr]) & set(copies.groups[te]) for tr, te in cv.split(copies.X)]
     assert any(leaky)
+
+
+def test_shift_window_by_whole_bins_moves_the_series():
+    x = _window(np.random.default_rng(1))
+    np.testing.assert_array_equal(shift_window(x, 0, MS), x)
+    later = shift_window(x, 3 * MS, MS)  # the window starts 3 bins later: events 3 bins earlier
+    np.testing.assert_array_equal(later[:, :-3], x[:, 3:])
+    assert not later[:, -3:].any()  # nothing comes in past the end
+    earlier = shift_window(x, -3 * MS, MS)
+    np.testing.assert_array_equal(earlier[:, 3:], x[:, :-3])
+    assert earlier.dtype == x.dtype
+
+
+def test_shift_window_by_part_of_a_bin_splits_its_events():
+    x = np.zeros((2, 10), np.float32)
+    x[0, 5], x[1, 5] = 4, -4  # four events (and four negative ones) spread evenly in bin 5
+    half = shift_window(x, MS // 2, MS)  # the first two fall a bin earlier
+    np.testing.assert_array_equal(half[:, 4:6], [[2, 2], [-2, -2]])
+    quarter = shift_window(x, -MS // 4, MS)  # the window starts earlier: the last one moves on
+    np.testing.assert_array_equal(quarter[:, 5:7], [[3, 1], [-3, -1]])
+    assert shift_window(x, 7 * MS, MS).sum() == 0  # moved out of the window altogether
+
+
+def test_onset_shifted_adds_copies_of_each_trial(tap_set):
+    out = onset_shifted(tap_set, 2, max_shift_ns=2 * MS, seed=4)
+    n = len(tap_set.y)
+    assert len(out.y) == 3 * n
+    np.testing.assert_array_equal(out.X[:n], tap_set.X)  # the windows as cut come first
+    np.testing.assert_array_equal(out.groups, np.tile(tap_set.groups, 3))
+    np.testing.assert_array_equal(out.y, np.tile(tap_set.y, 3))
+    assert out.data_hash == "0+2shifted"
+    assert np.any(out.X[n:] != np.tile(tap_set.X, (2, 1, 1)))
+    # by at most 2 ms: the tap (bins 20..34) stays inside 18..36, the early events (2..3) in 0..6
+    assert not out.X[n:, :, 37:].any()
+    assert not out.X[n:, :, 7:18].any()
+    again = onset_shifted(tap_set, 2, max_shift_ns=2 * MS, seed=4)
+    np.testing.assert_array_equal(again.X, out.X)
+    assert onset_shifted(tap_set, 0) is tap_set
+    assert onset_shifted(tap_set._replace(sensor="biotac"), 2) is not None
+    assert len(onset_shifted(tap_set._replace(sensor="biotac"), 2).y) == n
+    with pytest.raises(PerceptionError, match="'onset_shifts' parameter must be >= 0"):
+        onset_shifted(tap_set, -1)
+    with pytest.raises(PerceptionError, match="'max_shift_ns' parameter must be > 0"):
+        onset_shifted(tap_set, 1, max_shift_ns=0)
+
+
+@pytest.mark.parametrize(
+    ("task", "features", "asked", "kernel"),
+    [
+        ("tap", "fft", None, "gauss"),
+        ("tap", "fft", "box", "box"),
+        ("tap", "baseline", None, "gauss"),
+        ("tap", "est", None, None),  # no bins
+        ("handover", "fft", None, None),
+        ("handover", "fft", "gauss", "gauss"),
+    ],
+)
+def test_the_recipe_bins_by_the_task_kernel_unless_told(tap_set, task, features, asked, kernel):
+    from ext_sense_perception.training.recipe import Recipe, resolve
+
+    ws = tap_set._replace(task=task)
+    choice = resolve(ws, Recipe(features=features, bin_kernel=asked))
+    assert choice.feature_params.get("bin_kernel") == kernel
+    biotac = resolve(ws._replace(sensor="biotac"), Recipe(features=features, bin_kernel=asked))
+    assert "bin_kernel" not in biotac.feature_params
+
+
+def test_the_recipe_trains_on_shifted_copies_when_asked(tap_set, monkeypatch):
+    from ext_sense_perception.training import recipe as recipe_module
+
+    seen = []
+
+    def fit_stops(ws, *args, **kwargs):
+        seen.append(len(ws.y))
+        raise StopIteration
+
+    monkeypatch.setattr(recipe_module, "fit_model", fit_stops)
+    for copies in (0, 2):
+        with pytest.raises(StopIteration):
+            recipe_module.fit_recipe(tap_set, recipe_module.Recipe(onset_shifts=copies))
+    assert seen == [10, 30]

@@ -24,6 +24,7 @@ from ext_sense_perception.data.device_stream import (
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.stage import WindowStage
 from ext_sense_perception.online.window import WindowConfig
+from ext_sense_runtime.stamps import MS
 from ext_sense_sim.links import PtyLink
 from ext_sense_sim.scene import load_scene
 from ext_sense_sim.trial_plan import lay_out_stream
@@ -193,3 +194,30 @@ def test_recut_moves_the_grid_against_the_events(laid):
         recut(cut.events, onsets, cfg, np.zeros(2, np.int64))
     with pytest.raises(PerceptionError, match="nuskin"):
         recut(cut.events, onsets, WindowConfig.for_task("tap_localization", "biotac"))
+
+
+def test_estimate_moves_follow_the_onset_shift(laid):
+    """A predictor reading the events' mean time moves with the shift, one reading counts not."""
+    from ext_sense_perception.training.window_shift import estimate_moves
+
+    cfg = WindowConfig.for_task("tap_localization", "nuskin")
+    cut = cut_stream(laid.writes, cfg, keep_events=True)
+    onsets = np.array([w.onset_ns for w in cut.windows])
+    centre = (np.arange(cfg.n_samples()) + 0.5) * cfg.period_ns * 1e-9
+
+    def mean_time(x: np.ndarray) -> np.ndarray:
+        per_bin = x.reshape(len(x), cfg.n_taxels, -1).sum(axis=1)
+        return per_bin @ centre / per_bin.sum(axis=1)
+
+    def total(x: np.ndarray) -> np.ndarray:
+        return x.sum(axis=1)
+
+    moves = estimate_moves(mean_time, cut.events, onsets, cfg, [-2 * MS, 500_000, 2 * MS])
+    assert sorted(moves) == [-2 * MS, 500_000, 2 * MS]
+    for shift, moved in moves.items():
+        assert moved.shape == (6,)
+        # by the shift, less what leaves the window at its ends, give or take the 1 ms bins
+        assert np.all(moved <= 1.1 * abs(shift) * 1e-9)
+        assert np.all(moved >= 0.5 * abs(shift) * 1e-9)
+    counts = estimate_moves(total, cut.events, onsets, cfg, [2 * MS])[2 * MS]
+    assert np.all(counts <= 0.05 * total(np.stack([w.data for w in cut.windows]).reshape(6, -1)))

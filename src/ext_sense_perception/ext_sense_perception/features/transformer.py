@@ -35,6 +35,7 @@ from sklearn.utils.validation import check_is_fitted
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.est_kernel import est_kernel, fit_est_kernel
 from ext_sense_perception.features.maps import (
+    BIN_KERNELS,
     FFT_SCALE_IN,
     FFT_SCALE_OUT,
     FeatureKind,
@@ -204,6 +205,8 @@ class _Reduced(WindowFeatures):
             :class:`WindowFeatures`.
         bin_ns: NUSkin feature bin, ns (a multiple of ``period_ns``).
         rate_hz: BioTac decimation target, Hz (None: full rate).
+        bin_kernel: NUSkin bins: ``box`` (the paper's sums) or ``gauss`` (Gaussian-weighted,
+            tolerant of an onset moved by part of a bin; :func:`~.maps.gauss_rebin_matrix`).
     """
 
     def __init__(
@@ -217,14 +220,21 @@ class _Reduced(WindowFeatures):
         channels: str | None = None,
         bin_ns: int = 5 * MS,
         rate_hz: float | None = None,
+        bin_kernel: str = "box",
     ) -> None:
         super().__init__(n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels)
         self.bin_ns = bin_ns
         self.rate_hz = rate_hz
+        self.bin_kernel = bin_kernel
 
     def _check_params(self) -> None:
         super()._check_params()
         _positive_int(self, "bin_ns")
+        if self.bin_kernel not in BIN_KERNELS:
+            raise PerceptionError(
+                f"The 'bin_kernel' parameter must be one of {', '.join(BIN_KERNELS)}. Got "
+                f"{self.bin_kernel!r} instead."
+            )
 
     def _reduce_matrix(self, used: int) -> np.ndarray:
         """Time map from the window to the series the features see (rebin or decimate)."""
@@ -239,7 +249,7 @@ class _Reduced(WindowFeatures):
                 raise PerceptionError(
                     f"The 'bin_ns' parameter must fit the window. Got {self.bin_ns} instead."
                 )
-            return rebin_matrix(used, factor)
+            return rebin_matrix(used, factor, self.bin_kernel)
         base = 1e9 / self.period_ns
         if self.rate_hz is None:
             return np.eye(used)
@@ -282,8 +292,8 @@ class AutoencoderFeatures(FFTFeatures):
     """The 32-d code of an MLP autoencoder trained on the FFT features of the training windows.
 
     Args:
-        n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels, bin_ns, rate_hz:
-            As :class:`FFTFeatures`.
+        n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels, bin_ns, rate_hz,
+            bin_kernel: As :class:`FFTFeatures`.
         ae_code: Code size.
         ae_max_iter: Training epochs.
         random_state: Seed of the autoencoder.
@@ -305,9 +315,19 @@ class AutoencoderFeatures(FFTFeatures):
         ae_code: int = 32,
         ae_max_iter: int = 200,
         random_state: int = 0,
+        bin_kernel: str = "box",
     ) -> None:
         super().__init__(
-            n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels, bin_ns, rate_hz
+            n_channels,
+            n_samples,
+            period_ns,
+            pre_ns,
+            sensor,
+            post_ns,
+            channels,
+            bin_ns,
+            rate_hz,
+            bin_kernel,
         )
         self.ae_code = ae_code
         self.ae_max_iter = ae_max_iter

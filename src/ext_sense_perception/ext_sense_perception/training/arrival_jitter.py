@@ -17,7 +17,11 @@ Two uses, one model:
   augmentation, ``Recipe.arrival_jitter``): each window's counts become events spread evenly
   within their bins, are re-stamped by the read model, re-aligned on the re-stamped onset (the
   live window follows its detected onset; not for external onsets) and binned again. Every
-  event stays in the window (clipped to its ends), so the event count is kept; only times move.
+  event stays in the window (clipped to its ends), so the event count is kept; only times move;
+- :func:`onset_shifted` adds copies of the NUSkin windows with their onset moved by up to
+  ``max_shift_ns`` (``Recipe.onset_shifts``): an arrival clock that stamps a window's events a
+  little later or earlier moves the detected onset against them, and a model must not read
+  position from where the events fall in the onset's bin.
 
 Plain NumPy, no ROS.
 """
@@ -234,6 +238,79 @@ def augment(
     for i in np.flatnonzero(pick):
         X[i] = jitter_window(ws.X[i], int(g.period_ns), onset_bin, delay, rng)
     return ws._replace(X=X)
+
+
+ONSET_SHIFT_NS = 2_000_000
+"""How far :func:`onset_shifted` moves an onset at most, ns: the arrival clock of a real serial
+link moves the detected onset by up to about 2 ms (issue 30)."""
+
+
+def shift_window(x: np.ndarray, shift_ns: int, period_ns: int) -> np.ndarray:
+    """A binned NUSkin window cut again with its onset moved by ``shift_ns``.
+
+    The events of a bin are taken as spread evenly inside it (unknown within a bin), as in
+    :func:`jitter_window`; events moved past either end of the window leave it, and none come
+    in (what lies beyond the window is unknown).
+
+    Args:
+        x: ``(..., n_samples)`` signed event counts (rounded to whole events).
+        shift_ns: Onset shift, ns (positive: the window starts later, its events come earlier).
+        period_ns: The bin, ns.
+
+    Returns:
+        The shifted counts, same shape and dtype.
+    """
+    q, f = divmod(int(shift_ns), int(period_ns))
+    counts = np.rint(x).astype(np.float64)
+    n = np.abs(counts)
+    # of a bin's n evenly spread events, those within f of its start fall one bin earlier
+    early = np.sign(counts) * np.clip(np.ceil(n * f / period_ns - 0.5), 0.0, n)
+    out = np.zeros_like(counts)
+    size = counts.shape[-1]
+    for part, move in ((counts - early, -q), (early, -q - 1)):
+        lo, hi = max(0, -move), min(size, size - move)
+        if lo < hi:
+            out[..., lo + move : hi + move] += part[..., lo:hi]
+    return out.astype(x.dtype)
+
+
+def onset_shifted(
+    ws: WindowSet, copies: int, max_shift_ns: int = ONSET_SHIFT_NS, seed: int = 0
+) -> WindowSet:
+    """The set and ``copies`` more of each NUSkin window, onsets moved by ``U(-max, +max)``.
+
+    The copies keep their trial's ``groups`` entry, so the training folds keep a trial whole
+    (``training.fit.whole_trial_folds``). BioTac windows and windows of an external onset
+    (food: the arm's motion start, stamped by the arm, not the sensor's clock) are returned as
+    they are.
+
+    Raises:
+        PerceptionError: ``copies`` negative or ``max_shift_ns`` not positive.
+    """
+    if copies < 0:
+        raise PerceptionError(f"The 'onset_shifts' parameter must be >= 0. Got {copies} instead.")
+    if max_shift_ns <= 0:
+        raise PerceptionError(
+            f"The 'max_shift_ns' parameter must be > 0. Got {max_shift_ns} instead."
+        )
+    if (
+        ws.sensor != "nuskin"
+        or copies == 0
+        or len(ws.y) == 0
+        or ws.task_profile.onset_source is OnsetSource.EXTERNAL
+    ):
+        return ws
+    period = int(ws.geometry.period_ns)
+    rng = np.random.default_rng(seed)
+    shifts = rng.integers(-int(max_shift_ns), int(max_shift_ns) + 1, size=(copies, len(ws.y)))
+    moved = [
+        np.stack([shift_window(x, int(s), period) for x, s in zip(ws.X, row, strict=True)])
+        for row in shifts
+    ]
+    tiled = ws.subset(np.tile(np.arange(len(ws.y)), copies + 1))  # labels, trials, sessions
+    return tiled._replace(
+        X=np.concatenate([ws.X, *moved]), data_hash=f"{ws.data_hash}+{copies}shifted"
+    )
 
 
 def late_read_window_set(

@@ -86,6 +86,7 @@ def recipe_of(card: ModelCard, seed: int = 0) -> Recipe:
         model=card.model,
         channels=fp.get("channels"),
         feature_bin_ns=fp.get("bin_ns"),
+        bin_kernel=fp.get("bin_kernel", "box") if "bin_ns" in fp else None,
         rate_hz=card.rate_hz if card.sensor == "biotac" else None,
         anytime_post_ns=tuple(round(p * MS) for p in card.anytime_post_ms),
         seed=seed,

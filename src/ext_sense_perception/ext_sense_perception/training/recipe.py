@@ -10,9 +10,13 @@ windows and the :class:`Recipe` choices, never in how it was trained. What the r
   searched inside the folds (:func:`~.models.default_feature_grid`);
 - anytime models for the task profile's anytime post-contact times;
 - the grid search with 4-fold CV and refit of :func:`~.fit.fit_model`;
+- NUSkin feature bins: the task's kernel (:data:`DEFAULT_BIN_KERNEL`) unless named: tap
+  localisation bins with Gaussian weights, so a window whose onset the arrival clock moves by a
+  millisecond or two gives nearly the same estimate (``bench/bench_window_shift.py``);
 - optionally, arrival-jitter augmentation (``arrival_jitter``): a fraction of the NUSkin windows
   re-stamped as a late reader stamps them (:mod:`.arrival_jitter`, the read delays measured by
-  ``bench/bench_arrival.py``), before the fit and the anytime fits.
+  ``bench/bench_arrival.py``), and copies of each window at onsets moved by up to 2 ms
+  (``onset_shifts``), before the fit and the anytime fits.
 """
 
 from __future__ import annotations
@@ -22,11 +26,21 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from ext_sense_perception.data.window_set import WindowSet
+from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.features.maps import FeatureKind
+from ext_sense_perception.features.transformer import FAMILIES
 from ext_sense_perception.online.model_card import ModelCard
-from ext_sense_perception.training.arrival_jitter import augment, default_fraction
+from ext_sense_perception.training.arrival_jitter import augment, default_fraction, onset_shifted
 from ext_sense_perception.training.bundle_io import save_bundle
 from ext_sense_perception.training.fit import TrainedModel, fit_anytime, fit_model
 from ext_sense_perception.training.models import default_choice, default_feature_grid
+from ext_sense_runtime.enums import Task
+
+DEFAULT_BIN_KERNEL: dict[Task, str] = {Task.TAP_LOCALIZATION: "gauss"}
+"""The NUSkin feature-bin kernel when the recipe names none, by task (others: ``box``, the
+paper's). Taps: on box bins an onset moved by 2 ms (a serial link's arrival clock) moved the
+FFT + SVR estimate by more than half a centimetre, on Gaussian bins by a fifth of that, at the
+same accuracy on fresh taps (``bench/bench_window_shift.py``)."""
 
 
 @dataclass(frozen=True)
@@ -49,6 +63,10 @@ class Recipe:
             task's :data:`~.arrival_jitter.DEFAULT_FRACTION`, 0.5 for handover, where it
             lifts accuracy on jittered windows at no cost on clean ones, 0 for taps and food,
             where it does not help; docs/perception.md, "Arrival jitter").
+        bin_kernel: NUSkin feature-bin kernel, ``box`` or ``gauss`` (None: the task's
+            :data:`DEFAULT_BIN_KERNEL`); families without bins ignore it.
+        onset_shifts: Copies of each NUSkin window (signal onsets only) added with the onset
+            moved by up to 2 ms (:func:`~.arrival_jitter.onset_shifted`; 0: none).
     """
 
     features: str | None = None
@@ -60,6 +78,8 @@ class Recipe:
     seed: int = 0
     n_jobs: int = 1
     arrival_jitter: float | None = None
+    bin_kernel: str | None = None
+    onset_shifts: int = 0
 
 
 class Choice(NamedTuple):
@@ -83,6 +103,10 @@ def resolve(ws: WindowSet, recipe: Recipe) -> Choice:
         params["bin_ns"] = int(recipe.feature_bin_ns)
     if recipe.rate_hz is not None and ws.sensor == "biotac":
         params["rate_hz"] = float(recipe.rate_hz)
+    kernel = recipe.bin_kernel or DEFAULT_BIN_KERNEL.get(Task.parse(ws.task, PerceptionError))
+    family = FAMILIES[FeatureKind.parse(features)]
+    if kernel and ws.sensor == "nuskin" and "bin_kernel" in family._get_param_names():
+        params["bin_kernel"] = kernel
     return Choice(features, model, params, default_feature_grid(ws.task, ws.sensor, features))
 
 
@@ -94,6 +118,8 @@ def fit_recipe(
     fraction = default_fraction(ws.task) if recipe.arrival_jitter is None else recipe.arrival_jitter
     if fraction:
         ws = augment(ws, fraction, recipe.seed)
+    if recipe.onset_shifts:
+        ws = onset_shifted(ws, recipe.onset_shifts, seed=recipe.seed)
     choice = resolve(ws, recipe)
     kwargs: dict[str, Any] = {
         "feature_params": choice.feature_params,

@@ -198,3 +198,32 @@ def test_constant_and_saturated_windows_give_finite_features(kind, level):
     X = np.full((2, 80 * 300), level, np.float32)
     F = _tf(kind).fit(X).transform(X)
     assert np.isfinite(F).all()
+
+
+def test_gauss_bins_weigh_like_box_bins_away_from_the_ends():
+    from ext_sense_perception.features.maps import gauss_rebin_matrix, rebin_matrix
+
+    g, b = gauss_rebin_matrix(300, 5), rebin_matrix(300, 5)
+    assert g.shape == b.shape == (300, 60)
+    np.testing.assert_allclose(g.sum(axis=0)[5:-5], 5.0, rtol=1e-3)  # a constant series
+    assert np.argmax(g[:, 20]) in (102, 103)  # bin 20 is centred on its own samples
+
+
+def test_gauss_bins_hold_the_spectrum_when_the_onset_moves():
+    """A burst moved by 2 of 5 samples in a bin: box bins swap whole events, Gaussian ones not."""
+    rng = np.random.default_rng(3)
+    x = np.zeros((80, 300), np.float32)
+    x[:, 50:200] = rng.poisson(2.0 * np.exp(-np.arange(150) / 40.0), (80, 150))
+    moved = np.zeros_like(x)
+    moved[:, 2:] = x[:, :-2]
+    change = {}
+    for kernel in ("box", "gauss"):
+        tf = _tf("fft", bin_ns=5 * MS, bin_kernel=kernel).fit(x.reshape(1, -1))
+        a, b = (tf.transform(w.reshape(1, -1))[0] for w in (x, moved))
+        change[kernel] = np.linalg.norm(a - b) / np.linalg.norm(a)
+    assert change["gauss"] < 0.05 * change["box"]
+
+
+def test_an_unknown_bin_kernel_is_refused():
+    with pytest.raises(PerceptionError, match="'bin_kernel' parameter must be one of box, gauss"):
+        _tf("fft", bin_kernel="hann").fit(_windows())

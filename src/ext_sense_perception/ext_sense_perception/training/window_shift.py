@@ -1,0 +1,50 @@
+"""How far a model's estimates move when the arrival clock moves a window's onset (no ROS).
+
+The NUSkin words carry no time: the driver stamps them as they arrive, so a serial link's
+arrival clock moves a window's events against its detected onset by up to a few milliseconds.
+A model that reads position from where events fall in the onset's bin does not hold live;
+``bench/bench_window_shift.py`` prints these moves for the default tap model.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from ext_sense_perception.data.device_stream import recut
+from ext_sense_perception.online.window import WindowConfig
+from ext_sense_runtime.records import EventBlock
+
+
+def estimate_moves(
+    predict: Callable[[np.ndarray], np.ndarray],
+    events: EventBlock,
+    onsets_ns: np.ndarray,
+    config: WindowConfig,
+    shifts_ns: Sequence[int],
+) -> dict[int, np.ndarray]:
+    """How far each window's estimate moves when its onset moves by each shift.
+
+    Each window is cut again from the stamped events (``data.device_stream.recut``) at its onset
+    and at the onset moved by every shift, as an arrival clock that stamps the events later or
+    earlier moves them against the detected onset.
+
+    Args:
+        predict: Estimates of flattened windows ``(n, n_taxels * n_samples)``, shape ``(n,)``.
+        events: The stream's events as the driver stamped them, in time order.
+        onsets_ns: ``(n,)`` the windows' onsets, ns.
+        config: The window configuration (NUSkin).
+        shifts_ns: Onset shifts, ns.
+
+    Returns:
+        Per shift, ``(n,)`` absolute moves of the estimate (the estimate's unit).
+    """
+    onsets = np.asarray(onsets_ns, dtype=np.int64)
+
+    def estimates(shift: int) -> np.ndarray:
+        x = recut(events, onsets, config, shift)
+        return np.asarray(predict(x.reshape(len(onsets), -1)), dtype=np.float64)
+
+    base = estimates(0)
+    return {int(s): np.abs(estimates(int(s)) - base) for s in shifts_ns}
