@@ -9,8 +9,9 @@ the executable ``ros2 run`` finds (``install/ext_sense/lib/ext_sense/ext-sense``
 executable's ``run GRAPH`` (the same graph description; ``ros2`` is not installed here). The
 working directory is a fresh temporary one, ``EXT_SENSE_MODELS`` is unset and ``XDG_DATA_HOME``
 points into it, so the graph can only find the models where the models command put them.
-``ext-sense demo`` (``make demo``, the checkout's venv) then runs on the same model, as the
-models command says it does.
+``ext-sense demo`` (``make demo``'s command) then runs on the same model, as the models command
+says it does, from the same installed tree: a model records the sources it was trained from, and
+a tree being edited while the test runs would differ from the build's copy.
 
 The README's ``models create`` trains all three tasks' models; here it trains the one its
 launch loads (``--task tap_localization``, about 35 s). All three took 453 s of the suite's
@@ -31,7 +32,7 @@ from typing import NamedTuple
 
 import pytest
 from colcon_workspace import Workspace, ros2_launch_file, ros2_run, shared_build
-from sim_models import EXE, finish_graph
+from sim_models import finish_graph
 
 # 900 s: when this module runs first (alone), its first test's set-up also builds the workspace
 pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(900)]
@@ -73,9 +74,9 @@ class Newcomer(NamedTuple):
 
     work: Path  # an unrelated working directory
     env: dict[str, str]  # install/setup.bash sourced; no $EXT_SENSE_MODELS; $XDG_DATA_HOME in tmp
-    checkout_env: dict[str, str]  # the same without the workspace: `make demo`'s
     store: Path  # where the models command put the models
     launch: list[str]  # the README's first launch, on the installed tree
+    exe: Path  # the installed ext-sense, as `ros2 run ext_sense ext-sense` finds it
 
 
 @pytest.fixture(scope="module")
@@ -96,7 +97,6 @@ def newcomer(tmp_path_factory, pytestconfig) -> Newcomer:
     work.mkdir()
     data = {"XDG_DATA_HOME": str(root / "data")}
     env = {k: v for k, v in ws.env.items() if k != "EXT_SENSE_MODELS"} | data
-    checkout_env = {k: v for k, v in os.environ.items() if k != "EXT_SENSE_MODELS"} | data
     store = root / "data" / "ext_sense" / "models"
 
     # the README's models create, for the model its launch loads
@@ -104,7 +104,8 @@ def newcomer(tmp_path_factory, pytestconfig) -> Newcomer:
     created = subprocess.run(create, cwd=work, env=env, capture_output=True, text=True, timeout=300)
     assert created.returncode == 0, created.stderr[-3000:]
     assert (store / "tap_localization_nuskin" / "model_card.json").is_file(), created.stderr[-3000:]
-    return Newcomer(work, env, checkout_env, store, as_local(launches[0], ws))
+    exe = ros2_run(ws.env, "ext_sense", "ext-sense")
+    return Newcomer(work, env, store, as_local(launches[0], ws), exe)
 
 
 def test_readme_ros_steps_print_estimates_from_an_unrelated_directory(newcomer):
@@ -141,9 +142,16 @@ def test_demo_uses_the_same_model_and_is_accurate_live(newcomer):
     machines running the whole suite: too close to the bound.)
     """
     proc = subprocess.run(
-        [*EXE, "demo", "--taps", str(DEMO_TAPS), "--port", f"/tmp/ext_sense_demo_{os.getpid()}"],
+        [
+            newcomer.exe,
+            "demo",
+            "--taps",
+            str(DEMO_TAPS),
+            "--port",
+            f"/tmp/ext_sense_demo_{os.getpid()}",
+        ],
         cwd=newcomer.work,
-        env=newcomer.checkout_env,
+        env=newcomer.env,
         capture_output=True,
         text=True,
         timeout=240,
