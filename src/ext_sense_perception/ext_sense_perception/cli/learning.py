@@ -185,6 +185,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="fit and write nothing: print how many fits the report would run per data set, "
         "how many of them are in the cache and how many are to do",
     )
+    p.add_argument(
+        "--sim-commit",
+        default=None,
+        metavar="REV",
+        help="the simulator commit the simulator data sets of this run were made with, "
+        "recorded in their report.json rows and sections (a dataset.npz does not carry it)",
+    )
+    p.add_argument(
+        "--update",
+        action="store_true",
+        help="keep the data sets of the report in OUT that this run does not evaluate; "
+        "the ones it evaluates replace theirs",
+    )
     add_cluster_options(p, default_cache="OUT/fits")
     p.set_defaults(func=_cmd_report)
 
@@ -382,6 +395,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
                 executor=executor,
                 full=args.full,
                 plan=plan,
+                sim_commit=args.sim_commit,
+                update=args.update,
             )
     except PerceptionError as err:
         return fail(err)

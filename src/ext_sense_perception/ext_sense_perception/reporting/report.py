@@ -10,14 +10,17 @@ calibration error and Brier score of the class probabilities). Across tap datase
 
 Everything is measured with :func:`ext_sense_perception.protocol.evaluate` (K splits, default 3
 for speed; the paper's K is given in the table's header when used). A point shared by several
-sections is evaluated once; ``report.md`` is rewritten after every data set, so a long run
-keeps what it has. Each data set's sections are first planned (:meth:`Runner.plan`), so the
-fits of all its points go to the executor together (:meth:`Runner.flush`), then written.
+sections is evaluated once and listed in report.json under each study that shows it (``study``
+``models``, ``decision_latency``, ``sampling_rate``, ``taxels``, ``rod_length``, with its
+``post_ms``, ``rate_hz``, ``channels``, ``rod_m``; :mod:`.document`); ``report.md`` is
+rewritten after every data set, so a long run keeps what it has, and ``update`` keeps the
+former report's other data sets. Each data set's sections are first planned
+(:meth:`Runner.plan`), so the fits of all its points go to the executor together
+(:meth:`Runner.flush`), then written.
 """
 
 from __future__ import annotations
 
-import json
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -28,8 +31,16 @@ from threadpoolctl import threadpool_limits
 from ext_sense_perception.data.sources import from_sim_dataset, load_window_set
 from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.reporting.document import (
+    SIM_COMMIT,
+    ReportParts,
+    provenance,
+    read_report,
+    source_lines,
+    write_report,
+)
 from ext_sense_perception.reporting.plots import plot
-from ext_sense_perception.reporting.runner import Runner, check_choices
+from ext_sense_perception.reporting.runner import Runner, Study, check_choices
 from ext_sense_perception.reporting.scores import fmt, pareto_front, score, spread
 from ext_sense_perception.reporting.sections import (
     dataset_name,
@@ -40,7 +51,6 @@ from ext_sense_perception.reporting.sections import (
 from ext_sense_perception.training.fit_executor import FitExecutor
 from ext_sense_perception.training.gru import torch_available
 from ext_sense_perception.training.models import default_choice
-from ext_sense_perception.training.protocol import EvalResult
 from ext_sense_runtime.stamps import MS
 
 NUSKIN_RATES_HZ = (50, 100, 250, 500, 1000, 2000, 3000, 4000)
@@ -106,6 +116,7 @@ def report_dataset(
                 f"| {f} | {m} | {fmt(res)} | {np.mean(res.train_s):.2f} | {p50:.3f} / {p99:.3f} "
                 f"| {post_ms + p99:.1f} |"
             )
+            run.row(res, Study.MODELS)
             inf_x.append(p50)
             inf_y.append(score(res))
             inf_err.append(spread(res))
@@ -129,6 +140,7 @@ def report_dataset(
                     f"| baseline | gru | {fmt(res)} | {np.mean(res.train_s):.2f} "
                     f"| {p50:.3f} / {p99:.3f} | {post_ms + p99:.1f} |"
                 )
+                run.row(res, Study.MODELS)
                 inf_x.append(p50)
                 inf_y.append(score(res))
                 inf_err.append(spread(res))
@@ -163,6 +175,7 @@ def report_dataset(
     if ws.sensor == "nuskin" and Path(str(path)).suffix == ".npz":
         for r in NUSKIN_QUICK_RATES_HZ if quick else NUSKIN_RATES_HZ:
             res = run(from_sim_dataset(path, rate_hz=r), name, feat0, model0)
+            run.row(res, Study.SAMPLING_RATE, rate_hz=float(r))
             rows.append(f"| {r} | {fmt(res)} |")
             rx.append(r)
             ry.append(score(res))
@@ -170,6 +183,7 @@ def report_dataset(
     elif ws.sensor == "biotac":
         for r in BIOTAC_RATES_HZ:
             res = run(ws, name, feat0, model0, rate_hz=float(r))
+            run.row(res, Study.SAMPLING_RATE, rate_hz=float(r))
             rows.append(f"| {r} | {fmt(res)} |")
             rx.append(r)
             ry.append(score(res))
@@ -221,6 +235,8 @@ def build_report(
     executor: FitExecutor | None = None,
     full: bool = False,
     plan: list[dict[str, Any]] | None = None,
+    sim_commit: str | None = None,
+    update: bool = False,
 ) -> Path:
     """Evaluate every dataset and write ``out/report.md``, PNGs and ``out/report.json``.
 
@@ -245,13 +261,18 @@ def build_report(
             feature set and model, the GRU row, every section (``quick`` is refused).
         plan: A list: fit and write nothing, only append to it each data set's count of the
             fits the report would run (:meth:`Runner.listed`: points, fits, cached, to do).
+        sim_commit: The simulator commit the simulator data sets were made with, recorded in
+            their rows and sections (a ``dataset.npz`` does not carry it).
+        update: Keep the data sets of the report already in ``out`` that this run does not
+            evaluate (their sections and rows as they are); the ones it evaluates replace
+            theirs in place, new ones follow.
 
     Returns:
         The markdown file (not written with ``plan``).
 
     Raises:
-        PerceptionError: on an unknown feature set or model name (before anything runs), or
-            unreadable data.
+        PerceptionError: on an unknown feature set or model name (before anything runs),
+            unreadable data, or (``update``) an unreadable former report.
     """
     features, models = check_choices(features, models)
     if full:
@@ -262,18 +283,17 @@ def build_report(
             )
     else:
         k = k or (2 if quick else 3)
+    if sim_commit is not None and not SIM_COMMIT.fullmatch(sim_commit):
+        raise PerceptionError(
+            "The 'sim_commit' parameter must be a commit name (letters, digits, '.', '_', '+', "
+            f"'-'; 4 to 64 characters). Got {sim_commit!r} instead."
+        )
+    former = read_report(out) if update else ReportParts({}, [])
     if plan is None:
         out.mkdir(parents=True, exist_ok=True)
-    lines = [
-        "# ext_sense perception report",
-        "",
-        "Generated by `ext-sense report`. Scores are mean +- std over the K random 90/10 splits of "
-        "the paper's protocol (MAE in cm for tap localisation, accuracy otherwise).",
-        "",
-    ]
     records: list[dict[str, Any]] = []
     run = Runner(k, seed, records, base_params, n_jobs, executor)
-    rods: list[tuple[float, str, EvalResult]] = []
+    parts = ReportParts(dict(former.sections), list(former.records))
 
     def sections(ws: WindowSet, path: Path, where: Path) -> list[str]:
         """The data set's lines; its default point for the rod-length table is asked for too."""
@@ -283,13 +303,28 @@ def build_report(
         if ws.task == "tap_localization" and np.isfinite(ws.rod_length_m).any():
             feat0, model0 = default_choice(ws.task, ws.sensor)
             res = run(ws, dataset_name(ws, path), feat0, model0)  # memoised above
-            if not (run.planning or run.deploying):  # the pass that writes the sections
-                rods.append((float(np.nanmedian(ws.rod_length_m)), ws.sensor, res))
+            run.row(res, Study.ROD_LENGTH)
         return found
 
+    names: dict[str, Path] = {}
     with threadpool_limits(limits=1):
         for done, path in enumerate(datasets, start=1):
             ws = load_window_set(path)
+            name = dataset_name(ws, path)
+            if name in names:
+                raise PerceptionError(
+                    f"The data sets {str(names[name])!r} and {str(path)!r} share the report name "
+                    f"{name!r} (task, sensor, folder): their sections and plots would overwrite "
+                    "each other. Give each its own folder."
+                )
+            names[name] = path
+            rod = ws.rod_length_m[np.isfinite(ws.rod_length_m)]
+            run.provenance = {
+                "task": ws.task,
+                "sensor": ws.sensor,
+                **provenance(path, sim_commit),
+                "rod_m": round(float(np.median(rod)), 4) if rod.size else None,
+            }
             with tempfile.TemporaryDirectory(prefix="ext_sense_plan_") as scratch, run.plan():
                 sections(ws, path, Path(scratch))  # lists every point of the data set
             if plan is not None:
@@ -301,29 +336,13 @@ def build_report(
                 with run.plan_deployed():
                     sections(ws, path, Path(scratch))  # lists the deployed models
                 run.flush_deployed()  # their fits, submitted together, then their timing
-            lines += sections(ws, path, out)
+            first = len(records)
+            lines = sections(ws, path, out)
+            parts.sections[name] = [*lines[:2], *source_lines(run.provenance), *lines[2:]]
+            parts.records[:] = [r for r in parts.records if r.get("dataset") != name]
+            parts.records.extend(records[first:])
             if done < len(datasets):  # a long run keeps what it has so far
-                _write(
-                    out, [*lines, f"(In progress: {done} of {len(datasets)} data sets.)"], records
-                )
+                write_report(out, parts, f"(In progress: {done} of {len(datasets)} data sets.)")
     if plan is not None:
         return out / "report.md"
-    if len(rods) > 1:
-        lines += [
-            "## Rod length (tap localisation, default model)",
-            "",
-            "| rod m | sensor | MAE | MAE / length |",
-            "|---|---|---|---|",
-        ]
-        for length, sensor, res in sorted(rods, key=lambda r: (r[1], r[0])):
-            lines.append(f"| {length:.2f} | {sensor} | {fmt(res)} | {res.mean / length:.3f} |")
-        lines.append("")
-    return _write(out, lines, records)
-
-
-def _write(out: Path, lines: list[str], records: list[dict[str, Any]]) -> Path:
-    """Write ``report.md`` and ``report.json``; returns the markdown file."""
-    md = out / "report.md"
-    md.write_text("\n".join(lines) + "\n")
-    (out / "report.json").write_text(json.dumps(records, indent=2, default=str) + "\n")
-    return md
+    return write_report(out, parts)

@@ -7,6 +7,11 @@ deployed models of the latency columns (which need the points' chosen hyper-para
 listed; and after :meth:`Runner.flush_deployed` has fitted those, for real, from the memos. So a
 cluster's workers get every fit of a data set at once instead of one point's K at a time, and
 every fit is cached (:mod:`.deployed`).
+
+report.json has one row per (point, study) the final pass shows (:meth:`Runner.row`): a point
+shared by several studies (the default model on the full window is a models-table cell, the
+full-window decision-latency row, the both-fingers row and the rod-length row) is fitted once
+and listed once under each study, every copy carrying the same ``point`` id.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ import contextlib
 import hashlib
 from collections import Counter
 from collections.abc import Iterator
+from enum import Enum
 from typing import Any
 
 import numpy as np
@@ -48,6 +54,21 @@ LINEAR_MODEL = "svm_linear"  # the paper's linear SVM/SVR: weighs each feature o
 LINEAR_REGRESSION_C = (1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 0.01, 0.03, 0.1, 0.3, 1.0)
 # feature sets whose NUSkin bin the report's ``base_params`` (``--bin-ms``) sets
 BINNED_FEATURES = ("baseline", "fft", "autoencoder")
+
+
+class Study(str, Enum):
+    """Which of the report's studies a report.json row belongs to."""
+
+    MODELS = "models"
+    """The features x models table (and the GRU row): ``features``, ``model``."""
+    DECISION_LATENCY = "decision_latency"
+    """The default model against the post-contact window: ``post_ms``."""
+    SAMPLING_RATE = "sampling_rate"
+    """The default model against the sampling rate: ``rate_hz``."""
+    TAXELS = "taxels"
+    """Both fingers, one finger, one taxel: ``channels``."""
+    ROD_LENGTH = "rod_length"
+    """The default model across tap data sets: ``rod_m``."""
 
 
 def check_choices(
@@ -134,12 +155,12 @@ def placeholder(plan: EvalPlan) -> EvalResult:
 class Runner:
     """Runs the protocol once per distinct (windows, features, model, parameters).
 
-    Points shared by several sections (the default model on the full window, the nominal
-    rate, both fingers, the rod-length table) are evaluated once and reused; every computed
-    point is appended to ``records`` (report.json). The split fits run on ``executor`` (here by
-    default, or on a Dask cluster) and are cached there, so an interrupted report reruns only
-    what it had not finished. Points asked for inside :meth:`plan` are fitted together by
-    :meth:`flush`; others at once.
+    Points shared by several sections (the default model on the full window, both fingers,
+    the rod-length table) are evaluated once and reused; each section lists the points it
+    shows in ``records`` (report.json) with :meth:`row`. The split fits run on ``executor``
+    (here by default, or on a Dask cluster) and are cached there, so an interrupted report
+    reruns only what it had not finished. Points asked for inside :meth:`plan` are fitted
+    together by :meth:`flush`; others at once.
     """
 
     def __init__(
@@ -164,6 +185,10 @@ class Runner:
         self._deploy_pending: dict[str, tuple[DeployedTask, WindowSet]] = {}
         self._latency: dict[str, tuple[float, float] | PerceptionError] = {}
         self._prints: dict[int, tuple[np.ndarray, bytes]] = {}
+        # evaluated points by id(result): the result and its report.json fields
+        self._points: dict[int, tuple[EvalResult, dict[str, Any]]] = {}
+        # fields every row gets until changed (the data set's source, simulator commit, ...)
+        self.provenance: dict[str, Any] = {}
 
     @property
     def k_text(self) -> str:
@@ -274,10 +299,11 @@ class Runner:
                 self._memo[key] = err
                 continue
             res = assemble(plan, splits)
-            self.records.append(
+            self._points[id(res)] = (
+                res,
                 {
                     **info,
-                    "post_ms": res.post_ns / MS,
+                    "point": hashlib.blake2b(repr(key).encode(), digest_size=8).hexdigest(),
                     "metric": res.metric,
                     "mean": res.mean,
                     "std": res.std,
@@ -285,9 +311,33 @@ class Runner:
                     "best_params": res.best_params,
                     "k": res.k,
                     "eval_s": float(np.sum(res.train_s)),
-                }
+                },
             )
             self._memo[key] = res
+
+    def row(self, res: EvalResult, study: Study, **fields: Any) -> None:
+        """List an evaluated point in report.json under ``study`` (on the final pass only).
+
+        Args:
+            res: A result this runner returned.
+            study: The study whose table shows it.
+            **fields: The row's parameters: ``post_ms`` (default: the result's window),
+                ``rate_hz`` (None: not resampled), ``channels`` (default ``all``), and any
+                study-specific ones (``rod_m``, ``taxel_per_split``, ...).
+
+        Raises:
+            PerceptionError: ``res`` is not a result of this runner.
+        """
+        if self.planning or self.deploying:
+            return
+        hit = self._points.get(id(res))
+        if hit is None or hit[0] is not res:
+            raise PerceptionError("The 'res' parameter must be a result this runner returned.")
+        point = dict(hit[1])
+        head = {"dataset": point.pop("dataset"), "study": Study(study).value}
+        head.update({k: point.pop(k) for k in ("features", "model")})
+        params = {"post_ms": res.post_ns / MS, "rate_hz": None, "channels": "all", **fields}
+        self.records.append({**head, **params, **self.provenance, **point})
 
     def listed(self) -> dict[str, Any]:
         """What the listed points would fit: points, fits, cached, to do per features+model.

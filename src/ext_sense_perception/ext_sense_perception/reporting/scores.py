@@ -11,9 +11,14 @@ from ext_sense_perception.training.protocol import EvalResult
 
 def fmt(res: EvalResult) -> str:
     """Mean +- std over splits: cm for positions, accuracy otherwise."""
-    if res.metric == "mae_m":
-        return f"{res.mean * 100:.2f} +- {res.std * 100:.2f} cm"
-    return f"{res.mean:.3f} +- {res.std:.3f}"
+    return fmt_values(res.metric, res.mean, res.std)
+
+
+def fmt_values(metric: str, mean: float, std: float) -> str:
+    """:func:`fmt` from a report.json row's ``metric``, ``mean`` and ``std``."""
+    if metric == "mae_m":
+        return f"{mean * 100:.2f} +- {std * 100:.2f} cm"
+    return f"{mean:.3f} +- {std:.3f}"
 
 
 def score(res: EvalResult) -> float:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -9,7 +10,7 @@ import numpy as np
 from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.reporting.plots import plot
-from ext_sense_perception.reporting.runner import LINEAR_MODEL, Runner
+from ext_sense_perception.reporting.runner import LINEAR_MODEL, Runner, Study
 from ext_sense_perception.reporting.scores import coverage, ece, fmt, score, spread
 from ext_sense_runtime.stamps import MS
 
@@ -26,8 +27,25 @@ def gru_row(ws: WindowSet, gru: bool | None = None) -> bool:
 
 def dataset_name(ws: WindowSet, path: Path | str) -> str:
     """File-name stem of a data set's plots: task, sensor and the data's folder name."""
+    return dataset_name_of(ws.task, ws.sensor, path)
+
+
+def dataset_name_of(task: str, sensor: str, path: Path | str) -> str:
+    """:func:`dataset_name` from the task, sensor and path a section heading shows.
+
+    The last part is the folder of a simulator ``dataset.npz`` (``tap_rod30_nuskin``), the
+    folder and stem of another file (``data_rod30`` for ``data/rod30.npz``) or the name of a
+    directory (captures, bags); a path with a suffix is a file, so a heading of data no longer
+    on disk gives the same name.
+    """
     src = Path(str(path))
-    return f"{ws.task}_{ws.sensor}_{src.parent.name if src.is_file() else src.name}"
+    if not src.suffix:
+        where = src.name
+    elif src.stem == "dataset":
+        where = src.parent.name
+    else:
+        where = f"{src.parent.name}_{src.stem}"
+    return f"{task}_{sensor}_{where}"
 
 
 def taxel_section(
@@ -42,7 +60,9 @@ def taxel_section(
 
     The single taxel is a hyper-parameter: among the ``n_top`` most active taxels (activity
     summed over every window, which uses no label), each split's 4-fold grid search on its
-    training part picks it, so the test part never chooses it.
+    training part picks it, so the test part never chooses it. Its report.json rows say
+    ``channels`` ``taxel:N`` (N: the taxel, 1..80, chosen in most splits), ``taxel_per_split``
+    and ``taxel_candidates``; the others ``all``, ``left`` or ``right``.
     """
     g = ws.geometry
     cols = [model0] + ([LINEAR_MODEL] if model0 != LINEAR_MODEL else [])
@@ -71,9 +91,12 @@ def taxel_section(
         cells = []
         for m in cols:
             try:
-                cells.append(fmt(run(ws, name, feat0, m, channels=sel)))
+                res = run(ws, name, feat0, m, channels=sel)
             except PerceptionError as err:
                 cells.append(f"failed: {err}")
+                continue
+            cells.append(fmt(res))
+            run.row(res, Study.TAXELS, channels=sel or "all")
         lines.append(f"| {label} | {' | '.join(cells)} |")
     cells, picks = [], []
     for m in cols:
@@ -87,6 +110,14 @@ def taxel_section(
             int(top[int(p["features__channels"].split(":")[1]) - 1]) + 1 for p in res.best_params
         ]
         picks.append(f"{m}: {', '.join(str(c) for c in chosen)}")
+        modal = Counter(chosen).most_common(1)  # empty while the section is only planned
+        run.row(
+            res,
+            Study.TAXELS,
+            channels=f"taxel:{modal[0][0]}" if modal else "taxel",
+            taxel_per_split=chosen,
+            taxel_candidates=[int(t) + 1 for t in top],
+        )
     lines += [
         f"| one taxel, chosen per split on the training part among the {len(top)} most active "
         f"({ids}) | {' | '.join(cells)} |",
@@ -121,6 +152,7 @@ def latency_section(
             calibration_error, brier = ece(res)
             cal = f"{calibration_error:.3f} | {brier:.3f}"
         lines.append(f"| {p / MS:g} | {fmt(res)} | {cal} |")
+        run.row(res, Study.DECISION_LATENCY)
         dx.append(p / MS)
         dy.append(score(res))
         derr.append(spread(res))

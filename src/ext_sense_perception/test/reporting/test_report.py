@@ -102,24 +102,22 @@ def test_report_taxel_section_has_both_models_and_a_training_chosen_taxel(
         ids = {int(v) for v in part.split(": ")[1].split(", ")}
         assert ids <= candidates
     # each distinct point runs once: the default model on the full window is shared by the
-    # table, the decision-latency row, the nominal rate, both fingers and the rod section
+    # table, the full-window decision-latency row, both fingers and the rod section
     records = json.loads((tmp_path / "rep" / "report.json").read_text())
-    keys = [
-        (r["data"], r["features"], r["model"], json.dumps([r["params"], r["grid"]], sort_keys=True))
-        for r in records
+    by_point: dict[str, set] = {}
+    for r in records:
+        config = (r["data"], r["features"], r["model"], json.dumps([r["params"], r["grid"]]))
+        by_point.setdefault(r["point"], set()).add(config)
+    assert all(len(configs) == 1 for configs in by_point.values())  # one point, one config
+    table = next(r for r in records if r["study"] == "models" and r["features"] == "fft")
+    shared = [r for r in records if r["point"] == table["point"]]
+    assert [(r["study"], r["post_ms"], r["channels"]) for r in shared] == [
+        ("models", 250.0, "all"),
+        ("decision_latency", 250.0, "all"),
+        ("taxels", 250.0, "all"),
+        ("rod_length", 250.0, "all"),
     ]
-    assert len(keys) == len(set(keys))
-    table = next(r for r in records if r["model"] == "svm_rbf" and r["features"] == "fft")
-    same = [
-        r
-        for r in records
-        if r["data"] == table["data"]
-        and r["model"] == "svm_rbf"
-        and r["features"] == "fft"
-        and not r["grid"]
-        and r["params"].get("channels") in (None, "all")
-    ]
-    assert same == [table]  # the both-fingers row reuses the table's point
+    assert len({json.dumps(r["scores"]) for r in shared}) == 1
 
 
 def test_pareto_front_keeps_the_points_nothing_beats():
@@ -226,7 +224,7 @@ def test_a_report_on_a_local_cluster_equals_one_in_process_deployed_models_inclu
     here, cluster = tmp_path / "here", tmp_path / "cluster"
     assert ext_sense([*args, "--out", str(here)]) == 0
     assert ext_sense([*args, "--out", str(cluster), "--workers", "2"]) == 0
-    keys = [sorted(p.name for p in (d / "fits").rglob("*.pkl")) for d in (here, cluster)]
+    keys = [sorted(p.relative_to(d) for p in (d / "fits").rglob("*.pkl")) for d in (here, cluster)]
     assert keys[0] == keys[1]
     assert len(keys[0]) == 20 + 2  # the plan's 20 split fits and the 2 rows' deployed models
     strip = lambda recs: [{k: v for k, v in r.items() if k != "eval_s"} for r in recs]  # noqa: E731
