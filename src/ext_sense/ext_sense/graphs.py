@@ -133,7 +133,11 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
 
 
 def _sensor_topic(sensor: str) -> tuple[str, str]:
-    """The driver's relative output topic and its absolute name."""
+    """The decoded-array topic (relative, absolute) the window node reads with ``input:=decoded``.
+
+    The driver's own output is its packets (``SENSOR_PACKETS``); events and frames are only
+    what older bags hold and what a driver publishes with ``decoded:=true``.
+    """
     return ("events", TOPIC_EVENTS) if sensor == "nuskin" else ("frames", TOPIC_FRAMES)
 
 
