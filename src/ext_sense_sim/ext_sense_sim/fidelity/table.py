@@ -93,7 +93,9 @@ def format_table(result: dict[str, Any]) -> str:
             t = target[key]
             verdict = "pass" if t["pass"] else "FAIL"
             row += f"{_measure(t['kind'], t['value']):15s}{t['allowed']:11s}{verdict}"
-        elif not tap and r:
+        elif tap and key not in taps.RATIO_STATS:
+            row += _measure("diff", s - r)
+        elif r:
             row += f"x{s / r:.2f}"
         lines.append(row)
     lines.append("")

@@ -48,6 +48,15 @@ STATS: dict[str, str] = {
     "preroll_rate": "events/s before the onset (to 20 ms before)",
 }
 """Per-window statistics, name to meaning, in table order."""
+RATIO_STATS = (
+    "events",
+    "active_taxels",
+    "half_peak_ms",
+    "taxel_rate_median",
+    "taxel_rate_max",
+    "preroll_rate",
+)
+"""Statistics compared as simulated / real; the others (shares) as simulated - real."""
 NOT_FEATURES = ("preroll_rate",)
 """Statistics the two-sample test leaves out: the stretch before the onset is ~0.8 s in a real
 capture and the scene's ``onset_s`` in a simulated trial, so its rate is measured on spans too
