@@ -1,72 +1,254 @@
-"""Declaring parameters with descriptors, the way the rclpy node API enforces them.
+"""Node parameters from one schema: a frozen dataclass per node, declared with descriptors.
 
-Every parameter gets a description with its unit, a range where one makes sense, and
-``read_only`` for things that cannot change while running (port, baud, window sizes).
-Doubles must get float defaults: an int default would escape a ``FloatingPointRange``.
+Each field of a node's schema is one parameter, made with :func:`param`: its default (whose
+type is the parameter's: ``1.0`` for a double, never ``1``), a description with its unit, an
+inclusive range, ``read_only`` for what cannot change while running (port, baud, window
+sizes), allowed ``choices`` and a ``check`` returning a reason; checks across fields go in the
+schema's ``__post_init__`` (raise ``ValueError``). :func:`declare_all` declares every field on a
+node with a ``ParameterDescriptor``, validates the values given at start-up and every runtime
+change (an on-set callback that answers with the reason), and returns the schema instance: the
+typed config the node hands to its pure core. :func:`specs` lists the parameters without a
+node, so ``docs/parameters.md`` is rendered from the schemas alone.
+
+Nothing here imports rclpy at module level: schemas can live beside the pure core.
 """
 
 from __future__ import annotations
 
-from typing import Any
+import dataclasses
+import functools
+import typing
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, TypeVar
 
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
-from rclpy.node import Node
+if TYPE_CHECKING:
+    from rcl_interfaces.msg import SetParametersResult
+    from rclpy.node import Node
+
+    from ext_sense_runtime.callback_guard import CallbackGuard
+
+T = TypeVar("T")
+_KEY = "ext_sense_parameter"
+_ARRAY_TYPES = {"bool": "bool[]", "int": "int[]", "float": "double[]", "str": "string[]"}
+_EMPTY_ARRAY_TYPES = {
+    "bool[]": "BOOL_ARRAY",
+    "int[]": "INTEGER_ARRAY",
+    "double[]": "DOUBLE_ARRAY",
+    "string[]": "STRING_ARRAY",
+}
 
 
-def declare(
-    node: Node,
-    name: str,
+@dataclasses.dataclass(frozen=True)
+class _Meta:
+    description: str
+    low: float | int | None
+    high: float | int | None
+    read_only: bool
+    choices: tuple[Any, ...]
+    check: Callable[[Any], str | None] | None
+    name: str
+
+
+@dataclasses.dataclass(frozen=True)
+class ParamSpec:
+    """One declared parameter: what the descriptor and ``docs/parameters.md`` show."""
+
+    name: str
+    field: str
+    type_name: str
+    default: Any
+    description: str
+    low: float | int | None
+    high: float | int | None
+    read_only: bool
+    choices: tuple[Any, ...]
+    check: Callable[[Any], str | None] | None
+
+    def problem(self, value: Any) -> str | None:
+        """Why ``value`` is refused (choices, range, the field's check), or ``None``."""
+        if self.choices and value not in self.choices:
+            allowed = ", ".join(repr(c) for c in self.choices)
+            return f"parameter '{self.name}' must be one of {allowed}; got {value!r}"
+        if self.low is not None and not self.low <= value <= self.high:
+            return f"parameter '{self.name}' must be in [{self.low}, {self.high}]; got {value!r}"
+        if self.check is not None:
+            reason = self.check(value)
+            if reason:
+                return f"parameter '{self.name}': {reason}"
+        return None
+
+
+def param(
     default: Any,
     description: str,
     *,
     low: float | int | None = None,
     high: float | int | None = None,
-    step: float | int = 0,
     read_only: bool = False,
-    dynamic_typing: bool = False,
+    choices: Sequence[Any] = (),
+    check: Callable[[Any], str | None] | None = None,
+    name: str = "",
 ) -> Any:
-    """Declare one parameter with a descriptor and return its current value.
+    """A schema field that is a node parameter.
 
     Args:
-        node: The node that owns the parameter.
-        name: Parameter name.
-        default: Default value; its Python type fixes the parameter type (use ``1.0``, not
-            ``1``, for doubles).
+        default: Default value; lists are tuples (the config is frozen).
         description: What it does, with its unit (REP-103: metres, seconds).
-        low: Inclusive lower bound, given together with ``high``.
-        high: Inclusive upper bound; given together. Float range for float defaults, integer
-            range for int defaults.
-        step: Range step (0 = continuous).
+        low: Inclusive lower bound, given together with ``high`` (a ``FloatingPointRange``
+            for a double, an ``IntegerRange`` for an int).
+        high: Inclusive upper bound.
         read_only: Refuse changes after start-up.
-        dynamic_typing: Allow the type to change (e.g. a value that may be empty).
-
-    Returns:
-        The parameter's value after overrides (launch file, YAML, command line).
+        choices: The values allowed (strings such as a sensor name).
+        check: Returns why a value is refused, or ``None``/``""`` to accept it.
+        name: The parameter's name when it is not the field's (``franka.state_topic``).
     """
-    descriptor = ParameterDescriptor(
-        description=description, read_only=read_only, dynamic_typing=dynamic_typing
-    )
     if (low is None) != (high is None):
-        raise ValueError(f"Parameter '{name}': give both low and high, or neither.")
-    if low is not None:
-        if isinstance(default, bool):
-            raise ValueError(f"Parameter '{name}': a bool parameter cannot have a range.")
-        if isinstance(default, float):
-            descriptor.floating_point_range = [
-                FloatingPointRange(from_value=float(low), to_value=float(high), step=float(step))
-            ]
-        elif isinstance(default, int):
-            descriptor.integer_range = [
-                IntegerRange(from_value=int(low), to_value=int(high), step=int(step))
-            ]
-        else:
-            raise ValueError(f"Parameter '{name}': a range needs a numeric default.")
-    return node.declare_parameter(name, default, descriptor).value
+        raise ValueError(f"parameter {name or description!r}: give both low and high, or neither")
+    meta = _Meta(description, low, high, read_only, tuple(choices), check, name)
+    return dataclasses.field(default=default, metadata={_KEY: meta})
+
+
+def _type_name(annotation: Any, default: Any, where: str) -> str:
+    origin = typing.get_origin(annotation)
+    if origin is tuple:
+        item = typing.get_args(annotation)[0]
+        return _ARRAY_TYPES[item.__name__]
+    names = {bool: "bool", int: "int", float: "double", str: "string"}
+    if annotation not in names:
+        raise TypeError(f"{where}: a parameter is bool, int, float, str or tuple[...]")
+    if type(default) is not annotation:
+        raise TypeError(f"{where}: default {default!r} is not a {annotation.__name__}")
+    return names[annotation]
+
+
+@functools.cache
+def specs(schema: type) -> tuple[ParamSpec, ...]:
+    """The parameters of a schema dataclass, in field order.
+
+    Raises:
+        TypeError: A field is not a parameter, or its default does not have its type (an int
+            default for a double would escape a float range).
+    """
+    hints = typing.get_type_hints(schema)
+    out = []
+    for f in dataclasses.fields(schema):
+        meta = f.metadata.get(_KEY)
+        where = f"{schema.__name__}.{f.name}"
+        if meta is None:
+            raise TypeError(f"{where} is not a parameter (make it with param())")
+        type_name = _type_name(hints[f.name], f.default, where)
+        if meta.low is not None and type_name not in ("int", "double"):
+            raise TypeError(f"{where}: a range needs an int or float parameter")
+        out.append(
+            ParamSpec(
+                meta.name or f.name,
+                f.name,
+                type_name,
+                f.default,
+                meta.description,
+                meta.low,
+                meta.high,
+                meta.read_only,
+                meta.choices,
+                meta.check,
+            )
+        )
+    return tuple(out)
+
+
+def build(schema: type[T], values: dict[str, Any]) -> T:
+    """The config of ``values`` (by parameter name; missing ones take their defaults).
+
+    Raises:
+        ValueError: A value is refused (range, choices, check) or the schema's
+            ``__post_init__`` refused the combination; the message names the parameter.
+    """
+    fields = {}
+    for spec in specs(schema):
+        if spec.name not in values:
+            continue
+        value = values[spec.name]
+        if isinstance(value, list | tuple):
+            value = tuple(value)
+        reason = spec.problem(value)
+        if reason:
+            raise ValueError(reason)
+        fields[spec.field] = value
+    return schema(**fields)
+
+
+def _descriptor(spec: ParamSpec) -> Any:
+    from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
+    descriptor = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
+    if spec.type_name == "double" and spec.low is not None:
+        descriptor.floating_point_range = [
+            FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high))
+        ]
+    elif spec.type_name == "int" and spec.low is not None:
+        descriptor.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high))]
+    return descriptor
+
+
+def declare_all(
+    node: Node,
+    schema: type[T],
+    on_change: Callable[[T], str | None] | None = None,
+    guard: CallbackGuard | None = None,
+) -> T:
+    """Declare every parameter of ``schema`` on ``node`` and return the typed config.
+
+    Runtime changes are validated by an on-set callback (choices, checks, ``__post_init__``;
+    rclpy itself enforces type, range and ``read_only``); an accepted change builds the new
+    config and hands it to ``on_change``, which may still refuse by returning a reason.
+
+    Args:
+        node: The node that owns the parameters.
+        schema: The node's frozen dataclass of :func:`param` fields.
+        on_change: Called with the new config before a change is accepted; returns ``None`` to
+            accept or the reason to refuse.
+        guard: Wraps the on-set callback (an exception in ``on_change`` is counted in the
+            node's diagnostics and the change refused).
+
+    Raises:
+        ValueError: A value given at start-up is refused, with the parameter's name.
+    """
+    from rclpy.parameter import Parameter
+
+    all_specs = specs(schema)
+    values = {}
+    for spec in all_specs:
+        default = spec.default
+        if isinstance(default, tuple) and not default:  # an empty list has no type of its own
+            default = getattr(Parameter.Type, _EMPTY_ARRAY_TYPES[spec.type_name])
+        value = node.declare_parameter(spec.name, default, _descriptor(spec)).value
+        values[spec.name] = spec.default if value is None else value
+    config = [build(schema, values)]
+    by_name = {spec.name: spec for spec in all_specs}
+
+    def on_set(params: list) -> SetParametersResult:
+        changes = {p.name: p.value for p in params if p.name in by_name}
+        if changes:
+            current = {s.name: getattr(config[0], s.field) for s in all_specs}
+            try:
+                new = build(schema, {**current, **changes})
+            except ValueError as err:
+                return _result(str(err))
+            reason = on_change(new) if on_change is not None else None
+            if reason:
+                return _result(reason)
+            config[0] = new
+        return _result(None)
+
+    callback = guard.wrap(on_set, fallback=refused) if guard is not None else on_set
+    node.add_on_set_parameters_callback(callback)
+    return config[0]
+
+
+def _result(reason: str | None) -> SetParametersResult:
+    from rcl_interfaces.msg import SetParametersResult
+
+    return SetParametersResult(successful=reason is None, reason=reason or "")
 
 
 def refused(err: Exception) -> SetParametersResult:
@@ -75,4 +257,4 @@ def refused(err: Exception) -> SetParametersResult:
     The ``fallback`` of a guarded on-set callback
     (``guard.wrap(self._on_set, fallback=refused)``): rclpy needs a result, not ``None``.
     """
-    return SetParametersResult(successful=False, reason=f"{type(err).__name__}: {err}")
+    return _result(f"{type(err).__name__}: {err}")

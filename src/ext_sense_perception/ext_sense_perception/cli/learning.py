@@ -305,7 +305,7 @@ def anytime_range_ns(geometry: Geometry) -> tuple[int, int]:
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from ext_sense_perception.training.evaluation import evaluation_record
-    from ext_sense_perception.training.fit_executor import fit_executor
+    from ext_sense_perception.training.fit_jobs import fit_runner
     from ext_sense_perception.training.recipe import resolve
 
     if args.protocol == "cross-session":
@@ -322,7 +322,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         features, model, params, grid = resolve(ws, recipe)
         cache = cache_dir(args.cache, None)
         distributed = args.workers or args.scheduler or cache is not None
-        with fit_executor(
+        with fit_runner(
             args.scheduler, args.workers, cache, progress=not args.no_progress
         ) as executor:
             rec = evaluation_record(
@@ -366,7 +366,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 def _cmd_report(args: argparse.Namespace) -> int:
     from ext_sense_perception.reporting.report import build_report
-    from ext_sense_perception.training.fit_executor import fit_executor
+    from ext_sense_perception.training.fit_jobs import fit_runner
 
     def names(value: str | None) -> list[str] | None:
         return None if value is None else [v.strip() for v in value.split(",") if v.strip()]
@@ -378,7 +378,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
         params = {"bin_ns": round(args.bin_ms * MS)} if args.bin_ms else None
         cache = cache_dir(args.cache, Path(args.out) / "fits")
         where = (None, None) if args.plan else (args.scheduler, args.workers)
-        with fit_executor(*where, cache, progress=not args.plan) as executor:
+        with fit_runner(*where, cache, progress=not args.plan) as executor:
             path = build_report(
                 [Path(d) for d in args.data],
                 Path(args.out),

@@ -6,7 +6,7 @@ on every window with the hyper-parameters most splits chose
 split's, and a data set has a dozen: run one after the other in the report's own process, with
 the workers idle, they took about 10 minutes per tap data set and were trained again by every
 rerun. So they run where the split fits run (the
-:class:`~ext_sense_perception.training.fit_executor.FitExecutor`, on a Dask cluster when one was
+:class:`~ext_sense_perception.training.fit_jobs.FitRunner`, on a Dask cluster when one was
 asked for) and are cached beside them under :func:`deployed_key`; only their timing runs in the
 report's process, one model at a time, never beside a fit. No ROS.
 """

@@ -48,7 +48,7 @@ from ext_sense_perception.reporting.sections import (
     latency_section,
     taxel_section,
 )
-from ext_sense_perception.training.fit_executor import FitExecutor
+from ext_sense_perception.training.fit_jobs import FitRunner
 from ext_sense_perception.training.gru import torch_available
 from ext_sense_perception.training.models import default_choice
 from ext_sense_runtime.stamps import MS
@@ -232,7 +232,7 @@ def build_report(
     n_jobs: int = 1,
     latency: bool = True,
     taxels: bool = True,
-    executor: FitExecutor | None = None,
+    executor: FitRunner | None = None,
     full: bool = False,
     plan: list[dict[str, Any]] | None = None,
     sim_commit: str | None = None,

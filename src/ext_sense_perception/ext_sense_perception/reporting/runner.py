@@ -35,7 +35,7 @@ from ext_sense_perception.reporting.deployed import (
     fit_deployed,
 )
 from ext_sense_perception.training.fit import TrainedModel
-from ext_sense_perception.training.fit_executor import FitExecutor, FitFailure, FitJob, check
+from ext_sense_perception.training.fit_jobs import FitFailure, FitJob, FitRunner, check
 from ext_sense_perception.training.models import MODEL_NAMES, default_feature_grid
 from ext_sense_perception.training.protocol import (
     EvalPlan,
@@ -170,12 +170,12 @@ class Runner:
         records: list[dict[str, Any]],
         base_params: dict[str, Any] | None,
         n_jobs: int,
-        executor: FitExecutor | None = None,
+        executor: FitRunner | None = None,
     ) -> None:
         self.k, self.seed, self.records = k, seed, records
         self.base_params = dict(base_params or {})
         self.n_jobs = n_jobs
-        self.executor = executor or FitExecutor()
+        self.executor = executor or FitRunner()
         self.planning = False
         self.deploying = False  # inside plan_deployed: deployed models are listed, not fitted
         self.final_fits = 0  # deployed models the planned sections ask for (latency columns)

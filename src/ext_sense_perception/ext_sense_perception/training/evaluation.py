@@ -9,7 +9,7 @@ import numpy as np
 from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.online.model_card import jsonable
 from ext_sense_perception.training.fit import fit_model, nominal_rate_hz
-from ext_sense_perception.training.fit_executor import FitExecutor
+from ext_sense_perception.training.fit_jobs import FitRunner
 from ext_sense_perception.training.protocol import evaluate, features_for
 from ext_sense_perception.training.timing import measure_inference
 from ext_sense_runtime.stamps import MS
@@ -26,11 +26,11 @@ def evaluation_record(
     progress: bool,
     rate_hz: float | None,
     timing: bool = True,
-    executor: FitExecutor | None = None,
+    executor: FitRunner | None = None,
 ) -> dict[str, Any]:
     """Run the protocol and (optionally) time a model trained on everything; JSON-ready dict.
 
-    ``executor`` runs the split fits (:mod:`.fit_executor`: here, or on a Dask cluster).
+    ``executor`` runs the split fits (:mod:`.fit_jobs`: here, or on a Dask cluster).
     """
     tf = features_for(ws, features, **params)
     res = evaluate(

@@ -2,9 +2,9 @@
 """The paper's evaluation protocol (no ROS).
 
 K times: a random 90/10 split (stratified for classes); a grid search with 4-fold
-cross-validation on the 90%; refit on all of it; score the 10%. Seeded; tqdm progress bar.
+cross-validation on the 90%; refit on all of it; score the 10%. Seeded.
 Each split is one task (:mod:`.split_fit`) run here or on a Dask cluster
-(:mod:`.fit_executor`), with the same result either way: :func:`plan_evaluation` lists a point's
+(:mod:`.fit_jobs`), with the same result either way: :func:`plan_evaluation` lists a point's
 tasks, :func:`assemble` makes its result from their fits (so a sweep can submit the fits of many
 points at once), and :func:`evaluate` does both for one point.
 
@@ -26,13 +26,12 @@ from sklearn.model_selection import (
     StratifiedShuffleSplit,
 )
 from threadpoolctl import threadpool_limits
-from tqdm import tqdm
 
 from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.maps import FeatureKind
 from ext_sense_perception.features.transformer import FAMILIES, WindowFeatures, make_features
-from ext_sense_perception.training.fit_executor import FitExecutor, FitJob
+from ext_sense_perception.training.fit_jobs import FitJob, FitRunner
 from ext_sense_perception.training.models import head_of, make_pipeline
 from ext_sense_perception.training.split_fit import (
     SplitResult,
@@ -150,7 +149,7 @@ class EvalPlan(NamedTuple):
     keys: list[str]
 
     def job(self) -> FitJob:
-        """The point's fits for a :class:`~.fit_executor.FitExecutor`."""
+        """The point's fits for a :class:`~.fit_jobs.FitRunner`."""
         return FitJob(run_split, self.tasks, self.keys, {"X": self.X, "y": self.y})
 
 
@@ -260,7 +259,7 @@ def evaluate(
     n_jobs: int = 1,
     feature_grid: dict[str, list[Any]] | None = None,
     model_params: dict[str, Any] | None = None,
-    executor: FitExecutor | None = None,
+    executor: FitRunner | None = None,
 ) -> EvalResult:
     """Run the protocol.
 
@@ -271,12 +270,12 @@ def evaluate(
         k: Random splits (default :func:`default_k`).
         test_size: Held-out fraction per split.
         seed: Seed of splits, folds and models.
-        progress: Show a tqdm progress bar (in-process runs without an executor).
+        progress: Show the fits' progress line (runs without an executor).
         n_jobs: Parallel grid-search jobs.
         feature_grid: Feature parameters to search too (keys ``features__<param>``); the
             features are then recomputed inside every fold.
         model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
-        executor: Where the K split fits run and are cached (:mod:`.fit_executor`; default:
+        executor: Where the K split fits run and are cached (:mod:`.fit_jobs`; default:
             here, one after the other, uncached). The result does not depend on it.
 
     Returns:
@@ -288,15 +287,5 @@ def evaluate(
     plan = plan_evaluation(
         ws, features, model, k, test_size, seed, n_jobs, feature_grid, model_params
     )
-    if executor is None:
-        executor = FitExecutor()
-        desc = f"{ws.task} {ws.sensor} {features.kind}+{model}"
-        bar = tqdm(total=len(plan.tasks), desc=desc, disable=not progress, leave=False)
-        splits = []
-        for t, key in zip(plan.tasks, plan.keys, strict=True):
-            splits += executor.map(run_split, [t], [key], X=plan.X, y=plan.y)
-            bar.update()
-        bar.close()
-    else:
-        splits = executor.map(run_split, plan.tasks, plan.keys, X=plan.X, y=plan.y)
-    return assemble(plan, splits)
+    executor = executor or FitRunner(progress=progress)
+    return assemble(plan, executor.map(run_split, plan.tasks, plan.keys, X=plan.X, y=plan.y))

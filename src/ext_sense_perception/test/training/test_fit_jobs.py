@@ -17,13 +17,12 @@ import pytest
 from ext_sense.cli import main
 from ext_sense_perception.data.sources import from_sim_dataset
 from ext_sense_perception.errors import PerceptionError
-from ext_sense_perception.training.fit_executor import (
+from ext_sense_perception.training.fit_jobs import (
     FitCache,
-    FitExecutor,
     FitFailure,
     FitJob,
-    Progress,
-    fit_executor,
+    FitRunner,
+    fit_runner,
 )
 from ext_sense_perception.training.protocol import (
     assemble,
@@ -45,22 +44,22 @@ def _evaluate_json(args: list[str], out: Path) -> dict:
 def test_cache_makes_a_rerun_compute_only_what_changed(tap_npz, tmp_path, capsys):
     ws = from_sim_dataset(tap_npz)
     cache = FitCache(tmp_path / "fits")
-    first = FitExecutor(cache=cache)
+    first = FitRunner(cache=cache)
     a = evaluate(ws, features_for(ws, "fft"), "svm_rbf", k=3, executor=first)
-    assert (first.progress.done, first.progress.cached) == (3, 0)
-    again = FitExecutor(cache=cache)
+    assert (first.done, first.cached) == (3, 0)
+    again = FitRunner(cache=cache)
     b = evaluate(ws, features_for(ws, "fft"), "svm_rbf", k=3, executor=again)
-    assert (again.progress.done, again.progress.cached) == (3, 3)
+    assert (again.done, again.cached) == (3, 3)
     np.testing.assert_array_equal(a.y_pred, b.y_pred)
-    other = FitExecutor(cache=cache)  # another model: its fits only
+    other = FitRunner(cache=cache)  # another model: its fits only
     evaluate(ws, features_for(ws, "fft"), "svm_linear", k=3, executor=other)
     evaluate(ws, features_for(ws, "fft"), "svm_rbf", k=3, executor=other)
-    assert (other.progress.done, other.progress.cached) == (6, 3)
+    assert (other.done, other.cached) == (6, 3)
 
 
 def test_a_failed_fit_keeps_the_others_and_names_the_failure(tmp_path):
     cache = FitCache(tmp_path / "fits")
-    ex = FitExecutor(cache=cache)
+    ex = FitRunner(cache=cache)
 
     def fit(task: int) -> int:
         if task == 2:
@@ -70,38 +69,29 @@ def test_a_failed_fit_keeps_the_others_and_names_the_failure(tmp_path):
     with pytest.raises(PerceptionError, match=r"1 of 3 fits failed .* ValueError: bad split"):
         ex.map(fit, [1, 2, 3], ["k1", "k2", "k3"])
     assert (cache.get("k1"), cache.get("k2"), cache.get("k3")) == (10, None, 30)
-    assert FitExecutor(cache=cache).map(lambda t: t, [1, 3], ["k1", "k3"]) == [10, 30]
+    assert FitRunner(cache=cache).map(lambda t: t, [1, 3], ["k1", "k3"]) == [10, 30]
 
 
-def test_progress_into_a_log_writes_whole_lines_not_carriage_returns(capsys):
-    """A log file (stderr not a terminal, as in CI or ``nohup``) gets readable lines."""
-    progress = Progress(True, workers=2)
-    progress.add(3)
-    for _ in range(3):
-        progress.finish(1.0)  # within LOG_EVERY_S of the first line: not logged
-    progress.close()
-    assert capsys.readouterr().err.splitlines() == [
-        "fits: 0 of 3 done (0 cached), 0 running, 0 failed",
-        "fits: 3 of 3 done (0 cached), 0 running, 0 failed",
+def test_progress_into_a_log_writes_whole_lines_not_carriage_returns(tmp_path, capsys):
+    """A log file (stderr not a terminal, as in CI or ``nohup``) gets readable lines: the first
+    and the last (within ``LOG_EVERY_S`` of each other, nothing between)."""
+    cache = FitCache(tmp_path / "fits")
+    cache.put("k1", 10)
+    FitRunner(cache=cache, progress=True).map(lambda t: t, [1, 2, 3], ["k1", "k2", "k3"])
+    lines = [line.rstrip() for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert [line.split(", about")[0] for line in lines] == [
+        "fits: 1 of 3 done (1 cached), 0 failed",
+        "fits: 3 of 3 done (1 cached), 0 failed",
     ]
-    empty = Progress(True, workers=1)
-    empty.add(1)
-    empty.finish(None, cached=True)
-    empty._logged_at = None  # the next update is logged at once
-    empty.show()
-    empty.close()  # the same state as the line just logged: not written twice
-    assert capsys.readouterr().err.splitlines() == [
-        "fits: 0 of 1 done (0 cached), 0 running, 0 failed",
-        "fits: 1 of 1 done (1 cached), 0 running, 0 failed",
-    ]
+    assert "\r" not in "".join(lines)
 
 
 def test_cluster_options_are_checked():
-    with pytest.raises(PerceptionError, match="not both"), fit_executor("tcp://x:1", 2):
+    with pytest.raises(PerceptionError, match="not both"), fit_runner("tcp://x:1", 2):
         pass
     with (
         pytest.raises(PerceptionError, match="'--workers' option must be >= 1"),
-        fit_executor(None, 0),
+        fit_runner(None, 0),
     ):
         pass
 
@@ -162,7 +152,7 @@ def _same(a, b) -> None:
     assert a.best_params == b.best_params
 
 
-def _all_at_once(ws, executor: FitExecutor) -> list:
+def _all_at_once(ws, executor: FitRunner) -> list:
     plans = [plan_evaluation(ws, features_for(ws, f), m, k=3) for f, m in POINTS]
     outcomes = executor.run_jobs([p.job() for p in plans])
     return [assemble(p, r) for p, r in zip(plans, outcomes, strict=True)]
@@ -171,18 +161,17 @@ def _all_at_once(ws, executor: FitExecutor) -> list:
 def test_points_submitted_together_equal_points_one_by_one(tap_npz):
     ws = from_sim_dataset(tap_npz)
     one_by_one = [evaluate(ws, features_for(ws, f), m, k=3, progress=False) for f, m in POINTS]
-    ex = FitExecutor()
+    ex = FitRunner()
     for a, b in zip(one_by_one, _all_at_once(ws, ex), strict=True):
         _same(a, b)
-    assert (ex.progress.total, ex.progress.done) == (9, 9)
+    assert ex.done == 9
 
 
 @pytest.mark.slow  # starts a local cluster of worker processes
 def test_points_submitted_together_on_a_cluster_equal_points_one_by_one(tap_npz):
     ws = from_sim_dataset(tap_npz)
     one_by_one = [evaluate(ws, features_for(ws, f), m, k=3, progress=False) for f, m in POINTS]
-    with fit_executor(workers=2) as ex:
-        assert ex.window() < 9  # the fits stream: some are submitted as others end
+    with fit_runner(workers=2) as ex:
         together = _all_at_once(ws, ex)
     for a, b in zip(one_by_one, together, strict=True):
         _same(a, b)
@@ -198,7 +187,7 @@ def test_a_failed_fit_in_a_multi_point_run_stays_with_its_point():
         FitJob(fit, [1, 2], ["a1", "a2"], {"offset": 10}),
         FitJob(fit, [3], ["b3"], {"offset": 0}),
     ]
-    first, second = FitExecutor().run_jobs(jobs)
+    first, second = FitRunner().run_jobs(jobs)
     assert first[0] == 11
     assert isinstance(first[1], FitFailure)
     assert second == [3]
@@ -213,12 +202,12 @@ def test_a_job_with_a_store_keeps_its_fits_in_that_subdirectory(tmp_path):
 
     cache = FitCache(tmp_path / "fits")
     jobs = [FitJob(fit, [1], ["k1"], {}), FitJob(fit, [2], ["k2"], {}, "deployed")]
-    assert FitExecutor(cache=cache).run_jobs(jobs) == [[2], [4]]
-    assert (tmp_path / "fits" / "k1" / "k1.pkl").is_file()
-    assert (tmp_path / "fits" / "deployed" / "k2" / "k2.pkl").is_file()
+    assert FitRunner(cache=cache).run_jobs(jobs) == [[2], [4]]
+    assert len(list((tmp_path / "fits").rglob("output.pkl"))) == 2
+    assert len(list((tmp_path / "fits" / "deployed").rglob("output.pkl"))) == 1
     assert "k1" in cache
     assert "k2" not in cache  # the main store holds the split fits only
-    assert FitExecutor(cache=cache).run_jobs(jobs) == [[2], [4]]
+    assert FitRunner(cache=cache).run_jobs(jobs) == [[2], [4]]
     assert calls == [1, 2]  # the rerun found both
 
 
@@ -275,6 +264,8 @@ def test_the_project_code_hash_of_an_svm_leaves_out_other_models_and_precomputed
 
 @pytest.mark.slow  # starts a local cluster of worker processes
 def test_a_fit_lost_with_its_worker_is_run_again_with_its_data_sent_again(tmp_path):
+    """Two workers (on a cluster of one, joblib runs the fits in this process)."""
+
     def fit_that_kills_its_worker_once(task: int, marker: str, data: np.ndarray) -> float:
         """Its first call for task 1 ends its worker process, as a killed or hung worker ends
         on a cluster: the worker's copy of the scattered data goes with it. (Defined here, so
@@ -291,9 +282,9 @@ def test_a_fit_lost_with_its_worker_is_run_again_with_its_data_sent_again(tmp_pa
     marker = str(tmp_path / "killed")
     job = FitJob(fit_that_kills_its_worker_once, [0, 1, 2], ["a", "b", "c"], {"data": data})
     job.data["marker"] = marker
-    with fit_executor(workers=1) as ex:
+    with fit_runner(workers=2) as ex:
         [results] = ex.run_jobs([job])
     assert Path(marker).exists()  # the worker was killed
     assert results == [data.sum() + t for t in (0, 1, 2)]
-    assert ex.progress.failed == 0
-    assert ex.progress.resent >= 1
+    assert ex.failed == 0
+    assert ex.resent >= 1
