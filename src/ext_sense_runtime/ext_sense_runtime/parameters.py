@@ -67,14 +67,18 @@ class ParamSpec:
     def problem(self, value: Any) -> str | None:
         """Why ``value`` is refused (choices, range, the field's check), or ``None``."""
         if self.choices and value not in self.choices:
-            allowed = ", ".join(repr(c) for c in self.choices)
-            return f"parameter '{self.name}' must be one of {allowed}; got {value!r}"
+            return (
+                f"The '{self.name}' parameter must be one of {list(self.choices)}. "
+                f"Got {value!r} instead."
+            )
         if self.low is not None and not self.low <= value <= self.high:
-            return f"parameter '{self.name}' must be in [{self.low}, {self.high}]; got {value!r}"
-        if self.check is not None:
-            reason = self.check(value)
-            if reason:
-                return f"parameter '{self.name}': {reason}"
+            return (
+                f"The '{self.name}' parameter must be in [{self.low}, {self.high}]. "
+                f"Got {value!r} instead."
+            )
+        reason = self.check(value) if self.check is not None else None
+        if reason:
+            return f"The '{self.name}' parameter {reason}. Got {value!r} instead."
         return None
 
 
@@ -99,7 +103,8 @@ def param(
         high: Inclusive upper bound.
         read_only: Refuse changes after start-up.
         choices: The values allowed (strings such as a sensor name).
-        check: Returns why a value is refused, or ``None``/``""`` to accept it.
+        check: Returns why a value is refused (completing "The 'x' parameter ...", e.g.
+            ``"must be a loopback address"``), or ``None``/``""`` to accept it.
         name: The parameter's name when it is not the field's (``franka.state_topic``).
     """
     if (low is None) != (high is None):

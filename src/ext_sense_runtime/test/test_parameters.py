@@ -10,7 +10,7 @@ from ext_sense_runtime.parameters import build, declare_all, param, specs
 
 
 def _not_zero(value: int) -> str | None:
-    return "0 is not a port" if value == 0 else None
+    return "must not be 0" if value == 0 else None
 
 
 @dataclass(frozen=True)
@@ -50,11 +50,14 @@ def test_build_names_the_parameter_that_is_refused():
     assert build(Schema, {"sensor": "biotac", "topics": ["x"]}) == Schema(
         sensor="biotac", topics=("x",)
     )
-    with pytest.raises(ValueError, match="'sensor' must be one of 'nuskin', 'biotac'"):
+    with pytest.raises(
+        ValueError,
+        match=r"The 'sensor' parameter must be one of \['nuskin', 'biotac'\]\. Got 'camera'",
+    ):
         build(Schema, {"sensor": "camera"})
-    with pytest.raises(ValueError, match=r"'rate_hz' must be in \[1.0, 100.0\]"):
+    with pytest.raises(ValueError, match=r"The 'rate_hz' parameter must be in \[1.0, 100.0\]"):
         build(Schema, {"rate_hz": 0.5})
-    with pytest.raises(ValueError, match="'port': 0 is not a port"):
+    with pytest.raises(ValueError, match=r"The 'port' parameter must not be 0\. Got 0 instead\."):
         build(Schema, {"port": 0})
     with pytest.raises(ValueError, match=r"low_hz 5\.0 is above rate_hz 2\.0"):
         build(Schema, {"rate_hz": 2.0, "low_hz": 5.0})
@@ -103,7 +106,7 @@ def test_a_node_declares_validates_and_hands_over_its_config(context):
         assert seen[-1].sensor == "biotac"
         bad = node.set_parameters([Parameter("sensor", value="camera")])[0]
         assert not bad.successful
-        assert "'sensor' must be one of" in bad.reason
+        assert "The 'sensor' parameter must be one of" in bad.reason
         cross = node.set_parameters([Parameter("low_hz", value=50.0)])[0]
         assert not cross.successful
         assert "above rate_hz" in cross.reason
@@ -130,7 +133,7 @@ def test_a_bad_value_at_start_up_is_one_line_naming_the_parameter(context):
         parameter_overrides=[Parameter("sensor", value="camera")],
     )
     try:
-        with pytest.raises(ValueError, match="'sensor' must be one of"):
+        with pytest.raises(ValueError, match="The 'sensor' parameter must be one of"):
             declare_all(node, Schema)
     finally:
         node.destroy_node()
