@@ -76,9 +76,10 @@ def _check_summary(out, lines, pattern, trials, at_least=None):
     return match
 
 
-def test_tap_localization_over_pty(models):
+def test_tap_localization_over_pty_with_a_process_per_node(models):
+    """``hot_path:=processes``: driver, window and inference nodes each in a process."""
     model, _ = models("tap_localization")
-    out, lines = _run_graph("tap_localization", model, 4)
+    out, lines = _run_graph("tap_localization", model, 4, "hot_path:=processes")
     _check_summary(out, lines, SUMMARY_TAP, 4)
     assert sum(x.startswith("tap ") for x in lines) >= 3
 
@@ -93,9 +94,10 @@ def test_tap_localization_over_can(models):
 
 
 def test_tap_localization_with_the_hot_path_in_one_process(models):
-    """``hot_path:=one_process``: driver, window and inference nodes in one node_group process."""
+    """The default ``hot_path:=one_process``: driver, window and inference nodes in one
+    node_group process."""
     model, _ = models("tap_localization")
-    out, lines = _run_graph("tap_localization", model, 4, "hot_path:=one_process")
+    out, lines = _run_graph("tap_localization", model, 4)
     _check_summary(out, lines, SUMMARY_TAP, 4)
     assert "started hot_path: nuskin_driver contact_window contact_inference in one process" in (
         out.stderr

@@ -48,7 +48,14 @@ def tap_model(tmp_path_factory):
 
 
 def _start(tap_model, tmp_path, tag: str) -> Graph:
-    graph = Graph("trials:=0", f"model:={tap_model}", f"port:={tmp_path / f'{tag}.pty'}", "seed:=3")
+    # a process per node: each probe stops or kills one node's process
+    graph = Graph(
+        "trials:=0",
+        f"model:={tap_model}",
+        f"port:={tmp_path / f'{tag}.pty'}",
+        "seed:=3",
+        "hot_path:=processes",
+    )
     assert graph.wait_for_tap(timeout=90), "".join(graph.err)[-3000:]
     return graph
 

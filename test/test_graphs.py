@@ -327,7 +327,7 @@ def test_launch_support_refuses_without_a_model_before_any_node(graph_name, tmp_
     # the task's default model found along the search path goes to both perception nodes
     monkeypatch.setenv("EXT_SENSE_MODELS", str(tmp_path))
     model = write_card(tmp_path / f"{_task_of(graph_name)}_nuskin", _task_of(graph_name))
-    actions = fake.run(graph_name)
+    actions = fake.run(graph_name, hot_path="processes")  # a Node action per node
     node_actions = [a for a in actions if "executable" in getattr(a, "kwargs", {})]
     assert len(node_actions) == len(fake.nodes) == len(GRAPHS[graph_name].nodes())
     perception = [n for n in fake.nodes if n["package"] == "ext_sense_perception"]
@@ -433,7 +433,8 @@ def test_launch_drives_the_lifecycle_drivers_unless_told_not_to(manage, tmp_path
     fake = _FakeLaunch(monkeypatch)
     monkeypatch.setenv("EXT_SENSE_MODELS", str(tmp_path))
     write_card(tmp_path / "tap_localization_nuskin", "tap_localization")
-    actions = fake.run("tap_localization", manage_drivers=manage)
+    # the driver as a process of its own (in the default node_group its process manages it)
+    actions = fake.run("tap_localization", manage_drivers=manage, hot_path="processes")
     drivers = [a for a in actions if isinstance(a, fake.lifecycle_node_type)]
     assert [d.kwargs["executable"] for d in drivers] == ["nuskin_driver"]
     assert drivers[0].kwargs["namespace"] == ""
@@ -486,7 +487,7 @@ def test_hot_path_one_process_groups_driver_window_and_inference(graph_name):
     graph = GRAPHS[graph_name]
     apart = graph.nodes({"hot_path": "processes"})
     assert all(len(specs) == 1 for _, specs in process_groups(apart))
-    assert apart == graph.nodes()  # one process per node is the default
+    assert graph.nodes({"hot_path": "one_process"}) == graph.nodes()  # the default
     for source, hot in (
         ("sim", ["nuskin_driver", "contact_window", "contact_inference"]),
         ("bag", ["contact_window", "contact_inference"]),  # the bag player is the source

@@ -1,13 +1,13 @@
 """Which nodes of a graph share a process: the ``hot_path`` argument and the process groups.
 
-By default every node is its own process, as ``ros2 launch`` starts Python nodes: the graph
-uses both cores and a crash stays in one node. ``hot_path:=one_process`` puts the hot path,
-the sensor driver, ``contact_window`` and ``contact_inference``, in one process on one executor
-(:attr:`~ext_sense.graph.NodeSpec.process` ``"hot_path"``): packets and windows are then
-handed from callback to callback in that process (:mod:`ext_sense_runtime.intra_process`, as
-rclcpp's intra-process comms) instead of through the middleware and two more wake-ups
-(measured in ``docs/runtime.md``, "One process for the hot path": the trade-off is one core
-and one GIL for the three).
+By default (``hot_path:=one_process``) the hot path, the sensor driver, ``contact_window`` and
+``contact_inference``, runs in one process on one executor (``NodeSpec.process`` "hot_path"):
+packets and windows are handed from callback to callback in that process
+(:mod:`ext_sense_runtime.intra_process`, as rclcpp's intra-process comms) instead of through
+the middleware and two more wake-ups; the three share one core and one GIL.
+``hot_path:=processes`` gives every node its own process, as ``ros2 launch`` starts Python
+nodes (a crash stays in one node). The other nodes (simulator, monitor, view, behaviours) are
+a process each either way.
 
 rclpy has no component containers (``ComposableNodeContainer`` loads C++ components only), so
 one process for Python nodes is one executable running several nodes on one executor: the
@@ -36,23 +36,23 @@ HOT_PATH_EXECUTABLES = frozenset(
 PROCESS_ARGUMENTS: tuple[ArgumentSpec, ...] = (
     ArgumentSpec(
         "hot_path",
-        "processes",
-        "processes: every node its own process; one_process: the sensor driver, contact_window "
-        "and contact_inference in one process on one executor (the node_group executable; "
-        "fewer wake-ups per window, but the three share one core and one GIL).",
-        ("processes", "one_process"),
+        "one_process",
+        "one_process: the sensor driver, contact_window and contact_inference in one process on "
+        "one executor (the node_group executable; fewer wake-ups per window, the three share "
+        "one core and one GIL); processes: every node its own process.",
+        ("one_process", "processes"),
     ),
 )
 
 
 def place_hot_path(nodes: tuple[NodeSpec, ...], args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
-    """The graph's nodes with the hot path put in one process when ``hot_path:=one_process``.
+    """The graph's nodes with the hot path put in one process unless ``hot_path:=processes``.
 
     Args:
         nodes: The nodes the graph's build function made.
         args: The graph's resolved arguments.
     """
-    if args.get("hot_path", "processes") != "one_process":
+    if args.get("hot_path", "one_process") != "one_process":
         return nodes
     return tuple(
         replace(n, process=HOT_PATH) if n.executable in HOT_PATH_EXECUTABLES else n for n in nodes

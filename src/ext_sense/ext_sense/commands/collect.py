@@ -103,12 +103,6 @@ def _graph_nodes(args: argparse.Namespace, schedule: list[str], scripted: bool) 
     overrides.setdefault("monitor", "false")
     overrides.setdefault("trials", "0")
     simulated = overrides.get("source", "sim") == "sim"
-    if simulated:
-        # as ext-sense demo: the emulated sensor's hot path in one process. On a slow 2-core
-        # machine a food session's graph of a process per node lost thousands of packets and
-        # its probe faulted (the arm's states late), 3 runs of 3; one process passed 2 of 3
-        # (docs/collect.md)
-        overrides.setdefault("hot_path", "one_process")
     if args.task != "tap_localization":
         overrides.setdefault("behaviours", "true")
         if schedule and simulated:

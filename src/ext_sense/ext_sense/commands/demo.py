@@ -60,10 +60,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--hot-path",
         choices=("one_process", "processes"),
         default="one_process",
-        help="the graph's hot_path: one_process (default; driver, window and inference nodes in "
-        "one process, handing packets and windows over in process: the lowest latency measured "
-        "on a 2-core machine, docs/runtime.md run 8) or processes (a process per node, the "
-        "launch files' default)",
+        help="the graph's hot_path: one_process (default, as the launch files'; driver, window "
+        "and inference nodes in one process, handing packets and windows over in process) or "
+        "processes (a process per node)",
     )
     parser.add_argument("--scene", default="", help="simulator scene (default: the graph's)")
     parser.add_argument(
