@@ -250,6 +250,30 @@ def declare_all(
     return config[0]
 
 
+def declare(
+    node: Node,
+    name: str,
+    default: Any,
+    description: str,
+    *,
+    low: float | int | None = None,
+    high: float | int | None = None,
+    read_only: bool = False,
+) -> Any:
+    """Declare one parameter with a descriptor and return its value (nodes not yet on a schema).
+
+    Raises:
+        ValueError: A range on a non-numeric default, or only one bound.
+    """
+    if (low is None) != (high is None):
+        raise ValueError(f"Parameter '{name}': give both low and high, or neither.")
+    if low is not None and (isinstance(default, bool) or not isinstance(default, int | float)):
+        raise ValueError(f"Parameter '{name}': a range needs a numeric default.")
+    type_name = "double" if isinstance(default, float) else "int"
+    spec = ParamSpec(name, name, type_name, default, description, low, high, read_only, (), None)
+    return node.declare_parameter(name, default, _descriptor(spec)).value
+
+
 def _result(reason: str | None) -> SetParametersResult:
     from rcl_interfaces.msg import SetParametersResult
 
