@@ -3,7 +3,8 @@
 ``ext-sense evaluate`` and ``ext-sense report`` take ``--workers N`` (a local Dask cluster
 started and stopped by the command, one single-threaded worker process per core) or
 ``--scheduler tcp://HOST:PORT`` (an existing cluster whose workers run this project's
-environment); without either, fits run here, one after the other. :meth:`FitRunner.run_jobs`
+environment); without either, or on a cluster of one worker (joblib runs one job in the
+calling process), fits run here, one after the other. :meth:`FitRunner.run_jobs`
 takes the fits of many points at once (a :class:`FitJob` each) and runs them with
 ``joblib.Parallel``, on joblib's Dask backend when there is a cluster (which sends each array
 to the workers once per run). Finished fits are kept in a :class:`FitCache` (``joblib.Memory``)
@@ -27,8 +28,8 @@ from ext_sense_perception.errors import PerceptionError
 
 LOST_FIT_ATTEMPTS = 3
 """Times the fits still to do are sent again after the cluster lost one (a worker killed or
-restarted, the data it held gone with it), their data scattered again, before they count as
-failed."""
+restarted, the data it held gone with it; Dask itself reruns a fit whose worker died up to 3
+times before a ``KilledWorker``), their data scattered again, before they count as failed."""
 
 WORKER_WAIT_S = 300.0
 """How long fits sent again wait for a worker to come back (a restart takes seconds)."""
@@ -46,8 +47,9 @@ class FitCache:
     """Finished fits on disk, by key: ``joblib.Memory`` under ``directory``.
 
     A store name keeps a kind of fit in its own subdirectory. Joblib writes each entry
-    atomically, so a killed run leaves no half-written one. The directory is made by the first
-    :meth:`put`: a refused run leaves nothing.
+    atomically, so a killed run leaves no half-written one, and files it under this module's
+    path and :func:`_kept`'s name (it empties the store when :func:`_kept`'s code changes).
+    The directory is made by the first :meth:`put`: a refused run leaves nothing.
     """
 
     def __init__(self, directory: str | Path) -> None:
