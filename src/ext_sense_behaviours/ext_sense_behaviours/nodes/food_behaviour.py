@@ -19,7 +19,9 @@ ends.
 
 from __future__ import annotations
 
+import functools
 import math
+from dataclasses import dataclass
 from typing import Any
 
 from rclpy.node import Node
@@ -31,166 +33,169 @@ from ext_sense_behaviours.decisions import Decision
 from ext_sense_behaviours.execution import FoodProbe
 from ext_sense_behaviours.food import FOOD_TASK, FoodConfig, FoodMachine, FoodResult, FoodState
 from ext_sense_behaviours.franka import FrankaNames
+from ext_sense_behaviours.nodes.franka_adapter import ACCEPT_TIMEOUT_S, FrankaArmAdapter
 from ext_sense_behaviours.records import ArmState
 from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare_all, param
 from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
 from ext_sense_runtime.records import estimate_of
 from ext_sense_runtime.stamps import S, fill_stamp, stamp_to_ns
+
+ARMS = ("sim", "franka")
+_ro = functools.partial(param, read_only=True)
+
+
+@dataclass(frozen=True)
+class FoodParameters:
+    """``food_behaviour``'s parameters, all read-only.
+
+    ``sim_*`` apply to the simulated arm (``arm`` sim), ``franka.*`` to a franka_ros2 robot.
+    """
+
+    arm: str = param("sim", "Arm adapter: sim or franka.", read_only=True, choices=ARMS)
+    speed_mps: float = _ro(0.01, "Lowering speed, m/s.", low=0.001, high=0.1)
+    contact_threshold_n: float = _ro(10.0, "Contact force norm, N.", low=0.5, high=100.0)
+    contact_consecutive: int = _ro(1, "Samples over the threshold.", low=1, high=10)
+    stop_height_m: float = _ro(0.103, "Preset stop height, m (base frame).", low=-2.0, high=2.0)
+    window_end_s: float = _ro(8.0, "Window end after motion start, s.", low=0.1, high=60.0)
+    classify_timeout_s: float = _ro(
+        5.0, "Wait for the class after the window, s.", low=0.1, high=60.0
+    )
+    max_lowering_s: float = _ro(15.0, "Lowering time limit, s.", low=0.5, high=120.0)
+    max_retract_s: float = _ro(
+        10.0,
+        "How much longer than planned (distance / retract_speed_mps) the retract may take "
+        "before the probe stops and holds, s.",
+        low=0.5,
+        high=120.0,
+    )
+    state_timeout_s: float = _ro(
+        0.5,
+        "Longest gap between arm states while moving before the probe stops and holds, s.",
+        low=0.01,
+        high=10.0,
+    )
+    retract_speed_mps: float = _ro(0.05, "Retract speed, m/s.", low=0.001, high=0.25)
+    accept_provisional: bool = _ro(False, "Accept a provisional class.")
+    control_rate_hz: float = _ro(100.0, "Control loop rate, Hz.", low=1.0, high=1000.0)
+    auto_start: bool = _ro(False, "Start one probe at start-up.")
+    start_subscribers: int = _ro(
+        0,
+        "auto_start waits until motion_start has this many subscribers (the window node, a "
+        "simulated sensor), so none misses the motion start.",
+        low=0,
+        high=100,
+    )
+    repeat_s: float = _ro(
+        0.0, "Start the next probe this long after one ends, s (0: no).", low=0.0, high=3600.0
+    )
+    sim_surface_z_m: float = _ro(
+        0.12, "arm sim: food surface height, m (< 0: none).", low=-1.0, high=2.0
+    )
+    sim_start_z_m: float = _ro(0.16, "arm sim: start height, m.", low=0.0, high=2.0)
+    sim_stiffness_n_per_m: float = _ro(1000.0, "arm sim: food stiffness, N/m.", low=1.0, high=1e6)
+    franka_state_topic: str = _ro(
+        FrankaNames.state_topic, "FrankaRobotState topic.", name="franka.state_topic"
+    )
+    franka_trajectory_action: str = _ro(
+        FrankaNames.trajectory_action,
+        "FollowJointTrajectory action of the arm's joint_trajectory_controller.",
+        name="franka.trajectory_action",
+    )
+    franka_collision_service: str = _ro(
+        FrankaNames.collision_service,
+        "SetFullCollisionBehavior service.",
+        name="franka.collision_service",
+    )
+    franka_error_recovery_action: str = _ro(
+        FrankaNames.error_recovery_action,
+        "ErrorRecovery action.",
+        name="franka.error_recovery_action",
+    )
+    franka_collision_force_n: float = _ro(
+        20.0,
+        "Robot reflex force threshold, N (its contact flag, half of it, also stops the descent).",
+        low=1.0,
+        high=100.0,
+        name="franka.collision_force_n",
+    )
+    franka_accept_timeout_s: float = _ro(
+        ACCEPT_TIMEOUT_S,
+        "Longest wait for the controller to accept a trajectory goal, s.",
+        low=0.1,
+        high=60.0,
+        name="franka.accept_timeout_s",
+    )
+    franka_max_descent_m: float = _ro(
+        0.15,
+        "Length of the planned descent, m (the probe stops it earlier).",
+        low=0.005,
+        high=0.5,
+        name="franka.max_descent_m",
+    )
+
+    def food_config(self) -> FoodConfig:
+        """The probing's config (durations in ns)."""
+        return FoodConfig(
+            speed_mps=self.speed_mps,
+            contact_threshold_n=self.contact_threshold_n,
+            contact_consecutive=self.contact_consecutive,
+            stop_height_m=self.stop_height_m,
+            window_end_ns=round(self.window_end_s * S),
+            classify_timeout_ns=round(self.classify_timeout_s * S),
+            max_lowering_ns=round(self.max_lowering_s * S),
+            max_retract_ns=round(self.max_retract_s * S),
+            state_timeout_ns=round(self.state_timeout_s * S),
+            retract_speed_mps=self.retract_speed_mps,
+            accept_provisional=self.accept_provisional,
+        )
+
+    def franka_names(self) -> FrankaNames:
+        """Where the franka_ros2 interfaces live."""
+        return FrankaNames(
+            self.franka_state_topic,
+            self.franka_trajectory_action,
+            self.franka_collision_service,
+            self.franka_error_recovery_action,
+        )
 
 
 class FoodBehaviourNode(Node):
     """Probes food with a fork held by the arm."""
 
+    PARAMETERS = FoodParameters
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "food_behaviour"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        arm_kind = declare(self, "arm", "sim", "Arm adapter: sim or franka.", read_only=True)
-
-        def d(name: str, default: Any, text: str, low: Any = None, high: Any = None) -> Any:
-            return declare(self, name, default, text, low=low, high=high, read_only=True)
-
-        config = FoodConfig(
-            speed_mps=d("speed_mps", 0.01, "Lowering speed, m/s.", 0.001, 0.1),
-            contact_threshold_n=d(
-                "contact_threshold_n", 10.0, "Contact force norm, N.", 0.5, 100.0
-            ),
-            contact_consecutive=d("contact_consecutive", 1, "Samples over the threshold.", 1, 10),
-            stop_height_m=d(
-                "stop_height_m", 0.103, "Preset stop height, m (base frame).", -2.0, 2.0
-            ),
-            window_end_ns=round(
-                d("window_end_s", 8.0, "Window end after motion start, s.", 0.1, 60.0) * S
-            ),
-            classify_timeout_ns=round(
-                d("classify_timeout_s", 5.0, "Wait for the class after the window, s.", 0.1, 60.0)
-                * S
-            ),
-            max_lowering_ns=round(
-                d("max_lowering_s", 15.0, "Lowering time limit, s.", 0.5, 120.0) * S
-            ),
-            max_retract_ns=round(
-                d(
-                    "max_retract_s",
-                    10.0,
-                    "How much longer than planned (distance / retract_speed_mps) the retract "
-                    "may take before the probe stops and holds, s.",
-                    0.5,
-                    120.0,
-                )
-                * S
-            ),
-            state_timeout_ns=round(
-                d(
-                    "state_timeout_s",
-                    0.5,
-                    "Longest gap between arm states while moving before the probe stops and "
-                    "holds, s.",
-                    0.01,
-                    10.0,
-                )
-                * S
-            ),
-            retract_speed_mps=d("retract_speed_mps", 0.05, "Retract speed, m/s.", 0.001, 0.25),
-            accept_provisional=d("accept_provisional", False, "Accept a provisional class."),
-        )
-        rate_hz = d("control_rate_hz", 100.0, "Control loop rate, Hz.", 1.0, 1000.0)
-        self.auto_start = d("auto_start", False, "Start one probe at start-up.")
-        self.start_subscribers = d(
-            "start_subscribers",
-            0,
-            "auto_start waits until motion_start has this many subscribers (the window node, "
-            "a simulated sensor), so none misses the motion start.",
-            0,
-            100,
-        )
-        self.repeat_ns = round(
-            d(
-                "repeat_s",
-                0.0,
-                "Start the next probe this long after one ends, s (0: no).",
-                0.0,
-                3600.0,
-            )
-            * S
-        )
+        p = declare_all(self, FoodParameters)
+        self.auto_start = p.auto_start
+        self.start_subscribers = p.start_subscribers
+        self.repeat_ns = round(p.repeat_s * S)
         self._done_ns: int | None = None
-        if arm_kind == "sim":
-            surface = d(
-                "sim_surface_z_m", 0.12, "Simulated food surface height, m (< 0: none).", -1.0, 2.0
-            )
+        arm: Any
+        if p.arm == "sim":
             arm = SimulatedArm(
-                start_z_m=d("sim_start_z_m", 0.16, "Simulated start height, m.", 0.0, 2.0),
-                surface_z_m=surface if surface >= 0 else None,
-                stiffness_n_per_m=d(
-                    "sim_stiffness_n_per_m", 1000.0, "Simulated food stiffness, N/m.", 1.0, 1e6
-                ),
+                start_z_m=p.sim_start_z_m,
+                surface_z_m=p.sim_surface_z_m if p.sim_surface_z_m >= 0 else None,
+                stiffness_n_per_m=p.sim_stiffness_n_per_m,
                 clock_ns=lambda: self.get_clock().now().nanoseconds,
             )
-        elif arm_kind == "franka":
-            from ext_sense_behaviours.nodes.franka_adapter import (
-                ACCEPT_TIMEOUT_S,
-                FrankaArmAdapter,
-            )
-
-            defaults = FrankaNames()
-            names = FrankaNames(
-                state_topic=d(
-                    "franka.state_topic", defaults.state_topic, "FrankaRobotState topic."
-                ),
-                trajectory_action=d(
-                    "franka.trajectory_action",
-                    defaults.trajectory_action,
-                    "FollowJointTrajectory action of the arm's joint_trajectory_controller.",
-                ),
-                collision_service=d(
-                    "franka.collision_service",
-                    defaults.collision_service,
-                    "SetFullCollisionBehavior service.",
-                ),
-                error_recovery_action=d(
-                    "franka.error_recovery_action",
-                    defaults.error_recovery_action,
-                    "ErrorRecovery action.",
-                ),
-            )
+        else:
             arm = FrankaArmAdapter(
                 self,
-                names,
-                collision_force_n=d(
-                    "franka.collision_force_n",
-                    20.0,
-                    "Robot reflex force threshold, N (its contact flag, half of it, also stops "
-                    "the descent).",
-                    1.0,
-                    100.0,
-                ),
-                accept_timeout_s=d(
-                    "franka.accept_timeout_s",
-                    ACCEPT_TIMEOUT_S,
-                    "Longest wait for the controller to accept a trajectory goal, s.",
-                    0.1,
-                    60.0,
-                ),
-                max_descent_m=d(
-                    "franka.max_descent_m",
-                    0.15,
-                    "Length of the planned descent, m (the probe stops it earlier).",
-                    0.005,
-                    0.5,
-                ),
+                p.franka_names(),
+                collision_force_n=p.franka_collision_force_n,
+                accept_timeout_s=p.franka_accept_timeout_s,
+                max_descent_m=p.franka_max_descent_m,
                 guard=self.guard,
             )
-        else:
-            raise ValueError(
-                f"The 'arm' parameter must be 'sim' or 'franka'. Got {arm_kind!r} instead."
-            )
         self.arm = arm
-        self.machine = FoodMachine(config, sink=self._on_decision)
+        self.machine = FoodMachine(p.food_config(), sink=self._on_decision)
         self.probe = FoodProbe(
             self.machine,
             arm,
@@ -210,8 +215,8 @@ class FoodBehaviourNode(Node):
         self.create_subscription(Bool, "food/start", self.guard(self._on_start), COMMAND_QOS)
         self._estimate_msgs: dict[int, ContactEstimate] = {}
         self.results = 0
-        self.create_timer(1.0 / rate_hz, self.guard(self._on_timer))
-        self.updater = Updater(hardware_id=f"arm:{arm_kind}")
+        self.create_timer(1.0 / p.control_rate_hz, self.guard(self._on_timer))
+        self.updater = Updater(hardware_id=f"arm:{p.arm}")
         self.updater.add_check("food", self._check)
         self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
