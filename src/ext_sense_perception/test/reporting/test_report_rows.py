@@ -123,6 +123,11 @@ def test_update_replaces_only_the_data_sets_it_evaluates(tmp_path, make_tap_data
     ]
     assert strip(rod30) == strip(first)  # the same rows, from the cache, now at cccc333
     text = (out / "report.md").read_text()
+    order = list(dict.fromkeys(r["rod_m"] for r in rows))
+    assert order == [0.3, 0.5]  # the rows in the sections' order
+    assert text.index("| tap_localization_nuskin_tap_rod30_nuskin | simulator") < text.index(
+        "| tap_localization_nuskin_tap_rod50_nuskin | simulator"
+    )
     headings = [line for line in text.splitlines() if line.startswith("## ")]
     assert headings[0] == "## Data sets"
     assert "tap_rod30_nuskin/dataset.npz" in headings[1]  # replaced in place, before the 50 cm
