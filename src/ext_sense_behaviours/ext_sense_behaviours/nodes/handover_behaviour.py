@@ -24,11 +24,10 @@ from __future__ import annotations
 
 import contextlib
 import math
-from dataclasses import replace
+from dataclasses import dataclass
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from std_msgs.msg import Bool, String
 
@@ -48,130 +47,91 @@ from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare, refused
+from ext_sense_runtime.parameters import declare_all, param
 from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
 from ext_sense_runtime.records import estimate_of
 from ext_sense_runtime.stamps import S, fill_stamp
 
-_CONFIG_PARAMS = {
-    "threshold": "threshold",
-    "consecutive": "consecutive",
-    "accept_provisional": "accept_provisional",
-    "timeout_s": "timeout_ns",
-    "release_timeout_s": "release_timeout_ns",
-}
+
+@dataclass(frozen=True)
+class HandoverParameters:
+    """``handover_behaviour``'s parameters; all but the action and tick rate change live."""
+
+    threshold: float = param(0.8, "P(stable) an estimate must reach, 0..1.", low=0.01, high=1.0)
+    consecutive: int = param(3, "Stable estimates in a row before opening.", low=1, high=50)
+    accept_provisional: bool = param(False, "Let provisional (anytime) estimates count.")
+    timeout_s: float = param(30.0, "Safety timeout while holding, seconds.", low=0.1, high=3600.0)
+    release_timeout_s: float = param(
+        3.0, "Longest wait for the gripper to report open, seconds.", low=0.1, high=60.0
+    )
+    open_position_m: float = param(
+        0.085, "Finger gap of the open goal, m (the 2F-85's stroke).", low=0.0, high=0.5
+    )
+    open_effort_n: float = param(70.0, "max_effort of the open goal, N.", low=0.0, high=1000.0)
+    grasp_on_start: bool = param(
+        True,
+        "Close the ready gripper on the object first (then the handover starts on contact).",
+    )
+    grasp_effort_n: float = param(70.0, "max_effort of the grasp goal, N.", low=0.0, high=1000.0)
+    gripper_action: str = param(
+        "/robotiq_gripper_controller/gripper_cmd",
+        "GripperCommand action of the gripper (our robotiq_gripper or a ros2_control "
+        "GripperActionController).",
+        read_only=True,
+    )
+    regrasp_s: float = param(
+        0.0,
+        "After a release or a timeout, wait this long, grasp again and start the next "
+        "handover, seconds (0: one handover only).",
+        low=0.0,
+        high=3600.0,
+    )
+    auto_start: bool = param(True, "Start when the gripper reports it holds an object.")
+    start_subscribers: int = param(
+        0,
+        "auto_start waits until handover/offer has this many subscribers (a simulated "
+        "person), so none misses the offer.",
+        low=0,
+        high=100,
+    )
+    start_delay_s: float = param(
+        0.0,
+        "auto_start no sooner than this after start-up, seconds (lets the perception "
+        "nodes load their model before the first offer).",
+        low=0.0,
+        high=600.0,
+    )
+    tick_rate_hz: float = param(
+        20.0, "Timeout check rate, Hz.", low=1.0, high=200.0, read_only=True
+    )
+
+    def handover_config(self) -> HandoverConfig:
+        """The decision's config (durations in ns)."""
+        return HandoverConfig(
+            self.threshold,
+            self.consecutive,
+            self.accept_provisional,
+            round(self.timeout_s * S),
+            round(self.release_timeout_s * S),
+        )
 
 
 class HandoverBehaviourNode(Node):
     """Runs the handover state machine on estimates and gripper status."""
 
+    PARAMETERS = HandoverParameters
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "handover_behaviour"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        threshold = declare(
-            self, "threshold", 0.8, "P(stable) an estimate must reach, 0..1.", low=0.01, high=1.0
-        )
-        consecutive = declare(
-            self, "consecutive", 3, "Stable estimates in a row before opening.", low=1, high=50
-        )
-        provisional = declare(
-            self, "accept_provisional", False, "Let provisional (anytime) estimates count."
-        )
-        timeout_s = declare(
-            self, "timeout_s", 30.0, "Safety timeout while holding, seconds.", low=0.1, high=3600.0
-        )
-        release_s = declare(
-            self,
-            "release_timeout_s",
-            3.0,
-            "Longest wait for the gripper to report open, seconds.",
-            low=0.1,
-            high=60.0,
-        )
-        self.open_position_m = declare(
-            self,
-            "open_position_m",
-            0.085,
-            "Finger gap of the open goal, m (the 2F-85's stroke).",
-            low=0.0,
-            high=0.5,
-        )
-        self.open_effort_n = declare(
-            self, "open_effort_n", 70.0, "max_effort of the open goal, N.", low=0.0, high=1000.0
-        )
-        self.grasp_on_start = declare(
-            self,
-            "grasp_on_start",
-            True,
-            "Close the ready gripper on the object first (then the handover starts on contact).",
-        )
-        self.grasp_effort_n = declare(
-            self, "grasp_effort_n", 70.0, "max_effort of the grasp goal, N.", low=0.0, high=1000.0
-        )
-        action = declare(
-            self,
-            "gripper_action",
-            "/robotiq_gripper_controller/gripper_cmd",
-            "GripperCommand action of the gripper (our robotiq_gripper or a ros2_control "
-            "GripperActionController).",
-            read_only=True,
-        )
-        self.gripper = GripperClient(self, action)
+        self.p = declare_all(self, HandoverParameters, self._on_change, self.guard)
+        self.gripper = GripperClient(self, self.p.gripper_action)
         self._object_held = False
         self._grasp_retry_ns = 0
-        regrasp_s = declare(
-            self,
-            "regrasp_s",
-            0.0,
-            "After a release or a timeout, wait this long, grasp again and start the next "
-            "handover, seconds (0: one handover only).",
-            low=0.0,
-            high=3600.0,
-        )
-        self.regrasp_ns = round(regrasp_s * S)
         self._grasp_pending = False
         self._ended_ns: int | None = None
-        self.auto_start = declare(
-            self, "auto_start", True, "Start when the gripper reports it holds an object."
-        )
-        self.start_subscribers = declare(
-            self,
-            "start_subscribers",
-            0,
-            "auto_start waits until handover/offer has this many subscribers (a simulated "
-            "person), so none misses the offer.",
-            low=0,
-            high=100,
-        )
-        self.start_delay_ns = round(
-            declare(
-                self,
-                "start_delay_s",
-                0.0,
-                "auto_start no sooner than this after start-up, seconds (lets the perception "
-                "nodes load their model before the first offer).",
-                low=0.0,
-                high=600.0,
-            )
-            * S
-        )
-        tick_hz = declare(
-            self,
-            "tick_rate_hz",
-            20.0,
-            "Timeout check rate, Hz.",
-            low=1.0,
-            high=200.0,
-            read_only=True,
-        )
         self._started_ns = self._now()
-        self.machine = HandoverMachine(
-            HandoverConfig(
-                threshold, consecutive, provisional, round(timeout_s * S), round(release_s * S)
-            ),
-            sink=self._on_decision,
-        )
-        self.add_on_set_parameters_callback(self.guard.wrap(self._on_set, fallback=refused))
+        self.machine = HandoverMachine(self.p.handover_config(), sink=self._on_decision)
         self.gripper_level = Level.STALE
         self.gripper_message = "no gripper status yet"
         self.estimates = 0
@@ -185,7 +145,7 @@ class HandoverBehaviourNode(Node):
             DiagnosticStatus, "gripper/status", self.guard(self._on_gripper), COMMAND_QOS
         )
         self.create_subscription(Bool, "handover/start", self.guard(self._on_start), COMMAND_QOS)
-        self.create_timer(1.0 / tick_hz, self.guard(self._on_tick))
+        self.create_timer(1.0 / self.p.tick_rate_hz, self.guard(self._on_tick))
         self.updater = Updater(hardware_id="handover")
         self.updater.add_check("handover", self._check)
         self.guard.attach(self.updater)
@@ -194,24 +154,14 @@ class HandoverBehaviourNode(Node):
     def _now(self) -> int:
         return self.get_clock().now().nanoseconds
 
-    def _on_set(self, params: list) -> SetParametersResult:
-        changes = {}
-        for p in params:
-            if p.name in _CONFIG_PARAMS:
-                value = p.value
-                if p.name.endswith("_s"):
-                    value = round(value * S)
-                changes[_CONFIG_PARAMS[p.name]] = value
-            elif p.name in ("open_position_m", "open_effort_n", "grasp_effort_n", "auto_start"):
-                setattr(self, p.name, p.value)
-        if changes:
+    def _on_change(self, new: HandoverParameters) -> str | None:
+        config = new.handover_config()
+        if config != self.machine.config:
             if self.machine.state == HandoverState.RELEASING:
-                return SetParametersResult(successful=False, reason="cannot change while releasing")
-            try:
-                self.machine.config = replace(self.machine.config, **changes)
-            except BehaviourError as err:
-                return SetParametersResult(successful=False, reason=str(err))
-        return SetParametersResult(successful=True)
+                return "cannot change while releasing"
+            self.machine.config = config
+        self.p = new
+        return None
 
     def _on_decision(self, decision: Decision) -> None:
         if decision.state == "HOLDING" and decision.action == "HOLD":  # a handover starts
@@ -230,7 +180,7 @@ class HandoverBehaviourNode(Node):
     def _act(self, decision: Decision | None) -> None:
         if decision is not None and HandoverAction[decision.action] == HandoverAction.OPEN_GRIPPER:
             self.gripper.send(
-                self.open_position_m, self.open_effort_n, self.guard(self._on_open_done)
+                self.p.open_position_m, self.p.open_effort_n, self.guard(self._on_open_done)
             )
 
     def _on_open_done(self, reply: GripperReply) -> None:
@@ -267,9 +217,9 @@ class HandoverBehaviourNode(Node):
         state = self.machine.state
         return state == HandoverState.IDLE or (
             state in (HandoverState.RELEASED, HandoverState.TIMED_OUT)
-            and self.regrasp_ns > 0
+            and self.p.regrasp_s > 0
             and self._ended_ns is not None
-            and now - self._ended_ns >= self.regrasp_ns
+            and now - self._ended_ns >= round(self.p.regrasp_s * S)
         )
 
     def _prepare_next(self, now: int) -> None:
@@ -278,20 +228,20 @@ class HandoverBehaviourNode(Node):
             return
         if self._object_held:
             if (
-                self.auto_start
-                and self.offer_pub.get_subscription_count() >= self.start_subscribers
-                and now - self._started_ns >= self.start_delay_ns
+                self.p.auto_start
+                and self.offer_pub.get_subscription_count() >= self.p.start_subscribers
+                and now - self._started_ns >= round(self.p.start_delay_s * S)
             ):
                 self._act(self.machine.start(now))
         elif (
-            self.grasp_on_start
+            self.p.grasp_on_start
             and not self._grasp_pending
             and now >= self._grasp_retry_ns
             and self.gripper.ready()
         ):
             self._grasp_pending = True
             self.get_logger().info("grasping the object before the handover")
-            self.gripper.send(0.0, self.grasp_effort_n, self.guard(self._on_grasp_done))
+            self.gripper.send(0.0, self.p.grasp_effort_n, self.guard(self._on_grasp_done))
 
     def _on_start(self, msg: Bool) -> None:
         if not msg.data:
