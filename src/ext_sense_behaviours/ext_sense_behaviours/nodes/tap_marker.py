@@ -9,9 +9,9 @@ green when final, red when clamped onto the rod) and its label (id 2, TEXT_VIEW_
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from visualization_msgs.msg import Marker
 
@@ -23,46 +23,41 @@ from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare, refused
+from ext_sense_runtime.parameters import declare_all, param
 from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
 from ext_sense_runtime.records import estimate_of
 
 NS = "tap"
 
 
+@dataclass(frozen=True)
+class TapMarkerParameters:
+    """``tap_marker``'s parameters; all change live."""
+
+    rod_length_m: float = param(
+        0.3, "Rod length, metres (held end at the frame origin).", low=0.01, high=5.0
+    )
+    rod_axis: str = param(
+        "x", "Axis of frame_id along the rod: x, y or z.", choices=("x", "y", "z")
+    )
+    frame_id: str = param("rod", "Frame of the markers (the rod's frame).")
+    min_diameter_m: float = param(
+        0.01, "Smallest tap sphere diameter, metres.", low=0.001, high=0.2
+    )
+    lifetime_s: float = param(
+        0.0, "Tap marker lifetime, seconds (0: until replaced).", low=0.0, high=3600.0
+    )
+
+
 class TapMarkerNode(Node):
     """Publishes each tap estimate as a marker on the rod."""
+
+    PARAMETERS = TapMarkerParameters
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "tap_marker"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        self.rod_length_m = declare(
-            self,
-            "rod_length_m",
-            0.3,
-            "Rod length, metres (held end at the frame origin).",
-            low=0.01,
-            high=5.0,
-        )
-        self.rod_axis = declare(self, "rod_axis", "x", "Axis of frame_id along the rod: x, y or z.")
-        self.frame_id = declare(self, "frame_id", "rod", "Frame of the markers (the rod's frame).")
-        self.min_diameter_m = declare(
-            self,
-            "min_diameter_m",
-            0.01,
-            "Smallest tap sphere diameter, metres.",
-            low=0.001,
-            high=0.2,
-        )
-        self.lifetime_s = declare(
-            self,
-            "lifetime_s",
-            0.0,
-            "Tap marker lifetime, seconds (0: until replaced).",
-            low=0.0,
-            high=3600.0,
-        )
-        self.add_on_set_parameters_callback(self.guard.wrap(self._on_set, fallback=refused))
+        self.p = declare_all(self, TapMarkerParameters, self._on_change, self.guard)
         self.published = 0
         self.dropped = 0
         self.last_text = ""
@@ -72,33 +67,25 @@ class TapMarkerNode(Node):
                 ContactEstimate, topic, self.guard(self._on_estimate), ESTIMATE_QOS
             )
         self.create_timer(1.0, self.guard(self._publish_rod))
-        self.updater = Updater(hardware_id=self.frame_id)
+        self.updater = Updater(hardware_id=self.p.frame_id)
         self.updater.add_check("markers", self._check)
         self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
 
-    def _on_set(self, params: list) -> SetParametersResult:
-        for p in params:
-            if p.name == "rod_axis" and p.value not in ("x", "y", "z"):
-                return SetParametersResult(
-                    successful=False, reason=f"rod_axis must be x, y or z. Got {p.value!r} instead."
-                )
-        for p in params:
-            if p.name in ("rod_length_m", "rod_axis", "frame_id", "min_diameter_m", "lifetime_s"):
-                setattr(self, p.name, p.value)
-        return SetParametersResult(successful=True)
+    def _on_change(self, new: TapMarkerParameters) -> None:
+        self.p = new
 
     def _publish_rod(self) -> None:
-        spec = rod_marker(self.rod_length_m, self.rod_axis)
+        spec = rod_marker(self.p.rod_length_m, self.p.rod_axis)
         stamp = self.get_clock().now().to_msg()
-        self.pub.publish(marker_from_spec(spec, self.frame_id, stamp, NS, 0, Marker.CYLINDER))
+        self.pub.publish(marker_from_spec(spec, self.p.frame_id, stamp, NS, 0, Marker.CYLINDER))
 
     def _on_estimate(self, msg: ContactEstimate) -> None:
         estimate = estimate_of(msg)
         if estimate.task != TAP_TASK:
             return
         try:
-            spec = tap_marker(estimate, self.rod_length_m, self.rod_axis, self.min_diameter_m)
+            spec = tap_marker(estimate, self.p.rod_length_m, self.p.rod_axis, self.p.min_diameter_m)
         except BehaviourError as err:
             self.dropped += 1
             self.get_logger().warning(f"estimate dropped: {err}")
@@ -106,7 +93,7 @@ class TapMarkerNode(Node):
         self._publish_rod()
         self.pub.publish(
             marker_from_spec(
-                spec, self.frame_id, msg.header.stamp, NS, 1, Marker.SPHERE, self.lifetime_s
+                spec, self.p.frame_id, msg.header.stamp, NS, 1, Marker.SPHERE, self.p.lifetime_s
             )
         )
         label = spec._replace(
@@ -117,12 +104,12 @@ class TapMarkerNode(Node):
         self.pub.publish(
             marker_from_spec(
                 label,
-                self.frame_id,
+                self.p.frame_id,
                 msg.header.stamp,
                 NS,
                 2,
                 Marker.TEXT_VIEW_FACING,
-                self.lifetime_s,
+                self.p.lifetime_s,
             )
         )
         self.published += 1
@@ -136,7 +123,7 @@ class TapMarkerNode(Node):
             {
                 "taps_published": self.published,
                 "estimates_dropped": self.dropped,
-                "rod_length_m": self.rod_length_m,
+                "rod_length_m": self.p.rod_length_m,
             },
         )
 
