@@ -72,7 +72,7 @@ from ext_sense_drivers.robotiq import GripperStatus, RobotiqClient, RobotiqError
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare_all, param
 from ext_sense_runtime.qos import COMMAND_QOS
 
 
@@ -96,109 +96,74 @@ class _Goal:
             self.future.set_result(outcome)
 
 
+@dataclass(frozen=True)
+class RobotiqParameters:
+    """``robotiq_gripper``'s parameters; speed, force and goal_timeout_s change live."""
+
+    port: str = param("", "Serial device of the gripper.", read_only=True)
+    baud: int = param(115200, "Baud rate, bit/s.", low=9600, high=921600, read_only=True)
+    slave_id: int = param(9, "Modbus slave id.", low=1, high=247, read_only=True)
+    timeout_s: float = param(
+        0.5, "Reply timeout per exchange, seconds.", low=0.01, high=5.0, read_only=True
+    )
+    retries: int = param(
+        2, "Retries after a missing or corrupt reply.", low=0, high=10, read_only=True
+    )
+    poll_rate_hz: float = param(10.0, "Status poll rate, Hz.", low=0.5, high=100.0, read_only=True)
+    auto_activate: bool = param(True, "Activate the gripper on connect.")
+    speed: float = param(
+        0.5, "Finger speed of GripperCommand goals, 0..1 of maximum.", low=0.0, high=1.0
+    )
+    force: float = param(
+        0.5, "Grip force of goals with no max_effort, 0..1 of maximum.", low=0.0, high=1.0
+    )
+    joint_name: str = param("robotiq_finger_gap", "Joint name in joint_states.", read_only=True)
+    stroke_m: float = param(
+        0.085,
+        "Finger gap fully open, m (2F-85: 0.085, 2F-140: 0.14).",
+        low=0.01,
+        high=0.5,
+        read_only=True,
+    )
+    max_force_n: float = param(
+        235.0, "Grip force at full force setting, N.", low=1.0, high=1000.0, read_only=True
+    )
+    max_speed_m_s: float = param(
+        0.15, "Finger speed at full speed setting, m/s.", low=0.001, high=1.0, read_only=True
+    )
+    goal_timeout_s: float = param(
+        5.0, "Longest time a goal may take before it is aborted, s.", low=0.1, high=60.0
+    )
+    controller_name: str = param(
+        "/robotiq_gripper_controller",
+        "Namespace of the GripperCommand action (<name>/gripper_cmd).",
+        read_only=True,
+    )
+    parallel_controller_name: str = param(
+        "/robotiq_parallel_gripper_controller",
+        "Namespace of the ParallelGripperCommand action (<name>/gripper_cmd).",
+        read_only=True,
+    )
+    autostart: bool = param(
+        True,
+        "Configure and activate this lifecycle node at start-up (ros2 run, tests); the graphs "
+        "set it false and drive the transitions themselves (launch events, ext-sense run), or "
+        "leave them to an external manager (manage_drivers:=false).",
+        read_only=True,
+    )
+
+
 class RobotiqGripperNode(LifecycleNode):
     """Drives one Robotiq 2F gripper (a lifecycle node: see the module docstring)."""
 
+    PARAMETERS = RobotiqParameters
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "robotiq_gripper"), **kwargs)
-        self.port = declare(self, "port", "", "Serial device of the gripper.", read_only=True)
-        baud = declare(
-            self, "baud", 115200, "Baud rate, bit/s.", low=9600, high=921600, read_only=True
-        )
-        slave = declare(self, "slave_id", 9, "Modbus slave id.", low=1, high=247, read_only=True)
-        timeout_s = declare(
-            self,
-            "timeout_s",
-            0.5,
-            "Reply timeout per exchange, seconds.",
-            low=0.01,
-            high=5.0,
-            read_only=True,
-        )
-        retries = declare(
-            self,
-            "retries",
-            2,
-            "Retries after a missing or corrupt reply.",
-            low=0,
-            high=10,
-            read_only=True,
-        )
-        poll_hz = declare(
-            self, "poll_rate_hz", 10.0, "Status poll rate, Hz.", low=0.5, high=100.0, read_only=True
-        )
-        auto_activate = declare(self, "auto_activate", True, "Activate the gripper on connect.")
-        self.speed = declare(
-            self,
-            "speed",
-            0.5,
-            "Finger speed of GripperCommand goals, 0..1 of maximum.",
-            low=0.0,
-            high=1.0,
-        )
-        self.force = declare(
-            self,
-            "force",
-            0.5,
-            "Grip force of goals with no max_effort, 0..1 of maximum.",
-            low=0.0,
-            high=1.0,
-        )
-        self.joint_name = declare(
-            self, "joint_name", "robotiq_finger_gap", "Joint name in joint_states.", read_only=True
-        )
-        self.scale = GripperScale(
-            declare(
-                self,
-                "stroke_m",
-                0.085,
-                "Finger gap fully open, m (2F-85: 0.085, 2F-140: 0.14).",
-                low=0.01,
-                high=0.5,
-                read_only=True,
-            ),
-            declare(
-                self,
-                "max_force_n",
-                235.0,
-                "Grip force at full force setting, N.",
-                low=1.0,
-                high=1000.0,
-                read_only=True,
-            ),
-            declare(
-                self,
-                "max_speed_m_s",
-                0.15,
-                "Finger speed at full speed setting, m/s.",
-                low=0.001,
-                high=1.0,
-                read_only=True,
-            ),
-        )
-        self.goal_timeout_s = declare(
-            self,
-            "goal_timeout_s",
-            5.0,
-            "Longest time a goal may take before it is aborted, s.",
-            low=0.1,
-            high=60.0,
-        )
-        controller = declare(
-            self,
-            "controller_name",
-            "/robotiq_gripper_controller",
-            "Namespace of the GripperCommand action (<name>/gripper_cmd).",
-            read_only=True,
-        )
-        parallel = declare(
-            self,
-            "parallel_controller_name",
-            "/robotiq_parallel_gripper_controller",
-            "Namespace of the ParallelGripperCommand action (<name>/gripper_cmd).",
-            read_only=True,
-        )
-        self.add_on_set_parameters_callback(self._on_set)
+        self.p = p = declare_all(self, RobotiqParameters, self._on_change)
+        self.port = p.port
+        self.scale = GripperScale(p.stroke_m, p.max_force_n, p.max_speed_m_s)
+        controller, parallel = p.controller_name, p.parallel_controller_name
 
         self._lock = threading.Lock()
         self.status: GripperStatus | None = None
@@ -229,10 +194,12 @@ class RobotiqGripperNode(LifecycleNode):
 
         self.worker: GripperWorker | None = None
         self._open_worker = lambda: GripperWorker(
-            lambda: RobotiqClient.open(self.port, baud, timeout_s, slave=slave, retries=retries),
+            lambda: RobotiqClient.open(
+                p.port, p.baud, p.timeout_s, slave=p.slave_id, retries=p.retries
+            ),
             self._on_worker_status,
-            poll_period_s=1.0 / poll_hz,
-            auto_activate=auto_activate,
+            poll_period_s=1.0 / p.poll_rate_hz,
+            auto_activate=self.p.auto_activate,
         )
         if not self.port:
             self.error = (
@@ -244,16 +211,7 @@ class RobotiqGripperNode(LifecycleNode):
         self.updater = Updater(hardware_id=self.port or "no port")
         self.updater.add_check("link", self._check_link)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
-        autostart = declare(
-            self,
-            "autostart",
-            True,
-            "Configure and activate this lifecycle node at start-up (ros2 run, tests); the graphs "
-            "set it false and drive the transitions themselves (launch events, ext-sense run), or "
-            "leave them to an external manager (manage_drivers:=false).",
-            read_only=True,
-        )
-        if autostart:
+        if p.autostart:
             self.trigger_configure()
             self.trigger_activate()
         else:
@@ -312,13 +270,8 @@ class RobotiqGripperNode(LifecycleNode):
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
-    def _on_set(self, params: list) -> Any:
-        from rcl_interfaces.msg import SetParametersResult
-
-        for p in params:
-            if p.name in ("speed", "force", "goal_timeout_s"):
-                setattr(self, p.name, float(p.value))
-        return SetParametersResult(successful=True)
+    def _on_change(self, new: RobotiqParameters) -> None:
+        self.p = new
 
     def _on_cancel(self, _goal_handle: ServerGoalHandle) -> CancelResponse:
         return CancelResponse.ACCEPT
@@ -338,7 +291,7 @@ class RobotiqGripperNode(LifecycleNode):
         velocity = command.velocity[0] if command.velocity else None
         effort = command.effort[0] if command.effort else 0.0
         outcome = await self._carry_out(goal_handle, command.position[0], velocity, effort)
-        state = JointState(name=[self.joint_name], position=[outcome.position_m])
+        state = JointState(name=[self.p.joint_name], position=[outcome.position_m])
         state.effort = [outcome.effort_n]
         state.header.stamp = self.get_clock().now().to_msg()
         return ParallelGripperCommand.Result(
@@ -369,13 +322,13 @@ class RobotiqGripperNode(LifecycleNode):
             why = error or ("not configured" if status is None else describe(status))
             return self._refuse(goal_handle, f"gripper not ready ({why})")
         target = self.scale.position_counts(gap_m)
-        force = self.scale.force_counts(effort_n, _fraction_to_byte(self.force))
-        speed = self.scale.speed_counts(velocity_m_s, _fraction_to_byte(self.speed))
+        force = self.scale.force_counts(effort_n, _fraction_to_byte(self.p.force))
+        speed = self.scale.speed_counts(velocity_m_s, _fraction_to_byte(self.p.speed))
         goal = _Goal(
             goal_handle,
             GripperCommandRequest("move", target, speed, force),
             force / 255 * self.scale.max_force_n,
-            time.monotonic() + self.goal_timeout_s,
+            time.monotonic() + self.p.goal_timeout_s,
             pending=status is None or not status.ready,  # just started: not yet read or active
         )
         with self._lock:
@@ -459,7 +412,7 @@ class RobotiqGripperNode(LifecycleNode):
             msg.values = [KeyValue(key=k, value=v) for k, v in status_to_values(status)]
             msg.values.append(KeyValue(key="link", value="ok" if fresh else "error"))
             joints = JointState(
-                name=[self.joint_name], position=[self.scale.gap_m(status.position)]
+                name=[self.p.joint_name], position=[self.scale.gap_m(status.position)]
             )
             joints.header.stamp = self.get_clock().now().to_msg()
             self.joint_pub.publish(joints)
