@@ -18,8 +18,10 @@ own ``class_label``, when set, is the class of its trials instead.
 
 from __future__ import annotations
 
+import functools
 import queue
 import threading
+from dataclasses import dataclass
 
 from rclpy.node import Node
 
@@ -28,7 +30,7 @@ from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare_all, param
 from ext_sense_runtime.qos import COMMAND_QOS, GROUND_TRUTH_QOS
 from ext_sense_runtime.records import GroundTruth
 from ext_sense_runtime.stamps import fill_stamp, stamp_to_ns
@@ -37,103 +39,66 @@ from ext_sense_sim.scene import load_scene
 from ext_sense_sim.streaming import ALIGNS, StreamStats, Trigger, stream, stream_on_trigger
 
 MODES = ("free", "trigger")
+DEFAULT_SCENES = {"nuskin": "tap_rod30_nuskin", "biotac": "tap_rod30_biotac"}
+_ro = functools.partial(param, read_only=True)
+
+
+@dataclass(frozen=True)
+class SimDeviceParameters:
+    """``sim_device``'s parameters, all read-only."""
+
+    device: str = _ro("nuskin", "Emulated sensor: nuskin or biotac.", choices=tuple(DEFAULT_SCENES))
+    scene: str = _ro(
+        "", "Shipped scene name or scene file path (empty: the 30 cm rod taps of the device)."
+    )
+    link: str = _ro("pty", "Link: pty or can.", choices=("pty", "can"))
+    port_link: str = _ro("", "Path of a symlink to create to the pty (empty: none).")
+    can_channel: str = _ro("ext_sense", "python-can virtual channel.")
+    trials: int = _ro(0, "Trials to stream (0 = forever).", low=0, high=1_000_000)
+    seed: int = _ro(0, "Seed of the stream.", low=0, high=2**31 - 1)
+    trial_period_s: float = _ro(1.0, "Time between trial starts, s.", low=0.01, high=3600.0)
+    mode: str = _ro(
+        "free",
+        "free: trials every trial_period_s from start-up; trigger: trials_per_trigger "
+        "trials per message on 'trigger'.",
+        choices=MODES,
+    )
+    trials_per_trigger: int = _ro(
+        1,
+        "Trials played per trigger (mode trigger), their starts trial_period_s apart.",
+        low=1,
+        high=1000,
+    )
+    labels: str = _ro(
+        "",
+        "Class of the trials of successive triggers, comma separated, cycled (mode "
+        "trigger; e.g. 'stable,unstable'; empty: as the scene draws them).",
+    )
+    align: str = _ro(
+        "start",
+        "Mode trigger: start (the trial starts on the trigger) or onset (its onset, e.g. "
+        "the food motion start, is put at the trigger's stamp).",
+        choices=ALIGNS,
+    )
 
 
 class SimDeviceNode(Node):
     """Emulated tactile device (see module docstring)."""
 
+    PARAMETERS = SimDeviceParameters
+
     def __init__(self, **kwargs: object) -> None:
         super().__init__("sim_device", **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        device = declare(
-            self, "device", "nuskin", "Emulated sensor: nuskin or biotac.", read_only=True
-        )
-        scene_name = declare(
-            self,
-            "scene",
-            "",
-            "Shipped scene name or scene file path (empty: the 30 cm rod taps of the device).",
-            read_only=True,
-        )
-        link = declare(self, "link", "pty", "Link: pty or can.", read_only=True)
-        port_link = declare(
-            self,
-            "port_link",
-            "",
-            "Path of a symlink to create to the pty (empty: none).",
-            read_only=True,
-        )
-        can_channel = declare(
-            self, "can_channel", "ext_sense", "python-can virtual channel.", read_only=True
-        )
-        trials = declare(
-            self,
-            "trials",
-            0,
-            "Trials to stream (0 = forever).",
-            low=0,
-            high=1_000_000,
-            read_only=True,
-        )
-        seed = declare(
-            self, "seed", 0, "Seed of the stream.", low=0, high=2**31 - 1, read_only=True
-        )
-        period = declare(
-            self,
-            "trial_period_s",
-            1.0,
-            "Time between trial starts, s.",
-            low=0.01,
-            high=3600.0,
-            read_only=True,
-        )
-        mode = declare(
-            self,
-            "mode",
-            "free",
-            "free: trials every trial_period_s from start-up; trigger: trials_per_trigger "
-            "trials per message on 'trigger'.",
-            read_only=True,
-        )
-        per_trigger = declare(
-            self,
-            "trials_per_trigger",
-            1,
-            "Trials played per trigger (mode trigger), their starts trial_period_s apart.",
-            low=1,
-            high=1000,
-            read_only=True,
-        )
-        labels = declare(
-            self,
-            "labels",
-            "",
-            "Class of the trials of successive triggers, comma separated, cycled (mode "
-            "trigger; e.g. 'stable,unstable'; empty: as the scene draws them).",
-            read_only=True,
-        )
-        align = declare(
-            self,
-            "align",
-            "start",
-            "Mode trigger: start (the trial starts on the trigger) or onset (its onset, e.g. "
-            "the food motion start, is put at the trigger's stamp).",
-            read_only=True,
-        )
-        if mode not in MODES:
-            raise ValueError(f"The 'mode' parameter must be one of {MODES}. Got {mode!r}.")
-        if align not in ALIGNS:
-            raise ValueError(f"The 'align' parameter must be one of {ALIGNS}. Got {align!r}.")
-        default = {"nuskin": "tap_rod30_nuskin", "biotac": "tap_rod30_biotac"}
-        if device not in default:
-            raise ValueError(f"The 'device' parameter must be nuskin or biotac. Got {device!r}.")
-        self.scene = load_scene(scene_name or default[device])
+        p = declare_all(self, SimDeviceParameters)
+        device, link, can_channel = p.device, p.link, p.can_channel
+        self.scene = load_scene(p.scene or DEFAULT_SCENES[device])
         if self.scene.sensor.label != device:
             raise ValueError(
                 f"The 'scene' parameter names a {self.scene.sensor.label} scene "
                 f"({self.scene.name}) but 'device' is {device!r}."
             )
-        self.sink = open_link(link, link_path=port_link, can_channel=can_channel)
+        self.sink = open_link(link, link_path=p.port_link, can_channel=can_channel)
         self.port = getattr(self.sink, "path", f"can:{can_channel}")
         self.pub = self.create_publisher(ContactGroundTruth, "ground_truth", GROUND_TRUTH_QOS)
         self.stats = StreamStats()
@@ -146,25 +111,25 @@ class SimDeviceNode(Node):
         self.triggers: queue.Queue[Trigger] = queue.Queue()
         self.played = 0
         self._ready = threading.Event()
-        if mode == "trigger":
+        if p.mode == "trigger":
             target, run_args = (
                 self._run_triggered,
                 (
-                    seed,
-                    trials,
-                    period,
-                    per_trigger,
-                    [x.strip() for x in labels.split(",") if x.strip()],
-                    align,
+                    p.seed,
+                    p.trials,
+                    p.trial_period_s,
+                    p.trials_per_trigger,
+                    [x.strip() for x in p.labels.split(",") if x.strip()],
+                    p.align,
                 ),
             )
         else:
-            target, run_args = self._run, (seed, trials, period)
+            target, run_args = self._run, (p.seed, p.trials, p.trial_period_s)
         self._thread = threading.Thread(
             target=target, args=run_args, name="sim_device", daemon=True
         )
         self._thread.start()
-        if mode == "trigger":
+        if p.mode == "trigger":
             # Listen only once the first trial is simulated (a food trial takes about 0.4 s,
             # more when labels skip some): a trigger before that would be played late, the
             # start of its trial in one burst. Whoever triggers waits for this subscription.
