@@ -17,6 +17,8 @@ The physics is :class:`~ext_sense_sim.devices.franka_arm.SimFrankaArm`, stepped 
 
 from __future__ import annotations
 
+import functools
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -30,12 +32,13 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
+from ext_sense_behaviours.franka import FrankaNames
 from ext_sense_behaviours.panda_kinematics import Q_MAX, Q_MIN
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare_all, param
 from ext_sense_runtime.stamps import fill_stamp, stamp_to_ns
 from ext_sense_sim.devices.franka_arm import (
     DEFAULT_THRESHOLDS,
@@ -47,60 +50,65 @@ from ext_sense_sim.devices.franka_arm import (
 
 _MODE_IDLE, _MODE_MOVE, _MODE_REFLEX = 1, 2, 4
 _ERROR_CODE = {TrajectoryState.ABORTED: -4}  # PATH_TOLERANCE_VIOLATED, as the controller reports
+_ro = functools.partial(param, read_only=True)
+
+
+@dataclass(frozen=True)
+class SimArmParameters:
+    """``sim_arm``'s parameters, all read-only; the interface names are franka_ros2's."""
+
+    surface_z_m: float = _ro(0.152, "Food surface height, m (< 0: none).", low=-1.0, high=2.0)
+    stiffness_n_per_m: float = _ro(1000.0, "Surface stiffness, N/m.", low=1.0, high=1e6)
+    force_noise_n: float = _ro(0.05, "Force estimate noise (1 sd per axis), N.", low=0.0, high=10.0)
+    start_x_m: float = _ro(0.45, "End-effector start x, m (base frame).", low=0.2, high=0.7)
+    start_z_m: float = _ro(0.16, "End-effector start height, m (base frame).", low=0.02, high=0.8)
+    rate_hz: float = _ro(100.0, "State rate and physics step, Hz.", low=1.0, high=1000.0)
+    joint_prefix: str = _ro("fr3", "Joint names are <prefix>_joint1..7.")
+    seed: int = _ro(0, "Noise seed.", low=0, high=2**31 - 1)
+    state_topic: str = _ro(FrankaNames.state_topic, "State topic.")
+    collision_service: str = _ro(FrankaNames.collision_service, "SetFullCollisionBehavior service.")
+    trajectory_action: str = _ro(
+        FrankaNames.trajectory_action,
+        "FollowJointTrajectory action of the simulated joint_trajectory_controller.",
+    )
+    error_recovery_action: str = _ro(FrankaNames.error_recovery_action, "ErrorRecovery action.")
 
 
 class SimArmNode(Node):
     """The simulated robot (see module docstring)."""
 
+    PARAMETERS = SimArmParameters
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "sim_arm"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-
-        def d(name: str, default: Any, text: str, low: Any = None, high: Any = None) -> Any:
-            return declare(self, name, default, text, low=low, high=high, read_only=True)
-
-        surface_z = d("surface_z_m", 0.152, "Food surface height, m (< 0: none).", -1.0, 2.0)
+        p = declare_all(self, SimArmParameters)
         surface = SurfaceModel(
-            surface_z_m=surface_z if surface_z >= 0 else None,
-            stiffness_n_per_m=d("stiffness_n_per_m", 1000.0, "Surface stiffness, N/m.", 1.0, 1e6),
-            noise_n=d("force_noise_n", 0.05, "Force estimate noise (1 sd per axis), N.", 0.0, 10.0),
+            surface_z_m=p.surface_z_m if p.surface_z_m >= 0 else None,
+            stiffness_n_per_m=p.stiffness_n_per_m,
+            noise_n=p.force_noise_n,
         )
-        q0 = start_pose(
-            d("start_x_m", 0.45, "End-effector start x, m (base frame).", 0.2, 0.7),
-            d("start_z_m", 0.16, "End-effector start height, m (base frame).", 0.02, 0.8),
-        )
-        rate_hz = d("rate_hz", 100.0, "State rate and physics step, Hz.", 1.0, 1000.0)
-        prefix = d("joint_prefix", "fr3", "Joint names are <prefix>_joint1..7.")
-        self.joint_names = [f"{prefix}_joint{i}" for i in range(1, 8)]
-        self.arm = SimFrankaArm(
-            q0, surface, self._now_ns(), seed=d("seed", 0, "Noise seed.", 0, 2**31 - 1)
-        )
+        q0 = start_pose(p.start_x_m, p.start_z_m)
+        self.joint_names = [f"{p.joint_prefix}_joint{i}" for i in range(1, 8)]
+        self.arm = SimFrankaArm(q0, surface, self._now_ns(), seed=p.seed)
         self._goal: tuple[ServerGoalHandle, Future] | None = None
         self.goals = {"accepted": 0, "rejected": 0, "succeeded": 0, "canceled": 0, "aborted": 0}
         self.threshold_requests = 0
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self.state_pub = self.create_publisher(
             FrankaRobotState,
-            d("state_topic", "/franka_robot_state_broadcaster/robot_state", "State topic."),
+            p.state_topic,
             qos,
         )
         self.create_service(
             SetFullCollisionBehavior,
-            d(
-                "collision_service",
-                "/service_server/set_full_collision_behavior",
-                "SetFullCollisionBehavior service.",
-            ),
+            p.collision_service,
             self.guard(self._on_thresholds),
         )
         self.trajectory_server = ActionServer(
             self,
             FollowJointTrajectory,
-            d(
-                "trajectory_action",
-                "/fr3_arm_controller/follow_joint_trajectory",
-                "FollowJointTrajectory action of the simulated joint_trajectory_controller.",
-            ),
+            p.trajectory_action,
             self._execute_trajectory,
             goal_callback=self._on_goal,
             cancel_callback=self._on_cancel,
@@ -108,10 +116,10 @@ class SimArmNode(Node):
         self.recovery_server = ActionServer(
             self,
             ErrorRecovery,
-            d("error_recovery_action", "/action_server/error_recovery", "ErrorRecovery action."),
+            p.error_recovery_action,
             self._execute_recovery,
         )
-        self.create_timer(1.0 / rate_hz, self.guard(self._tick))
+        self.create_timer(1.0 / p.rate_hz, self.guard(self._tick))
         self.updater = Updater(hardware_id="sim_arm")
         self.updater.add_check("arm", self._check)
         self.guard.attach(self.updater)
