@@ -25,9 +25,11 @@ so anyone who reaches the port sees every channel.
 
 from __future__ import annotations
 
+import functools
 import json
 import time
 from collections import deque
+from dataclasses import dataclass
 from typing import Any
 
 import foxglove
@@ -72,7 +74,7 @@ from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare_all, param
 from ext_sense_runtime.qos import (
     DIAGNOSTICS_QOS,
     ESTIMATE_QOS,
@@ -92,103 +94,68 @@ PASSED = {  # graph topic (relative, remapped by the graph) -> (channel, type, Q
 }
 
 
+_ro = functools.partial(param, read_only=True)
+
+
+@dataclass(frozen=True)
+class ViewParameters:
+    """``foxglove_view``'s parameters, all read-only."""
+
+    sensor: str = _ro("nuskin", "Sensor drawn: 'nuskin' or 'biotac'.", choices=("nuskin", "biotac"))
+    host: str = _ro(
+        "127.0.0.1",
+        "Address the WebSocket server listens on. The protocol has no authentication: "
+        "anything but a loopback address shows every channel to whoever reaches the port.",
+    )
+    port: int = _ro(8765, "TCP port of the server; 0: any free port.", low=0, high=65535)
+    display_rate_hz: float = _ro(15.0, "Frames sent per second, 1/s.", low=1.0, high=30.0)
+    rate_tau_s: float = _ro(
+        0.5, "Smoothing time constant of the taxel rates, s.", low=0.05, high=10.0
+    )
+    dead_after_s: float = _ro(
+        10.0,
+        "A taxel silent this long while its finger fires is marked dead, s.",
+        low=1.0,
+        high=3600.0,
+    )
+    saturation_hz: float = _ro(
+        3800.0,
+        "A taxel at or above this rate is marked saturated, events/s.",
+        low=1.0,
+        high=100000.0,
+    )
+    top_rate_hz: float = _ro(
+        4000.0, "Rate at the top of the colour scale, events/s.", low=1.0, high=100000.0
+    )
+    rod_length_m: float = _ro(
+        0.3,
+        "Rod drawn under a tap estimate when no ground truth gives its length, m.",
+        low=0.01,
+        high=5.0,
+    )
+    match_tolerance_ms: float = _ro(
+        300.0,
+        "Largest onset difference between an estimate and its trial's truth, ms.",
+        low=1.0,
+        high=10000.0,
+    )
+
+
 class FoxgloveViewNode(Node):
     """Draws the graph's topics at display rate and serves them to Foxglove over WebSocket."""
+
+    PARAMETERS = ViewParameters
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "foxglove_view"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        self.sensor = declare(
-            self, "sensor", "nuskin", "Sensor drawn: 'nuskin' or 'biotac'.", read_only=True
-        )
-        if self.sensor not in ("nuskin", "biotac"):
-            raise ValueError(
-                f"The 'sensor' parameter must be 'nuskin' or 'biotac'. Got '{self.sensor}' instead."
-            )
-        host = declare(
-            self,
-            "host",
-            "127.0.0.1",
-            "Address the WebSocket server listens on. The protocol has no authentication: "
-            "anything but a loopback address shows every channel to whoever reaches the port.",
-            read_only=True,
-        )
-        port = declare(
-            self,
-            "port",
-            8765,
-            "TCP port of the server; 0: any free port.",
-            low=0,
-            high=65535,
-            read_only=True,
-        )
-        rate_hz = declare(
-            self,
-            "display_rate_hz",
-            15.0,
-            "Frames sent per second, 1/s.",
-            low=1.0,
-            high=30.0,
-            read_only=True,
-        )
-        tau_s = declare(
-            self,
-            "rate_tau_s",
-            0.5,
-            "Smoothing time constant of the taxel rates, s.",
-            low=0.05,
-            high=10.0,
-            read_only=True,
-        )
-        dead_s = declare(
-            self,
-            "dead_after_s",
-            10.0,
-            "A taxel silent this long while its finger fires is marked dead, s.",
-            low=1.0,
-            high=3600.0,
-            read_only=True,
-        )
-        sat_hz = declare(
-            self,
-            "saturation_hz",
-            3800.0,
-            "A taxel at or above this rate is marked saturated, events/s.",
-            low=1.0,
-            high=100000.0,
-            read_only=True,
-        )
-        self.top_hz = declare(
-            self,
-            "top_rate_hz",
-            4000.0,
-            "Rate at the top of the colour scale, events/s.",
-            low=1.0,
-            high=100000.0,
-            read_only=True,
-        )
-        self.rod_m = declare(
-            self,
-            "rod_length_m",
-            0.3,
-            "Rod drawn under a tap estimate when no ground truth gives its length, m.",
-            low=0.01,
-            high=5.0,
-            read_only=True,
-        )
-        self.tolerance_ns = int(
-            declare(
-                self,
-                "match_tolerance_ms",
-                300.0,
-                "Largest onset difference between an estimate and its trial's truth, ms.",
-                low=1.0,
-                high=10000.0,
-                read_only=True,
-            )
-            * 1e6
-        )
-        self.taxels = TaxelActivity(tau_s, dead_s, sat_hz)
+        p = declare_all(self, ViewParameters)
+        self.sensor = p.sensor
+        host, port, rate_hz = p.host, p.port, p.display_rate_hz
+        self.top_hz = p.top_rate_hz
+        self.rod_m = p.rod_length_m
+        self.tolerance_ns = int(p.match_tolerance_ms * 1e6)
+        self.taxels = TaxelActivity(p.rate_tau_s, p.dead_after_s, p.saturation_hz)
         self.electrodes = ElectrodeActivity()
         self.pac = PacTrace()
         self.pacer = DisplayPacer(rate_hz)
