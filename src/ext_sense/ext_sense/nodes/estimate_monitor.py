@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import rclpy
@@ -28,76 +29,65 @@ from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare_all, param
 from ext_sense_runtime.qos import ESTIMATE_QOS, GROUND_TRUTH_QOS
 from ext_sense_runtime.records import estimate_of, truth_of
+
+
+@dataclass(frozen=True)
+class MonitorParameters:
+    """``estimate_monitor``'s parameters; the writable ones change live."""
+
+    task: str = param("tap_localization", "Task whose estimates are scored.", read_only=True)
+    expected: int = param(
+        30,
+        "Trials to score before printing the summary and exiting; 0: never exit.",
+        low=0,
+        high=1_000_000,
+    )
+    idle_timeout_s: float = param(
+        5.0,
+        "Once 'expected' trials were seen, stop after this long without a message, s.",
+        low=0.1,
+        high=3600.0,
+    )
+    give_up_s: float = param(
+        30.0,
+        "After any activity, stop after this long without "
+        "a message even if trials are missing, s; 0: never.",
+        low=0.0,
+        high=86400.0,
+    )
+    match_tolerance_ms: float = param(
+        300.0,
+        "Largest onset difference between an estimate and its trial, ms.",
+        low=1.0,
+        high=10000.0,
+    )
+    show_provisional: bool = param(
+        False, "Also print the provisional (anytime) estimates.", read_only=True
+    )
+    ground_truth: bool = param(
+        True,
+        "Trials come with ground truth (a simulator or a bag of one); false: count and print "
+        "final estimates unscored, and stop after 'expected' of them.",
+        read_only=True,
+    )
 
 
 class EstimateMonitorNode(Node):
     """Scores estimates against ground truth, prints them, stops after ``expected`` trials."""
 
+    PARAMETERS = MonitorParameters
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "estimate_monitor"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        task = declare(
-            self, "task", "tap_localization", "Task whose estimates are scored.", read_only=True
-        )
-        self.expected = declare(
-            self,
-            "expected",
-            30,
-            "Trials to score before printing the summary and exiting; 0: never exit.",
-            low=0,
-            high=1_000_000,
-        )
-        self.idle_timeout_ns = int(
-            declare(
-                self,
-                "idle_timeout_s",
-                5.0,
-                "Once 'expected' trials were seen, stop after this long without a message, s.",
-                low=0.1,
-                high=3600.0,
-            )
-            * 1e9
-        )
-        self.give_up_ns = int(
-            declare(
-                self,
-                "give_up_s",
-                30.0,
-                "After any activity, stop after this long without "
-                "a message even if trials are missing, s; 0: never.",
-                low=0.0,
-                high=86400.0,
-            )
-            * 1e9
-        )
-        tol_ms = declare(
-            self,
-            "match_tolerance_ms",
-            300.0,
-            "Largest onset difference between an estimate and its trial, ms.",
-            low=1.0,
-            high=10000.0,
-        )
-        self.show_provisional = declare(
-            self,
-            "show_provisional",
-            False,
-            "Also print the provisional (anytime) estimates.",
-            read_only=True,
-        )
-        self.ground_truth = declare(
-            self,
-            "ground_truth",
-            True,
-            "Trials come with ground truth (a simulator or a bag of one); false: count and print "
-            "final estimates unscored, and stop after 'expected' of them.",
-            read_only=True,
-        )
+        self.p = p = declare_all(self, MonitorParameters, self._on_change)
+        self.show_provisional = p.show_provisional
+        self.ground_truth = p.ground_truth
         self.board = Scoreboard(
-            task, match_tolerance_ns=int(tol_ms * 1e6), ground_truth=self.ground_truth
+            p.task, match_tolerance_ns=int(p.match_tolerance_ms * 1e6), ground_truth=p.ground_truth
         )
         self.trials_seen = 0
         self.done = False
@@ -116,10 +106,14 @@ class EstimateMonitorNode(Node):
             ContactGroundTruth, "ground_truth", self.guard(self._on_truth), GROUND_TRUTH_QOS
         )
         self.create_timer(0.2, self.guard(self._on_timer))
-        self.updater = Updater(hardware_id=task)
+        self.updater = Updater(hardware_id=p.task)
         self.updater.add_check("score", self._check)
         self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
+
+    def _on_change(self, new: MonitorParameters) -> None:
+        self.p = new
+        self.board.match_tolerance_ns = int(new.match_tolerance_ms * 1e6)
 
     def _print(self, lines: list[str]) -> None:
         for line in lines:
@@ -148,14 +142,14 @@ class EstimateMonitorNode(Node):
         idle = time.monotonic_ns() - self._last_news
         # without ground truth the estimates are the trials
         seen = self.trials_seen if self.ground_truth else self.board.scored
-        all_seen = self.expected and seen >= self.expected
-        done = all_seen and idle > self.idle_timeout_ns
-        stalled = self.give_up_ns and seen and idle > self.give_up_ns
+        all_seen = self.p.expected and seen >= self.p.expected
+        done = all_seen and idle > self.p.idle_timeout_s * 1e9
+        stalled = self.p.give_up_s and seen and idle > self.p.give_up_s * 1e9
         if done or stalled:
             self._finish()
 
     def _maybe_finish(self) -> None:
-        if self.expected and self.board.scored >= self.expected:
+        if self.p.expected and self.board.scored >= self.p.expected:
             self._finish()
 
     def _finish(self) -> None:
