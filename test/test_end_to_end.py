@@ -3,7 +3,7 @@
 Models are trained once per session on small simulated sets (as the demo does, on events as
 the driver delivers them), so these tests check that the graph works end to end (every trial
 gets a final estimate matched to it, the summary line is printed, the graph stops by itself),
-not how accurate a model trained on a few dozen trials is: docs/runtime.md records accuracy.
+not how accurate a model trained on a few dozen trials is: docs/benchmarks.md records accuracy.
 """
 
 from __future__ import annotations

@@ -62,7 +62,7 @@ confident estimates in a row) needs probabilities that hold on live reads (docs/
 
 JOBS = os.cpu_count() or 1
 """Grid-search jobs of the recipe-trained models and processes cutting the NUSkin handover's
-stream: every core (the same model as one job; docs/runtime.md has the times)."""
+stream: every core (the same model as one job; docs/benchmarks.md has the times)."""
 
 HANDOVER_LATE_READS = 2
 """Extra cuts of the NUSkin handover's training stream by a late reader: its FFT + SVM reads
@@ -84,7 +84,7 @@ BYTES_PER_TRIAL = {
 """Free space asked of a place per training trial of a bundle before training it: about 1.5x
 the NUSkin bundles measured (ONNX graph, joblib pipeline, training windows and the anytime
 models grow with the windows: taps 83 kB, handover trials 1.05 MB with their three cuts, food
-trials 20 kB; docs/runtime.md), an upper bound for the BioTac ones."""
+trials 20 kB; docs/benchmarks.md), an upper bound for the BioTac ones."""
 
 
 def _quiet(_line: str) -> None:
