@@ -1,14 +1,14 @@
 """Choosing and spinning the executor.
 
 ``EventsExecutor`` where rclpy has it (Kilted), else single-threaded: at 4 kHz the
-SingleThreadedExecutor dropped about 5% of messages in measurement while the EventsExecutor with
-a deep history dropped none; Jazzy's rclpy 7.1 has no EventsExecutor.
+SingleThreadedExecutor drops messages where the EventsExecutor with a deep history keeps up;
+Jazzy's rclpy 7.1 has no EventsExecutor.
 
-Never call ``EventsExecutor.spin()`` directly: in rclpy 9.1 it busy-waits (measured 50-70% of a
-core with nothing to do, even with no entities at all) and does not return on SIGINT or SIGTERM,
-while a loop of ``spin_once(timeout_sec)`` idles at 0.2% of a core and ends when a stop is
-requested (the signal handlers of :mod:`ext_sense_runtime.node_main`) or the context is shut
-down. :func:`spin_until_shutdown` is that loop.
+Never call ``EventsExecutor.spin()`` directly: in rclpy 9.1 it busy-waits (most of a core with
+nothing to do; docs/ros2-from-pypi.md) and does not return on SIGINT or SIGTERM, while a loop of
+``spin_once(timeout_sec)`` idles and ends when a stop is requested (the stop handlers of
+:mod:`ext_sense_runtime.stop`) or the context is shut down. :func:`spin_until_shutdown` is
+that loop.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 When the hot path runs in one process (``hot_path:=one_process``), a packet still went from the
 driver's publisher through the middleware to the window node's subscription in the same
 process, and the window likewise to the inference node: each hop a serialisation, a loopback
-delivery and an executor wake-up (0.6-1.8 ms p50 per hop, docs/runtime.md). rclcpp avoids this
+delivery and an executor wake-up (docs/benchmarks.md, run 8). rclcpp avoids this
 for composed nodes (``use_intra_process_comms``); rclpy has no such thing, so this module does
 the same for the hot path's topics:
 

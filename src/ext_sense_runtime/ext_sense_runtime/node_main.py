@@ -226,11 +226,9 @@ def freeze_startup_objects() -> None:
     """Move every object alive now into the collector's permanent generation (``gc.freeze``).
 
     A node's start-up objects (modules, messages, the model) live as long as the process, but
-    each full (generation 2) collection scanned them all again: 17.4 ms for the inference node's
-    49 000 objects, now and then landing on a window (one tap of 60 at 22.7 ms in three of four
-    ``bench_runtime.py --only latency`` runs). Frozen, a full collection scans only what came
-    since: 0.4 ms (82 000 and 48 000 objects frozen in the window and inference nodes). Garbage
-    is collected first, so none of it is kept.
+    each full (generation 2) collection would scan them all again, a pause of milliseconds
+    inside a callback on the hot path. Frozen, a full collection scans only what came since.
+    Garbage is collected first, so none of it is kept.
     """
     gc.collect()
     gc.freeze()

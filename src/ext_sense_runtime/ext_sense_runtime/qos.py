@@ -2,8 +2,8 @@
 
 - Raw tactile streams (event batches, BioTac frames): best effort like
   ``qos_profile_sensor_data`` (a late sample is worthless, and retransmission would add
-  latency), but a deep history: at 4 kHz a burst of 1000 batches is 0.25 s, which measured as
-  enough for zero drops over shared memory with the EventsExecutor.
+  latency), but a deep history: at 4 kHz a burst of 1000 batches is 0.25 s, enough for no
+  drop at the worst-case input (``bench/bench_runtime.py --only worst``).
 - Contact windows, estimates and commands: reliable with an explicit depth; each is rare and
   each matters. Estimates are transient-local-free so late joiners do not act on stale contact.
 - Ground truth: reliable, deep (one per trial, recorded beside the data).

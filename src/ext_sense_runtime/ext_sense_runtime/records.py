@@ -151,8 +151,8 @@ class Estimate(NamedTuple):
         class_names: The model's classes.
         class_probabilities: Probabilities in the order of ``class_names``.
         stability_probability: P(stable grasp), 0..1.
-        degraded: Not a normal estimate: its window held a stall or a late packet, or it was
-            ready after the inference node's deadline.
+        degraded: Not a normal estimate: its window missed data (a stall or lost input), or
+            it was ready after the inference node's deadline.
         degraded_reason: Why (empty when not degraded).
     """
 

@@ -1,12 +1,10 @@
 """Ends a node process whose middleware teardown hangs, even while that hang holds the GIL.
 
-``test_shutdown`` runs showed node processes (``sim_device``, ``estimate_monitor``) that stopped
-their own work and then hung for good inside rclpy's ``Node.destroy_node``, in the C++ call
-that destroys the middleware node (``destroy_when_not_in_use``), until ``ext-sense run`` killed
-them 5 s after the SIGINT (docs/runtime.md, "Stopping a graph"). That call does not release
-the GIL: the stacks ``faulthandler`` printed on the runner's signal showed a Python timer thread
-that had been due seconds before still waiting for it. So nothing written in Python can run
-during such a hang, and the guard uses two things that need no GIL:
+A node process may finish its own work and then hang for good inside rclpy's
+``Node.destroy_node``, in the C++ call that destroys the middleware node
+(``destroy_when_not_in_use``), until ``ext-sense run`` kills it 5 s after the SIGINT
+(docs/runtime.md, "Stopping a graph"). That call does not release the GIL, so nothing written
+in Python can run during such a hang, and the guard uses two things that need no GIL:
 
 - ``faulthandler.dump_traceback_later``: every thread's stack after :data:`TEARDOWN_LIMIT_S`,
   for a hang anywhere in the teardown (the C watchdog thread of ``faulthandler``);
