@@ -3,11 +3,11 @@
 A powered NUSkin receiver sends words all the time (its idle stream: about 540 words/s on the
 real captures of April 2021, never silent for more than 40 ms), a BioTac bridge sends every
 sensor's frame at 100 Hz whatever touches it. So while the link is up and the node streams,
-silence means the device, the cable or the receiver stopped: a stall. Before this, such a stall
-left every ``/diagnostics`` status OK (the rate checks average over seconds, the link stays
-"connected" while a pty or USB device sends nothing), and the contacts inside it vanished with
-no word. The window node cannot tell a stopped event sensor from an idle one; the driver can,
-because it knows the idle stream.
+silence means the device, the cable or the receiver stopped: a stall. Nothing else reports it
+(the rate checks average over seconds, the link stays "connected" while a pty or USB device
+sends nothing), and the contacts inside it would vanish with no word. The window node cannot
+tell a stopped event sensor from an idle one; the driver can, because it knows the idle
+stream.
 
 :class:`StreamWatch` follows one stream (the NUSkin words or ACES line samples, one BioTac
 sensor's frames); :class:`DriverLiveness` reports all of a driver's watches as one status.

@@ -11,7 +11,7 @@ Error bound: with a receiver that sends each word as it happens, a word's stamp 
 arrival at the host lie in the same interval ``(t_prev, t_read]``, so the stamp error is less
 than the read interval ``t_read - t_prev``. While events flow, a read returns as soon as a byte is
 waiting, so the interval is the reader loop's period (tens of microseconds to about a
-millisecond measured on this machine; see docs/nuskin.md); after an idle line the interval can be
+millisecond; docs/nuskin.md); after an idle line the interval can be
 as long as the read timeout, so the spread is capped at ``max_spread_ns`` (default: the time the
 serial link needs to carry the read's bytes, but at least 1 ms): bursts after silence are then
 stamped within the cap before the read. The constant latency from the taxel to the host (receiver

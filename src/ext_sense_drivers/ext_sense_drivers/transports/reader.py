@@ -69,7 +69,7 @@ class StreamReader:
         backoff: Reconnect delays.
         read_timeout_s: Longest single read; bounds how late :meth:`stop` takes effect. A read
             returns with the first byte, so it does not delay data; it is how often a silent
-            link wakes this thread (0.2 s: part of an idle driver's cost, issue #16).
+            link wakes this thread (part of an idle driver's cost).
         max_pending_bytes: Queue bound in bytes.
         on_data: Called from the reader thread after each queued chunk (e.g. to wake an
             executor); must be quick and must not raise. Public (:attr:`on_data`): a node
@@ -79,11 +79,10 @@ class StreamReader:
             (:func:`~ext_sense_drivers.transports.scheduling.raise_thread_priority`); what it
             got is in :attr:`scheduling`, and a refusal is logged once (``logging``, WARNING).
             The words carry no time, so how soon this thread runs after a read returns is
-            the stamp's error (issue #16, ``bench/bench_arrival.py``). The thread that calls
-            :meth:`start` (the node's executor, which drains this reader) is raised too,
-            :data:`DRAINER_STEP` lower (:attr:`drainer_scheduling`): both take Python's GIL,
-            and a real-time reader behind a drainer that the load preempts while it holds the
-            GIL waits for it, which measured worse than no priority at all.
+            the stamp's error. The thread that calls :meth:`start` (the node's executor,
+            which drains this reader) is raised too, :data:`DRAINER_STEP` lower
+            (:attr:`drainer_scheduling`): both take Python's GIL, and a real-time reader
+            behind a drainer that the load preempts while it holds the GIL waits for it.
     """
 
     def __init__(

@@ -1,8 +1,8 @@
 """The best scheduling the machine allows for one thread: SCHED_FIFO, else a raised nice.
 
 The NUSkin words carry no time: the reader thread stamps each read when it returns, so every
-millisecond the thread waits for a core is a millisecond of stamp error (issue #16 measured
-11-45 % of events landing in another 1 ms bin). A real-time policy lets the reader preempt
+millisecond the thread waits for a core is a millisecond of stamp error (docs/benchmarks.md,
+"Reader priority and the arrival clock"). A real-time policy lets the reader preempt
 ordinary work the moment its read returns. Not every machine grants one: SCHED_FIFO needs
 ``CAP_SYS_NICE`` or a non-zero ``RLIMIT_RTPRIO`` (``ulimit -r``), a lower nice needs
 ``CAP_SYS_NICE`` or ``RLIMIT_NICE``. :func:`raise_thread_priority` tries them in that order and
