@@ -21,6 +21,7 @@ cannot be created).
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import Any
 
 from rclpy.node import Node
@@ -32,7 +33,7 @@ from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare_all, param
 
 
 def subscription_qos(topic: str) -> QoSProfile:
@@ -47,44 +48,45 @@ def subscription_qos(topic: str) -> QoSProfile:
     )
 
 
+@dataclass(frozen=True)
+class RecorderParameters:
+    """``recorder``'s parameters, all read-only."""
+
+    bag: str = param("", "Directory of the new bag (must not exist).", read_only=True)
+    storage: str = param("mcap", "Storage plugin: mcap or sqlite3.", read_only=True)
+    topics: tuple[str, ...] = param(
+        tuple(sorted(STANDARD_TOPICS)),
+        "Topics to record; types from the standard table or discovered from the graph.",
+        read_only=True,
+    )
+    discover_period_s: float = param(
+        0.5,
+        "How often topics of unknown type are looked up, s.",
+        low=0.05,
+        high=60.0,
+        read_only=True,
+    )
+    flush_period_s: float = param(
+        1.0,
+        "Longest time between writes to the disk (mcap chunk closed, sqlite3 commit), s: "
+        "what a killed recorder can lose.",
+        low=0.05,
+        high=10.0,
+        read_only=True,
+    )
+
+
 class RecorderNode(Node):
     """Records the given topics into a new bag until shut down."""
+
+    PARAMETERS = RecorderParameters
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "recorder"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        self.path = declare(
-            self, "bag", "", "Directory of the new bag (must not exist).", read_only=True
-        )
-        storage = declare(
-            self, "storage", "mcap", "Storage plugin: mcap or sqlite3.", read_only=True
-        )
-        topics = declare(
-            self,
-            "topics",
-            sorted(STANDARD_TOPICS),
-            "Topics to record; types from the standard table or discovered from the graph.",
-            read_only=True,
-        )
-        self.discover_s = declare(
-            self,
-            "discover_period_s",
-            0.5,
-            "How often topics of unknown type are looked up, s.",
-            low=0.05,
-            high=60.0,
-            read_only=True,
-        )
-        self.flush_period_s = declare(
-            self,
-            "flush_period_s",
-            1.0,
-            "Longest time between writes to the disk (mcap chunk closed, sqlite3 commit), s: "
-            "what a killed recorder can lose.",
-            low=0.05,
-            high=10.0,
-            read_only=True,
-        )
+        p = declare_all(self, RecorderParameters)
+        self.path, storage, topics = p.bag, p.storage, list(p.topics)
+        self.discover_s, self.flush_period_s = p.discover_period_s, p.flush_period_s
         self.failed = ""
         """Why recording stopped ('' while it records)."""
         self.not_recorded = 0
