@@ -11,14 +11,12 @@ left out of the graph (the bench itself is their source).
 1. Latency: the graph's ``contact_window`` and ``contact_inference`` (``monitor:=false``); this
    process is the sensor: synthetic taps (80 taxels firing at 4 kHz for 40 ms, over a
    receiver's idle stream of 540 words/s) at real-time pace, stamped with the host clock.
-   ``--input packets`` (the default) publishes them as ``nuskin_driver`` does: its encoding and
-   options, its ``PacketPacker`` and message code, one ``SensorPacket`` per 1 ms drain holding
-   that ms's reads (4 per ms), and when nothing was read its empty "nothing read" packet (for
-   ``quiet_packets_s`` after the last bytes; none for a ``--baseline`` tree from before them),
-   on ``/extsense/nuskin/packets`` (``source:=serial`` without the driver: the window node
-   decodes the packets as live);
-   ``--input decoded`` publishes ``TaxelEventBatch`` per ms on ``/extsense/nuskin/events`` as
-   before packets (``source:=bag`` with an empty bag: the window node reads decoded batches).
+   It publishes them as ``nuskin_driver`` does: its encoding and options, its ``PacketPacker``
+   and message code, one ``SensorPacket`` per 1 ms drain holding that ms's reads (4 per ms),
+   and when nothing was read its empty "nothing read" packet on the driver's cadence
+   (``quiet_packets_period_s``; none for a ``--baseline`` tree from before them), on
+   ``/extsense/nuskin/packets`` (``source:=serial`` without the driver: the window node
+   decodes the packets as live).
    Per final estimate it measures the wall time from the end of the window (onset + 250 ms) to
    the estimate arriving here, beside the model's own compute on the same windows (features +
    ONNX here, ``latency_figures.py``). Targets (#16): p50 <= compute + 1 ms, p99 <= 5 ms quiet,
@@ -94,8 +92,9 @@ def bench_latency(
 ) -> dict:
     """One latency run: ``run`` gives its ``input``, ``load`` and ``hot_path``.
 
-    ``quiet_s``: how long after its last bytes the bench, as the driver, says it read nothing
-    (``quiet_packets_s``; ``None``: the driver's default, 0: not at all, as before it could).
+    ``quiet_s``: how often the bench, as the driver, says it read nothing while no bytes come
+    (``quiet_packets_period_s``; ``None``: the driver's default, 0: not at all, as before it
+    could).
     """
     import rclpy
     from rclpy.node import Node
@@ -110,14 +109,9 @@ def bench_latency(
     model_dir, how = latency_model(model, train_taps, tmp)
     card = read_card(model_dir)
     overrides = {"sensor": "nuskin", "monitor": "false", "model": str(model_dir)}
-    if run["input"] == "packets":
-        # the bench is the driver: source:=serial without nuskin_driver; the window node
-        # reads packets as it does live
-        overrides.update(source="serial", port=str(tmp / "bench_runtime.pty"))
-    else:
-        # the bench is the bag player of a bag recorded before packets: an empty ``bag``
-        # makes the window node read decoded batches
-        overrides.update(source="bag")
+    # the bench is the driver: source:=serial without nuskin_driver; the window node reads
+    # packets as it does live
+    overrides.update(source="serial", port=str(tmp / "bench_runtime.pty"))
     overrides["hot_path"] = run["hot_path"]
     load_before = os.getloadavg()[0]
     hog = start_hog(os.cpu_count() or 2) if run["load"] == "hog" else []
@@ -188,13 +182,13 @@ def bench_latency(
     field = [stamp_to_ns(m.compute_latency) / MS for _, m in finals]
     p50, p99 = pct(e2e)
     f50, f99 = pct(field)
-    work = node_work(model_dir, sent if run["input"] == "packets" else batches, run["input"])
+    work = node_work(model_dir, sent)
     c50, c99 = pct(work.compute)
     cut50, cut99 = pct(work.cut)
     out = {
         **run,
         "tree": "baseline" if pythonpath else "this tree",
-        "quiet_packets_s": source.quiet_s,
+        "quiet_packets_period_s": source.quiet_s,
         "load_average_before": load_before,
         "load_average_1min": os.getloadavg()[0],
         "model_compute_p50_ms": c50,
@@ -382,12 +376,6 @@ def main() -> int:
         "by side)",
     )
     parser.add_argument(
-        "--input",
-        default="packets",
-        help="latency: what the bench publishes, comma separated: packets (SensorPacket, as "
-        "the driver; the window node decodes) and/or decoded (TaxelEventBatch, as before)",
-    )
-    parser.add_argument(
         "--load",
         default="quiet,hog",
         help="latency: quiet and/or hog (one busy-looping process per core, started and "
@@ -418,7 +406,7 @@ def main() -> int:
                 trees.insert(0, (baseline_path(args.baseline), None if says_quiet else 0.0))
             results["latency"] = []
             for load in _listed(args.load):
-                for kind in _listed(args.input):
+                for kind in ("packets",):
                     for hot_path in _listed(args.hot_path):
                         for path, quiet_s in trees:
                             run = {"input": kind, "load": load, "hot_path": hot_path}

@@ -119,54 +119,39 @@ def latency_model(model: str, train_taps: int, tmp: Path) -> tuple[Path, str]:
 class Source:
     """The bench as the sensor driver: the stream's messages, built when each is due.
 
-    ``packets``: as ``nuskin_driver`` publishes (``SensorPacket``, its encoding and options,
-    its packer and message code; one packet per 1 ms drain with the reads of that ms, and when
-    nothing was read its quiet timer's "nothing read" packet on the driver's schedule,
-    :class:`~ext_sense_drivers.packets.QuietSchedule`: every ms for ``quiet_packets_fast_s``
-    after the last bytes, then every ``quiet_packets_period_s`` up to ``quiet_packets_s``).
-    ``decoded``: ``TaxelEventBatch`` per ms (the
-    path before packets).
+    As ``nuskin_driver`` publishes (``SensorPacket``, its encoding and options, its packer and
+    message code; one packet per 1 ms drain with the reads of that ms, and when nothing was read
+    its quiet timer's "nothing read" packet on the driver's cadence,
+    :class:`~ext_sense_drivers.packets.QuietSchedule`, every ``quiet_packets_period_s``).
     """
 
     def __init__(self, kind: str, batches: list[Batch], quiet_s: float | None = None) -> None:
-        from ext_sense.graphs import TOPIC_EVENTS
         from ext_sense.topics import SENSOR_PACKETS
         from ext_sense_drivers.nodes.nuskin_driver import packet_encoding
         from ext_sense_drivers.nuskin.driver_config import DriverConfig
-        from ext_sense_drivers.packets import QUIET_PACKETS_S, PacketPacker, QuietSchedule
-        from ext_sense_msgs.msg import SensorPacket, TaxelEventBatch
+        from ext_sense_drivers.packets import QUIET_PACKETS_PERIOD_S, PacketPacker, QuietSchedule
+        from ext_sense_msgs.msg import SensorPacket
 
         self.kind, self.batches = kind, batches
-        self.quiet_s = QUIET_PACKETS_S if quiet_s is None else quiet_s
-        if kind == "packets":
-            self.type, self.topic = SensorPacket, SENSOR_PACKETS["nuskin"]
-            self.packer = PacketPacker(*packet_encoding(DriverConfig(baud=BAUD)))
-            self.reads = [batch_reads(b) for b in batches]
-            self.quiet = QuietSchedule(self.quiet_s)
-        else:
-            self.type, self.topic = TaxelEventBatch, TOPIC_EVENTS
+        self.quiet_s = QUIET_PACKETS_PERIOD_S if quiet_s is None else quiet_s
+        self.type, self.topic = SensorPacket, SENSOR_PACKETS["nuskin"]
+        self.packer = PacketPacker(*packet_encoding(DriverConfig(baud=BAUD)))
+        self.reads = [batch_reads(b) for b in batches]
+        self.quiet = QuietSchedule(self.quiet_s)
 
     def messages(self, i: int, stamp_ns: int) -> list[tuple[Any, int]]:
         """Batch ``i`` (starting at wall ``stamp_ns``): ``(message, stream time it completes)``."""
         from ext_sense_drivers.nodes.link_node import packet_message
         from ext_sense_drivers.transports.base import Chunk
-        from ext_sense_runtime.stamps import fill_stamp
 
-        if self.kind == "packets":
-            chunks = [(1, Chunk(data, stamp_ns + t)) for t, data in self.reads[i]]
-            packets = self.packer.pack(chunks, False)
-            drain_ns = stamp_ns + MS  # the driver drains at the end of the ms
-            if chunks:
-                self.quiet.on_bytes(drain_ns)
-            elif self.quiet.due(drain_ns):  # the driver's quiet timer: nothing read, it says so
-                packets = [self.packer.nothing_read(drain_ns)]
-            return [(packet_message(p, "nuskin"), p.end_ns) for p in packets]
-        msg = self.type()
-        fill_stamp(msg.header.stamp, stamp_ns)
-        ev = self.batches[i].events
-        msg.taxel, msg.polarity, msg.value, msg.offset_ns = ev.taxel, ev.polarity, ev.value, ev.t_ns
-        end = stamp_ns + (int(ev.t_ns.max()) if ev.size else 0)
-        return [(msg, end)]
+        chunks = [(1, Chunk(data, stamp_ns + t)) for t, data in self.reads[i]]
+        packets = self.packer.pack(chunks, False)
+        drain_ns = stamp_ns + MS  # the driver drains at the end of the ms
+        if chunks:
+            self.quiet.on_bytes(drain_ns)
+        elif self.quiet.due(drain_ns):  # the driver's quiet timer: nothing read, it says so
+            packets = [self.packer.nothing_read(drain_ns)]
+        return [(packet_message(p, "nuskin"), p.end_ns) for p in packets]
 
 
 class NodeWork(NamedTuple):
@@ -178,14 +163,13 @@ class NodeWork(NamedTuple):
     """The model: features + ONNX Runtime on the window."""
 
 
-def node_work(model_dir: Path, inputs: list[Any], feed: str) -> NodeWork:
+def node_work(model_dir: Path, inputs: list[Any]) -> NodeWork:
     """The nodes' own work per final window, replayed here on the run's inputs.
 
     The windows are cut by the window node's core
     (:class:`~ext_sense_perception.online.stage.WindowStage`, the model card's profile) from
-    ``inputs``: ``SensorPacket`` messages (``feed`` ``"packets"``, ``on_packet``: decode and
-    cut) or :class:`Batch` es (``"decoded"``, ``on_block``); three warm-up predictions are not
-    counted.
+    ``inputs``, ``SensorPacket`` messages (``on_packet``: decode and cut); three warm-up
+    predictions are not counted.
     """
     from ext_sense_perception.online.model_card import read_card
     from ext_sense_perception.online.predictor import load_model
@@ -198,11 +182,7 @@ def node_work(model_dir: Path, inputs: list[Any], feed: str) -> NodeWork:
     finals, cut = [], []
     for item in inputs:
         t0 = time.perf_counter_ns()
-        if feed == "packets":
-            windows = stage.on_packet(item)
-        else:
-            ev = item.events
-            windows = stage.on_block(ev._replace(t_ns=ev.t_ns + item.stamp_ns), item.stamp_ns)
+        windows = stage.on_packet(item)
         spent = (time.perf_counter_ns() - t0) / MS
         done = [w for w in windows if not w.provisional]
         finals += done

@@ -414,14 +414,45 @@ def test_the_launch_file_refuses_bad_arguments_as_run_does(monkeypatch):
     assert fake.nodes == []
 
 
+def _one_message_bag(path, topic, msg):
+    from ext_sense_bags import BagWriter
+
+    with BagWriter(path) as bag:
+        bag.write(topic, 1_000_000_000, msg)
+    return path
+
+
 def test_good_numbers_and_existing_files_pass(tmp_path):
+    from ext_sense_bags.messages import sensor_packet
+
+    from ext_sense_drivers.packets import NUSKIN_WORDS_V1, PacketPacker
+
     graph = GRAPHS["handover"]
-    bag = tmp_path / "bag"
-    bag.mkdir()
+    packet = PacketPacker(NUSKIN_WORDS_V1).opened(1, 1_000_000_000)
+    bag = _one_message_bag(tmp_path / "bag", "/extsense/nuskin/packets", sensor_packet(packet))
     values = graph.resolve({"trials": " 0", "seed": "4294967295", "handover_timeout_s": "2.5"})
     graph.check_files({**values, "port": str(tmp_path / "x.pty")})
     graph.check_files({**values, "source": "bag", "bag": str(bag)})
     graph.check_files({**values, "source": "serial", "port": "/dev/not_plugged_in_yet"})
+
+
+def test_a_bag_without_packets_is_refused_naming_the_migration():
+    """A bag of decoded arrays from before packets feeds no graph: it is migrated first."""
+    import tempfile
+
+    from ext_sense_bags import taxel_event_batch
+
+    graph = GRAPHS["tap_localization"]
+    values = graph.resolve({"source": "bag"})
+    with tempfile.TemporaryDirectory() as tmp:
+        batch = taxel_event_batch(1_000_000_000, [3], [1], [10], [0])
+        old = _one_message_bag(Path(tmp) / "old", "/extsense/nuskin/events", batch)
+        with pytest.raises(GraphError, match=r"ext-sense bag migrate .* OUT"):
+            graph.check_files({**values, "bag": str(old)})
+        empty = Path(tmp) / "empty"
+        empty.mkdir()
+        with pytest.raises(GraphError, match=r"holds no \.mcap"):
+            graph.check_files({**values, "bag": str(empty)})
 
 
 @pytest.mark.parametrize("manage", ["true", "false"])

@@ -2,8 +2,9 @@
 
 Part of the graph descriptions of :mod:`ext_sense.graphs` (its build functions call
 :func:`source_nodes`), kept apart so that each module stays one idea: this one knows the four
-sources (``sim``, ``serial``, ``can``, ``bag``), the files they need, and which sensor stream
-the window node reads (raw packets, or the decoded arrays of a bag recorded before packets).
+sources (``sim``, ``serial``, ``can``, ``bag``) and the files they need. Every source feeds
+the sensor's raw packets (``SensorPacket``); a bag of decoded arrays from before packets is
+turned into a packet bag first (``ext-sense bag migrate``).
 """
 
 from __future__ import annotations
@@ -35,14 +36,6 @@ a food trial's motion start is put at the probe's)."""
 
 PACKET_ARGUMENTS: tuple[ArgumentSpec, ...] = (
     ArgumentSpec(
-        "decoded",
-        "false",
-        "Also publish the driver's decoded arrays (TaxelEventBatch on /extsense/nuskin/events, "
-        "BioTacFrame on /extsense/biotac/frames) beside its raw packets, for tools that want "
-        "arrays. The window node and the view read the packets.",
-        ("true", "false"),
-    ),
-    ArgumentSpec(
         "reader_priority",
         "0",
         "SCHED_FIFO priority of the sensor driver's reader thread (its drain thread 10 below), "
@@ -56,24 +49,35 @@ PACKET_ARGUMENTS: tuple[ArgumentSpec, ...] = (
 )
 
 
-def window_input(args: Mapping[str, str]) -> str:
-    """The window node's ``input``: ``packets``, or ``decoded`` for a bag without packets.
+def _check_packets(bag: Path, sensor: str) -> None:
+    """Refuse a bag with no packets of ``sensor``: nothing would feed the window node.
 
-    A live graph's driver always publishes packets. With ``source:=bag`` the bag decides: one
-    recorded before packets existed holds only the decoded arrays and replays as before; so
-    does a bag that cannot be read here (the graph's file check names the problem), and an
-    empty ``bag`` (a benchmark that publishes decoded batches itself in the player's place).
+    Raises:
+        GraphError: The bag cannot be read, or holds no ``SensorPacket`` of the sensor (one
+            recorded before packets holds decoded arrays: ``ext-sense bag migrate`` turns it
+            into a packet bag).
     """
-    if args["source"] != "bag":
-        return "packets"
-    try:
-        from ext_sense_bags import BagError, BagReader
+    from ext_sense_bags import BagError, BagReader
 
-        with BagReader(Path(args["bag"])) as bag:
-            spec = bag.topics.get(SENSOR_PACKETS[args["sensor"]])
-            return "packets" if spec is not None and spec.count > 0 else "decoded"
-    except (BagError, OSError, ImportError):
-        return "decoded"
+    topic = SENSOR_PACKETS[sensor]
+    try:
+        with BagReader(bag) as reader:
+            spec = reader.topics.get(topic)
+            decoded = reader.topics.get(SENSOR_STREAMS[sensor][1])
+    except (BagError, OSError) as err:
+        raise GraphError(f"The 'bag' argument: {err}") from err
+    if spec is not None and spec.count > 0:
+        return
+    fix = (
+        f" It holds decoded arrays from before packets: run `ext-sense bag migrate {bag} OUT` "
+        "and replay OUT."
+        if decoded is not None and decoded.count > 0
+        else ""
+    )
+    raise GraphError(
+        f"The 'bag' argument must name a bag with {sensor} packets on {topic}. Got '{bag}': "
+        f"none.{fix}"
+    )
 
 
 def port_path(task: str, args: Mapping[str, str]) -> str:
@@ -96,6 +100,8 @@ def needed_files(task: str) -> Callable[[Mapping[str, str]], None]:
                 f"The 'bag' argument must name an existing rosbag2 directory or .mcap/.db3 file "
                 f"with source:=bag. Got {got}."
             )
+        if source == "bag":
+            _check_packets(Path(bag), args["sensor"])
         if source != "sim":
             return
         if not args["can_channel"]:
@@ -193,8 +199,6 @@ def source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                 # the emulated devices send nothing between trials (a real NUSkin receiver
                 # sends its idle stream, a BioTac bridge 100 frames/s): no stall check on them
                 **({"expected_rate_hz": 0.0} if source == "sim" else {}),
-                # packets always (the view decodes them too); decoded arrays only when asked
-                "publish_decoded": as_bool(args["decoded"]),
                 "reader_priority": int(args["reader_priority"]),
             },
             remappings=((rel, topic), packets),

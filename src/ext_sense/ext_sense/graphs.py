@@ -27,14 +27,12 @@ from ext_sense.graph import (
 )
 from ext_sense.graph_process import PROCESS_ARGUMENTS, place_hot_path
 from ext_sense.graph_sources import DEFAULT_SCENES as DEFAULT_SCENES
-from ext_sense.graph_sources import PACKET_ARGUMENTS, needed_files, source_nodes, window_input
+from ext_sense.graph_sources import PACKET_ARGUMENTS, needed_files, source_nodes
 from ext_sense.graph_sources import SIM_TRIGGERS as SIM_TRIGGERS
 from ext_sense.topics import (
     ESTIMATE_REMAPS,
     SENSOR_PACKETS,
     TOPIC_ESTIMATE,
-    TOPIC_EVENTS,
-    TOPIC_FRAMES,
     TOPIC_GROUND_TRUTH,
     TOPIC_HANDOVER_OFFER,
     TOPIC_MOTION_START,
@@ -132,18 +130,8 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
     )
 
 
-def _sensor_topic(sensor: str) -> tuple[str, str]:
-    """The decoded-array topic (relative, absolute) the window node reads with ``input:=decoded``.
-
-    The driver's own output is its packets (``SENSOR_PACKETS``); events and frames are only
-    what older bags hold and what a driver publishes with ``decoded:=true``.
-    """
-    return ("events", TOPIC_EVENTS) if sensor == "nuskin" else ("frames", TOPIC_FRAMES)
-
-
 def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     sensor = args["sensor"]
-    rel, topic = _sensor_topic(sensor)
     packets = ("packets", SENSOR_PACKETS[sensor])
     # Food windows start at the arm's motion start (contact_window's ``motion_start``): the
     # simulator and bags carry it as the ground truth's stamp; on the robot the food behaviour
@@ -166,10 +154,8 @@ def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...
                 "task": task,
                 "sensor": sensor,
                 "model_path": args["model"],
-                "input": window_input(args),
             },
             remappings=(
-                (rel, topic),
                 packets,
                 ("window", TOPIC_WINDOW),
                 ("motion_start", motion),
@@ -340,7 +326,7 @@ def _chain(
             + _perception_nodes(task, args)
             + (behaviours(args) if as_bool(args["behaviours"]) else ())
             + _monitor_nodes(task, args)
-            + view_nodes(args, _sensor_topic(args["sensor"])),
+            + view_nodes(args),
             args,
         )
 

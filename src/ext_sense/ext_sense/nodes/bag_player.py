@@ -21,13 +21,7 @@ from typing import Any
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ext_sense.topics import (
-    TOPIC_BIOTAC_PACKETS,
-    TOPIC_EVENTS,
-    TOPIC_FRAMES,
-    TOPIC_GROUND_TRUTH,
-    TOPIC_NUSKIN_PACKETS,
-)
+from ext_sense.topics import TOPIC_BIOTAC_PACKETS, TOPIC_GROUND_TRUTH, TOPIC_NUSKIN_PACKETS
 from ext_sense_bags import STANDARD_TOPICS, BagError, BagReader
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
@@ -35,15 +29,9 @@ from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
 
-DEFAULT_TOPICS = [
-    TOPIC_NUSKIN_PACKETS,
-    TOPIC_BIOTAC_PACKETS,
-    TOPIC_EVENTS,
-    TOPIC_FRAMES,
-    TOPIC_GROUND_TRUTH,
-]
-"""The graph inputs: the drivers' raw packets (bags recorded since), their decoded arrays (bags
-recorded before, or with ``decoded:=true``) and the ground truth."""
+DEFAULT_TOPICS = [TOPIC_NUSKIN_PACKETS, TOPIC_BIOTAC_PACKETS, TOPIC_GROUND_TRUTH]
+"""The graph inputs: the drivers' raw packets and the ground truth (a bag of decoded arrays from
+before packets: ``ext-sense bag migrate``)."""
 
 
 def message_class(msgtype: str) -> type:

@@ -1,25 +1,18 @@
-"""What the view draws the sensor from: the drivers' raw packets, or their decoded arrays.
+"""What the view draws the sensor from: the drivers' raw packets, decoded here.
 
-A graph's driver publishes raw packets (``SensorPacket``) and decoded arrays only when asked
-(``decoded:=true``), and bags record the packets: so the view decodes packets itself, with the
-drivers' one decoder library (:func:`ext_sense_drivers.packets.make_decoder`), following the
-window node's conventions (:meth:`ext_sense_perception.online.stage.WindowStage.on_packet`):
-a decoder is made from a packet's ``encoding`` and ``encoding_options`` and made again when
-they change; a ``seq`` gap is counted and restarts the decoder's byte stream (the decoder does
-this: the bytes on either side of a gap do not join); a packet that cannot be read is counted
-and dropped with its reason, never raised.
+A graph's driver publishes raw packets (``SensorPacket``) and bags record them: the view decodes
+them itself, with the drivers' one decoder library (:func:`ext_sense_drivers.packets.make_decoder`),
+following the window node's conventions
+(:meth:`ext_sense_perception.online.stage.WindowStage.on_packet`): a decoder is made from a
+packet's ``encoding`` and ``encoding_options`` and made again when they change; a ``seq`` gap is
+counted and restarts the decoder's byte stream (the decoder does this: the bytes on either side
+of a gap do not join); a packet that cannot be read is counted and dropped with its reason,
+never raised.
 
 The view keeps one decoder per ``(encoding, options, connection)``: a connection is a byte
 stream of its own (the decoders restart at a new one anyway), and two publishers on one packet
 topic (a test's flood beside the driver) that differ in connection are then decoded apart
 instead of breaking each other's streams at every packet.
-
-The rule between the two inputs, one place for node and tests: decoded arrays
-(``TaxelEventBatch``, ``BioTacFrame``) are drawn while no packet has arrived (a bag recorded
-before packets existed, a tool publishing arrays); from the first packet on, only packets are
-(the decoded arrays of ``decoded:=true`` are the same data, decoded by the driver with the same
-library: drawing both would count every event twice), and arrays still arriving are counted
-as ignored. Either way the taxel grid, rates and PAC are fed the same values.
 
 No rclpy: messages are read duck-typed (rclpy, rosbags or plain records), so this is tested
 without ROS.
@@ -66,7 +59,6 @@ class FeedCounters(NamedTuple):
         decode_failures: Reads a decoder failed on (each costs that read).
         events: NUSkin events drawn.
         frames: BioTac frames drawn.
-        ignored_decoded: Decoded arrays not drawn because packets are (see the module's rule).
     """
 
     packets: int = 0
@@ -75,11 +67,10 @@ class FeedCounters(NamedTuple):
     decode_failures: int = 0
     events: int = 0
     frames: int = 0
-    ignored_decoded: int = 0
 
 
 class SensorFeed:
-    """Packets or decoded arrays in, the view's taxel, electrode and PAC state fed.
+    """Packets in, the view's taxel, electrode and PAC state fed.
 
     Args:
         sensor: ``nuskin`` or ``biotac``.
@@ -108,8 +99,6 @@ class SensorFeed:
         self._counts = dict.fromkeys(FeedCounters._fields, 0)
         self._decoders: OrderedDict[tuple[str, str, int], Any] = OrderedDict()
         self._retired_failures = 0
-        self.packets_seen = False
-        """A packet has arrived: from now on only packets are drawn."""
         self.last_packet_error = ""
         """Why the last refused packet was refused ('' when none was)."""
         self.last_lost_packets = 0
@@ -121,15 +110,6 @@ class SensorFeed:
         live = sum(d.counters.decode_failures for d in self._decoders.values())
         return FeedCounters(**{**self._counts, "decode_failures": self._retired_failures + live})
 
-    @property
-    def reading(self) -> str:
-        """What is drawn now: ``packets``, ``decoded``, or ``nothing`` before any input."""
-        if self.packets_seen:
-            return "packets"
-        return "decoded" if self._counts["events"] or self._counts["frames"] else "nothing"
-
-    # -- packets ---------------------------------------------------------------------------
-
     def on_packet(self, msg: Any) -> None:
         """Feed one ``SensorPacket`` (rclpy, rosbags or a :class:`Packet`).
 
@@ -138,7 +118,6 @@ class SensorFeed:
         (:attr:`last_lost_packets` for this packet).
         """
         self._counts["packets"] += 1
-        self.packets_seen = True
         self.last_lost_packets = 0
         try:
             decoded = self._decoder_for(msg).decode(msg)
@@ -181,24 +160,6 @@ class SensorFeed:
             self._retired_failures += old.counters.decode_failures
         return decoder
 
-    # -- decoded arrays --------------------------------------------------------------------
-
-    def on_events(self, msg: Any) -> None:
-        """Feed one ``TaxelEventBatch``: drawn while no packet has arrived, else ignored."""
-        if self.packets_seen:
-            self._counts["ignored_decoded"] += 1
-            return
-        self._draw_events(msg.taxel)
-
-    def on_frame(self, msg: Any) -> None:
-        """Feed one ``BioTacFrame``: drawn while no packet has arrived, else ignored."""
-        if self.packets_seen:
-            self._counts["ignored_decoded"] += 1
-            return
-        self._draw_frame(msg.sensor_id, msg.electrodes, msg.pac)
-
-    # -- what both inputs share ------------------------------------------------------------
-
     def _draw_events(self, taxel: Any) -> None:
         ids = np.asarray(taxel, dtype=np.int64)
         self._counts["events"] += ids.size
@@ -219,12 +180,10 @@ class SensorFeed:
         """
         c = self.counters
         values: dict[str, object] = {
-            "input": self.reading,
             "packets": c.packets,
             "lost_packets": c.lost_packets,
             "dropped_bad_packets": c.bad_packets,
             "decode_failures": c.decode_failures,
-            "ignored_decoded_msgs": c.ignored_decoded,
         }
         if c.bad_packets:
             return (
@@ -232,4 +191,5 @@ class SensorFeed:
                 f"dropped {c.bad_packets} bad packet(s): {self.last_packet_error}",
                 values,
             )
-        return Level.OK, f"reading {self.reading}", values
+        reading = "reading packets" if c.packets else "waiting for packets"
+        return Level.OK, reading, values

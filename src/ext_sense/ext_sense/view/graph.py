@@ -14,7 +14,6 @@ from ext_sense.graph import ArgumentSpec, GraphSpec, NodeSpec, as_bool
 from ext_sense.topics import (
     ESTIMATE_REMAPS,
     SENSOR_PACKETS,
-    SENSOR_STREAMS,
     TOPIC_GROUND_TRUTH,
     TOPIC_WINDOW,
 )
@@ -47,16 +46,15 @@ VIEW_ARGUMENTS: tuple[ArgumentSpec, ...] = (
 )
 
 
-def view_nodes(args: Mapping[str, str], stream: tuple[str, str]) -> tuple[NodeSpec, ...]:
+def view_nodes(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     """The ``foxglove_view`` node when ``view:=true``, else nothing.
 
-    The view reads the driver's raw packets (always published) and decodes them itself, so it
-    asks nothing of the driver; it also reads the decoded ``stream`` for a bag recorded before
-    packets existed (the rule: :mod:`ext_sense.view.feed`).
+    The view reads the driver's raw packets and decodes them itself (:mod:`ext_sense.view.feed`),
+    so it asks nothing of the driver. It is a process of its own in every layout, apart from the
+    hot path's, and lowers its own CPU priority (its ``nice`` parameter).
 
     Args:
         args: The graph's resolved arguments.
-        stream: The driver's relative decoded topic and its absolute name.
     """
     if not as_bool(args.get("view", "false")):
         return ()
@@ -75,7 +73,6 @@ def view_nodes(args: Mapping[str, str], stream: tuple[str, str]) -> tuple[NodeSp
             },
             remappings=(
                 ("packets", SENSOR_PACKETS[sensor]),
-                stream,
                 *ESTIMATE_REMAPS,
                 ("ground_truth", TOPIC_GROUND_TRUTH),
                 ("window", TOPIC_WINDOW),
@@ -95,5 +92,5 @@ def replay_view_graph(sensor: str) -> GraphSpec:
         name="replay",
         description="The live Foxglove view of a replayed bag.",
         arguments=VIEW_ARGUMENTS,
-        build=lambda values: view_nodes({**values, "sensor": sensor}, SENSOR_STREAMS[sensor]),
+        build=lambda values: view_nodes({**values, "sensor": sensor}),
     )

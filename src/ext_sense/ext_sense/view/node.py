@@ -9,15 +9,17 @@ them. Connect the Foxglove app to ``ws://HOST:PORT`` and open the shipped layout
 (docs/view.md).
 
 The sensor comes from the driver's raw packets (``packets``, decoded here with the drivers'
-decoder library, so a default graph and a default bag, which carry no decoded arrays, are drawn),
-or from its decoded arrays (``events`` or ``frames``) while no packet has arrived (a bag recorded
-before packets): the rule and the decoding live in :mod:`ext_sense.view.feed`, this node only
-subscribes. A packet that cannot be read is a counted drop on the view's ``/diagnostics``.
+decoder library, :mod:`ext_sense.view.feed`); a packet that cannot be read is a counted drop on
+the view's ``/diagnostics``.
 
-Why its own process, and what it cannot do to perception: the raw stream is subscribed best
-effort like every other reader of it, so a slow view loses packets of its own, never the
-publisher's; the input callbacks only decode and count (a ``bincount``); drawing happens at
-display rate, and only for channels a client has subscribed.
+What it costs, and what it cannot do to perception: with no Foxglove client subscribed to a
+sensor channel (the taxel grid, the rates, the PAC trace) the view does not even subscribe to
+the packets, so an unwatched view decodes nothing; it follows the clients' subscriptions at each
+display tick (foxglove-sdk's ``Channel.has_sinks``), and a tick with no client at all does
+nothing. The graphs run it in a process of its own, apart from the hot path's, at a lower CPU
+priority (``nice``), so on a busy machine the driver, window and inference nodes come first.
+The raw stream is subscribed best effort like every other reader of it, so a slow view loses
+packets of its own, never the publisher's; drawing happens at display rate.
 
 The server listens on ``host`` (default ``127.0.0.1``): the protocol has no authentication,
 so anyone who reaches the port sees every channel.
@@ -27,6 +29,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -63,12 +66,10 @@ from ext_sense.view.raster import raster_image
 from ext_sense.view.taxels import ElectrodeActivity, TaxelActivity, biotac_grid, nuskin_grid
 from ext_sense.view.traces import PacTrace, rates_message
 from ext_sense_msgs.msg import (
-    BioTacFrame,
     ContactEstimate,
     ContactGroundTruth,
     ContactWindow,
     SensorPacket,
-    TaxelEventBatch,
 )
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
@@ -139,6 +140,13 @@ class ViewParameters:
         low=1.0,
         high=10000.0,
     )
+    nice: int = _ro(
+        10,
+        "CPU niceness the view's process takes at start (0: unchanged), so perception's "
+        "nodes come first on a busy machine; the graphs run the view in a process of its own.",
+        low=0,
+        high=19,
+    )
 
 
 class FoxgloveViewNode(Node):
@@ -150,6 +158,8 @@ class FoxgloveViewNode(Node):
         super().__init__(kwargs.pop("node_name", "foxglove_view"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
         p = declare_all(self, ViewParameters)
+        if p.nice:  # before the server's threads start: they inherit it
+            os.setpriority(os.PRIO_PROCESS, 0, max(os.getpriority(os.PRIO_PROCESS, 0), p.nice))
         self.sensor = p.sensor
         host, port, rate_hz = p.host, p.port, p.display_rate_hz
         self.top_hz = p.top_rate_hz
@@ -210,17 +220,13 @@ class FoxgloveViewNode(Node):
             self.create_subscription(
                 msg_type, rel, self.guard(self._passer(topic, msg_type)), qos, raw=True
             )
-        self.create_subscription(
-            SensorPacket, "packets", self.guard(self._on_packet), SENSOR_STREAM_QOS
-        )
-        if self.sensor == "nuskin":  # drawn until a packet arrives (ext_sense.view.feed)
-            self.create_subscription(
-                TaxelEventBatch, "events", self.guard(self.feed.on_events), SENSOR_STREAM_QOS
-            )
-        else:
-            self.create_subscription(
-                BioTacFrame, "frames", self.guard(self.feed.on_frame), SENSOR_STREAM_QOS
-            )
+        self.packets_subscription = None
+        """The packet subscription, there only while a client watches a sensor channel."""
+        self.sensor_channels = [
+            self.images[ch.TAXELS],
+            self.json[ch.RATES if self.sensor == "nuskin" else ch.PAC],
+        ]
+        self.all_channels = [*self.images.values(), *self.json.values(), *self.passed.values()]
         self.create_timer(1.0 / rate_hz, self.guard(self._on_tick))
         self.updater = Updater(hardware_id=f"ws://{host}:{self.server.port}")
         self.updater.add_check("view", self._check)
@@ -290,7 +296,25 @@ class FoxgloveViewNode(Node):
 
     # -- output: at display rate -----------------------------------------------------------
 
+    def _follow_clients(self) -> bool:
+        """Subscribe to the packets while a client watches a sensor channel, else unsubscribe.
+
+        Returns:
+            Whether any client subscribes to any channel (else the tick has nothing to do).
+        """
+        watched = any(c.has_sinks() for c in self.sensor_channels)
+        if watched and self.packets_subscription is None:
+            self.packets_subscription = self.create_subscription(
+                SensorPacket, "packets", self.guard(self._on_packet), SENSOR_STREAM_QOS
+            )
+        elif not watched and self.packets_subscription is not None:
+            self.destroy_subscription(self.packets_subscription)
+            self.packets_subscription = None
+        return watched or any(c.has_sinks() for c in self.all_channels)
+
     def _on_tick(self) -> None:
+        if not self._follow_clients():
+            return
         now = time.monotonic_ns()
         if not self.pacer.ready(now):
             return
@@ -349,6 +373,7 @@ class FoxgloveViewNode(Node):
             "events_seen": c.events + c.frames,
             "rejected_events": self.taxels.rejected,
             "port": self.port,
+            "reading_packets": self.packets_subscription is not None,
             **fed,
         }
         return level, "serving" if level == Level.OK else why, values

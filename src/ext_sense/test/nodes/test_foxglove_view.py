@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from foxglove_client import FoxgloveClient
 from rosutil import spinning, wait_for
-from synthetic import event_batch_msg, tap_stream
+from synthetic import stream_packets, tap_stream
 
 pytestmark = pytest.mark.ros
 
@@ -59,11 +59,12 @@ def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
 
     from ext_sense.view import channels as ch
     from ext_sense.view.node import FoxgloveViewNode
+    from ext_sense_drivers.nodes.link_node import packet_message
     from ext_sense_msgs.msg import (
         ContactEstimate,
         ContactGroundTruth,
         ContactWindow,
-        TaxelEventBatch,
+        SensorPacket,
     )
     from ext_sense_runtime.qos import (
         ESTIMATE_QOS,
@@ -87,12 +88,13 @@ def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
         return Node("view_test_source", **kw)
 
     with spinning(view, source) as (node, src):
+        assert node.packets_subscription is None  # no client: the view decodes nothing
         client = FoxgloveClient(f"ws://127.0.0.1:{node.port}")
         try:
             assert wait_for(lambda: set(ch.view_channels("nuskin")) <= set(client.topics()))
             assert ch.PAC not in client.topics()  # BioTac only
             pubs = {
-                "events": src.create_publisher(TaxelEventBatch, "events", SENSOR_STREAM_QOS),
+                "packets": src.create_publisher(SensorPacket, "packets", SENSOR_STREAM_QOS),
                 "est": src.create_publisher(ContactEstimate, "contact_estimate", ESTIMATE_QOS),
                 "anytime": src.create_publisher(
                     ContactEstimate, "contact_estimate/provisional", ESTIMATE_QOS
@@ -102,8 +104,9 @@ def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
             }
             assert wait_for(lambda: all(p.get_subscription_count() for p in pubs.values()))
             # only the left finger's taxels 1..10 fire, at 4 kHz each
-            for batch in tap_stream([0.0], 400, taxels=10, burst_ms=400, noise_per_s=0):
-                pubs["events"].publish(event_batch_msg(batch))
+            batches = tap_stream([0.0], 400, taxels=10, burst_ms=400, noise_per_s=0)
+            for packet in stream_packets(batches):
+                pubs["packets"].publish(packet_message(packet, "nuskin"))
             pubs["truth"].publish(_truth())
             assert wait_for(lambda: client.messages("/extsense/ground_truth"))
             pubs["win"].publish(_window())
@@ -120,6 +123,8 @@ def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
             decoded = {m.topic: client.decode(m) for m in client.messages()}
         finally:
             client.close()
+        # the client gone, the view lets go of the packets again
+        assert wait_for(lambda: node.packets_subscription is None)
 
     est = decoded[ch.ESTIMATE_INFO]
     assert est["tap_position_cm"] == pytest.approx(12.0)

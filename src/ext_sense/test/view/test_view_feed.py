@@ -1,10 +1,9 @@
-"""The view's sensor input (no ROS): packets decoded with the drivers' library, the same picture
-as from decoded arrays, gaps and bad packets counted, and the packets-or-decoded rule."""
+"""The view's sensor input (no ROS): packets decoded with the drivers' library, the picture of
+the words and frames they carry, gaps and bad packets counted."""
 
 from __future__ import annotations
 
 import itertools
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -21,7 +20,6 @@ from ext_sense_drivers.packets import (
     NUSKIN_WORDS_V1,
     Packet,
     PacketPacker,
-    make_decoder,
 )
 from ext_sense_drivers.transports.base import Chunk
 from ext_sense_runtime.diagnostics import Level
@@ -53,31 +51,22 @@ def _word_packets(
     return packets, taxel
 
 
-def _driver_batches(packets: list[Packet]) -> list[SimpleNamespace]:
-    """The event batches the driver publishes with ``decoded:=true`` (its own decoder)."""
-    decoder = make_decoder(NUSKIN_WORDS_V1, OPTIONS)
-    return [SimpleNamespace(taxel=decoder.decode(p).events.taxel) for p in packets]
-
-
-def test_packets_draw_the_taxels_the_driver_decoded_arrays_draw() -> None:
+def test_packets_draw_every_word_they_carry_once() -> None:
     packets, taxel = _word_packets()
-    from_packets, from_arrays = _feed(), _feed()
+    feed = _feed()
     for p in packets:
-        from_packets.on_packet(sensor_packet(p, "nuskin"))
-    for batch in _driver_batches(packets):
-        from_arrays.on_events(batch)
+        feed.on_packet(sensor_packet(p, "nuskin"))
     want = np.bincount(taxel - 1, minlength=N_TAXELS)
-    assert from_packets.taxels.counts.tolist() == want.tolist()  # every word, once
-    assert from_arrays.taxels.counts.tolist() == want.tolist()
-    assert from_packets.counters.events == from_arrays.counters.events == taxel.size
-    assert (from_packets.reading, from_arrays.reading) == ("packets", "decoded")
-    level, _, values = from_packets.status()
-    assert level is Level.OK
+    assert feed.taxels.counts.tolist() == want.tolist()  # every word, once
+    assert feed.counters.events == taxel.size
+    level, message, values = feed.status()
+    assert (level, message) == (Level.OK, "reading packets")
     assert values["packets"] == len(packets)
     assert values["lost_packets"] == values["dropped_bad_packets"] == 0
+    assert _feed().status()[1] == "waiting for packets"
 
 
-def test_packets_of_the_biotac_feed_the_electrodes_and_pac_as_its_frames_do() -> None:
+def test_packets_of_the_biotac_feed_the_electrodes_and_pac_of_their_frames() -> None:
     rng = np.random.default_rng(3)
     frames = [
         (seq, sid, rng.integers(0, 4096, 22), rng.integers(1, 4095, 19))
@@ -89,17 +78,19 @@ def test_packets_of_the_biotac_feed_the_electrodes_and_pac_as_its_frames_do() ->
     spans = enumerate(itertools.pairwise(cuts))
     reads = [(1, Chunk(data[a:b], T0 + k * 1_000_000)) for k, (a, b) in spans]
     packets = PacketPacker(BIOTAC_BRIDGE_V1).pack(reads, link_down=True)
-    feed, arrays = _feed("biotac"), _feed("biotac")
+    feed = _feed("biotac")
     for p in packets:
         feed.on_packet(p)
-    for _, sid, pac, el in frames:
-        arrays.on_frame(SimpleNamespace(sensor_id=sid, electrodes=el, pac=pac))
-    assert feed.counters.frames == arrays.counters.frames == len(frames)
+    electrodes, pac = ElectrodeActivity(), PacTrace()  # fed the frames themselves
+    for _, sid, samples, el in frames:
+        electrodes.add(sid, np.asarray(el))
+        pac.add(sid, np.asarray(samples))
+    assert feed.counters.frames == len(frames)
     assert feed.electrodes.sensors() == [0, 1]
     for sid in (0, 1):
-        assert feed.electrodes.latest[sid].tolist() == arrays.electrodes.latest[sid].tolist()
-        assert feed.electrodes.baseline(sid).tolist() == arrays.electrodes.baseline(sid).tolist()
-    assert feed.pac.message() == arrays.pac.message()
+        assert feed.electrodes.latest[sid].tolist() == electrodes.latest[sid].tolist()
+        assert feed.electrodes.baseline(sid).tolist() == electrodes.baseline(sid).tolist()
+    assert feed.pac.message() == pac.message()
 
 
 def test_a_seq_gap_is_counted_and_the_stream_goes_on() -> None:
@@ -139,28 +130,6 @@ def test_a_bad_packet_is_a_counted_drop_on_the_diagnostics_never_an_exception() 
     for p in packets:  # the stream itself is read on
         feed.on_packet(p)
     assert feed.taxels.counts.sum() == taxel.size
-
-
-def test_decoded_arrays_are_drawn_until_a_packet_arrives_then_ignored() -> None:
-    packets, taxel = _word_packets()
-    batches = _driver_batches(packets)
-    feed = _feed()
-    assert feed.reading == "nothing"
-    feed.on_events(batches[0])  # a bag recorded before packets, or a tool's arrays
-    assert feed.reading == "decoded"
-    assert feed.counters.events == batches[0].taxel.size
-    for p, batch in zip(packets, batches, strict=True):  # decoded:=true: both, same data
-        feed.on_packet(p)
-        feed.on_events(batch)
-    assert feed.reading == "packets"
-    assert feed.counters.ignored_decoded == len(batches)
-    assert feed.counters.events == batches[0].taxel.size + taxel.size  # nothing twice
-    assert feed.status()[2]["ignored_decoded_msgs"] == len(batches)
-    frames = _feed("biotac")
-    frames.on_packet(packets[0])  # a NUSkin packet on a BioTac view: refused, still packets
-    frames.on_frame(SimpleNamespace(sensor_id=0, electrodes=np.ones(19), pac=np.ones(22)))
-    assert frames.counters.ignored_decoded == 1
-    assert frames.counters.frames == 0
 
 
 def test_streams_on_other_connections_are_decoded_apart() -> None:

@@ -1,4 +1,4 @@
-"""``biotac_driver`` node: BioTac bridge bytes in, ``SensorPacket`` (and ``BioTacFrame``) out.
+"""``biotac_driver`` node: BioTac bridge bytes in, ``SensorPacket`` out.
 
 A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the link (serial, CAN
 or a capture file) and reconnects with exponential backoff; a timer drains what arrived and
@@ -6,15 +6,12 @@ publishes it on ``packets`` as one ``SensorPacket`` (encoding ``biotac-bridge-v1
 decodes its own packets with the library decoder every consumer uses
 (:class:`~ext_sense_drivers.packets.BioTacPacketDecoder`, around
 :class:`~ext_sense_drivers.biotac.decoder.BridgeDecoder`): at 100 frames/s per sensor that is
-cheap, and it is how the driver watches each expected sensor's frame rate and liveness. With
-``publish_decoded`` (default true; the graphs turn it off unless something wants arrays) every
-frame also goes out on ``frames`` as it came: 22 raw PAC samples per message, never averaged.
-Words failing parity or BioTac error replies are flagged in ``invalid_word_mask`` and counted;
-corrupt bytes are counted, never fatal. ``header.stamp`` is the first PAC sample's time from the
-per-sensor :class:`~ext_sense_drivers.biotac.clock.FrameClock`. ``/diagnostics`` carries the
-link state, frames/s per expected sensor, the decode counters and the liveness of every expected
-sensor: a bridge sends each sensor's frames at 100 Hz whatever touches it, so a sensor silent
-while the link is up is a stall (WARN, then ERROR, naming the sensor).
+cheap, and it is how the driver watches each expected sensor's frame rate and liveness; the
+frames themselves are the consumers' to decode from the packets. Words failing parity or
+BioTac error replies are counted; corrupt bytes are counted, never fatal. ``/diagnostics``
+carries the link state, frames/s per expected sensor, the decode counters and the liveness of
+every expected sensor: a bridge sends each sensor's frames at 100 Hz whatever touches it, so a
+sensor silent while the link is up is a stall (WARN, then ERROR, naming the sensor).
 """
 
 from __future__ import annotations
@@ -36,7 +33,6 @@ from ext_sense_drivers.nodes.link_node import (
     declare_backoff,
     declare_link_parameters,
     declare_liveness,
-    declare_publish_decoded,
     link_status,
     monotonic_to_ros_ns,
     packet_message,
@@ -51,13 +47,12 @@ from ext_sense_drivers.packets import (
 )
 from ext_sense_drivers.transports.base import LinkState
 from ext_sense_drivers.transports.reader import Backoff
-from ext_sense_msgs.msg import BioTacFrame, SensorPacket
+from ext_sense_msgs.msg import SensorPacket
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
-from ext_sense_runtime.stamps import fill_stamp
 
 
 def _declare_config(node: Node) -> BioTacDriverConfig:
@@ -164,14 +159,10 @@ class BioTacDriverNode(ManagedLink, LifecycleNode):
         self.decoder = self.packet_decoder.decoder  # the bridge decoder and its counters
         self.reader = self.config.make_reader(backoff)
         self._mono_to_ros_ns = monotonic_to_ros_ns(self)
-        self.frames_published = 0
         self.frames_decoded = 0
         self.packets_published = 0
         self._failures_logged = 0
         self._packet_pub, self._qos_events = create_stream_publisher(self, SensorPacket, "packets")
-        self._pub = None
-        if declare_publish_decoded(self, "BioTacFrame on frames"):
-            self._pub, self._decoded_qos = create_stream_publisher(self, BioTacFrame, "frames")
         self._updater = Updater(self.config.hardware_id)
         self._updater.add_check("link", self._check_link)
         self._rates: dict[int, RateTask] = {}
@@ -204,7 +195,7 @@ class BioTacDriverNode(ManagedLink, LifecycleNode):
         return SetParametersResult(successful=True)
 
     def _tick(self) -> None:
-        """Drain the reader, publish the packets, decode them and publish every frame.
+        """Drain the reader, publish the packets, and decode them to watch every sensor.
 
         A reconnection needs no flush: the old link's cut-off frame fails its CRC against the
         new bytes and the decoder resynchronises, while a complete frame still queued from the
@@ -223,27 +214,11 @@ class BioTacDriverNode(ManagedLink, LifecycleNode):
             if failures > self._failures_logged:
                 self._failures_logged = failures
                 self.get_logger().error(self.packet_decoder.last_error, throttle_duration_sec=1.0)
-            self._publish(decoded.frames)
+            self._watch(decoded.frames)
 
-    def _publish(self, frames: list[DecodedFrame]) -> None:
-        """Watch each expected sensor; one message per frame when ``publish_decoded``."""
+    def _watch(self, frames: list[DecodedFrame]) -> None:
+        """Count each expected sensor's frames for its rate and liveness."""
         for f in frames:
-            if self._pub is not None:
-                msg = BioTacFrame()
-                fill_stamp(msg.header.stamp, f.stamp_ns)
-                msg.header.frame_id = self.config.frame_id(f.sensor_id)
-                msg.sensor_id = f.sensor_id
-                msg.sequence = f.sequence
-                msg.pac_sample_period_ns = f.pac_sample_period_ns
-                msg.pac = f.pac
-                msg.electrodes = f.electrodes
-                msg.pdc, msg.tac, msg.tdc = f.pdc, f.tac, f.tdc
-                msg.invalid_word_mask = f.invalid_word_mask
-                msg.dropped_frames = f.dropped_frames
-                msg.parity_errors = f.parity_errors
-                msg.error_replies = f.error_replies
-                self._pub.publish(msg)
-                self.frames_published += 1
             s = f.sensor_id
             if s in self._rates:
                 self._rates[s].tick()
@@ -253,7 +228,7 @@ class BioTacDriverNode(ManagedLink, LifecycleNode):
     def _check_link(self) -> tuple[Level, str, dict[str, object]]:
         values = {
             "packets_published": self.packets_published,
-            "frames_published": self.frames_published,
+            "frames_decoded": self.frames_decoded,
             **self._qos_events.as_values(),
         }
         return link_status(self.reader, "link", values)

@@ -220,25 +220,6 @@ def create_stream_publisher(
     return pub, qos_events
 
 
-def declare_publish_decoded(node: Node, what: str) -> bool:
-    """Declare ``publish_decoded``: decoded arrays beside the raw packets.
-
-    Args:
-        node: The driver node.
-        what: The decoded message and topic, for the description.
-    """
-    return declare(
-        node,
-        "publish_decoded",
-        True,
-        f"Also decode the packets here and publish {what}, for tools that want arrays "
-        "(ros2 topic echo, plots, the live view). The graphs set it false on the hot path: "
-        "contact_window decodes the packets itself with the same library (docs/runtime.md, "
-        "Raw packets).",
-        read_only=True,
-    )
-
-
 def packet_message(packet: Packet, frame_id: str) -> SensorPacket:
     """A ``SensorPacket`` from a :class:`~ext_sense_drivers.packets.Packet`.
 

@@ -1,34 +1,30 @@
-"""``nuskin_driver`` node: NUSkin receiver bytes in, ``SensorPacket`` (and ``TaxelEventBatch``) out.
+"""``nuskin_driver`` node: NUSkin receiver bytes in, ``SensorPacket`` out.
 
 A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the port (serial, CAN
 or a capture file) and reconnects with exponential backoff; a timer every ``batch_period_s``
 drains what arrived and publishes it on ``packets`` as one ``SensorPacket`` (encoding
 ``nuskin-words-v1``, or ``aces-line-v1`` in ``aces_line`` mode): the bytes and when each read
-returned, numbered by ``seq``. For ``quiet_packets_s`` after the last bytes, a timer publishes
-every ``quiet_packets_period_s`` while nothing comes an empty packet saying so
-(``PacketPacker.nothing_read``): the emulated receiver falls silent between trials, and
-consumers close their windows on these packets as on data, so a replay of a recording cuts the
-windows the live run cut; for the first ``quiet_packets_fast_s`` they come every
-``batch_period_s``, while the windows of the contact that just fell silent end. Each
-connection's first bytes go out after one more such packet, stamped at the link's open
-(``PacketPacker.opened``): the stream is known from there, so a silent receiver's first
-contact is not judged "joined mid-stream". With
-``publish_decoded`` (default true; the graphs turn it off on the hot path) the node also
-decodes its own packets with the library decoder every consumer uses
-(:mod:`ext_sense_drivers.packets`) and publishes the events on ``events``, each event's flag bit
-as received in the batch's ``flag`` array. Bad bytes are counted, never fatal.
-``/diagnostics`` carries the link state, the rate, the decode counters (when decoding) and the
+returned, numbered by ``seq``. The driver never decodes: every consumer decodes the packets
+with the library decoder (:mod:`ext_sense_drivers.packets`), so recordings stay lossless.
+
+While a words stream goes and no bytes come, a timer publishes every
+``quiet_packets_period_s`` an empty packet saying so (``PacketPacker.nothing_read``): the
+driver's own cadence, which knows nothing of its consumers' windows. A consumer learns from
+these packets where stream time is when the sensor is silent (the emulated receiver falls
+silent between trials), so it closes its windows on data, and a replay of the recorded packets
+closes the same ones. Each connection's first bytes go out after one more such packet, stamped
+at the link's open (``PacketPacker.opened``): the stream is known from there, so a silent
+receiver's first contact is not judged "joined mid-stream". Bad bytes are the consumers' to
+count. ``/diagnostics`` carries the link state, the rate of the receiver's words and the
 stream's liveness: a powered receiver sends words all the time (its idle stream), so silence
 while the link is up is a stall (WARN, then ERROR, naming the stream).
 """
 
 from __future__ import annotations
 
-import array
 import time
 from typing import Any
 
-import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.lifecycle import LifecycleNode
 from rclpy.node import Node
@@ -41,35 +37,28 @@ from ext_sense_drivers.nodes.link_node import (
     declare_backoff,
     declare_link_parameters,
     declare_liveness,
-    declare_publish_decoded,
     link_status,
     monotonic_to_ros_ns,
     packet_message,
     stop_reader,
 )
 from ext_sense_drivers.nuskin.driver_config import DriverConfig, Mode
-from ext_sense_drivers.nuskin.streams import BatchCounters, EventStream
 from ext_sense_drivers.packets import (
     ACES_LINE_V1,
     NUSKIN_WORDS_V1,
-    QUIET_PACKETS_FAST_S,
     QUIET_PACKETS_PERIOD_S,
-    QUIET_PACKETS_S,
-    NuskinPacketDecoder,
     Packet,
     PacketPacker,
     QuietSchedule,
     format_options,
 )
 from ext_sense_drivers.transports.base import Chunk, LinkState
-from ext_sense_msgs.msg import SensorPacket, TaxelEventBatch
+from ext_sense_msgs.msg import SensorPacket
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare
-from ext_sense_runtime.records import EventBlock
-from ext_sense_runtime.stamps import fill_stamp
 
 MAX_WORD_RATE_HZ = 320_000.0
 """80 taxels at 4 kHz: the most events per second the receiver can produce."""
@@ -121,30 +110,6 @@ def _declare_config(node: Node) -> DriverConfig:
     )
 
 
-def _fill_batch(
-    msg: TaxelEventBatch, block: EventBlock, stamp_ns: int, flag: np.ndarray | None = None
-) -> None:
-    """Set the arrays of ``msg`` from a block, times relative to ``stamp_ns`` (same clock).
-
-    ``flag`` (the words' flag bits, parallel to the block) fills ``msg.flag``; ``None`` (a
-    source without the bit) leaves it empty. The arrays are built as ``array.array`` from
-    bytes: assigning NumPy arrays makes rclpy check every element in Python.
-    """
-    columns = (
-        ("H", block.taxel, np.uint16),
-        ("b", block.polarity, np.int8),
-        ("H", block.value, np.uint16),
-        ("q", block.t_ns - np.int64(stamp_ns), np.int64),
-        ("B", np.zeros(0, np.uint8) if flag is None else flag, np.uint8),
-    )
-    out = []
-    for code, column, dtype in columns:
-        arr = array.array(code)
-        arr.frombytes(np.ascontiguousarray(column, dtype).tobytes())
-        out.append(arr)
-    msg.taxel, msg.polarity, msg.value, msg.offset_ns, msg.flag = out
-
-
 def packet_encoding(config: DriverConfig) -> tuple[str, str]:
     """The packets' ``encoding`` and ``encoding_options`` for the driver's settings."""
     if config.mode_kind == Mode.WORDS:
@@ -172,7 +137,7 @@ def _declare_liveness(node: Node, config: DriverConfig, stream: str) -> DriverLi
 
 
 class NuskinDriverNode(ManagedLink, LifecycleNode):
-    """Publishes NUSkin taxel events on ``events`` from a serial, CAN or file byte source."""
+    """Publishes a NUSkin receiver's bytes on ``packets`` from a serial, CAN or file source."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("nuskin_driver", **kwargs)
@@ -190,54 +155,21 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             high=1.0,
             read_only=True,
         )
-        quiet_s = declare(
-            self,
-            "quiet_packets_s",
-            QUIET_PACKETS_S,
-            "After the last bytes, an empty packet ('nothing read up to now') every "
-            "quiet_packets_period_s while no bytes come, for this long, s. A consumer then "
-            "closes its windows on data when the sensor falls silent, not on its own clock, so "
-            "a replay of the recorded packets cuts the same windows. Words mode only; 0: none.",
-            low=0.0,
-            high=60.0,
-            read_only=True,
-        )
         quiet_period_s = declare(
             self,
             "quiet_packets_period_s",
             QUIET_PACKETS_PERIOD_S,
-            "Time between the 'nothing read' packets after quiet_packets_fast_s, s: the longest "
-            "a consumer's window waits past its end for one when the sensor is silent. Each "
-            "costs every consumer a message (one per 1 ms batch throughout made ten times the "
-            "packets of a handover run).",
-            low=0.0005,
+            "While the stream goes and no bytes come, an empty packet ('nothing read up to now') "
+            "every this long, s: the driver's own cadence. A consumer learns from it where "
+            "stream time is when the sensor is silent and closes its windows on data, so a "
+            "replay of the recorded packets cuts the same windows. Words mode only; 0: none.",
+            low=0.0,
             high=1.0,
             read_only=True,
         )
-        fast_s = declare(
-            self,
-            "quiet_packets_fast_s",
-            QUIET_PACKETS_FAST_S,
-            "For this long after the last bytes the 'nothing read' packets come every "
-            "batch_period_s instead of every quiet_packets_period_s, s: a window cut at a "
-            "detected onset ends at most its post-onset time (250 ms for taps) after the "
-            "contact's last bytes, and closes on the next packet. 0: no fast phase.",
-            low=0.0,
-            high=60.0,
-            read_only=True,
-        )
-        self._quiet = QuietSchedule(quiet_s, quiet_period_s, fast_s, period_s)
+        self._quiet = QuietSchedule(quiet_period_s)
         self._quiet_timer = self.create_timer(
-            self._quiet.period_at(0) / 1e9, self.guard(self._say_quiet), autostart=False
-        )
-        self.max_batch_events = declare(
-            self,
-            "max_batch_events",
-            20000,
-            "Most events in one batch message (more are split into several), events.",
-            low=1,
-            high=10_000_000,
-            read_only=True,
+            max(quiet_period_s, 0.001), self.guard(self._say_quiet), autostart=False
         )
         backoff = declare_backoff(self, "port")
         self.liveness = _declare_liveness(self, self.config, self.config.hardware_id)
@@ -251,26 +183,16 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         self.config.make_stream()  # checks mode and flag_polarity now, with a clear error
         encoding, options = packet_encoding(self.config)
         self.packer = PacketPacker(encoding, options)
-        decoded = declare_publish_decoded(self, "TaxelEventBatch on events")
-        self.decoder = NuskinPacketDecoder(encoding, options) if decoded else None
         self.reader = self.config.make_reader(backoff)
         self._mono_to_ros_ns = monotonic_to_ros_ns(self)
-        self.batches_published = 0
         self.packets_published = 0
-        self._failures_logged = 0
         self._packet_pub, self._qos_events = create_stream_publisher(self, SensorPacket, "packets")
-        self._pub = None
-        if self.decoder is not None:
-            self._pub, self._decoded_qos = create_stream_publisher(self, TaxelEventBatch, "events")
         self._updater = Updater(self.config.hardware_id)
-        self._rate = RateTask("events", 0.0, MAX_WORD_RATE_HZ, unit="words_per_s")
+        self._rate = RateTask("words", 0.0, MAX_WORD_RATE_HZ, unit="words_per_s")
         self._updater.add(self._rate)
         self._updater.add_check("link", self._check_link)
-        self._updater.add_check("decode", self._check_decode)
         self._updater.add_check("liveness", self.liveness.check)
         self.guard.attach(self._updater)
-        self._last_resyncs = 0
-        self._last_failures = 0
         self._diagnostics = DiagnosticsPublisher(self, self._updater)
         self._period_s = period_s
         self.get_logger().info(
@@ -289,23 +211,8 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
                 self.frame_id = str(p.value)
         return SetParametersResult(successful=True)
 
-    @property
-    def stream(self) -> EventStream | None:
-        """The byte decoder of the node's own packets (``None`` without ``publish_decoded``)."""
-        return None if self.decoder is None else self.decoder.stream
-
-    @stream.setter
-    def stream(self, stream: EventStream) -> None:
-        if self.decoder is not None:
-            self.decoder.stream = stream
-
-    @property
-    def decode_failures(self) -> int:
-        """Reads whose decoding raised (each cost that read, never the node)."""
-        return 0 if self.decoder is None else self.decoder.counters.decode_failures
-
     def _tick(self) -> None:
-        """Drain the reader, publish the packets, and decode them when asked to.
+        """Drain the reader and publish the packets.
 
         Each chunk carries the connection it came on, so a packet never spans a reconnect and a
         decoder restarts its stream exactly between the last old read and the first new one.
@@ -320,16 +227,14 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         per_item = 4 if self.config.mode_kind == Mode.WORDS else 2
         for _, chunk in tagged:
             watch.on_data(len(chunk.data) // per_item, chunk.t_ns)
-            if self.decoder is None and per_item == 4:
+            if per_item == 4:
                 self._rate.add(len(chunk.data) // per_item)
         self._say_opened(tagged)
         for packet in self.packer.pack(tagged, link_down, self._mono_to_ros_ns):
             self._publish_packet(packet)
         read = any(chunk.data for _, chunk in tagged)
-        if read and self._quiet.quiet_ns > 0 and self.config.mode_kind == Mode.WORDS:
-            now = time.monotonic_ns()
-            self._quiet.on_bytes(now)
-            self._quiet_timer.timer_period_ns = self._quiet.period_at(now)  # the fast phase's
+        if read and self._quiet.enabled and self.config.mode_kind == Mode.WORDS:
+            self._quiet.on_bytes(time.monotonic_ns())
             self._quiet_timer.reset()  # its first tick one period after these bytes
 
     def _say_opened(self, tagged: list[tuple[int, Chunk]]) -> None:
@@ -350,7 +255,7 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             opened is None
             or not tagged
             or connection == self.packer.connection  # its stream is going: said, or too late
-            or self._quiet.quiet_ns <= 0
+            or not self._quiet.enabled
             or any(c != connection for c, _ in tagged)
         ):
             return
@@ -362,85 +267,30 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
     def _publish_packet(self, packet: Packet) -> None:
         self._packet_pub.publish(packet_message(packet, self.frame_id))
         self.packets_published += 1
-        if self.decoder is not None:
-            self._publish_decoded(packet)
 
     def _say_quiet(self) -> None:
-        """The quiet timer: while no bytes come, say so each period, for ``quiet_packets_s``.
+        """The quiet timer: while no bytes come, say so every ``quiet_packets_period_s``.
 
-        Not while bytes wait for the drain (their packet says where the stream is), and never
-        after the link went down (its stream ended) or ``quiet_packets_s`` after the last bytes
-        (the timer stops: an idle driver does not wake).
+        Not while bytes wait for the drain (their packet says where the stream is); the timer
+        stops when the node stops streaming or the link went down (its stream ended), and the
+        next bytes start it again.
         """
-        now = time.monotonic_ns()
-        if self._quiet.over(now) or self._drain_timer is None:
+        if self._drain_timer is None or self.reader.state != LinkState.CONNECTED:
             self._quiet_timer.cancel()
             return
-        if self.reader.queued_chunks or self.reader.state != LinkState.CONNECTED:
+        if self.reader.queued_chunks:
             return
-        packet = self.packer.nothing_read(now, self._mono_to_ros_ns)
+        packet = self.packer.nothing_read(time.monotonic_ns(), self._mono_to_ros_ns)
         if packet is not None:
             self._publish_packet(packet)
-        period = self._quiet.period_at(now)
-        if period != self._quiet_timer.timer_period_ns:  # the fast phase is over
-            self._quiet_timer.timer_period_ns = period
-            self._quiet_timer.reset()
-
-    def _publish_decoded(self, packet: Packet) -> None:
-        """Decode one of the node's own packets and publish its events in batches."""
-        decoded = self.decoder.decode(packet)
-        failures = self.decode_failures
-        if failures > self._failures_logged:
-            self._failures_logged = failures
-            self.get_logger().error(self.decoder.last_error, throttle_duration_sec=1.0)
-        block, flag = decoded.events, decoded.flag
-        if block.size == 0:
-            return
-        self._rate.add(block.size)
-        c = self.decoder.stream.batch_counters
-        step = self.max_batch_events
-        for lo in range(0, block.size, step):
-            part_block = EventBlock(*(column[lo : lo + step] for column in block))
-            self._publish(part_block, None if flag is None else flag[lo : lo + step], c)
-
-    def _publish(self, block: EventBlock, flag: np.ndarray | None, counters: BatchCounters) -> None:
-        first_ns = int(block.t_ns.min())
-        msg = TaxelEventBatch()
-        fill_stamp(msg.header.stamp, first_ns)
-        msg.header.frame_id = self.frame_id
-        _fill_batch(msg, block, first_ns, flag)
-        msg.words_total, msg.resyncs = counters.words_total, counters.resyncs
-        msg.skipped_bytes, msg.bad_taxel_words = counters.skipped_bytes, counters.bad_taxel_words
-        self._pub.publish(msg)
-        self.batches_published += 1
 
     def _check_link(self) -> tuple[Level, str, dict[str, object]]:
         values = {
+            "encoding": self.packer.encoding,
             "packets_published": self.packets_published,
-            "batches_published": self.batches_published,
             **self._qos_events.as_values(),
         }
         return link_status(self.reader, "port", values)
-
-    def _check_decode(self) -> tuple[Level, str, dict[str, object]]:
-        if self.decoder is None:
-            return (
-                Level.OK,
-                "not decoding here (publish_decoded false): the consumers of packets decode",
-                {"encoding": self.packer.encoding, "packets_published": self.packets_published},
-            )
-        values = {**self.decoder.diagnostics(), "decode_failures": self.decode_failures}
-        failed, self._last_failures = (
-            self.decode_failures - self._last_failures,
-            self.decode_failures,
-        )
-        if failed:
-            return Level.ERROR, f"{failed} chunks failed to decode since the last report", values
-        resyncs = self.stream.batch_counters.resyncs
-        new, self._last_resyncs = resyncs - self._last_resyncs, resyncs
-        if new:
-            return Level.WARN, f"{new} resynchronisations since the last report", values
-        return Level.OK, "clean stream", values
 
     def destroy_node(self) -> None:
         """Stop the reader thread (closing the port) before the node goes."""

@@ -26,82 +26,46 @@ BIOTAC_BRIDGE_V1 = "biotac-bridge-v1"
 """The BioTac bridge's framed stream (docs/biotac_bridge.md)."""
 ENCODINGS = (NUSKIN_WORDS_V1, ACES_LINE_V1, BIOTAC_BRIDGE_V1)
 
-QUIET_PACKETS_S = 2.0
-"""How long after its last bytes the NUSkin driver keeps saying it read nothing
-(``quiet_packets_s``, :meth:`PacketPacker.nothing_read`): longer than a window's end lies after
-the last event of a tap or grasp, short enough that an idle driver soon stops waking."""
-
-QUIET_PACKETS_PERIOD_S = 0.005
-"""Default time between those packets (``quiet_packets_period_s``) once the fast phase is over:
-the longest a window waits past its end for one; one per 1 ms batch period for the whole
-``quiet_packets_s`` made ten times the packets of a handover run."""
-
-QUIET_PACKETS_FAST_S = 0.3
-"""Default length of the fast phase (``quiet_packets_fast_s``): for this long after the last
-bytes the packets come every batch period (1 ms) instead. A window cut at a detected onset ends
-at most its post-onset time (250 ms for taps and handovers) after the contact's last bytes, so
-the windows closed by these packets wait about 0.5 ms past their end instead of 2.5 ms on
-average: ``ext-sense run tap_localization trials:=30``, 3 runs each, alternating, compute p50 /
-p99 3.46-4.02 / 9.86-17.72 ms against 5.08-6.15 / 11.39-38.36 ms with 5 ms packets throughout
-(docs/runtime.md, run 7). By the schedule, 640 packets per 2 s silence instead of 400."""
+QUIET_PACKETS_PERIOD_S = 0.002
+"""Default time between the NUSkin driver's "nothing read" packets (``quiet_packets_period_s``,
+:meth:`PacketPacker.nothing_read`) while its stream goes and no bytes come: the driver's own
+cadence, as a real receiver's idle stream (about 540 words/s) makes a packet every 2 ms or so.
+A consumer learns from them where stream time is when the sensor is silent."""
 
 
 class QuietSchedule:
     """When a NUSkin words driver says it read nothing (:meth:`PacketPacker.nothing_read`).
 
-    After bytes drained at ``t``, one "nothing read" packet is due every ``fast_period_s``
-    until ``t + fast_s``, then every ``period_s``, while no bytes come, until ``quiet_s`` after
-    them. Clock-free, so that the driver and the latency bench (which drives the driver's packer
-    on simulated drains, ``bench/latency_figures.py``) follow one rule: the driver asks
-    :meth:`over` at each tick of its periodic timer, which it resets when bytes come and slows
-    to :meth:`period_at` when the fast phase ends; :meth:`due` is that timer's schedule, for a
-    caller that has none.
+    After bytes drained at ``t``, one "nothing read" packet is due every ``period_s`` while no
+    bytes come, for as long as the stream goes: a fixed cadence of the driver's own, which
+    knows nothing of its consumers' windows. Clock-free, so that the driver (whose periodic
+    timer, reset by bytes, is this schedule) and the latency bench (which drives the driver's
+    packer on simulated drains, ``bench/latency_figures.py``, asking :meth:`due` at each drain)
+    follow one rule.
 
     Args:
-        quiet_s: ``quiet_packets_s``; 0 or less: never.
-        period_s: ``quiet_packets_period_s``.
-        fast_s: ``quiet_packets_fast_s``; 0: no fast phase.
-        fast_period_s: The fast phase's period (the driver's ``batch_period_s``).
+        period_s: ``quiet_packets_period_s``; 0 or less: never.
     """
 
-    def __init__(
-        self,
-        quiet_s: float = QUIET_PACKETS_S,
-        period_s: float = QUIET_PACKETS_PERIOD_S,
-        fast_s: float = QUIET_PACKETS_FAST_S,
-        fast_period_s: float = 0.001,
-    ) -> None:
-        self.quiet_ns = round(quiet_s * 1e9)
-        self.period_ns = round(period_s * 1e9)
-        self.fast_ns = round(fast_s * 1e9)
-        self.fast_period_ns = round(fast_period_s * 1e9)
-        self.last_bytes_ns: int | None = None
-        self.next_ns = 0
+    def __init__(self, period_s: float = QUIET_PACKETS_PERIOD_S) -> None:
+        self.period_ns = max(0, round(period_s * 1e9))
+        self.next_ns: int | None = None
 
-    def period_at(self, t_ns: int) -> int:
-        """The packets' period at ``t_ns``: the fast one within ``fast_s`` of the bytes, ns."""
-        last = self.last_bytes_ns
-        fast = last is not None and t_ns - last < self.fast_ns
-        return self.fast_period_ns if fast else self.period_ns
+    @property
+    def enabled(self) -> bool:
+        """Whether the driver says it read nothing at all (a positive period)."""
+        return self.period_ns > 0
 
     def on_bytes(self, t_ns: int) -> None:
         """Bytes were drained at ``t_ns``: the first packet is due one period later."""
-        self.last_bytes_ns = int(t_ns)
-        self.next_ns = int(t_ns) + self.period_at(int(t_ns))
-
-    def over(self, now_ns: int) -> bool:
-        """No packet is due before the next bytes: none yet, or ``quiet_s`` passed."""
-        last = self.last_bytes_ns
-        return self.quiet_ns <= 0 or last is None or now_ns - last >= self.quiet_ns
+        if self.enabled:
+            self.next_ns = int(t_ns) + self.period_ns
 
     def due(self, now_ns: int) -> bool:
-        """Whether a packet is due at ``now_ns``; if so, the next is due one period later.
-
-        The driver's timer ticks by then; the caller that has no timer asks this at each drain.
-        """
-        if self.over(now_ns) or now_ns < self.next_ns:
+        """Whether a packet is due at ``now_ns``; if so, the next is due one period later."""
+        if self.next_ns is None or now_ns < self.next_ns:
             return False
-        self.next_ns += self.period_at(self.next_ns)
+        self.next_ns += self.period_ns
         return True
 
 

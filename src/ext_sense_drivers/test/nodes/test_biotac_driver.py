@@ -31,7 +31,25 @@ def frame_bytes(sensor, seq):
 
 
 def stamp_ns(m):
-    return stamp_to_ns(m.header.stamp)
+    return m.stamp_ns if hasattr(m, "stamp_ns") else stamp_to_ns(m.header.stamp)
+
+
+class FramesOf(list):
+    """The frames of the driver's packets, decoded as they arrive with the library decoder."""
+
+    def __init__(self):
+        super().__init__()
+        self.decoder = None
+        self.frame_ids = set()
+
+    def on_packet(self, msg):
+        from ext_sense_drivers.packets import BioTacPacketDecoder, packet_of
+
+        packet = packet_of(msg)
+        if self.decoder is None:
+            self.decoder = BioTacPacketDecoder(packet.encoding, packet.options)
+        self.frame_ids.add(packet.frame_id)
+        self.extend(self.decoder.decode(packet).frames)
 
 
 def assert_stamps_within(msgs, t_start_ns, t_end_ns):
@@ -88,7 +106,7 @@ def test_two_sensors_unplug_replug(tmp_path):
     from rclpy.parameter import Parameter
 
     from ext_sense_drivers.nodes.biotac_driver import BioTacDriverNode
-    from ext_sense_msgs.msg import BioTacFrame
+    from ext_sense_msgs.msg import SensorPacket
     from ext_sense_runtime.qos import DIAGNOSTICS_QOS, SENSOR_STREAM_QOS
 
     bridge = FakeBridge(str(tmp_path / "ttyBIOTAC"))
@@ -108,9 +126,9 @@ def test_two_sensors_unplug_replug(tmp_path):
             ],
         )
         probe = rclpy.create_node("probe", context=ctx)
-        got: list[BioTacFrame] = []
+        got = FramesOf()
         diags: list[DiagnosticArray] = []
-        probe.create_subscription(BioTacFrame, "frames", got.append, SENSOR_STREAM_QOS)
+        probe.create_subscription(SensorPacket, "packets", got.on_packet, SENSOR_STREAM_QOS)
         probe.create_subscription(DiagnosticArray, "/diagnostics", diags.append, DIAGNOSTICS_QOS)
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
@@ -154,9 +172,9 @@ def test_two_sensors_unplug_replug(tmp_path):
             bridge.unplug()
 
     assert len(got) > n_before
+    assert got.frame_ids == {"biotac"}  # one link carries every sensor slot
     for m in got:
         assert m.sensor_id in SENSORS
-        assert m.header.frame_id == f"biotac_{m.sensor_id}"
         assert m.pac_sample_period_ns == 454_545
         v = values_for(m.sensor_id, m.sequence)
         mask = (1 << 2) if m.sequence % 10 == 3 else 0
@@ -197,7 +215,7 @@ def test_file_replay_publishes_every_frame_once(tmp_path):
     from rclpy.parameter import Parameter
 
     from ext_sense_drivers.nodes.biotac_driver import BioTacDriverNode
-    from ext_sense_msgs.msg import BioTacFrame
+    from ext_sense_msgs.msg import SensorPacket
     from ext_sense_runtime.qos import SENSOR_STREAM_QOS
 
     n_seq = 150
@@ -219,8 +237,8 @@ def test_file_replay_publishes_every_frame_once(tmp_path):
             ],
         )
         probe = rclpy.create_node("probe", context=ctx)
-        got: list[BioTacFrame] = []
-        probe.create_subscription(BioTacFrame, "frames", got.append, SENSOR_STREAM_QOS)
+        got = FramesOf()
+        probe.create_subscription(SensorPacket, "packets", got.on_packet, SENSOR_STREAM_QOS)
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
         ex.add_node(probe)
@@ -246,7 +264,7 @@ def test_file_replay_publishes_every_frame_once(tmp_path):
     assert c.frames == 2 * n_seq - 1  # the frame the garbage was pushed into is lost
     assert c.crc_failures >= 1
     assert c.dropped_frames == (1, 0, 0, 0, 0)
-    assert node.frames_published == c.frames
+    assert node.frames_decoded == c.frames
     # The replay starts before the probe is matched, so the first messages may miss it; every
     # one that arrives is unique, in order, and the last ones carry the final counters.
     assert len(got) > 20

@@ -22,9 +22,19 @@ from rosutil import spin_until  # noqa: E402
 
 from ext_sense_drivers.nodes.nuskin_driver import NuskinDriverNode  # noqa: E402
 from ext_sense_drivers.nuskin.wire import encode_words  # noqa: E402
+from ext_sense_drivers.packets import NuskinPacketDecoder, packet_of  # noqa: E402
 from ext_sense_drivers.transports.base import LinkState  # noqa: E402
-from ext_sense_msgs.msg import TaxelEventBatch  # noqa: E402
+from ext_sense_msgs.msg import SensorPacket  # noqa: E402
 from ext_sense_runtime.qos import SENSOR_STREAM_QOS  # noqa: E402
+
+
+def _taxels(packets):
+    """The taxels of every event in the packets (decoded with the library decoder)."""
+    if not packets:
+        return []
+    first = packet_of(packets[0])
+    decoder = NuskinPacketDecoder(first.encoding, first.options)
+    return [t for m in packets for t in decoder.decode(packet_of(m)).events.taxel.tolist()]
 
 
 def _call(executor, client, request):
@@ -50,7 +60,7 @@ def test_nuskin_driver_waits_for_a_manager_and_follows_its_transitions(tmp_path,
     )
     manager = rclpy.create_node("manager", context=context)
     batches = []
-    manager.create_subscription(TaxelEventBatch, "events", batches.append, SENSOR_STREAM_QOS)
+    manager.create_subscription(SensorPacket, "packets", batches.append, SENSOR_STREAM_QOS)
     change = manager.create_client(ChangeState, "/skin/change_state")
     get = manager.create_client(GetState, "/skin/get_state")
     executor = SingleThreadedExecutor(context=context)
@@ -81,12 +91,11 @@ def test_nuskin_driver_waits_for_a_manager_and_follows_its_transitions(tmp_path,
         assert batches == []  # configured, not active: nothing streams
         assert transition(Transition.TRANSITION_ACTIVATE).success
         os.write(master, encode_words([7, 8], [200, 300]))
-        assert spin_until(executor, lambda: batches)
-        assert [t for b in batches for t in b.taxel] == [7, 8]
+        assert spin_until(executor, lambda: _taxels(batches) == [7, 8])
         assert transition(Transition.TRANSITION_DEACTIVATE).success
         os.write(master, encode_words([9], [400]))
         spin_until(executor, lambda: False, 0.3)
-        assert [t for b in batches for t in b.taxel] == [7, 8]
+        assert _taxels(batches) == [7, 8]
         assert transition(Transition.TRANSITION_CLEANUP).success
         assert driver.reader.state == LinkState.STOPPED
         state = _call(executor, get, GetState.Request()).current_state

@@ -1,4 +1,6 @@
-"""The NUSkin driver node over a pty: bytes in, batches out, diagnostics, port lost and back."""
+"""The NUSkin driver node over a pty: bytes in, packets out, diagnostics, port lost and back.
+
+The packets are decoded here with the library decoder every consumer uses."""
 
 import os
 from pathlib import Path
@@ -17,8 +19,9 @@ from rosutil import spin_until  # noqa: E402
 
 from ext_sense_drivers.nodes.nuskin_driver import NuskinDriverNode  # noqa: E402
 from ext_sense_drivers.nuskin.wire import encode_words  # noqa: E402
+from ext_sense_drivers.packets import NuskinPacketDecoder, packet_of  # noqa: E402
 from ext_sense_drivers.transports.base import LinkState  # noqa: E402
-from ext_sense_msgs.msg import SensorPacket, TaxelEventBatch  # noqa: E402
+from ext_sense_msgs.msg import SensorPacket  # noqa: E402
 from ext_sense_runtime.qos import DIAGNOSTICS_QOS, SENSOR_STREAM_QOS  # noqa: E402
 from ext_sense_runtime.stamps import stamp_to_ns  # noqa: E402
 
@@ -68,8 +71,7 @@ def graph(tmp_path, request):
         ],
     )
     probe = rclpy.create_node("probe", context=context)
-    got = {"batches": [], "diag": [], "packets": []}
-    probe.create_subscription(TaxelEventBatch, "events", got["batches"].append, SENSOR_STREAM_QOS)
+    got = {"diag": [], "packets": []}
     probe.create_subscription(SensorPacket, "packets", got["packets"].append, SENSOR_STREAM_QOS)
     probe.create_subscription(DiagnosticArray, "/diagnostics", got["diag"].append, DIAGNOSTICS_QOS)
     executor = SingleThreadedExecutor(context=context)
@@ -86,9 +88,31 @@ def graph(tmp_path, request):
             device.unplug()
 
 
-def _events(batches):
-    taxel = [t for b in batches for t in b.taxel]
-    value = [v for b in batches for v in b.value]
+class _Decoded:
+    """The events of a list of received packets, decoded as they come (one decoder per list)."""
+
+    def __init__(self):
+        self._seen = {}
+
+    def __call__(self, packets):
+        decoder, blocks = self._seen.setdefault(id(packets), (None, []))
+        for msg in packets[len(blocks) :]:
+            packet = packet_of(msg)
+            if decoder is None:
+                decoder = NuskinPacketDecoder(packet.encoding, packet.options)
+            blocks.append(decoder.decode(packet))
+        self._seen[id(packets)] = (decoder, blocks)
+        return decoder, blocks
+
+
+_decoded = _Decoded()
+
+
+def _events(packets):
+    """``(taxels, values)`` of every event in the packets, in order."""
+    _, blocks = _decoded(packets)
+    taxel = [t for b in blocks for t in b.events.taxel.tolist()]
+    value = [v for b in blocks for v in b.events.value.tolist()]
     return taxel, value
 
 
@@ -110,31 +134,27 @@ def test_bytes_in_batches_out_and_port_lost_and_back(graph):
     # pyserial flushes the input buffer when it opens a port: send once the driver has it open.
     assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
     device.send(raw[2:600] + bytes([0x00, 0x13, 0xFF]) + raw[600:])
-    assert spin_until(executor, lambda: len(_events(got["batches"])[0]) >= 299)
-    taxels, values = _events(got["batches"])
+    assert spin_until(executor, lambda: len(_events(got["packets"])[0]) >= 299)
+    taxels, values = _events(got["packets"])
     assert taxels == taxel[1:].tolist()
     assert values == value[1:].tolist()
-    last = got["batches"][-1]
-    assert last.header.frame_id == "nuskin_test"
-    assert last.words_total == 299
-    assert last.resyncs == 2
-    assert last.skipped_bytes == 2 + 3
-    assert all(min(b.offset_ns) == 0 for b in got["batches"])
-    assert all(list(b.offset_ns) == sorted(b.offset_ns) for b in got["batches"])
-    stamps = [stamp_to_ns(b.header.stamp) for b in got["batches"]]
+    assert got["packets"][-1].header.frame_id == "nuskin_test"
+    decoder, blocks = _decoded(got["packets"])
+    counters = decoder.stream.batch_counters
+    assert (counters.words_total, counters.resyncs, counters.skipped_bytes) == (299, 2, 2 + 3)
+    times = np.concatenate([b.events.t_ns for b in blocks])
+    assert (np.diff(times) >= 0).all()
+    stamps = [stamp_to_ns(m.header.stamp) for m in got["packets"]]
     assert stamps == sorted(stamps)
 
-    # Diagnostics name the counters and the port state.
+    # Diagnostics name the port state and the rate.
     assert spin_until(
-        executor, lambda: _diag_values(got, "decode")[1].get("words_total") == "299", 5.0
+        executor, lambda: _diag_values(got, "link")[1].get("port_state") == "connected", 5.0
     )
-    _, decode = _diag_values(got, "decode")
-    assert decode["resyncs"] == "2"
-    assert decode["skipped_bytes"] == "5"
     status, link = _diag_values(got, "link")
     assert link["port_state"] == "connected"
     assert status.hardware_id == str(device.link)
-    assert "rate_words_per_s" in _diag_values(got, "events")[1]
+    assert spin_until(executor, lambda: "rate_words_per_s" in _diag_values(got, "words")[1], 5.0)
 
     # The port vanishes: the node reports it and keeps retrying.
     device.unplug()
@@ -147,10 +167,10 @@ def test_bytes_in_batches_out_and_port_lost_and_back(graph):
     # The port comes back: same node, new connection, events flow again.
     device.plug()
     assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
-    n_before = len(_events(got["batches"])[0])
+    n_before = len(_events(got["packets"])[0])
     device.send(encode_words([5, 80, 41], [1, 2, 3]))
-    assert spin_until(executor, lambda: len(_events(got["batches"])[0]) >= n_before + 3)
-    assert _events(got["batches"])[0][n_before:] == [5, 80, 41]
+    assert spin_until(executor, lambda: len(_events(got["packets"])[0]) >= n_before + 3)
+    assert _events(got["packets"])[0][n_before:] == [5, 80, 41]
     assert driver.reader.connects == 2
     assert driver.reader.alive
 
@@ -169,7 +189,7 @@ def test_bad_configuration_is_a_clear_error():
 
 
 def _run_driver(overrides, until, timeout_s=8.0, feed=None):
-    """Spin a driver and a probe until ``until(batches, driver)``; returns (ok, batches, state)."""
+    """Spin a driver and a probe until ``until(packets, driver)``; returns (ok, packets, state)."""
     context = rclpy.Context()
     rclpy.init(context=context)
     driver = probe = executor = None
@@ -177,7 +197,7 @@ def _run_driver(overrides, until, timeout_s=8.0, feed=None):
     try:
         driver = NuskinDriverNode(context=context, parameter_overrides=overrides)
         probe = rclpy.create_node("probe", context=context)
-        probe.create_subscription(TaxelEventBatch, "events", batches.append, SENSOR_STREAM_QOS)
+        probe.create_subscription(SensorPacket, "packets", batches.append, SENSOR_STREAM_QOS)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(driver)
         executor.add_node(probe)
@@ -230,7 +250,6 @@ def test_file_transport_replays_a_lab_capture_flat_out(food_poking_dir):
             Parameter("transport", Parameter.Type.STRING, "file"),
             Parameter("file_path", Parameter.Type.STRING, str(raw)),
             Parameter("file_pace", Parameter.Type.STRING, "flat"),
-            Parameter("max_batch_events", Parameter.Type.INTEGER, 500),
         ],
         lambda b, d: len(_events(b)[0]) >= n and d.reader.state == LinkState.EXHAUSTED,
     )
@@ -239,7 +258,6 @@ def test_file_transport_replays_a_lab_capture_flat_out(food_poking_dir):
     assert taxels[:n] == tact.taxel.tolist()
     assert values[:n] == tact.value.tolist()
     assert state == LinkState.EXHAUSTED
-    assert max(len(b.taxel) for b in batches) <= 500
 
 
 def test_aces_line_mode_over_a_pty(tmp_path):
@@ -265,54 +283,26 @@ def test_aces_line_mode_over_a_pty(tmp_path):
         device.unplug()
     assert ok
     assert _events(batches)[0] == taxel
-    assert [p for b in batches for p in b.polarity] == polarity
+    _, blocks = _decoded(batches)
+    assert [p for b in blocks for p in b.events.polarity.tolist()] == polarity
 
 
-class _BrokenStream:
-    """A decoding path with a bug: raises on every chunk."""
-
-    def __init__(self, real):
-        self.real = real
-        self.batch_counters = real.batch_counters
-
-    def feed(self, chunk):
-        raise RuntimeError("decoder bug")
-
-    def feed_flagged(self, chunk):
-        raise RuntimeError("decoder bug")
-
-    def restart(self):
-        return self.real.restart()
-
-    def diagnostics(self):
-        return self.real.diagnostics()
-
-
-def test_a_decoder_failure_costs_a_chunk_not_the_node():
+def test_frame_id_changes_at_run_time_and_never_to_empty():
     context = rclpy.Context()
     rclpy.init(context=context)
     driver = probe = executor = None
-    batches = []
+    packets = []
     try:
         driver = NuskinDriverNode(
             context=context,
             parameter_overrides=[Parameter("port", Parameter.Type.STRING, "loop://")],
         )
         probe = rclpy.create_node("probe", context=context)
-        probe.create_subscription(TaxelEventBatch, "events", batches.append, SENSOR_STREAM_QOS)
+        probe.create_subscription(SensorPacket, "packets", packets.append, SENSOR_STREAM_QOS)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(driver)
         executor.add_node(probe)
         assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
-        real = driver.stream
-        driver.stream = _BrokenStream(real)
-        driver.reader.transport.write(encode_words([1], [1]))
-        assert spin_until(executor, lambda: driver.decode_failures == 1, 5.0)
-        driver.stream = real
-        driver.reader.transport.write(encode_words([9, 10], [5, 6]))
-        assert spin_until(executor, lambda: len(_events(batches)[0]) >= 2, 5.0)
-        assert _events(batches) == ([9, 10], [5, 6])
-        # frame_id is the one parameter that changes at run time, and never to empty.
         empty = Parameter("frame_id", Parameter.Type.STRING, "")
         assert not driver.set_parameters([empty])[0].successful
         assert driver.set_parameters([Parameter("frame_id", Parameter.Type.STRING, "left")])[
@@ -321,8 +311,8 @@ def test_a_decoder_failure_costs_a_chunk_not_the_node():
         read_only = Parameter("baud", Parameter.Type.INTEGER, 9600)
         assert not driver.set_parameters([read_only])[0].successful
         driver.reader.transport.write(encode_words([11], [7]))
-        assert spin_until(executor, lambda: batches[-1].taxel.tolist() == [11], 5.0)
-        assert batches[-1].header.frame_id == "left"
+        assert spin_until(executor, lambda: _events(packets)[0] == [11], 5.0)
+        assert packets[-1].header.frame_id == "left"
     finally:
         if executor is not None:
             executor.shutdown()
@@ -335,12 +325,12 @@ def test_a_decoder_failure_costs_a_chunk_not_the_node():
 def test_an_exception_in_a_driver_callback_is_caught_counted_and_diagnosed(graph):
     device, driver, executor, got = graph
     assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
-    real = driver._publish
+    real = driver._publish_packet
 
     def broken(*args):
         raise RuntimeError("publisher bug")
 
-    driver._publish = broken  # the drain timer's callback raises past the decoder's own try
+    driver._publish_packet = broken  # the drain timer's callback raises
     device.send(encode_words([4], [40]))
     assert spin_until(executor, lambda: driver.guard.total == 1, 5.0)
     assert "RuntimeError: publisher bug" in driver.guard.last_cause
@@ -349,9 +339,9 @@ def test_an_exception_in_a_driver_callback_is_caught_counted_and_diagnosed(graph
     status, values = _diag_values(got, "callbacks")
     assert status.level == b"\x02"
     assert values["exceptions_total"] == "1"
-    driver._publish = real  # the node lives on: the next words are published
+    driver._publish_packet = real  # the node lives on: the next words are published
     device.send(encode_words([5, 6], [50, 60]))
-    assert spin_until(executor, lambda: _events(got["batches"])[0][-2:] == [5, 6], 5.0)
+    assert spin_until(executor, lambda: _events(got["packets"])[0][-2:] == [5, 6], 5.0)
 
 
 def test_shipped_parameter_file_is_accepted():
@@ -365,7 +355,7 @@ def test_shipped_parameter_file_is_accepted():
         driver = NuskinDriverNode(context=context)
         assert driver.config.baud == 4_000_000
         assert driver.config.can_arbitration_id == 0x100
-        assert driver.max_batch_events == 20000
+        assert driver.get_parameter("quiet_packets_period_s").value == 0.002
         assert driver.get_parameter("batch_period_s").value == 0.001
         assert driver.liveness.watches[0].expected_rate_hz == 540.0
         assert driver.liveness.watches[0].warn_ns == 200_000_000
@@ -375,7 +365,7 @@ def test_shipped_parameter_file_is_accepted():
         rclpy.try_shutdown(context=context)
 
 
-@pytest.mark.parametrize("graph", [{"quiet_packets_s": 0.0}], indirect=True)
+@pytest.mark.parametrize("graph", [{"quiet_packets_period_s": 0.0}], indirect=True)
 def test_the_drain_timer_stops_while_the_link_is_silent_and_data_restarts_it(graph):
     """An idle driver does not tick every batch period (issue #16: idle cost); the reader
     thread restarts the drain with the next bytes, and no byte waits for a later chunk."""
@@ -383,34 +373,30 @@ def test_the_drain_timer_stops_while_the_link_is_silent_and_data_restarts_it(gra
     assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
     assert spin_until(executor, lambda: driver._drain_timer.is_canceled(), 2.0)
     for burst, taxels in enumerate(([3, 4, 5], [7], [80, 1])):
-        n_before = len(_events(got["batches"])[0])
+        n_before = len(_events(got["packets"])[0])
         wanted = n_before + len(taxels)
         device.send(encode_words(taxels, [burst] * len(taxels)))
-        assert spin_until(executor, lambda w=wanted: len(_events(got["batches"])[0]) >= w)
-        assert _events(got["batches"])[0][n_before:] == taxels
+        assert spin_until(executor, lambda w=wanted: len(_events(got["packets"])[0]) >= w)
+        assert _events(got["packets"])[0][n_before:] == taxels
         # the queue drained: the timer stops again until the next bytes
         assert spin_until(executor, lambda: driver._drain_timer.is_canceled(), 2.0)
         assert driver.reader.queued_chunks == 0
 
 
-@pytest.mark.parametrize(
-    "graph", [{"quiet_packets_s": 0.5, "quiet_packets_fast_s": 0.15}], indirect=True
-)
-def test_after_its_last_bytes_the_driver_says_it_read_nothing_then_goes_idle(graph):
-    """For ``quiet_packets_s`` after the last bytes a timer publishes an empty packet (no reads,
-    stamped when it looked) every ``batch_period_s`` for ``quiet_packets_fast_s``, then every
-    ``quiet_packets_period_s``, so a window node closes its windows on data; then it stops
-    (idle cost) until the next bytes."""
-    from ext_sense_drivers.packets import QUIET_PACKETS_PERIOD_S, NuskinPacketDecoder, packet_of
-
+@pytest.mark.parametrize("graph", [{"quiet_packets_period_s": 0.005}], indirect=True)
+def test_while_the_sensor_is_silent_the_driver_says_it_read_nothing_on_its_own_cadence(graph):
+    """After bytes, a timer publishes an empty packet (no reads, stamped when it looked) every
+    ``quiet_packets_period_s`` while no bytes come, for as long as the stream goes: a cadence
+    of the driver's own, so a window node closes its windows on data. Nothing is said before
+    the first bytes, nor after the link went down (the stream ended)."""
     device, driver, executor, got = graph
     assert spin_until(executor, lambda: driver.reader.state == LinkState.CONNECTED, 5.0)
     assert spin_until(executor, lambda: driver._drain_timer.is_canceled(), 2.0)
     assert driver._quiet_timer.is_canceled()
+    executor.spin_once(timeout_sec=0.05)
     assert got["packets"] == []  # nothing read before any bytes: nothing said, not even the open
     device.send(encode_words([3, 4], [1, 2]))
-    assert spin_until(executor, lambda: len(got["packets"]) > 1)
-    assert spin_until(executor, lambda: driver._quiet_timer.is_canceled(), 3.0)
+    assert spin_until(executor, lambda: len(got["packets"]) > 60, 5.0)  # 0.3 s of silence
     opened, *packets = [packet_of(m) for m in got["packets"]]
     # first, with the first bytes' drain: the link opened then and read nothing before them
     assert (opened.seq, opened.connection, opened.data, opened.read_end.size) == (0, 1, b"", 0)
@@ -420,33 +406,23 @@ def test_after_its_last_bytes_the_driver_says_it_read_nothing_then_goes_idle(gra
     quiet = packets[1:]
     assert [p.seq for p in quiet] == list(range(2, len(packets) + 1))
     assert all(p.data == b"" and p.read_end.size == 0 for p in quiet)
-    span_s = (quiet[-1].stamp_ns - packets[0].end_ns) / 1e9
-    since_s = (np.array([p.stamp_ns for p in quiet]) - packets[0].end_ns) / 1e9
-    fast, slow = quiet[: int(np.sum(since_s < 0.13))], quiet[int(np.sum(since_s < 0.17)) :]
-    fast_ms, slow_ms = (np.diff([p.stamp_ns for p in part]) / 1e6 for part in (fast, slow))
-    print(
-        f"{len(quiet)} 'nothing read' packets over {span_s:.3f} s after the bytes, gaps p50 "
-        f"{np.median(fast_ms):.2f} ms in the fast phase ({len(fast)}), "
-        f"{np.median(slow_ms):.2f} ms after it ({len(slow)})"
-    )
-    assert 0.45 <= span_s <= 0.6
-    assert len(fast) >= 0.13 / 0.001 / 3  # one per batch period (loaded: fewer)
-    assert np.median(fast_ms) <= 2.0
-    assert len(slow) >= 0.33 / QUIET_PACKETS_PERIOD_S / 2
-    assert np.median(slow_ms) >= 0.8 * QUIET_PACKETS_PERIOD_S * 1e3
+    gaps_ms = np.diff([p.stamp_ns for p in quiet]) / 1e6
+    print(f"{len(quiet)} 'nothing read' packets, gaps p50 {np.median(gaps_ms):.2f} ms")
+    assert 4.0 <= np.median(gaps_ms) <= 7.0  # the fixed cadence (loaded: a little late)
     decoder = NuskinPacketDecoder(packets[0].encoding, packets[0].options)
     assert decoder.decode(opened).complete_ns == opened.stamp_ns
     decoded = [decoder.decode(p) for p in packets]
     assert [d.events.size for d in decoded] == [2] + [0] * len(quiet)
     assert [d.complete_ns for d in decoded[1:]] == [p.stamp_ns for p in quiet]
-    n = len(got["packets"])
-    executor.spin_once(timeout_sec=0.3)
-    assert len(got["packets"]) == n  # idle: nothing more until the next bytes
     device.send(encode_words([7], [3]))
-    assert spin_until(executor, lambda: len(got["packets"]) > n)
-    later = decoder.decode(packet_of(got["packets"][n]))
-    assert later.events.taxel.tolist() == [7]
-    assert later.complete_ns > quiet[-1].stamp_ns
+    assert spin_until(executor, lambda: 7 in _events(got["packets"])[0], 5.0)
+    # the link goes down: its stream ends, and the driver stops saying anything
+    device.unplug()
+    assert spin_until(executor, lambda: got["packets"][-1].end_of_stream, 5.0)
+    assert spin_until(executor, lambda: driver._quiet_timer.is_canceled(), 2.0)
+    n = len(got["packets"])
+    executor.spin_once(timeout_sec=0.1)
+    assert len(got["packets"]) == n
 
 
 def test_reader_priority_is_asked_for_and_reported_on_the_link_status(tmp_path):

@@ -177,30 +177,19 @@ def test_packet_of_reads_a_rosbags_message():
     assert back.reads() == packet.reads()
 
 
-def test_quiet_schedule_says_nothing_read_each_period_after_bytes_until_quiet_s():
-    quiet = QuietSchedule(quiet_s=0.02, period_s=0.005, fast_s=0.0)
+def test_quiet_schedule_says_nothing_read_every_period_after_bytes_for_as_long_as_silent():
+    """A fixed cadence of the driver's own, from the last bytes, with no end."""
+    quiet = QuietSchedule(period_s=0.005)
     ms = 10**6
     assert not quiet.due(T0)  # no bytes yet
     quiet.on_bytes(T0)
-    drains = [T0 + k * ms for k in range(1, 30)]  # a drain every 1 ms, nothing read
+    drains = [T0 + k * ms for k in range(1, 3001)]  # a drain every 1 ms for 3 s, nothing read
     said = [t - T0 for t in drains if quiet.due(t)]
-    assert said == [5 * ms, 10 * ms, 15 * ms]  # and not at 20 ms: quiet_s after the bytes
-    assert quiet.over(T0 + 20 * ms)
-    quiet.on_bytes(T0 + 40 * ms)  # bytes again: one period after them
-    assert not quiet.due(T0 + 44 * ms)
-    assert quiet.due(T0 + 45 * ms)
-    assert QuietSchedule(quiet_s=0.0).over(T0)  # 0: never
-
-
-def test_quiet_schedule_says_it_every_batch_period_in_the_fast_phase_then_every_period():
-    """While the windows of the contact that fell silent end, a window waits at most one batch
-    period past its end for the packet that closes it; after, the packets thin out."""
-    ms = 10**6
-    quiet = QuietSchedule(quiet_s=0.03, period_s=0.005, fast_s=0.004, fast_period_s=0.001)
-    quiet.on_bytes(T0)
-    assert quiet.period_at(T0 + 3 * ms) == ms
-    assert quiet.period_at(T0 + 4 * ms) == 5 * ms
-    said = [k for k in range(1, 40) if quiet.due(T0 + k * ms)]
-    assert said == [1, 2, 3, 4, 9, 14, 19, 24, 29]
-    quiet.on_bytes(T0 + 50 * ms)  # bytes again: the fast phase again
-    assert [k for k in range(50, 56) if quiet.due(T0 + k * ms)] == [51, 52, 53, 54]
+    assert said == [k * 5 * ms for k in range(1, 601)]
+    quiet.on_bytes(T0 + 3040 * ms)  # bytes again: one period after them
+    assert not quiet.due(T0 + 3044 * ms)
+    assert quiet.due(T0 + 3045 * ms)
+    never = QuietSchedule(period_s=0.0)  # 0: never
+    never.on_bytes(T0)
+    assert not never.enabled
+    assert not never.due(T0 + 10**9)
