@@ -16,11 +16,10 @@ sensor silent while the link is up is a stall (WARN, then ERROR, naming the sens
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.lifecycle import LifecycleNode
-from rclpy.node import Node
 
 from ext_sense_drivers.biotac.clock import FRAME_RATE_HZ
 from ext_sense_drivers.biotac.driver_config import BioTacDriverConfig
@@ -29,15 +28,12 @@ from ext_sense_drivers.liveness import DriverLiveness, StreamWatch
 from ext_sense_drivers.nodes.link_node import (
     ManagedLink,
     create_stream_publisher,
-    declare_autostart,
-    declare_backoff,
-    declare_link_parameters,
-    declare_liveness,
     link_status,
     monotonic_to_ros_ns,
     packet_message,
     stop_reader,
 )
+from ext_sense_drivers.nodes.link_parameters import STALL_OFF, LinkParameters, link_field
 from ext_sense_drivers.packets import (
     BIOTAC_BRIDGE_V1,
     BioTacPacketDecoder,
@@ -52,63 +48,89 @@ from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare_all, param
 
 
-def _declare_config(node: Node) -> BioTacDriverConfig:
-    d = BioTacDriverConfig()
-    link = declare_link_parameters(
-        node,
-        d,
-        {
-            "port": "Serial device of the bridge or pyserial URL.",
-            "baud": "Serial line rate, bit/s (8N1; five sensors need >= 480000). Also sets the "
-            "transmission time in the clock model.",
-            "can_arbitration_id": "Arbitration id of the CAN frames carrying the bridge stream.",
-            "can_extended_id": "29-bit extended CAN id.",
-            "file_path": "Recorded bridge stream (transport file).",
-            "file_bytes_per_s": "File replay rate, bytes/s (9600 per sensor is real time); "
-            "0 replays flat out.",
-        },
+@dataclass(frozen=True)
+class BioTacParameters(LinkParameters):
+    """``biotac_driver``'s parameters; reconnect_max_s changes live, the rest are read-only."""
+
+    port: str = link_field(
+        "port", BioTacDriverConfig.port, "Serial device of the bridge or pyserial URL."
     )
-    return BioTacDriverConfig(
-        **link,
-        frame_id_prefix=declare(
-            node,
-            "frame_id_prefix",
-            d.frame_id_prefix,
-            "header.frame_id is this prefix plus the sensor slot (biotac_0 ... biotac_4).",
-            read_only=True,
-        ),
-        expected_sensors=tuple(
-            declare(
-                node,
-                "expected_sensors",
-                list(d.expected_sensors),
-                "Sensor slots (0..4) that must deliver 100 frames/s; diagnostics check their rate.",
-                read_only=True,
-            )
-        ),
-        latency_ns=declare(
-            node,
-            "latency_ns",
-            d.latency_ns,
-            "Known fixed latency from the bridge to the host, ns, added to the clock model's "
-            "lead (frame span 10 ms + serial transmission).",
-            low=0,
-            high=1_000_000_000,
-            read_only=True,
-        ),
-        clock_window_frames=declare(
-            node,
-            "clock_window_frames",
-            d.clock_window_frames,
-            "Frames over which the clock model keeps the least-delayed arrival (200 = 2 s).",
-            low=1,
-            high=100_000,
-            read_only=True,
-        ),
+    baud: int = link_field(
+        "baud",
+        BioTacDriverConfig.baud,
+        "Serial line rate, bit/s (8N1; five sensors need >= 480000). Also sets the "
+        "transmission time in the clock model.",
     )
+    can_arbitration_id: int = link_field(
+        "can_arbitration_id",
+        BioTacDriverConfig.can_arbitration_id,
+        "Arbitration id of the CAN frames carrying the bridge stream.",
+    )
+    can_extended_id: bool = link_field(
+        "can_extended_id", BioTacDriverConfig.can_extended_id, "29-bit extended CAN id."
+    )
+    file_path: str = link_field(
+        "file_path", BioTacDriverConfig.file_path, "Recorded bridge stream (transport file)."
+    )
+    file_bytes_per_s: float = link_field(
+        "file_bytes_per_s",
+        BioTacDriverConfig.file_bytes_per_s,
+        "File replay rate, bytes/s (9600 per sensor is real time); 0 replays flat out.",
+    )
+    reconnect_max_s: float = param(2.0, "Longest reconnect delay, s.", low=0.001, high=600.0)
+    expected_rate_hz: float = param(
+        float(FRAME_RATE_HZ),
+        "Least frame rate of each expected sensor while the link is up, frames/s (default "
+        "100: the bridge sends every sensor's frames at 100 Hz whatever touches it)." + STALL_OFF,
+        low=0.0,
+        high=10_000_000.0,
+        read_only=True,
+    )
+    frame_id_prefix: str = param(
+        BioTacDriverConfig.frame_id_prefix,
+        "header.frame_id is this prefix plus the sensor slot (biotac_0 ... biotac_4).",
+        read_only=True,
+    )
+    expected_sensors: tuple[int, ...] = param(
+        BioTacDriverConfig.expected_sensors,
+        "Sensor slots (0..4) that must deliver 100 frames/s; diagnostics check their rate.",
+        read_only=True,
+    )
+    latency_ns: int = param(
+        BioTacDriverConfig.latency_ns,
+        "Known fixed latency from the bridge to the host, ns, added to the clock model's "
+        "lead (frame span 10 ms + serial transmission).",
+        low=0,
+        high=1_000_000_000,
+        read_only=True,
+    )
+    clock_window_frames: int = param(
+        BioTacDriverConfig.clock_window_frames,
+        "Frames over which the clock model keeps the least-delayed arrival (200 = 2 s).",
+        low=1,
+        high=100_000,
+        read_only=True,
+    )
+    publish_period_s: float = param(
+        0.002,
+        "Time between drains of the link (frames are published one message each), s.",
+        low=0.0001,
+        high=1.0,
+        read_only=True,
+    )
+
+    def driver_config(self) -> BioTacDriverConfig:
+        """The driver's config (checks the link and the sensor slots)."""
+        return BioTacDriverConfig(
+            **self.link(),
+            frame_id_prefix=self.frame_id_prefix,
+            expected_sensors=self.expected_sensors,
+            latency_ns=self.latency_ns,
+            clock_window_frames=self.clock_window_frames,
+        )
 
 
 class BioTacDriverNode(ManagedLink, LifecycleNode):
@@ -117,36 +139,15 @@ class BioTacDriverNode(ManagedLink, LifecycleNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("biotac_driver", **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        self.config = _declare_config(self)
-        period_s = declare(
-            self,
-            "publish_period_s",
-            0.002,
-            "Time between drains of the link (frames are published one message each), s.",
-            low=0.0001,
-            high=1.0,
-            read_only=True,
-        )
-        backoff = declare_backoff(self, "link", max_read_only=False)
-        rate, warn_ns, error_ns = declare_liveness(
-            self,
-            FRAME_RATE_HZ,
-            "Least frame rate of each expected sensor while the link is up, frames/s "
-            "(default 100: the bridge sends every sensor's frames at 100 Hz whatever touches "
-            "it).",
-        )
+        self.p = p = declare_all(self, BioTacParameters, self._on_change, self.guard)
+        self.config = p.driver_config()
+        rate, (warn_ns, error_ns) = p.expected_rate_hz, p.stall_ns()
         where = self.config.hardware_id
         self._watches = {
             s: StreamWatch(f"frames of BioTac sensor {s} on {where}", rate, warn_ns, error_ns)
             for s in sorted(set(self.config.expected_sensors))
         }
         self.liveness = DriverLiveness(list(self._watches.values()))
-        self.add_on_set_parameters_callback(
-            self.guard.wrap(
-                self._on_set,
-                fallback=lambda err: SetParametersResult(successful=False, reason=str(err)),
-            )
-        )
 
         options = format_options(
             {
@@ -157,7 +158,7 @@ class BioTacDriverNode(ManagedLink, LifecycleNode):
         self.packer = PacketPacker(BIOTAC_BRIDGE_V1, options)
         self.packet_decoder = BioTacPacketDecoder(BIOTAC_BRIDGE_V1, options)
         self.decoder = self.packet_decoder.decoder  # the bridge decoder and its counters
-        self.reader = self.config.make_reader(backoff)
+        self.reader = self.config.make_reader(p.backoff())
         self._mono_to_ros_ns = monotonic_to_ros_ns(self)
         self.frames_decoded = 0
         self.packets_published = 0
@@ -175,24 +176,22 @@ class BioTacDriverNode(ManagedLink, LifecycleNode):
         self.guard.attach(self._updater)
         self._last_reported = self.decoder.counters
         self._diagnostics = DiagnosticsPublisher(self, self._updater)
-        self._period_s = period_s
+        self._period_s = p.publish_period_s
         self.get_logger().info(
             f"reading the BioTac bridge from {self.config.transport} {self.config.hardware_id}"
         )
-        self.start_managed(declare_autostart(self))
+        self.start_managed(p.autostart)
 
-    def _on_set(self, params: list[Any]) -> SetParametersResult:
-        for p in params:
-            if p.name == "reconnect_max_s" and float(p.value) < self.reader.backoff.initial_s:
-                return SetParametersResult(
-                    successful=False,
-                    reason=f"The 'reconnect_max_s' parameter must be >= reconnect_initial_s "
-                    f"({self.reader.backoff.initial_s}). Got {p.value} instead.",
-                )
-        for p in params:
-            if p.name == "reconnect_max_s":
-                self.reader.backoff = Backoff(self.reader.backoff.initial_s, float(p.value))
-        return SetParametersResult(successful=True)
+    def _on_change(self, new: BioTacParameters) -> str | None:
+        initial = self.reader.backoff.initial_s
+        if new.reconnect_max_s < initial:
+            return (
+                f"The 'reconnect_max_s' parameter must be >= reconnect_initial_s ({initial}). "
+                f"Got {new.reconnect_max_s} instead."
+            )
+        self.reader.backoff = Backoff(initial, new.reconnect_max_s)
+        self.p = new
+        return None
 
     def _tick(self) -> None:
         """Drain the reader, publish the packets, and decode them to watch every sensor.
