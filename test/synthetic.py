@@ -78,19 +78,20 @@ WORDS_OPTIONS = "baud=4000000;flag_polarity=ignore"
 """The NUSkin driver's packet options at its defaults."""
 
 
-def stream_packets(batches: list[Batch], connection: int = 1) -> list:
+def stream_packets(batches: list[Batch], connection: int = 1, packer=None) -> list:
     """The NUSkin driver's packets of a synthetic stream (``Packet`` records, no ROS).
 
-    The link opens at the first batch's stamp (``PacketPacker.opened``); each batch with events
-    is one read returning at the batch's end with their receiver words (flag 0, as real
-    receivers send), and a batch without is the driver's "nothing read" packet at its end.
+    The link opens at the first batch's stamp (``PacketPacker.opened``, unless ``packer``, a
+    driver's packer to go on with, has that connection going); each batch with events is one
+    read returning at the batch's end with their receiver words (flag 0, as real receivers
+    send), and a batch without is the driver's "nothing read" packet at its end.
     """
     from ext_sense_drivers.nuskin.wire import encode_words
     from ext_sense_drivers.packets import NUSKIN_WORDS_V1, PacketPacker
     from ext_sense_drivers.transports.base import Chunk
 
-    packer = PacketPacker(NUSKIN_WORDS_V1, WORDS_OPTIONS)
-    out = [packer.opened(connection, batches[0].stamp_ns)]
+    packer = PacketPacker(NUSKIN_WORDS_V1, WORDS_OPTIONS) if packer is None else packer
+    out = [p for p in [packer.opened(connection, batches[0].stamp_ns)] if p is not None]
     for b in batches:
         end = b.stamp_ns + MS
         if b.taxel.size:

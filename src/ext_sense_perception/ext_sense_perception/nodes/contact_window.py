@@ -1,33 +1,25 @@
-"""``contact_window`` node: sensor stream in, contact windows (provisional and final) out.
+"""``contact_window`` node: sensor packets in, contact windows (provisional and final) out.
 
-Subscribes ``packets`` (``SensorPacket``, the driver's raw bytes: ``input`` packets, the default)
-and decodes them with the drivers' library decoder, or the decoded ``events``
-(``TaxelEventBatch``, NUSkin) or ``frames`` (``BioTacFrame``) (``input`` decoded: bags recorded
-before packets); and, for food, ``motion_start`` (``ContactGroundTruth``; its stamp is the arm's
-motion start). Packets are the default so that the live node and the offline replay of a bag
-decode the same bytes with the same code: identical windows (docs/runtime.md, Raw packets). A
-``seq`` gap is lost input (counted, on ``/diagnostics``, the windows across it degraded); a
-packet that cannot be read is counted and dropped with the reason logged. Publishes
-``window`` (``ContactWindow``): provisional windows at the configured shorter post-onset times,
-then the final one. The windowing itself is
+Subscribes ``packets`` (``SensorPacket``, the driver's raw bytes) and decodes them with the
+drivers' library decoder, and, for food, ``motion_start`` (``ContactGroundTruth``; its stamp is
+the arm's motion start). A ``seq`` gap is lost input (counted, on ``/diagnostics``, the windows
+across it degraded); a packet that cannot be read is counted and dropped with the reason
+logged. Publishes ``window`` (``ContactWindow``): provisional windows at the configured shorter
+post-onset times, then the final one. The windowing itself is
 :class:`~ext_sense_perception.online.stage.WindowStage`; the window and the anytime times come
 from the task profile (:mod:`ext_sense_perception.profiles`).
 
-Windows close on data: the batch whose events (or, empty, whose stamp) pass ``onset + post``
-cuts the window in the subscription callback. A NUSkin window must also close when no event
-follows it, so one one-shot deadline timer is armed for the moment the stream clock (the newest
-data's stream time plus the wall time since it arrived, minus ``advance_slack_ms`` for events
-still in flight, and with packets ``packet_wait_ms`` for the driver's next packet: its empty
-"nothing read" packets close a window on data when the sensor is quiet) reaches the next
-pending window's end, or the liveness status would change,
-or ``stream_timeout_ms`` passes with no data (the pending windows are then flushed, marked
-truncated); see :mod:`ext_sense_perception.online.deadline`. With nothing pending the timer is
-off: an idle node does not wake (a 1 ms polling timer here cost 12 % of a core while idle).
+When a window closes is :class:`~ext_sense_perception.online.stage.WindowStage`'s one rule: when
+the packets carry the stream past its end (their events, or the driver's "nothing read"
+packets, which it sends on its own cadence while the sensor is silent), or end the stream. This
+node has no clock of its own for windows, so a replay of the recorded packets cuts exactly the
+windows it cut (``test/test_packet_replay.py``). Its one timer is for the liveness status below,
+armed only while a stall could start or turn ERROR: an idle node does not wake.
 
 Liveness (:mod:`ext_sense_perception.online.liveness`): the node knows the rate its input
-should have (``expected_rate_hz``) and when it must arrive (BioTac: always; NUSkin: while a
-contact detected in the signal is open; a food window, opened by the arm's motion start, may
-be silent for seconds). Silence then beyond ``stall_warn_ms`` is a stall: WARN on ``/diagnostics``
+should have (``expected_rate_hz``) and when it must arrive (BioTac: always; NUSkin: while the
+driver's stream goes, as its "nothing read" packets keep coming while the sensor is silent).
+Silence then beyond ``stall_warn_ms`` is a stall: WARN on ``/diagnostics``
 (status ``liveness``, naming the silent topic), ERROR beyond ``stall_error_ms``, published at
 once (not at the next 1 Hz tick), cleared when data returns. Every window overlapping a stall
 or input lost on the way (a ``seq`` gap, or the driver's word count ran ahead of the events
@@ -36,8 +28,7 @@ first input the node got (it joined mid-stream: the onset found may be the tail 
 already under way; the windower's rule, offline too). Degraded is decided on whether the
 window's data is complete, not on lateness: packets later than ``late_ms`` are counted
 (``late_packets``), but a window closes on data past its end and the stream is in order, so a
-late packet inside it is in it; the one window a late packet can miss is one the clock closed
-first (``windows_missed_late_data``, WARN on the console). Contacts are counted, not gaps: a
+late packet inside it is in it. Contacts are counted, not gaps: a
 final window across a fault is a degraded contact (``contacts_degraded``), lost input no window
 came to cover a lost one (``contacts_lost``, see :mod:`.online.liveness`). QoS deadline
 events are not used for this: a subscription's deadline is incompatible with the drivers'
@@ -59,19 +50,12 @@ from typing import Any
 
 from rclpy.node import Node
 
-from ext_sense_msgs.msg import (
-    BioTacFrame,
-    ContactGroundTruth,
-    ContactWindow,
-    SensorPacket,
-    TaxelEventBatch,
-)
+from ext_sense_msgs.msg import ContactGroundTruth, ContactWindow, SensorPacket
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.nodes.window_parameters import (
     declare_input_liveness,
     declare_window_config,
 )
-from ext_sense_perception.online.deadline import next_wake_ns, stall_change_ns
 from ext_sense_perception.online.messages import window_fields
 from ext_sense_perception.online.stage import WindowStage
 from ext_sense_perception.online.windowers import EventWindower
@@ -81,93 +65,29 @@ from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import COMMAND_QOS, SENSOR_STREAM_QOS, WINDOW_QOS
 from ext_sense_runtime.qos_events import QosEventCounter
 from ext_sense_runtime.stamps import MS, fill_stamp, stamp_to_ns
 
 MIN_WAIT_NS = 50_000
-"""Shortest deadline wait: a deadline already passed fires at once, without a zero period."""
+"""Shortest timer wait: a moment already passed fires at once, without a zero period."""
 
 
 class ContactWindowNode(Node):
-    """Cuts contact windows from the NUSkin event stream or the BioTac frames."""
+    """Cuts contact windows from the sensor's packets (NUSkin events or BioTac frames)."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "contact_window"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
         config, sensor_ids, profile_source = declare_window_config(self)
-        self.slack_ns = int(
-            declare(
-                self,
-                "advance_slack_ms",
-                0.5,
-                "Allowance for events still in flight when the timer closes a window, ms.",
-                low=0.0,
-                high=1000.0,
-            )
-            * MS
-        )
-        self.timeout_ns = int(
-            declare(
-                self,
-                "stream_timeout_ms",
-                500.0,
-                "No data for this long: flush pending windows as truncated, ms.",
-                low=10.0,
-                high=60000.0,
-            )
-            * MS
-        )
         try:
             self.stage = WindowStage(config, sensor_ids)
         except PerceptionError as err:
             raise ValueError(f"contact_window: {err}") from err
         self.config = config
-        self.input = declare(
-            self,
-            "input",
-            "packets",
-            "What to cut windows from: packets (the driver's raw SensorPacket on packets, decoded "
-            "here: live and offline see the same bytes) or decoded (TaxelEventBatch on events, "
-            "BioTacFrame on frames: bags recorded before packets).",
-            read_only=True,
-        )
-        if self.input not in ("packets", "decoded"):
-            raise ValueError(
-                f"The 'input' parameter must be one of ['packets', 'decoded']. "
-                f"Got {self.input!r} instead."
-            )
-        decoded_topic = "events" if config.sensor is Sensor.NUSKIN else "frames"
-        input_topic = self.resolve_topic_name(
-            "packets" if self.input == "packets" else decoded_topic
-        )
-        self.liveness = declare_input_liveness(self, config, input_topic)
-        if self.input == "packets":
-            # the NUSkin driver sends a packet every batch period (1 ms) for quiet_packets_fast_s
-            # after its last bytes, then every quiet_packets_period_s (5 ms), while the sensor
-            # is quiet ("nothing read"): windows close on those, as a replay of the packets
-            # does; the clock closes one only when they stop coming (a stalled stream)
-            self.slack_ns += round(
-                declare(
-                    self,
-                    "packet_wait_ms",
-                    20.0,
-                    "Longest wait past a window's end for the driver's next packet (bytes, or its "
-                    "empty 'nothing read' packet, every quiet_packets_period_s while the sensor is "
-                    "quiet) "
-                    "before the window is closed on this node's clock, ms: added to "
-                    "advance_slack_ms when reading packets. A window the clock closes may miss "
-                    "a late packet a replay of the recording would put in it.",
-                    low=0.0,
-                    high=1000.0,
-                    read_only=True,
-                )
-                * MS
-            )
+        self.liveness = declare_input_liveness(self, config, self.resolve_topic_name("packets"))
         self._first_packet = True
         self._stall_state = (False, False)
-        self._wall_at_data: int | None = None
         self.published = 0
         self.provisional_published = 0
         self.motion_starts = 0
@@ -178,45 +98,23 @@ class ContactWindowNode(Node):
         self.pub = intra_process.create_publisher(
             self, ContactWindow, "window", WINDOW_QOS, event_callbacks=self.qos_events.publisher()
         )
-        if self.input == "packets":
-            self.input_subscription = intra_process.create_subscription(
-                self,
-                SensorPacket,
-                "packets",
-                self.guard(self._on_packet),
-                SENSOR_STREAM_QOS,
-                event_callbacks=self.qos_events.subscription(),
-            )
-        elif config.sensor is Sensor.NUSKIN:
-            self.input_subscription = intra_process.create_subscription(
-                self,
-                TaxelEventBatch,
-                "events",
-                self.guard(self._on_events),
-                SENSOR_STREAM_QOS,
-                event_callbacks=self.qos_events.subscription(),
-            )
-        else:
-            self.input_subscription = intra_process.create_subscription(
-                self,
-                BioTacFrame,
-                "frames",
-                self.guard(self._on_frame),
-                SENSOR_STREAM_QOS,
-                event_callbacks=self.qos_events.subscription(),
-            )
+        self.input_subscription = intra_process.create_subscription(
+            self,
+            SensorPacket,
+            "packets",
+            self.guard(self._on_packet),
+            SENSOR_STREAM_QOS,
+            event_callbacks=self.qos_events.subscription(),
+        )
         if config.external_onsets:
             self.create_subscription(
                 ContactGroundTruth, "motion_start", self.guard(self._on_motion_start), COMMAND_QOS
             )
         # one-shot, re-armed by _arm(); the period given here is replaced before each start
-        self._deadline = self.create_timer(1.0, self.guard(self._on_deadline), autostart=False)
+        self._stall_timer = self.create_timer(1.0, self.guard(self._on_silence), autostart=False)
         self._armed_ns: int | None = None
+        self._stream_going = False
         self.wakeups = 0
-        self.closed_by_clock = 0
-        self._clock_closed_end_ns = 0
-        self.windows_missed_late_data = 0
-        """Windows the clock closed before a late packet with bytes inside them came."""
 
         self.updater = Updater(hardware_id=f"{config.task.label}/{config.sensor.label}")
         self.rate = self.updater.add(
@@ -261,22 +159,6 @@ class ContactWindowNode(Node):
             self.published += 1
             self.provisional_published += int(win.provisional)
 
-    def _on_events(self, msg: TaxelEventBatch) -> None:
-        self._arrived(msg)
-        lost = self.liveness.words_lost
-        self.liveness.on_counts(
-            stamp_to_ns(msg.header.stamp), msg.words_total, msg.bad_taxel_words, len(msg.taxel)
-        )
-        if self.liveness.words_lost > lost:
-            self.get_logger().warning(
-                f"lost input: {self.liveness.words_lost - lost} words the driver decoded never "
-                f"reached this node ({self.liveness.words_lost} so far; {self._contacts_said()})",
-                throttle_duration_sec=1.0,
-            )
-        self._publish(self.stage.on_events(msg))
-        self._report_stuck_change()
-        self._arm(earlier_only=True)
-
     def _on_packet(self, msg: SensorPacket) -> None:
         if self._first_packet:
             self._first_packet = False
@@ -285,16 +167,8 @@ class ContactWindowNode(Node):
                 f"first packet on {self.liveness.stream}: seq {msg.seq}, {msg.encoding}{late}"
             )
         previous_ns = self.liveness.last_stamp_ns
+        self._stream_going = not msg.end_of_stream
         self._arrived(msg)
-        if msg.data and stamp_to_ns(msg.header.stamp) < self._clock_closed_end_ns:
-            self._clock_closed_end_ns = 0  # once per closing
-            self.windows_missed_late_data += 1
-            self.get_logger().warning(
-                "a late packet held bytes read before the end of a window the clock had closed: "
-                f"its estimate went out without them ({self.windows_missed_late_data} so far; "
-                "packet_wait_ms sets how long a window waits)",
-                throttle_duration_sec=1.0,
-            )
         bad = self.stage.counters.bad_packets
         windows = self.stage.on_packet(msg)
         if self.stage.counters.bad_packets > bad:
@@ -322,14 +196,8 @@ class ContactWindowNode(Node):
         live = self.liveness
         return f"{live.contacts_lost} contact(s) lost, {live.contacts_degraded} degraded"
 
-    def _on_frame(self, msg: BioTacFrame) -> None:
-        self._arrived(msg)
-        self._publish(self.stage.on_frame(msg))
-        self._arm(earlier_only=True)
-
-    def _arrived(self, msg: TaxelEventBatch | BioTacFrame | SensorPacket) -> None:
+    def _arrived(self, msg: SensorPacket) -> None:
         self.rate.tick()
-        self._wall_at_data = time.monotonic_ns()
         lost = self.liveness.contacts_lost
         self.liveness.on_message(stamp_to_ns(msg.header.stamp), time.time_ns())
         if self.liveness.contacts_lost > lost:  # a gap no window covered, now settled
@@ -340,14 +208,12 @@ class ContactWindowNode(Node):
         self._report_stall_change()
 
     def _streaming(self) -> bool:
-        """Whether input must be arriving now: BioTac always, NUSkin during a tap or grasp.
+        """Whether input must be arriving now: BioTac always, NUSkin while its stream goes.
 
-        A NUSkin window opened by an external onset (food: the arm's motion start) is not a
-        contact: the fork moves seconds in it without touching anything, and silence is normal.
+        The NUSkin driver says every few ms that it read nothing while the sensor is silent,
+        so its packets keep coming until the stream ends (``end_of_stream``).
         """
-        if self.config.sensor is Sensor.BIOTAC:
-            return True
-        return bool(self.stage.windower.pending_onsets) and not self.config.external_onsets
+        return self.config.sensor is Sensor.BIOTAC or self._stream_going
 
     def _report_stall_change(self) -> None:
         """Publish diagnostics at once when a stall starts, turns ERROR, or ends."""
@@ -379,65 +245,31 @@ class ContactWindowNode(Node):
             self.motion_starts += 1
         self._arm(earlier_only=True)
 
-    def _on_deadline(self) -> None:
-        """The stream went quiet past a deadline: stall check, clock-closed windows, timeout.
-
-        The timer is periodic: it ends by re-arming it for the next deadline or cancelling it.
-        """
+    def _on_silence(self) -> None:
+        """The input went quiet past a liveness threshold: report the stall, re-arm or stop."""
         self.wakeups += 1
-        last = self.stage.last_data_ns
-        if last is None or self._wall_at_data is None:
-            self._arm()
-            return
         self.liveness.update(self._streaming())
         self._report_stall_change()
-        idle = time.monotonic_ns() - self._wall_at_data
-        if idle >= self.timeout_ns:
-            if self.stage.windower.pending_onsets:
-                self._publish(self.stage.flush())
-        elif self.config.sensor is Sensor.NUSKIN:
-            closed = self.stage.advance(last + idle - self.slack_ns)
-            self.closed_by_clock += len(closed)
-            for win in closed:
-                end = win.onset_ns + win.post_onset_ns
-                self._clock_closed_end_ns = max(self._clock_closed_end_ns, end)
-            if closed and self.input == "packets":  # no packet, not even "nothing read", came
-                self.get_logger().info(
-                    f"the clock closed {len(closed)} window(s): no packet for {idle / MS:.1f} ms "
-                    "(a replay of the packets may put a late one in them)",
-                    throttle_duration_sec=1.0,
-                )
-            self._publish(closed)
         self._arm()
 
     def _arm(self, earlier_only: bool = False) -> None:
-        """Arm the deadline timer for the next moment a quiet stream needs the node, or stop it.
+        """Arm the timer for the next moment the liveness status may change, or stop it.
 
         Args:
-            earlier_only: Keep an armed deadline unless the new one is earlier (called per
-                message: data only moves the stall and timeout deadlines later, and a deadline
-                that fires early re-arms itself for the rest, so most messages cost no timer
-                call).
+            earlier_only: Keep an armed timer unless the new moment is earlier (called per
+                message: data only moves it later, and a timer that fires early re-arms itself,
+                so most messages cost no timer call).
         """
-        streaming = self._streaming()
-        wake = next_wake_ns(
-            data_wall_ns=self._wall_at_data,
-            data_stream_ns=self.stage.last_data_ns,
-            due_ns=self.stage.next_due_ns() if self.config.sensor is Sensor.NUSKIN else None,
-            pending=bool(self.stage.windower.pending_onsets),
-            slack_ns=self.slack_ns,
-            timeout_ns=self.timeout_ns,
-            stall_ns=stall_change_ns(self.liveness, streaming),
-        )
+        wake = self.liveness.next_change_ns(self._streaming())
         if wake is None:
             if self._armed_ns is not None:
-                self._deadline.cancel()
+                self._stall_timer.cancel()
                 self._armed_ns = None
             return
         if earlier_only and self._armed_ns is not None and self._armed_ns <= wake:
             return
-        self._deadline.timer_period_ns = max(wake - time.monotonic_ns(), MIN_WAIT_NS)
-        self._deadline.reset()
+        self._stall_timer.timer_period_ns = max(wake - time.monotonic_ns(), MIN_WAIT_NS)
+        self._stall_timer.reset()
         self._armed_ns = wake
 
     def _check_windows(self) -> tuple[Level, str, dict[str, object]]:
@@ -448,8 +280,6 @@ class ContactWindowNode(Node):
             "windows_provisional": wc.provisional_windows,
             "windows_truncated": wc.truncated_windows,
             "windows_joined_mid_stream": wc.joined_mid_stream_windows,
-            "windows_closed_by_clock": self.closed_by_clock,
-            "windows_missed_late_data": self.windows_missed_late_data,
             "onsets": wc.onsets,
             "motion_starts": self.motion_starts,
             "events_total": sc.events,
@@ -460,7 +290,6 @@ class ContactWindowNode(Node):
             "frames_unjoined": sc.frames_unjoined,
             "frames_wrong_sensor": sc.frames_wrong_sensor,
             "pending_onsets": len(self.stage.windower.pending_onsets),
-            "input": self.input,
             **self.qos_events.as_values(),
             **intra_process.delivery_values(self.input_subscription, "input"),
         }

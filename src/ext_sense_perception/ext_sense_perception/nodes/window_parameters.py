@@ -203,8 +203,7 @@ def declare_input_liveness(node: Node, config: WindowConfig, input_topic: str) -
             node,
             "expected_rate_hz",
             1000.0 if config.sensor is Sensor.NUSKIN else 100.0,
-            "Messages per second the input has while streaming (NUSkin: the driver's batches "
-            "during a contact; BioTac: frames), Hz.",
+            "Packets per second the input has while streaming (the driver's drains), Hz.",
             low=0.1,
             high=100000.0,
             read_only=True,
@@ -252,7 +251,7 @@ def declare_input_liveness(node: Node, config: WindowConfig, input_topic: str) -
     if config.sensor is Sensor.NUSKIN and not config.external_onsets:
         liveness.contact_words = int(config.activity_min_events)
         # by then every window that could cover a gap has been cut (its onset at the latest
-        # pre_ns after the gap, its end post_ns later), with a stream timeout's flush to spare
+        # pre_ns after the gap, its end post_ns later), with 100 ms to spare
         liveness.contact_horizon_ns = max(config.pre_ns, 0) + config.post_ns + 100 * MS
         liveness.debounce_ns = config.debounce_ns
     return liveness

@@ -6,9 +6,9 @@ it is wrong (measured: onset +209 ms, 12 cm off) while every status says OK. Thi
 the window node's account of it, with no ROS and an injectable clock:
 
 - *Streaming* is when input must arrive: always for BioTac (frames come at 100 Hz whatever
-  touches the finger), and for NUSkin only while a contact is open (an event sensor is silent
-  when nothing touches it; the driver's own link status covers an idle NUSkin). The node says
-  which through :meth:`StreamLiveness.check`'s ``streaming`` argument.
+  touches the finger), and for NUSkin while the driver's stream goes (its packets carry the
+  sensor's bytes, or say every few ms that it read nothing). The node says which through
+  :meth:`StreamLiveness.update`'s ``streaming`` argument.
 - A *stall* is silence while streaming longer than ``warn_ns`` (WARN), then ``error_ns``
   (ERROR). It stays reported until data returns, even once the contact has been flushed, and
   is kept as an interval of stream time, so that every window overlapping it is marked.
@@ -17,8 +17,7 @@ the window node's account of it, with no ROS and an injectable clock:
   lateness). It is counted, but degrades no window: a window is cut when the stream passes its
   end, and the stream is in order, so a late packet inside a window is in it (a 3 s food window
   under load is as complete as on a quiet machine). Whether the estimate came too late is the
-  inference node's deadline; a window the clock closed before a late packet came is the window
-  node's ``windows_missed_late_data``.
+  inference node's deadline.
 - *Lost input*: NUSkin batches carry the driver's running word count; words the driver decoded
   that never reached this node (a best-effort stream dropped them while this node was stopped
   or starved) show as a count that grew by more than the events that arrived
@@ -49,6 +48,8 @@ RECENT_NS = 10_000 * MS
 """Lost input keeps the status at WARN this long."""
 KEEP_FAULTS_NS = 120_000 * MS
 """Faults older than this (stream time) are forgotten: no window reaches that far back."""
+MARGIN_NS = 100_000
+"""Wake this long after a stall threshold, so the check finds it passed (strictly greater)."""
 
 
 @dataclass
@@ -258,6 +259,23 @@ class StreamLiveness(StallCounts):
             self.faults.append(
                 Fault(start, None, f"stall: no input on {self.stream} (still silent)")
             )
+
+    def next_change_ns(self, streaming: bool) -> int | None:
+        """Monotonic time at which the status changes if nothing arrives, or ``None``.
+
+        While streaming and not stalled: when the silence passes ``warn_ns`` (a stall starts);
+        while stalled and not yet ERROR: when it passes ``error_ns``; otherwise nothing to watch
+        (the next message ends the stall). The node arms its one timer for it, so an idle
+        node does not wake.
+        """
+        if self.last_arrival_ns is None:
+            return None
+        if self.stalled_since_ns is not None:
+            error_at = self.stalled_since_ns + self.error_ns + MARGIN_NS
+            return error_at if self.clock() < error_at else None
+        if streaming:
+            return self.last_arrival_ns + self.warn_ns + MARGIN_NS
+        return None
 
     @property
     def stalled(self) -> bool:

@@ -7,8 +7,15 @@ rosbags messages have the same field names.
 
 Raw packets (``SensorPacket``, :meth:`WindowStage.on_packet`) are decoded here with the drivers'
 library decoder (:func:`ext_sense_drivers.packets.make_decoder`): the live node and the offline
-replay of a packet bag decode the same bytes with the same code, so their windows are
-bit-identical.
+replay of a packet bag decode the same bytes with the same code.
+
+The one time rule, the same live and in a replay: a window closes when the stream passes its
+end, and only the packets move the stream: their events, or, with none, the time up to which
+the driver had read everything (a packet's last read, or the driver's "nothing read" packet,
+which it sends on a cadence of its own while the sensor is silent); a packet that ends the
+stream (``end_of_stream``: the link was lost, a capture ended) closes every pending window,
+zero-padded and ``truncated``. No clock of the consumer's enters: fed the packets a live node
+got, in their order, a replay cuts exactly the windows the live node cut.
 """
 
 from __future__ import annotations
@@ -134,7 +141,8 @@ class WindowStage:
         again when they change (a driver restarted with other settings). A packet that cannot
         be read (its arrays disagree, an unknown encoding) is counted in ``bad_packets`` and
         dropped, with the reason in :attr:`last_packet_error`; a ``seq`` gap is counted in
-        ``lost_packets`` (:attr:`last_lost_packets` for this packet).
+        ``lost_packets`` (:attr:`last_lost_packets` for this packet). A packet that ends the
+        stream closes every pending window (:meth:`flush`).
         """
         from ext_sense_drivers.packets import Packet, PacketError, make_decoder
 
@@ -152,14 +160,17 @@ class WindowStage:
             return []
         self.last_lost_packets = decoded.lost_packets
         self._counts["lost_packets"] += decoded.lost_packets
+        out: list[ContactWindow] = []
         if hasattr(decoded, "frames"):
-            out: list[ContactWindow] = []
             for frame in decoded.frames:
                 out += self.on_frame(frame)
-            return out
-        self._counts["batches"] += 1
-        events = decoded.events if thin is None else thin(decoded.events)
-        return self.on_block(events, complete_ns=decoded.complete_ns)
+        else:
+            self._counts["batches"] += 1
+            events = decoded.events if thin is None else thin(decoded.events)
+            out = self.on_block(events, complete_ns=decoded.complete_ns)
+        if bool(msg.end_of_stream):  # nothing more of this stream: its windows are as full
+            out += self.flush()  # as they will get
+        return out
 
     def on_frame(self, msg: Any) -> list[ContactWindow]:
         """Feed one ``BioTacFrame``; frames of several sensors are joined by sequence number.

@@ -89,8 +89,7 @@ class WindowerBase:
     def next_due_ns(self) -> int | None:
         """Stream time at which the next window (provisional or final) becomes due, ns.
 
-        ``None`` when no window is pending. The window node arms its deadline timer for it, so
-        that a window whose stream goes quiet still closes on time without a polling timer.
+        ``None`` when no window is pending: the stream time the next packet must pass.
         """
         due = [
             p.onset_ns + post

@@ -176,3 +176,22 @@ def test_uncovered_gaps_closer_than_the_debounce_are_one_lost_contact():
     live.on_lost_packets(t0 + 1500 * MS, t0 + 1520 * MS, 10)  # another, a debounce later
     _stream(live, clock, 1, t0 + 3000 * MS)
     assert live.contacts_lost == 2
+
+
+def test_the_next_change_follows_the_stall_thresholds():
+    from ext_sense_perception.online.liveness import MARGIN_NS
+
+    live, clock = _liveness()
+    assert live.next_change_ns(streaming=True) is None  # nothing arrived yet
+    live.on_message(stamp_ns=7 * MS, wall_ns=7 * MS)
+    arrived = clock.ns
+    assert live.next_change_ns(streaming=False) is None  # silence is normal
+    warn_at = live.next_change_ns(streaming=True)
+    assert warn_at == arrived + 100 * MS + MARGIN_NS
+    clock.ns = warn_at
+    live.update(streaming=True)
+    assert live.stalled  # the timer lands after the threshold, not on it
+    error_at = live.next_change_ns(streaming=True)
+    assert error_at == arrived + 500 * MS + MARGIN_NS
+    clock.ns = error_at
+    assert live.next_change_ns(streaming=True) is None  # ERROR reached: wait for data
