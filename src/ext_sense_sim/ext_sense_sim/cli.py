@@ -1,4 +1,4 @@
-"""``ext-sense sim list|run|fidelity|serve``: the simulator's subcommands."""
+"""``ext-sense sim list|run|fidelity|calibrate|serve``: the simulator's subcommands."""
 
 from __future__ import annotations
 
@@ -53,6 +53,39 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--check", action="store_true", help="exit 1 when a tap target fails (for scripts)"
     )
     p.set_defaults(func=_fidelity)
+
+    p = sub.add_parser(
+        "calibrate",
+        help="fit a NUSkin tap or food scene's physics to real captures",
+        description=(
+            "Fit a scene's free physical parameters to real captures by a deterministic "
+            "coordinate search (ext_sense_sim.calibration; docs/simulator.md, 'Calibration "
+            "against the real sensor'): a tap scene's noise on the quiet stretch before each "
+            "tap, then its tap, rod and grasp on the tap windows; a food scene's noise, "
+            "resting readings, contact strip and grip on the trials after the motion start."
+        ),
+    )
+    p.add_argument("scene", help="shipped scene name or path of a scene YAML file")
+    p.add_argument(
+        "--real",
+        action="append",
+        required=True,
+        metavar="DIR",
+        help="a real session (as for fidelity); repeat for several sessions",
+    )
+    p.add_argument(
+        "--stages",
+        default=None,
+        help="comma-separated stages among noise, taps, food (default: noise,taps for a tap "
+        "scene, food for a food scene)",
+    )
+    p.add_argument("--trials", type=int, default=None, help="simulated trials per evaluation")
+    p.add_argument("--seed", type=int, default=5, help="seed of every evaluation (default 5)")
+    p.add_argument(
+        "--evaluations", type=int, default=60, help="simulations per stage at most (default 60)"
+    )
+    p.add_argument("--out", default=None, metavar="PATH", help="write the fitted scene here")
+    p.set_defaults(func=_calibrate)
 
     p = sub.add_parser("serve", help="emulate a device on a pty or CAN channel in real time")
     p.add_argument("device", choices=("nuskin", "biotac", "robotiq"))
@@ -124,6 +157,38 @@ def _fidelity(args: argparse.Namespace) -> int:
         print(f"ext-sense sim fidelity: cannot write: {err}", file=sys.stderr)
         return 2
     return 1 if args.check and run.result["pass"] is False else 0
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from ext_sense_sim.calibration import calibrate_scene
+    from ext_sense_sim.errors import SceneError
+    from ext_sense_sim.fidelity.errors import FidelityError
+    from ext_sense_sim.scene import load_scene
+
+    try:
+        if args.trials is not None and args.trials < 1:
+            raise SceneError(f"--trials must be >= 1. Got {args.trials} instead.")
+        if args.evaluations < 1:
+            raise SceneError(f"--evaluations must be >= 1. Got {args.evaluations} instead.")
+        stages = tuple(s.strip() for s in args.stages.split(",")) if args.stages else None
+        scene = load_scene(args.scene)
+        text = calibrate_scene(
+            scene, args.real, stages, args.trials, args.seed, args.evaluations, print
+        )
+    except (SceneError, FidelityError) as err:
+        print(f"ext-sense sim calibrate: {err}", file=sys.stderr)
+        return 2
+    if args.out:
+        try:
+            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.out).write_text(text)
+        except OSError as err:
+            print(f"ext-sense sim calibrate: cannot write: {err}", file=sys.stderr)
+            return 2
+        print(f"wrote {args.out}")
+    return 0
 
 
 def _serve(args: argparse.Namespace) -> int:

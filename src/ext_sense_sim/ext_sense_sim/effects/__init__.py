@@ -10,6 +10,7 @@ from ext_sense_sim.effects.grasp import GraspTransfer
 from ext_sense_sim.effects.handover import HumanGrasp
 from ext_sense_sim.effects.noise import SensorNoise, SpuriousEvents
 from ext_sense_sim.effects.nuskin import NuskinTransduction
+from ext_sense_sim.effects.receiver import ReceiverLink
 from ext_sense_sim.effects.tap import ContactImpulse
 from ext_sense_sim.effects.wire import AcesLine, BiotacWire, NuskinWire, WireFaults
 
@@ -23,6 +24,7 @@ _ALL: tuple[type[Effect], ...] = (
     SensorNoise,
     NuskinTransduction,
     SpuriousEvents,
+    ReceiverLink,
     AcesLine,
     BiotacTransduction,
     NuskinWire,

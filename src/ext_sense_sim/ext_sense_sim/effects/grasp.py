@@ -26,6 +26,13 @@ force likewise with ``k_a``. A torque ``T`` about the object's axis (``clamp_loa
 when the beam effect computes torsion) is held by friction on the two pads, ``T / (2 r)`` on
 each in opposite directions; it reaches the taxels through the same coupling ``k_t``, with
 opposite sign on the two pads: the one load that the two fingers see differently.
+
+Load share between the fingers. The two pads are never seated alike: one takes a larger share
+of the dynamic load (its pad is stiffer there, or the object sits closer to it). Each trial
+draws ``s`` from ``finger_load_share`` (a ``[low, high]`` range of ``|s|``) with a random sign;
+the left pad's dynamic loads are scaled by ``1 + s`` and the right pad's by ``1 - s``. In the
+real rod-tap captures one finger carries 19-25% more events than the other (docs/simulator.md,
+"Calibration against the real sensor"); with the default 0 both pads share equally.
 """
 
 from __future__ import annotations
@@ -69,6 +76,7 @@ class GraspTransfer(Effect):
         "tangential_coupling": 0.3,
         "axial_coupling": 0.2,
         "gain_spread": 0.1,
+        "finger_load_share": 0.0,
     }
 
     def setup(self) -> None:
@@ -111,6 +119,11 @@ class GraspTransfer(Effect):
         n = time.n_trials
         offsets = np.stack([self.draw("lateral_offset_m", rng, n) for _ in range(2)], axis=1)
         w = self.weights(offsets, rng, n).astype(np.float32)
+        if self.params["finger_load_share"] != 0.0:  # drawn only when asked: other streams stay
+            share = self.draw("finger_load_share", rng, n, 0.0, 0.95)
+            share *= rng.choice(np.array([-1.0, 1.0]), size=n)
+            w[:, :PER_FINGER, 1:] *= (1.0 + share)[:, None, None].astype(np.float32)
+            w[:, PER_FINGER:, 1:] *= (1.0 - share)[:, None, None].astype(np.float32)
         if load.shape[1] == 5:  # loads without the torque channel
             load = np.concatenate([load, np.zeros_like(load[:, :1])], axis=1)
         pressure = np.matmul(w[:, :, 1:], load.astype(np.float32))

@@ -24,6 +24,12 @@ that information. ``pa_per_count`` (1000 Pa) is calibrated so that the food scen
 spans per taxel match the real captures within a factor of about 2 (apple about 20 counts
 simulated, 40-49 real; water 1-2 both).
 
+Taxel offsets. A real patch's taxels rest at different readings: the 3 April capture with
+nothing touched (``../shared/data/nuskin_food_poking_2021-04-03/zero.tact``) has per-taxel
+median values from 58 to 570 counts (quartiles 76, 88, 121). ``offset_spread`` (default 0)
+multiplies each taxel's ``offset_counts`` by a log-normal factor of that standard deviation,
+fixed per sensor (the scene's seed).
+
 Bounded reading. With ``clip_reading: true`` the filtered reading is clipped to the ADC's
 0..1023 counts before the encoder, so a taxel pressed past full scale stops firing instead of
 reporting pressure the 10-bit reading cannot hold (the real captures do reach 1022 on heavily
@@ -60,7 +66,9 @@ def front_end(pressure: np.ndarray, bandwidth_hz: float, rate_hz: float) -> np.n
     wn = min(bandwidth_hz / (rate_hz / 2), 0.99)
     b, a = butter(2, wn)
     zi = lfilter_zi(b, a)
-    x0 = pressure[..., :1]
+    # the steady state of the first millisecond, not of one noisy sample (whose offset would
+    # ring out through the encoder as a burst of start-up events)
+    x0 = pressure[..., : max(1, int(rate_hz / 1000))].mean(axis=-1, keepdims=True)
     out, _ = lfilter(b, a, pressure, axis=-1, zi=zi * x0)
     return out.astype(pressure.dtype, copy=False)
 
@@ -163,18 +171,31 @@ class NuskinTransduction(Effect):
         "pa_per_count": 1000.0,
         "reference": "reset",
         "clip_reading": False,
+        "offset_spread": 0.0,
     }
+
+    def setup(self) -> None:
+        """Each taxel's resting reading (fixed per sensor by the scene's seed)."""
+        offset = self.scalar("offset_counts", 0, 1023)
+        spread = self.scalar("offset_spread", 0.0, 3.0)
+        self.offsets = np.full(80, offset)
+        if spread > 0:
+            sensor_rng = np.random.default_rng([int(self.context.seed), 13])
+            factor = np.exp(spread * sensor_rng.standard_normal(80))
+            self.offsets = np.clip(offset * factor, 0, 1023)
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Give ``events`` (``(trial, EventBlock)``, batch-local trials, see ``trial_events``)."""
         pressure = signals.need("taxel_pressure", self.name)
         _n_trials, n_taxels, n_samples = pressure.shape
         per_count = self.scalar("pa_per_count", 1e-9)
-        offset = self.scalar("offset_counts", 0, 1023)
+        # each row of the (trials * taxels, samples) reading gets its taxel's offset
+        offset = np.tile(np.resize(self.offsets, n_taxels), _n_trials)[:, None]
         filtered = front_end(pressure, self.scalar("bandwidth_hz", 1.0), time.rate_hz)
         if _flag(self.name, "clip_reading", self.params["clip_reading"]):
             # the 10-bit reading bounds what the encoder sees (pressure-equivalent units)
-            np.clip(filtered, -offset * per_count, (1023 - offset) * per_count, out=filtered)
+            flat = filtered.reshape(-1, n_samples)
+            np.clip(flat, -offset * per_count, (1023 - offset) * per_count, out=flat)
         time_major = np.ascontiguousarray(filtered.reshape(-1, n_samples).T)
         refractory = max(1, math.ceil(self.scalar("refractory_s", 0.0) * time.rate_hz - 1e-9))
         mode = self.params["reference"]
@@ -186,7 +207,7 @@ class NuskinTransduction(Effect):
         k, channel, polarity = level_crossing(
             time_major, self.scalar("threshold_pa", 1e-9), refractory, reset=mode == "reset"
         )
-        value = offset + time_major[k, channel] / per_count
+        value = offset[channel, 0] + time_major[k, channel] / per_count
         jitter = refractory_safe_jitter(k, channel, refractory, rng)
         t_ns = np.round((k + jitter) * (1e9 / time.rate_hz)).astype(np.int64)
         events = EventBlock(

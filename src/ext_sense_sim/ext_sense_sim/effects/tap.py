@@ -14,6 +14,11 @@ modes ring (a pulse of length ``tau`` drives little above ``1 / tau``) and the f
 counts the pads see; together they set how often the in-contact taxels fire at their 4 kHz
 refractory limit, which is what the paper's rate finding constrains: docs/simulator.md ("Tap
 calibration") measures what each choice does to the paper's findings.
+
+Impact. A fingertip tap starts with the nail and bone striking through thin pulp: a short,
+stiff impact before the pulp's longer push. ``impact_force_n`` (peak, default 0: none) adds a
+second half-sine of ``impact_duration_s`` at the same onset; it drives the rod's upper modes,
+which ring for a few tens of milliseconds, while the push swings the low modes.
 """
 
 from __future__ import annotations
@@ -38,6 +43,8 @@ class ContactImpulse(Effect):
         "onset_s": [0.045, 0.055],
         "angle_deg": [-30.0, 30.0],
         "margin_m": 0.01,
+        "impact_force_n": 0.0,
+        "impact_duration_s": [0.0005, 0.002],
     }
 
     def setup(self) -> None:
@@ -60,6 +67,10 @@ class ContactImpulse(Effect):
         onset = self.draw("onset_s", rng, n, 0.0, time.n_samples * time.dt)
         force = half_sine_bins(peak, tau, onset, time.rate_hz, time.n_samples)
         angle = np.deg2rad(self.draw("angle_deg", rng, n, -90.0, 90.0))
+        if self.params["impact_force_n"] != 0.0:  # drawn only when asked: other streams stay
+            impact = self.draw("impact_force_n", rng, n, 0.0)
+            short = self.draw("impact_duration_s", rng, n, 1e-6, 1.0)
+            force += half_sine_bins(impact, short, onset, time.rate_hz, time.n_samples)
         signals["contact"] = Contact(force, np.zeros_like(force), xi, angle)
         signals["labels"] = Labels(
             onset_ns=np.round(onset * 1e9).astype(np.int64),

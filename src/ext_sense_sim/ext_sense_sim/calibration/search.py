@@ -1,0 +1,223 @@
+"""Fitting a scene's free physical parameters to statistics of real captures.
+
+A calibration names the parameters to fit (:class:`FreeParameter`: an effect's parameter, its
+bounds, and for a ``[low, high]`` range the fixed ratios of its ends to the fitted centre), the
+statistics to match (:class:`Target`: the real value and the tolerance that counts as a
+match) and how to measure them on a scene. :func:`fit` then runs a deterministic coordinate
+search in log space: each parameter in turn is multiplied and divided by a step, a change is
+kept when it lowers the loss, and the step halves when a whole round keeps nothing. Every
+evaluation simulates the same trials with the same seed (common random numbers), so a change
+of loss is the parameter's doing, not the draw's, and a rerun gives the same fit.
+
+The loss is the mean of squared misses in units of each target's tolerance: a statistic inside
+its tolerance costs at most 1. Counts are compared as log ratios (events per window x0.7-1.4
+is a tolerance of ``log 1.4``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ext_sense_sim.effects import REGISTRY
+from ext_sense_sim.errors import SceneError
+from ext_sense_sim.scene import Scene
+
+
+@dataclass(frozen=True)
+class FreeParameter:
+    """One parameter of one effect that the fit may move.
+
+    Attributes:
+        effect: Effect name as listed in the scene (``contact_impulse``).
+        key: Parameter name (``force_n``).
+        low, high: Bounds of the fitted value (of the centre for a range).
+        spread: ``None`` for a scalar; ``(a, b)`` writes the range ``[a v, b v]`` for value ``v``.
+    """
+
+    effect: str
+    key: str
+    low: float
+    high: float
+    spread: tuple[float, float] | None = None
+
+    @property
+    def name(self) -> str:
+        """``effect.key``, as printed and documented."""
+        return f"{self.effect}.{self.key}"
+
+    def written(self, value: float) -> float | list[float]:
+        """The scene value for a fitted value (a range when ``spread`` is set)."""
+        if self.spread is None:
+            return float(value)
+        return [round(value * self.spread[0], 6), round(value * self.spread[1], 6)]
+
+    def read(self, params: Mapping[str, Any]) -> float:
+        """The fitted value a scene's parameters hold (a range's centre by ``spread``)."""
+        value = params[self.key]
+        if self.spread is None:
+            return float(value)
+        if not isinstance(value, (list, tuple)):
+            return float(value)
+        return float(value[0]) / self.spread[0]
+
+
+@dataclass(frozen=True)
+class Target:
+    """A statistic to match: its real value, the tolerance of a match, and how to compare.
+
+    Attributes:
+        name: Statistic name, as the measure function returns it.
+        value: The real captures' value (pooled median).
+        tolerance: Difference counted as one unit of loss (for ``log`` targets a log ratio).
+        log: Compare ``log(sim / real)`` instead of ``sim - real``.
+    """
+
+    name: str
+    value: float
+    tolerance: float
+    log: bool = False
+
+    def miss(self, simulated: float) -> float:
+        """The simulated value's miss in tolerance units (signed)."""
+        if self.log:
+            if simulated <= 0 or self.value <= 0:
+                return math.inf
+            return math.log(simulated / self.value) / self.tolerance
+        return (simulated - self.value) / self.tolerance
+
+
+Measure = Callable[[Scene], Mapping[str, float]]
+
+
+@dataclass(frozen=True)
+class FitStep:
+    """One evaluation of the search: the values tried and the loss they gave."""
+
+    values: dict[str, float]
+    loss: float
+    stats: dict[str, float]
+
+
+def with_values(scene: Scene, free: Sequence[FreeParameter], values: Sequence[float]) -> Scene:
+    """A copy of ``scene`` with each free parameter set to its value.
+
+    Raises:
+        SceneError: A free parameter names an effect the scene does not list.
+    """
+    effects = [(name, dict(params)) for name, params in scene.effects]
+    for parameter, value in zip(free, values, strict=True):
+        params = _params_of(scene, effects, parameter)
+        params[parameter.key] = parameter.written(value)
+    return dataclasses.replace(scene, effects=tuple(effects))
+
+
+def _params_of(
+    scene: Scene, effects: list[tuple[str, dict[str, Any]]], parameter: FreeParameter
+) -> dict[str, Any]:
+    for name, params in effects:
+        if name == parameter.effect:
+            return params
+    raise SceneError(
+        f"Scene '{scene.name}' has no effect '{parameter.effect}' to calibrate "
+        f"(parameter '{parameter.name}')."
+    )
+
+
+def start_values(scene: Scene, free: Sequence[FreeParameter]) -> list[float]:
+    """The free parameters' values in the scene, or their effects' defaults."""
+    effects = [(name, dict(params)) for name, params in scene.effects]
+    values = []
+    for parameter in free:
+        given = _params_of(scene, effects, parameter)
+        value = parameter.read({**REGISTRY[parameter.effect].defaults, **given})
+        values.append(min(max(value, parameter.low), parameter.high))
+    return values
+
+
+def loss(stats: Mapping[str, float], targets: Sequence[Target]) -> float:
+    """Mean squared miss of the statistics, in tolerance units."""
+    return sum(t.miss(stats[t.name]) ** 2 for t in targets) / len(targets)
+
+
+def fit(
+    scene: Scene,
+    free: Sequence[FreeParameter],
+    targets: Sequence[Target],
+    measure: Measure,
+    *,
+    step: float = 1.6,
+    min_step: float = 1.05,
+    max_evaluations: int = 80,
+    on_step: Callable[[FitStep], None] | None = None,
+) -> tuple[list[float], list[FitStep]]:
+    """Coordinate search of the free parameters (see module docstring).
+
+    Args:
+        scene: The scene to calibrate; its current values are the starting point.
+        free: Parameters to move, each kept inside its bounds.
+        targets: Statistics to match.
+        measure: Simulates a scene and returns its statistics (same trials and seed each call).
+        step: First multiplicative step; halved (in log) when a round keeps nothing.
+        min_step: The search ends when the step falls below this factor.
+        max_evaluations: Upper bound on simulations.
+        on_step: Called after every evaluation (progress, logging).
+
+    Returns:
+        ``(best values, every step in order)``.
+    """
+    values = start_values(scene, free)
+    history: list[FitStep] = []
+
+    def evaluate(candidate: list[float]) -> float:
+        stats = dict(measure(with_values(scene, free, candidate)))
+        record = FitStep(
+            {p.name: v for p, v in zip(free, candidate, strict=True)}, loss(stats, targets), stats
+        )
+        history.append(record)
+        if on_step is not None:
+            on_step(record)
+        return record.loss
+
+    best = evaluate(values)
+    factor = step
+    while factor >= min_step and len(history) < max_evaluations:
+        improved = False
+        for i, parameter in enumerate(free):
+            for direction in (factor, 1.0 / factor):
+                if len(history) >= max_evaluations:
+                    break
+                trial = list(values)
+                trial[i] = min(max(values[i] * direction, parameter.low), parameter.high)
+                if trial[i] == values[i]:
+                    continue
+                score = evaluate(trial)
+                if score < best:
+                    best, values, improved = score, trial, True
+                    break
+        if not improved:
+            factor = math.sqrt(factor)
+    return values, history
+
+
+def effect_lines(scene: Scene) -> list[str]:
+    """The scene's ``effects:`` list in the shipped scenes' one-line flow style."""
+    lines = []
+    for name, params in scene.effects:
+        if not params:
+            lines.append(f"  - {name}")
+            continue
+        items = ", ".join(f"{k}: {_flow(v)}" for k, v in params.items())
+        lines.append(f"  - {name}: {{{items}}}")
+    return lines
+
+
+def _flow(value: Any) -> str:
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_flow(v) for v in value) + "]"
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    return str(value).lower() if isinstance(value, bool) else str(value)

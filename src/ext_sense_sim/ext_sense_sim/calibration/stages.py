@@ -1,0 +1,184 @@
+"""What each calibration stage fits, to which real statistics, and how it measures a scene.
+
+``noise``: a NUSkin tap scene's white and chatty-taxel noise against the quiet stretch before
+each real tap. ``taps``: its tap, rod damping, finger load share and contact strip against the
+real tap windows (ext_sense_sim.fidelity's statistics). ``food``: the food scene's noise,
+resting readings, contact strip and grip against the real food trials after the motion start.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ext_sense_sim.calibration.search import FreeParameter, Measure, with_values
+from ext_sense_sim.fidelity.captures import BIN_NS, simulate
+from ext_sense_sim.fidelity.food import food_trials
+from ext_sense_sim.fidelity.taps import MISSED_BELOW, WINDOW_S, onset_bin, tap_windows
+from ext_sense_sim.scene import Scene
+
+# The NUSkin tap scenes against the real rod captures ---------------------------------------
+
+TAP_FREE = (
+    FreeParameter("contact_impulse", "force_n", 0.02, 5.0, spread=(0.8, 1.25)),
+    FreeParameter("contact_impulse", "duration_s", 0.002, 0.08, spread=(0.8, 1.25)),
+    FreeParameter("contact_impulse", "impact_force_n", 0.01, 10.0, spread=(0.8, 1.25)),
+    FreeParameter("beam_modes", "grasp_damping_ratio", 0.001, 0.2),
+    FreeParameter("grasp_transfer", "finger_load_share", 0.01, 0.6, spread=(1 / 3, 5 / 3)),
+    FreeParameter("grasp_transfer", "strip_sigma_m", 0.0008, 0.004),
+    FreeParameter("receiver_link", "words_per_s", 20_000.0, 200_000.0),
+)
+"""What the tap fit moves: the tap's force and length and its impact, the grasp's damping,
+the load share between the fingers, the pads' contact strip, the receiver link's word rate.
+Ranges keep their ends' ratio to the centre: one person's taps, x0.8-1.25 around it (a wider
+spread of forces gives windows far more varied than the real ones, whose events per window vary
+by p75 / p25 = 1.2). The sensor's noise is fitted before, on the quiet stretch
+(:data:`NOISE_FREE`)."""
+
+TAP_TOLERANCES = {
+    "events": (math.log(1.4), True),
+    "first_30ms": (0.07, False),
+    "last_100ms": (0.07, False),
+    "busiest_10": (0.10, False),
+    "finger_imbalance": (0.07, False),
+    "active_taxels": (5.0, False),
+    "half_peak_ms": (30.0, False),
+    "taxel_rate_max": (math.log(1.4), True),
+    "events_p75_over_p25": (math.log(1.4), True),
+}
+"""Statistic to ``(tolerance, compared as log ratio)``: the issue's targets where it sets one
+(events x0.7-1.4, shares 0.07 / 0.07 / 0.10), else about the real sessions' spread."""
+
+
+def window_medians(stats: Mapping[str, np.ndarray]) -> dict[str, float]:
+    """Each statistic's median over windows, and how varied the windows' event counts are."""
+    out = {name: float(np.nanmedian(v)) for name, v in stats.items()}
+    p25, p75 = np.percentile(stats["events"], [25, 75]) if len(stats["events"]) else (1.0, 1.0)
+    out["events_p75_over_p25"] = float(p75 / p25) if p25 > 0 else float("nan")
+    return out
+
+
+def tap_measure(trials: int, seed: int) -> Measure:
+    """Simulate ``trials`` taps with ``seed`` and return the windows' median statistics."""
+
+    def measure(scene: Scene) -> dict[str, float]:
+        windows = tap_windows(simulate(scene, trials, seed, extra_s=WINDOW_S).captures)
+        return window_medians(windows.stats)
+
+    return measure
+
+
+# The NUSkin food scene against the real food-poking sessions -------------------------------
+
+FOOD_FREE = (
+    FreeParameter("sensor_noise", "white_pa", 50.0, 2000.0),
+    FreeParameter("sensor_noise", "white_spread", 0.05, 1.5),
+    FreeParameter("nuskin_transduction", "offset_counts", 20.0, 300.0),
+    FreeParameter("nuskin_transduction", "offset_spread", 0.05, 1.5),
+    FreeParameter("grasp_transfer", "strip_sigma_m", 0.0005, 0.004),
+    FreeParameter("grasp_transfer", "grip_force_n", 2.0, 60.0, spread=(0.75, 1.25)),
+)
+"""What the food fit moves: the sensor's noise (and its spread over taxels) and resting
+readings, the pads' contact strip and the grip that presses the fork's handle into them."""
+
+FOOD_TOLERANCES = {
+    "events_per_s": (math.log(1.25), True),
+    "active_taxels": (4.0, False),
+    "value_p5": (10.0, False),
+    "value_p50": (15.0, False),
+    "value_p95": (math.log(1.3), True),
+}
+"""Statistic to ``(tolerance, compared as log ratio)``: about the three real sessions' spread
+(events/s 617-640, active taxels 70-73, value medians 97-119, 95th percentiles 425-617)."""
+
+
+def food_measure(trials: int, seed: int) -> Measure:
+    """Simulate ``trials`` food trials with ``seed`` and return their median statistics."""
+
+    def measure(scene: Scene) -> dict[str, float]:
+        trials_ = food_trials(simulate(scene, trials, seed).captures)
+        return {name: float(np.nanmedian(v)) for name, v in trials_.stats.items()}
+
+    return measure
+
+
+# The NUSkin's noise against the quiet stretch before each real tap --------------------------
+
+NOISE_FREE = (
+    FreeParameter("sensor_noise", "white_pa", 20.0, 1000.0),
+    FreeParameter("sensor_noise", "chatty_pa", 100.0, 3000.0),
+)
+"""The noise fit moves the patch's white noise and its chatty taxels' noise."""
+
+NOISE_TOLERANCES = {
+    "quiet_rate": (math.log(1.5), True),
+    "quiet_busiest_share": (0.10, False),
+    "quiet_taxels_per_s": (math.log(1.5), True),
+}
+"""Statistic to ``(tolerance, compared as log ratio)``: the real sessions' spread (200-380
+events/s, half of them on the busiest taxel)."""
+
+QUIET_GAP_NS = 50_000_000
+"""The quiet stretch ends this long before the tap's onset (the window's pre-onset part)."""
+
+
+def quiet_stats(captures: Sequence[Any], onsets_ns: Sequence[int]) -> dict[str, float]:
+    """Median quiet-stretch statistics of captures, given each one's onset (ns from its start).
+
+    ``quiet_rate``: events per second before ``onset - 50 ms``; ``quiet_busiest_share``: the
+    share of those on the busiest taxel; ``quiet_taxels_per_s``: distinct taxels that fired,
+    per second of quiet stretch. Captures with under 20 ms of quiet stretch are left out.
+    """
+    rows = []
+    for cap, onset in zip(captures, onsets_ns, strict=True):
+        end_bin = (onset - QUIET_GAP_NS) // BIN_NS
+        if end_bin < 2:
+            continue
+        quiet = cap.bins < end_bin
+        seconds = end_bin * BIN_NS / 1e9
+        counts = np.bincount(cap.taxel[quiet].astype(np.intp), minlength=81)
+        total = counts.sum()
+        rows.append(
+            (
+                total / seconds,
+                counts.max() / total if total else 0.0,
+                np.count_nonzero(counts) / seconds,
+            )
+        )
+    med = np.median(np.array(rows), axis=0) if rows else np.full(3, np.nan)
+    return dict(zip(NOISE_TOLERANCES, map(float, med), strict=True))
+
+
+def real_quiet_stats(captures: Sequence[Any]) -> dict[str, float]:
+    """:func:`quiet_stats` of real tap captures, each cut at its tap's onset bin."""
+    kept, onsets = [], []
+    for cap in captures:
+        onset = onset_bin(np.bincount(cap.bins)) if cap.size >= MISSED_BELOW else None
+        if onset is not None:
+            kept.append(cap)
+            onsets.append(onset * BIN_NS)
+    return quiet_stats(kept, onsets)
+
+
+def noise_measure(trials: int, seed: int, seconds: float = 1.0) -> Measure:
+    """Simulate ``trials`` untapped trials of ``seconds`` and return their quiet statistics.
+
+    The scene's tap is silenced (no force, no impact) and its trials lengthened, so every
+    event is the sensor's own: the real captures' quiet stretch is about 0.8 s.
+    """
+    silent = (
+        FreeParameter("contact_impulse", "force_n", 0.0, 0.0),
+        FreeParameter("contact_impulse", "impact_force_n", 0.0, 0.0),
+    )
+
+    def measure(scene: Scene) -> dict[str, float]:
+        quiet = dataclasses.replace(with_values(scene, silent, [0.0, 0.0]), trial_s=seconds)
+        captures = simulate(quiet, trials, seed).captures
+        onsets = [(cap.span_bins - 1) * BIN_NS + QUIET_GAP_NS for cap in captures]
+        return quiet_stats(captures, onsets)
+
+    return measure

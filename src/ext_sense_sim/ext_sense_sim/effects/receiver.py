@@ -1,0 +1,71 @@
+"""The NUSkin receiver's link to the host: a first-in first-out queue drained at its word rate.
+
+Model. The receiver sends every decoded event to the host as one 4-byte word over a serial
+link of finite speed: at most ``words_per_s`` words a second (a 2 Mbaud UART with 8N1 framing
+carries 200 kB/s: 50,000 words). Events come out in the order they were detected, each as soon
+as both it has happened and the word before it has gone: word ``k`` leaves at
+``d_k = max(t_k, d_{k-1} + 1 / words_per_s)``. A burst faster than the link piles up and drains
+at the link's rate after the contact has quietened, so the host sees a flat ceiling and a tail.
+
+Why. The real rod taps (``../shared/data/nuskin_rod_taps_*``, host times to 10 ms) hold
+400-500 events in most of their busiest 10 ms bins whatever the rod and the tap (a ceiling of
+about 45-50k events/s), their event counts barely depend on where the rod was tapped (events
+per window p75 / p25 about 1.2), and on the 20 cm rod the rate stays at the ceiling for about
+100 ms and then stops within a bin, as a drained queue does, not as a ringing rod fades.
+
+Event times become the times the words leave the receiver (what a host stamps, and what the
+lab's captures hold); ``words_per_s: 0`` (default) is an unlimited link.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ext_sense_sim.effects.base import Effect, Signals, TimeBase
+from ext_sense_sim.trial_events import trial_bounds
+
+
+def drain_times(t_ns: np.ndarray, starts: np.ndarray, word_ns: float) -> np.ndarray:
+    """When each event leaves a FIFO drained one word per ``word_ns``, per trial.
+
+    Args:
+        t_ns: Event times, ``(n,)`` int64, sorted within each trial.
+        starts: Index of each trial's first event, ``(n_trials + 1,)`` with the end last.
+        word_ns: Time one word takes on the link, ns.
+
+    Returns:
+        ``(n,)`` int64 departure times: ``d_k = max(t_k, d_{k-1} + word_ns)`` within a trial,
+        computed as ``k w + running max of (t_j - j w)`` (no loop over events).
+    """
+    n = t_ns.size
+    if n == 0:
+        return t_ns.copy()
+    counts = np.diff(starts)
+    k = np.arange(n) - np.repeat(starts[:-1], counts)  # index within its trial
+    slack = t_ns.astype(np.float64) - k * word_ns
+    # keep the running maximum from crossing into the next trial
+    span = float(t_ns.max() - t_ns.min()) + n * word_ns + 1.0
+    trial = np.repeat(np.arange(counts.size), counts)
+    lifted = np.maximum.accumulate(slack + trial * span) - trial * span
+    return np.round(lifted + k * word_ns).astype(np.int64)
+
+
+class ReceiverLink(Effect):
+    """The receiver's word rate to the host (see module docstring). Delays ``events``."""
+
+    name = "receiver_link"
+    needs = ("events",)
+    gives = ("events",)
+    defaults: ClassVar[dict[str, Any]] = {"words_per_s": 0.0}
+
+    def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
+        """Replace each event's time by the time its word leaves the receiver."""
+        rate = self.scalar("words_per_s", 0.0, 1e8)
+        if rate <= 0:
+            return
+        trial, events = signals.need("events", self.name)
+        starts = trial_bounds(trial, time.n_trials)
+        departed = drain_times(events.t_ns, starts, 1e9 / rate)
+        signals["events"] = (trial, events._replace(t_ns=departed))

@@ -1,0 +1,97 @@
+"""The calibration's search, targets and scene edits (no simulation: a known loss surface)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import yaml
+
+from ext_sense_sim.calibration import (
+    FreeParameter,
+    Target,
+    calibrate_scene,
+    effect_lines,
+    fit,
+    start_values,
+    with_values,
+)
+from ext_sense_sim.errors import SceneError
+from ext_sense_sim.scene import load_scene, scene_from_dict
+
+FORCE = FreeParameter("contact_impulse", "force_n", 0.01, 10.0, spread=(0.5, 2.5))
+DAMPING = FreeParameter("beam_modes", "grasp_damping_ratio", 0.001, 0.2)
+
+
+def _params(scene, effect):
+    return dict(scene.effects)[effect]
+
+
+def test_with_values_writes_scalars_and_ranges_and_start_values_reads_them_back() -> None:
+    scene = load_scene("tap_rod30_nuskin")
+    fitted = with_values(scene, (FORCE, DAMPING), [0.4, 0.05])
+    assert _params(fitted, "contact_impulse")["force_n"] == [0.2, 1.0]
+    assert _params(fitted, "beam_modes")["grasp_damping_ratio"] == 0.05
+    assert start_values(fitted, (FORCE, DAMPING)) == pytest.approx([0.4, 0.05])
+    # the scene it came from is untouched
+    assert _params(scene, "contact_impulse")["force_n"] != [0.2, 1.0]
+
+
+def test_start_values_fall_back_to_the_effects_defaults_and_stay_in_bounds() -> None:
+    scene = load_scene("handover_rod_nuskin")  # grasp_transfer without parameters
+    strip = FreeParameter("grasp_transfer", "strip_sigma_m", 0.0005, 0.004)
+    share = FreeParameter("grasp_transfer", "finger_load_share", 0.01, 0.6)
+    assert start_values(scene, (strip, share)) == pytest.approx([0.0015, 0.01])
+
+
+def test_a_parameter_of_an_effect_the_scene_lacks_is_refused() -> None:
+    scene = load_scene("handover_rod_nuskin")
+    with pytest.raises(SceneError, match="no effect 'contact_impulse'"):
+        with_values(scene, (FORCE,), [1.0])
+
+
+def test_target_misses_are_in_tolerance_units() -> None:
+    assert Target("share", 0.2, 0.05).miss(0.3) == pytest.approx(2.0)
+    assert Target("events", 1000.0, math.log(1.4), log=True).miss(1400.0) == pytest.approx(1.0)
+    assert Target("events", 1000.0, math.log(1.4), log=True).miss(0.0) == math.inf
+
+
+def test_the_search_finds_a_known_optimum_inside_bounds_and_is_repeatable() -> None:
+    scene = load_scene("tap_rod30_nuskin")
+    calls = []
+
+    def measure(candidate):
+        force = start_values(candidate, (FORCE,))[0]
+        damping = start_values(candidate, (DAMPING,))[0]
+        calls.append((force, damping))
+        # statistics that the true values 0.7 N and 0.012 give exactly
+        return {"a": math.log(force / 0.7), "b": math.log(damping / 0.012)}
+
+    targets = (Target("a", 0.0, 0.05), Target("b", 0.0, 0.05))
+    values, history = fit(scene, (FORCE, DAMPING), targets, measure, max_evaluations=200)
+    assert values[0] == pytest.approx(0.7, rel=0.06)
+    assert values[1] == pytest.approx(0.012, rel=0.06)
+    assert history[-1].loss <= history[0].loss
+    assert all(0.01 <= f <= 10.0 and 0.001 <= d <= 0.2 for f, d in calls)
+    again, _ = fit(scene, (FORCE, DAMPING), targets, measure, max_evaluations=200)
+    assert again == values
+
+
+def test_the_search_stops_at_its_budget() -> None:
+    scene = load_scene("tap_rod30_nuskin")
+    _, history = fit(
+        scene, (FORCE,), (Target("a", 5.0, 0.1),), lambda s: {"a": 0.0}, max_evaluations=7
+    )
+    assert len(history) == 7
+
+
+def test_effect_lines_read_back_as_the_same_effects() -> None:
+    scene = with_values(load_scene("tap_rod30_nuskin"), (FORCE, DAMPING), [0.4, 0.05])
+    text = "effects:\n" + "\n".join(effect_lines(scene)) + "\n"
+    data = {**yaml.safe_load(scene.path.read_text()), **yaml.safe_load(text)}
+    assert scene_from_dict(data, "again").effects == scene.effects
+
+
+def test_a_stage_of_another_task_is_refused_before_reading_anything() -> None:
+    with pytest.raises(SceneError, match=r"calibrates the stages \('noise', 'taps'\)"):
+        calibrate_scene(load_scene("tap_rod30_nuskin"), ["/nonexistent"], ("food",))
