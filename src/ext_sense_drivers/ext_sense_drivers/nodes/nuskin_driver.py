@@ -23,25 +23,21 @@ while the link is up is a stall (WARN, then ERROR, naming the stream).
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import Any
 
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.lifecycle import LifecycleNode
-from rclpy.node import Node
 
 from ext_sense_drivers.liveness import NUSKIN_IDLE_WORDS_PER_S, DriverLiveness, StreamWatch
 from ext_sense_drivers.nodes.link_node import (
     ManagedLink,
     create_stream_publisher,
-    declare_autostart,
-    declare_backoff,
-    declare_link_parameters,
-    declare_liveness,
     link_status,
     monotonic_to_ros_ns,
     packet_message,
     stop_reader,
 )
+from ext_sense_drivers.nodes.link_parameters import STALL_OFF, LinkParameters, link_field
 from ext_sense_drivers.nuskin.driver_config import DriverConfig, Mode
 from ext_sense_drivers.packets import (
     ACES_LINE_V1,
@@ -58,56 +54,92 @@ from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare_all, param
 
 MAX_WORD_RATE_HZ = 320_000.0
 """80 taxels at 4 kHz: the most events per second the receiver can produce."""
 
 
-def _declare_config(node: Node) -> DriverConfig:
-    d = DriverConfig()
-    link = declare_link_parameters(
-        node,
-        d,
-        {
-            "baud": "Serial line rate, bit/s (also caps the arrival-clock spread).",
-            "file_bytes_per_s": "File replay rate, bytes/s; 0 uses file_pace.",
-        },
+def _not_empty(value: str) -> str | None:
+    return "must not be empty" if not value else None
+
+
+@dataclass(frozen=True)
+class NuskinParameters(LinkParameters):
+    """``nuskin_driver``'s parameters; frame_id changes live, the rest are read-only."""
+
+    baud: int = link_field(
+        "baud", DriverConfig.baud, "Serial line rate, bit/s (also caps the arrival-clock spread)."
     )
-    return DriverConfig(
-        **link,
-        file_pace=declare(
-            node,
-            "file_pace",
-            d.file_pace,
-            "File replay pace: recorded (from the lab .tact markers), serial (baud/10 bytes/s) "
-            "or flat (as fast as possible).",
-            read_only=True,
-        ),
-        mode=declare(
-            node,
-            "mode",
-            d.mode,
-            "Byte format: words (receiver event words) or aces_line (raw line samples).",
-            read_only=True,
-        ),
-        flag_polarity=declare(
-            node,
-            "flag_polarity",
-            d.flag_polarity,
-            "Word flag bit: ignore (polarity 0, real receivers) or is_positive (1: +1, 0: -1).",
-            read_only=True,
-        ),
-        aces_threshold=declare(
-            node,
-            "aces_threshold",
-            d.aces_threshold,
-            "ACES detection threshold, fraction of a full signature match.",
-            low=0.05,
-            high=0.95,
-            read_only=True,
-        ),
+    file_bytes_per_s: float = link_field(
+        "file_bytes_per_s",
+        DriverConfig.file_bytes_per_s,
+        "File replay rate, bytes/s; 0 uses file_pace.",
     )
+    reconnect_initial_s: float = param(
+        0.1,
+        "First reconnect delay after the port vanished, s (doubles per failure).",
+        low=0.001,
+        high=60.0,
+        read_only=True,
+    )
+    expected_rate_hz: float = param(
+        float(NUSKIN_IDLE_WORDS_PER_S),
+        "Least rate of the receiver's words while the link is up, words/s (default 540: a "
+        "powered receiver sends its idle stream all the time, 511-536 words/s median on the "
+        "real captures of April 2021). In aces_line mode the line's samples are watched at "
+        "the line's sample rate instead, unless this is 0." + STALL_OFF,
+        low=0.0,
+        high=10_000_000.0,
+        read_only=True,
+    )
+    file_pace: str = param(
+        DriverConfig.file_pace,
+        "File replay pace: recorded (from the lab .tact markers), serial (baud/10 bytes/s) "
+        "or flat (as fast as possible).",
+        read_only=True,
+    )
+    mode: str = param(
+        DriverConfig.mode,
+        "Byte format: words (receiver event words) or aces_line (raw line samples).",
+        read_only=True,
+    )
+    flag_polarity: str = param(
+        DriverConfig.flag_polarity,
+        "Word flag bit: ignore (polarity 0, real receivers) or is_positive (1: +1, 0: -1).",
+        read_only=True,
+    )
+    aces_threshold: float = param(
+        DriverConfig.aces_threshold,
+        "ACES detection threshold, fraction of a full signature match.",
+        low=0.05,
+        high=0.95,
+        read_only=True,
+    )
+    frame_id: str = param("nuskin", "Frame of the sensor (header.frame_id).", check=_not_empty)
+    batch_period_s: float = param(
+        0.001, "Time between published batches, s.", low=0.0001, high=1.0, read_only=True
+    )
+    quiet_packets_period_s: float = param(
+        QUIET_PACKETS_PERIOD_S,
+        "While the stream goes and no bytes come, an empty packet ('nothing read up to now') "
+        "every this long, s: the driver's own cadence. A consumer learns from it where "
+        "stream time is when the sensor is silent and closes its windows on data, so a "
+        "replay of the recorded packets cuts the same windows. Words mode only; 0: none.",
+        low=0.0,
+        high=1.0,
+        read_only=True,
+    )
+
+    def driver_config(self) -> DriverConfig:
+        """The driver's config (checks the link choice)."""
+        return DriverConfig(
+            **self.link(),
+            file_pace=self.file_pace,
+            mode=self.mode,
+            flag_polarity=self.flag_polarity,
+            aces_threshold=self.aces_threshold,
+        )
 
 
 def packet_encoding(config: DriverConfig) -> tuple[str, str]:
@@ -118,16 +150,9 @@ def packet_encoding(config: DriverConfig) -> tuple[str, str]:
     return ACES_LINE_V1, format_options({"threshold": float(config.aces_threshold)})
 
 
-def _declare_liveness(node: Node, config: DriverConfig, stream: str) -> DriverLiveness:
+def _liveness(p: NuskinParameters, config: DriverConfig, stream: str) -> DriverLiveness:
     """The stall check: receiver words (mode words) or line samples (aces_line) on ``stream``."""
-    rate, warn_ns, error_ns = declare_liveness(
-        node,
-        NUSKIN_IDLE_WORDS_PER_S,
-        "Least rate of the receiver's words while the link is up, words/s (default 540: a "
-        "powered receiver sends its idle stream all the time, 511-536 words/s median on the "
-        "real captures of April 2021). In aces_line mode the line's samples are watched at "
-        "the line's sample rate instead, unless this is 0.",
-    )
+    rate, (warn_ns, error_ns) = p.expected_rate_hz, p.stall_ns()
     what = f"receiver words on {stream}"
     if config.mode_kind != Mode.WORDS and rate > 0:
         from ext_sense_drivers.aces.bank import load_bank
@@ -142,48 +167,20 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("nuskin_driver", **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        self.config = _declare_config(self)
-        self.frame_id = declare(
-            self, "frame_id", "nuskin", "Frame of the sensor (header.frame_id)."
-        )
-        period_s = declare(
-            self,
-            "batch_period_s",
-            0.001,
-            "Time between published batches, s.",
-            low=0.0001,
-            high=1.0,
-            read_only=True,
-        )
-        quiet_period_s = declare(
-            self,
-            "quiet_packets_period_s",
-            QUIET_PACKETS_PERIOD_S,
-            "While the stream goes and no bytes come, an empty packet ('nothing read up to now') "
-            "every this long, s: the driver's own cadence. A consumer learns from it where "
-            "stream time is when the sensor is silent and closes its windows on data, so a "
-            "replay of the recorded packets cuts the same windows. Words mode only; 0: none.",
-            low=0.0,
-            high=1.0,
-            read_only=True,
-        )
+        self.p = p = declare_all(self, NuskinParameters, self._on_change, self.guard)
+        self.config = p.driver_config()
+        self.frame_id = p.frame_id
+        quiet_period_s = p.quiet_packets_period_s
         self._quiet = QuietSchedule(quiet_period_s)
         self._quiet_timer = self.create_timer(
             max(quiet_period_s, 0.001), self.guard(self._say_quiet), autostart=False
         )
-        backoff = declare_backoff(self, "port")
-        self.liveness = _declare_liveness(self, self.config, self.config.hardware_id)
-        self.add_on_set_parameters_callback(
-            self.guard.wrap(
-                self._on_set,
-                fallback=lambda err: SetParametersResult(successful=False, reason=str(err)),
-            )
-        )
+        self.liveness = _liveness(p, self.config, self.config.hardware_id)
 
         self.config.make_stream()  # checks mode and flag_polarity now, with a clear error
         encoding, options = packet_encoding(self.config)
         self.packer = PacketPacker(encoding, options)
-        self.reader = self.config.make_reader(backoff)
+        self.reader = self.config.make_reader(p.backoff())
         self._mono_to_ros_ns = monotonic_to_ros_ns(self)
         self.packets_published = 0
         self._packet_pub, self._qos_events = create_stream_publisher(self, SensorPacket, "packets")
@@ -194,22 +191,14 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         self._updater.add_check("liveness", self.liveness.check)
         self.guard.attach(self._updater)
         self._diagnostics = DiagnosticsPublisher(self, self._updater)
-        self._period_s = period_s
+        self._period_s = p.batch_period_s
         self.get_logger().info(
             f"reading {self.config.mode} from {self.config.transport} {self.config.hardware_id}"
         )
-        self.start_managed(declare_autostart(self))
+        self.start_managed(p.autostart)
 
-    def _on_set(self, params: list[Any]) -> SetParametersResult:
-        for p in params:
-            if p.name == "frame_id" and not str(p.value):
-                return SetParametersResult(
-                    successful=False, reason="The 'frame_id' parameter must not be empty."
-                )
-        for p in params:
-            if p.name == "frame_id":
-                self.frame_id = str(p.value)
-        return SetParametersResult(successful=True)
+    def _on_change(self, new: NuskinParameters) -> None:
+        self.p, self.frame_id = new, new.frame_id
 
     def _tick(self) -> None:
         """Drain the reader and publish the packets.
