@@ -34,6 +34,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.est_kernel import est_kernel, fit_est_kernel
+from ext_sense_perception.features.inputs import dense_array
 from ext_sense_perception.features.maps import (
     BIN_KERNELS,
     FFT_SCALE_IN,
@@ -137,6 +138,7 @@ class WindowFeatures(TransformerMixin, BaseEstimator):
         self.channel_index_ = select_channels(self.channels, self.n_channels)
         self.used_samples_ = self._used_samples()
         self.time_maps_ = [self._pad(m) for m in self._time_maps(self.used_samples_)]
+        self.n_features_in_ = self.n_channels * self.n_samples
         self._fit_features(self._validate(X))
         self.n_features_out_ = int(
             self.transform(np.zeros((1, self.n_channels * self.n_samples), np.float32)).shape[1]
@@ -153,18 +155,18 @@ class WindowFeatures(TransformerMixin, BaseEstimator):
 
     # -- evaluation --------------------------------------------------------------------------
     def _validate(self, X: np.ndarray) -> np.ndarray:
-        x = np.asarray(X)
+        x = dense_array(X, allow_nd=True, ensure_all_finite=False)  # dense numbers, not empty
+        if not np.isfinite(x).all():
+            raise PerceptionError(
+                "The 'X' parameter (window data) must be finite. Got NaN or inf instead."
+            )
         if x.ndim == 3:
             x = x.reshape(x.shape[0], -1)
         if x.ndim != 2 or x.shape[1] != self.n_channels * self.n_samples:
             raise PerceptionError(
                 f"The 'X' parameter must have shape (n, {self.n_channels * self.n_samples}) "
-                f"(= {self.n_channels} channels x {self.n_samples} samples). Got {np.shape(X)} "
+                f"(= {self.n_channels} channels x {self.n_samples} samples). Got {x.shape} "
                 "instead."
-            )
-        if not np.isfinite(x).all():
-            raise PerceptionError(
-                "The 'X' parameter (window data) must be finite. Got NaN or inf instead."
             )
         return x
 

@@ -1,4 +1,4 @@
-# ruff: noqa: N803  (X / F for sample matrices, as in scikit-learn)
+# ruff: noqa: N803, N806  (X / F for sample matrices, as in scikit-learn)
 """GRU(16) + MLP(16, 8) estimator on the binned series (torch for training, optional extra).
 
 The paper's RNN: 16 GRU cells run over the time axis of the feature vector reshaped to
@@ -18,16 +18,24 @@ fitted estimator pickles without torch and exports to ONNX without it; only
 from __future__ import annotations
 
 import importlib.util
+import weakref
 from typing import Any
 
 import numpy as np
-from sklearn.base import BaseEstimator
+from sklearn.base import BaseEstimator, ClassifierMixin, RegressorMixin
+from sklearn.utils import ClassifierTags, RegressorTags
+from sklearn.utils.metaestimators import available_if
+from sklearn.utils.multiclass import check_classification_targets
 from sklearn.utils.validation import check_is_fitted
 
 from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.features.inputs import validated
 from ext_sense_perception.training.gru_onnx import GRUNet
 
 AUTO_UNSCALED_RMS = (0.1, 30.0)  # inputs of this RMS train better unscaled (see input_scaling)
+# torch modules rebuilt from an estimator's NumPy weights, kept beside it (never pickled, and
+# predict leaves the estimator's own state as it was)
+_MODULES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def require_torch() -> Any:
@@ -119,6 +127,17 @@ class GRUEstimator(BaseEstimator):
         self.n_threads = n_threads
         self.random_state = random_state
 
+    def __sklearn_tags__(self):
+        """A regressor or a classifier as ``regression`` says; either needs its target."""
+        tags = super().__sklearn_tags__()
+        tags.estimator_type = "regressor" if self.regression else "classifier"
+        tags.target_tags.required = True
+        if self.regression:
+            tags.regressor_tags = RegressorTags()
+        else:
+            tags.classifier_tags = ClassifierTags()
+        return tags
+
     def _check_params(self, n_features: int) -> int:
         for name in ("n_channels", "hidden", "max_epochs", "batch_size", "n_threads"):
             v = getattr(self, name)
@@ -191,12 +210,18 @@ class GRUEstimator(BaseEstimator):
             PerceptionError: without torch, on bad parameters or non-finite input.
         """
         torch = require_torch()
-        n_steps = self._check_params(np.shape(X)[1])
+        X, y = validated(self, X, y, reset=True, dtype=np.float32, y_numeric=self.regression)
+        if not self.regression:
+            try:
+                check_classification_targets(y)
+            except ValueError as err:
+                raise PerceptionError(str(err)) from err
+        n_steps = self._check_params(X.shape[1])
         seq = self._seq(X, n_steps)
         x_mean, x_scale = self._input_scaling(seq)
         seq = ((seq - x_mean) / x_scale).astype(np.float32)
         if self.reverse_time:
-            seq = np.ascontiguousarray(seq[:, ::-1])
+            seq = seq[:, ::-1].copy()  # (a view of one step keeps its negative stride)
         y = np.asarray(y)
         if self.regression:
             yf = y.astype(np.float64)
@@ -283,7 +308,6 @@ class GRUEstimator(BaseEstimator):
         )
         if classes is not None:
             self.classes_ = classes
-        self.n_features_in_ = int(np.shape(X)[1])
         self.n_epochs_ = epochs
         self.best_val_loss_ = float(best)
         return self
@@ -306,10 +330,10 @@ class GRUEstimator(BaseEstimator):
         return est
 
     def _modules(self):
-        """Torch modules rebuilt from the NumPy weights (cached, never pickled)."""
-        cached = self.__dict__.get("_torch_modules")
-        if cached is not None:
-            return cached
+        """Torch modules rebuilt from the NumPy weights (cached in ``_MODULES``)."""
+        cached = _MODULES.get(self)
+        if cached is not None and cached[0] is self.net_:
+            return cached[1]
         torch = require_torch()
         net = self.net_
         gru = torch.nn.GRU(int(net.n_channels), net.hidden, batch_first=True)
@@ -328,21 +352,16 @@ class GRUEstimator(BaseEstimator):
             for name, arr in pairs.items():
                 getattr(gru, name).copy_(torch.from_numpy(np.asarray(arr, np.float32)))
         mods = (gru.eval(), torch.nn.Sequential(*layers).eval())
-        self.__dict__["_torch_modules"] = mods
+        _MODULES[self] = (net, mods)
         return mods
-
-    def __getstate__(self) -> dict:
-        state = super().__getstate__()
-        state = dict(state)
-        state.pop("_torch_modules", None)
-        return state
 
     def _forward(self, X: np.ndarray) -> np.ndarray:
         check_is_fitted(self, "net_")
         torch = require_torch()
+        X = validated(self, X, reset=False, dtype=np.float32)
         seq = self._seq(X, int(self.net_.n_steps))
         if self.net_.reverse:
-            seq = np.ascontiguousarray(seq[:, ::-1])
+            seq = seq[:, ::-1].copy()  # (a view of one step keeps its negative stride)
         gru, head = self._modules()
         old_threads = torch.get_num_threads()
         torch.set_num_threads(int(self.n_threads))
@@ -360,14 +379,14 @@ class GRUEstimator(BaseEstimator):
             return out[:, 0] * self.net_.y_scale + self.net_.y_mean
         return self.classes_[out.argmax(axis=1)]
 
-    def predict_proba(self, X: np.ndarray) -> np.ndarray:
-        """Softmax class probabilities ``(n, n_classes)`` (classification only).
+    def score(self, X: np.ndarray, y: np.ndarray, sample_weight: np.ndarray | None = None) -> float:
+        """R^2 of the predictions (regression) or their accuracy (classes), as scikit-learn's."""
+        mixin = RegressorMixin if self.regression else ClassifierMixin
+        return mixin.score(self, X, y, sample_weight)
 
-        Raises:
-            PerceptionError: for a regression model.
-        """
-        if self.regression:
-            raise PerceptionError("predict_proba needs a classification GRUEstimator.")
+    @available_if(lambda self: not self.regression)
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """Softmax class probabilities ``(n, n_classes)`` (a classifier's only)."""
         out = self._forward(X)
         e = np.exp(out - out.max(axis=1, keepdims=True))
         return e / e.sum(axis=1, keepdims=True)

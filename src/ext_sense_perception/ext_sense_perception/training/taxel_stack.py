@@ -26,6 +26,7 @@ from sklearn.svm import SVR
 from sklearn.utils.validation import check_is_fitted
 
 from ext_sense_perception.errors import PerceptionError
+from ext_sense_perception.features.inputs import validated
 
 # ridge penalties on metre labels: the squared error of metre predictions is 1e-4 of the cm one
 # while the penalty on the (unitless) weights is not, so these are 1e-3 .. 1e5 on cm labels
@@ -72,27 +73,14 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
     def _svr(self) -> SVR:
         return SVR(kernel="rbf", C=self.C, gamma=self.gamma, epsilon=self.epsilon)
 
-    def _blocks(self, X: np.ndarray, fitted: bool) -> np.ndarray:
-        """``X`` as ``(n_windows, n_channels, n_per_channel)`` float64, checked."""
-        x = np.asarray(X, dtype=np.float64)
-        if x.ndim != 2:
-            raise PerceptionError(
-                f"The 'X' parameter must be 2-D (n_windows, n_features). Got shape {x.shape} "
-                "instead."
-            )
-        if fitted and x.shape[1] != self.n_features_in_:
-            raise PerceptionError(
-                f"The 'X' parameter must have {self.n_features_in_} features. Got {x.shape[1]} "
-                "instead."
-            )
+    def _blocks(self, x: np.ndarray) -> np.ndarray:
+        """Checked ``x`` as ``(n_windows, n_channels, n_per_channel)``."""
         c = self.n_channels
         if not (isinstance(c, (int, np.integer)) and c > 0) or x.shape[1] % c:
             raise PerceptionError(
                 f"The 'n_channels' parameter must be a positive integer dividing the "
                 f"{x.shape[1]} features into equal blocks. Got {c!r} instead."
             )
-        if not np.isfinite(x).all():
-            raise PerceptionError("The 'X' parameter must be finite. Got NaN or inf instead.")
         return x.reshape(x.shape[0], c, x.shape[1] // c)
 
     def fit(self, X: np.ndarray, y: np.ndarray) -> TaxelStackSVR:
@@ -108,13 +96,11 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
         Raises:
             PerceptionError: on bad shapes, NaN/inf, or fewer windows than inner folds.
         """
-        blocks = self._blocks(X, fitted=False)
-        target = np.asarray(y, dtype=np.float64)
+        x, target = validated(
+            self, X, y, reset=True, dtype=np.float64, y_numeric=True, ensure_min_samples=2
+        )
+        blocks = self._blocks(x)
         n = blocks.shape[0]
-        if target.shape != (n,) or not np.isfinite(target).all():
-            raise PerceptionError(
-                f"The 'y' parameter must be {n} finite targets. Got shape {target.shape} instead."
-            )
         folds = self.inner_folds
         if not (isinstance(folds, (int, np.integer)) and 2 <= folds <= n):
             raise PerceptionError(
@@ -132,7 +118,6 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
         self.coef_ = np.asarray(self.combiner_.coef_, dtype=np.float64).reshape(-1)
         self.intercept_ = float(self.combiner_.intercept_)
         self.alpha_ = float(self.combiner_.alpha_)
-        self.n_features_in_ = int(blocks.shape[1] * blocks.shape[2])
         self.packed_ = self._pack()
         return self
 
@@ -170,7 +155,7 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
         """
         check_is_fitted(self, "packed_")
         p = self.packed_
-        blocks = self._blocks(X, fitted=True)
+        blocks = self._blocks(validated(self, X, reset=False, dtype=np.float64))
         sv_t = p["sv"].transpose(0, 2, 1)
         ss = np.einsum("csd,csd->cs", p["sv"], p["sv"])[:, None, :]
         out = np.empty((blocks.shape[0], self.n_channels))

@@ -1,0 +1,51 @@
+# ruff: noqa: N803  (X for sample matrices, as in scikit-learn)
+"""Input checks of the project's estimators: scikit-learn's own, raised as PerceptionError (no ROS).
+
+So every estimator refuses sparse, complex, non-numeric, empty and (by default) NaN/inf input
+with scikit-learn's messages, which name what arrived. Bad values are a PerceptionError (a
+``ValueError``), as elsewhere in the package; input of a wrong type (sparse matrices, objects
+that are not numbers) stays scikit-learn's ``TypeError``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from sklearn.utils.validation import check_array, validate_data
+
+from ext_sense_perception.errors import PerceptionError
+
+
+def dense_array(X: Any, **kwargs: Any) -> np.ndarray:
+    """``X`` through ``sklearn.utils.check_array`` (``kwargs`` are its options).
+
+    Raises:
+        PerceptionError: scikit-learn's message (complex, empty, NaN/inf).
+        TypeError: sparse input, or objects that are not numbers.
+    """
+    try:
+        return check_array(X, **kwargs)
+    except ValueError as err:
+        raise PerceptionError(f"The 'X' parameter is not usable: {err}") from err
+
+
+def validated(estimator: Any, X: Any, y: Any = "no_validation", *, reset: bool, **kwargs: Any):
+    """``sklearn.utils.validation.validate_data``: ``X`` (and ``y``) as in :func:`dense_array`.
+
+    ``reset=True`` (``fit``) records ``n_features_in_``; ``reset=False`` checks ``X`` has that
+    many columns. ``y=None`` in a fit is refused for an estimator that needs a target.
+
+    Returns:
+        ``X``, or ``(X, y)`` when ``y`` is given.
+
+    Raises:
+        PerceptionError: scikit-learn's message (as :func:`dense_array`'s; or a wrong number of
+            columns, or a missing or malformed target).
+        TypeError: sparse input, or objects that are not numbers.
+    """
+    try:
+        return validate_data(estimator, X, y, reset=reset, **kwargs)
+    except ValueError as err:
+        names = "'X'" if isinstance(y, str) else "'X' or 'y'"
+        raise PerceptionError(f"The {names} parameter is not usable: {err}") from err
