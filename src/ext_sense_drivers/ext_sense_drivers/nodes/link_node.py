@@ -1,10 +1,11 @@
-"""The link half every driver node shares: parameters, reader thread, stream publisher, diagnostics.
+"""The link half every driver node shares: reader thread, stream publisher, diagnostics.
 
 The NUSkin and BioTac driver nodes read a byte link (serial, CAN or file) through a
 :class:`~ext_sense_drivers.transports.reader.StreamReader` and differ only in what they decode.
-These helpers declare the link and reconnect parameters the same way in both, build the sensor
-stream publisher with its QoS event counters, report the link state on ``/diagnostics`` and stop
-the reader. What each sensor decodes, stamps and publishes stays in its own node.
+These helpers build the sensor stream publisher with its QoS event counters, report the link
+state on ``/diagnostics`` and stop the reader (the shared parameters are
+:class:`~ext_sense_drivers.nodes.link_parameters.LinkParameters`). What each sensor decodes,
+stamps and publishes stays in its own node.
 """
 
 from __future__ import annotations
@@ -21,180 +22,21 @@ from rclpy.publisher import Publisher
 from ext_sense_drivers.liveness import DriverLiveness
 from ext_sense_drivers.packets import Packet
 from ext_sense_drivers.transports.base import LinkState
-from ext_sense_drivers.transports.link_config import (
-    READER_PRIORITY_DESCRIPTION,
-    READER_PRIORITY_RANGE,
-    LinkConfig,
-)
-from ext_sense_drivers.transports.reader import Backoff, StreamReader
+from ext_sense_drivers.transports.reader import StreamReader
 from ext_sense_msgs.msg import SensorPacket
 from ext_sense_runtime import intra_process
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
-from ext_sense_runtime.parameters import declare
 from ext_sense_runtime.qos import SENSOR_STREAM_QOS
 from ext_sense_runtime.qos_events import QosEventCounter
-from ext_sense_runtime.stamps import MS, fill_stamp
+from ext_sense_runtime.stamps import fill_stamp
 
 LIVENESS_PERIOD_S = 0.1
 """How often the liveness of the stream is judged: a stall is on ``/diagnostics`` at most this
 long after it passed a threshold. 0.1 s, not 0.05: with the drain timer idle, this timer and
 the link watch (0.5 s) are what an idle driver wakes for (idle cost 1.2-1.3 % of a core at
 0.05 s and 0.2 s, 0.55 % now; ``bench/bench_idle.py``, issue #16 asks for at most 1 %)."""
-
-LINK_DESCRIPTIONS: Mapping[str, str] = {
-    "transport": "Byte source: serial, can or file.",
-    "port": "Serial device or pyserial URL.",
-    "can_interface": "python-can interface.",
-    "can_channel": "CAN channel on that interface.",
-    "can_arbitration_id": "Arbitration id of the frames carrying the byte stream.",
-    "can_extended_id": "29-bit extended id.",
-    "file_path": "Capture file (transport file).",
-    "file_loop": "Replay the file for ever.",
-    "reader_priority": READER_PRIORITY_DESCRIPTION,
-}
-"""Descriptions of the link parameters a node does not word for its sensor (``baud`` and
-``file_bytes_per_s`` it always words itself)."""
-
-_RANGES: Mapping[str, tuple[float, float]] = {
-    "baud": (1200, 100_000_000),
-    "can_arbitration_id": (0, 0x1FFFFFFF),
-    "file_bytes_per_s": (0.0, 1e9),
-    "reader_priority": READER_PRIORITY_RANGE,
-}
-
-_LINK_PARAMETERS = (
-    "transport",
-    "port",
-    "baud",
-    "can_interface",
-    "can_channel",
-    "can_arbitration_id",
-    "can_extended_id",
-    "file_path",
-    "file_bytes_per_s",
-    "file_loop",
-    "reader_priority",
-)
-
-
-def declare_link_parameters(
-    node: Node, defaults: LinkConfig, descriptions: Mapping[str, str]
-) -> dict[str, Any]:
-    """Declare the read-only link parameters (``transport`` ... ``file_loop``).
-
-    Args:
-        node: The driver node.
-        defaults: The driver's config with its defaults (they fix each parameter's type).
-        descriptions: The node's wording of ``baud`` and ``file_bytes_per_s`` (with units), and
-            of any other link parameter it words differently from :data:`LINK_DESCRIPTIONS`.
-
-    Returns:
-        The values after overrides, by parameter name (the config's field names).
-
-    Raises:
-        KeyError: ``descriptions`` lacks ``baud`` or ``file_bytes_per_s``.
-    """
-    wording = {**LINK_DESCRIPTIONS, **descriptions}
-    values: dict[str, Any] = {}
-    for name in _LINK_PARAMETERS:
-        low, high = _RANGES.get(name, (None, None))
-        values[name] = declare(
-            node,
-            name,
-            getattr(defaults, name),
-            wording[name],
-            low=low,
-            high=high,
-            read_only=True,
-        )
-    return values
-
-
-def declare_backoff(node: Node, lost: str, *, max_read_only: bool = True) -> Backoff:
-    """Declare ``reconnect_initial_s`` and ``reconnect_max_s`` and return the backoff they give.
-
-    Args:
-        node: The driver node.
-        lost: What vanishes in the wording (``"port"``, ``"link"``).
-        max_read_only: Whether ``reconnect_max_s`` is read-only (a node that lets it change
-            validates the change in its own on-set callback).
-
-    Returns:
-        Delays from ``reconnect_initial_s`` up to ``max(reconnect_initial_s, reconnect_max_s)``.
-    """
-    initial_s = declare(
-        node,
-        "reconnect_initial_s",
-        0.1,
-        f"First reconnect delay after the {lost} vanished, s (doubles per failure).",
-        low=0.001,
-        high=60.0,
-        read_only=True,
-    )
-    max_s = declare(
-        node,
-        "reconnect_max_s",
-        2.0,
-        "Longest reconnect delay, s.",
-        low=0.001,
-        high=600.0,
-        read_only=max_read_only,
-    )
-    return Backoff(initial_s, max(initial_s, max_s))
-
-
-def declare_liveness(node: Node, rate_hz: float, rate_wording: str) -> tuple[float, int, int]:
-    """Declare ``expected_rate_hz``, ``stall_warn_ms`` and ``stall_error_ms``.
-
-    Args:
-        node: The driver node.
-        rate_hz: The device's own least rate while streaming (the default).
-        rate_wording: What ``expected_rate_hz`` counts, with its unit and where the default
-            comes from.
-
-    Returns:
-        The expected rate (0: no stall check) and the WARN and ERROR silences in ns.
-
-    Raises:
-        ValueError: ``stall_error_ms`` is below ``stall_warn_ms``.
-    """
-    rate = declare(
-        node,
-        "expected_rate_hz",
-        float(rate_hz),
-        rate_wording + " 0 turns the stall check off (a source silent when idle, as the "
-        "simulator's emulated devices are).",
-        low=0.0,
-        high=10_000_000.0,
-        read_only=True,
-    )
-    warn_ms = declare(
-        node,
-        "stall_warn_ms",
-        200.0,
-        "Silence of the stream while the link is up and the node active that is a stall: WARN "
-        "on /diagnostics naming the stream (at least 3 expected intervals), ms.",
-        low=1.0,
-        high=60_000.0,
-        read_only=True,
-    )
-    error_ms = declare(
-        node,
-        "stall_error_ms",
-        500.0,
-        "Silence of the stream that turns the stall ERROR (>= stall_warn_ms), ms.",
-        low=1.0,
-        high=60_000.0,
-        read_only=True,
-    )
-    if error_ms < warn_ms:
-        raise ValueError(
-            f"The 'stall_error_ms' parameter must be >= stall_warn_ms ({warn_ms:g}). "
-            f"Got {error_ms:g} instead."
-        )
-    return rate, round(warn_ms * MS), round(error_ms * MS)
 
 
 def monotonic_to_ros_ns(node: Node) -> int:
@@ -445,16 +287,3 @@ class ManagedLink:
                 throttle_duration_sec=5.0,
             )
         self._seen_failures = failures
-
-
-def declare_autostart(node: Node) -> bool:
-    """Declare ``autostart``: configure and activate at start-up, without a lifecycle manager."""
-    return declare(
-        node,
-        "autostart",
-        True,
-        "Configure and activate this lifecycle node at start-up (ros2 run, tests); the graphs "
-        "set it false and drive the transitions themselves (launch events, ext-sense run), or "
-        "leave them to an external manager (manage_drivers:=false).",
-        read_only=True,
-    )
