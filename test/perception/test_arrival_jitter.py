@@ -205,7 +205,7 @@ def test_late_reads_refuse_a_negative_count(handover_stream):
 def test_the_folds_keep_each_trial_whole_when_a_set_holds_copies(tap_set):
     from sklearn.model_selection import KFold, StratifiedKFold
 
-    from ext_sense_perception.training.fit import whole_trial_folds
+    from ext_sense_perception.training.protocol import whole_trial_folds
 
     cv = KFold(4, shuffle=True, random_state=0)
     assert whole_trial_folds(cv, tap_set, 0) is cv  # a trial per window: the splitter as is

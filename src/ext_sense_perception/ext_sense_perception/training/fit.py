@@ -17,12 +17,7 @@ from joblib import Memory
 from sklearn.base import clone
 from sklearn.calibration import CalibratedClassifierCV
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.model_selection import (
-    GridSearchCV,
-    GroupKFold,
-    StratifiedGroupKFold,
-    StratifiedKFold,
-)
+from sklearn.model_selection import GridSearchCV, StratifiedKFold
 from sklearn.pipeline import Pipeline
 from threadpoolctl import threadpool_limits
 
@@ -31,7 +26,7 @@ from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.maps import FeatureKind
 from ext_sense_perception.online.model_card import ModelCard, jsonable
 from ext_sense_perception.training.models import head_of, make_pipeline
-from ext_sense_perception.training.protocol import features_for, inner_cv
+from ext_sense_perception.training.protocol import features_for, inner_cv, whole_trial_folds
 
 PI_Z = 1.959963984540054  # two-sided 95% normal quantile
 
@@ -46,30 +41,6 @@ class TrainedModel(NamedTuple):
 
     pipeline: Pipeline
     card: ModelCard
-
-
-def whole_trial_folds(cv: Any, ws: WindowSet, seed: int) -> Any:
-    """``cv`` when every window is a trial of its own; else as many folds over whole trials.
-
-    A set may hold several windows of one trial (``groups``), e.g. the same stream cut again
-    as a late reader reads it (``arrival_jitter.late_read_window_set``). Such copies in a
-    training and a validation fold would leak: the grid search and the probability calibration
-    would score the model on near-copies of what it was fitted on, and choose and calibrate
-    it too confidently. So their folds keep each trial whole.
-
-    Returns:
-        ``cv``, or a list of ``(train, test)`` index pairs (as ``cv`` accepts).
-    """
-    groups = np.asarray(ws.groups)
-    if np.unique(groups).size == groups.size:
-        return cv
-    n = cv.get_n_splits()
-    split = (
-        GroupKFold(n, shuffle=True, random_state=seed)
-        if ws.is_regression
-        else StratifiedGroupKFold(n, shuffle=True, random_state=seed)
-    )
-    return list(split.split(np.zeros((len(groups), 1)), ws.y, groups))
 
 
 def _final_classifier(est: Any, ws: WindowSet, seed: int) -> Any:

@@ -2,7 +2,8 @@
 """The paper's evaluation protocol (no ROS).
 
 K times: a random 90/10 split (stratified for classes); a grid search with 4-fold
-cross-validation on the 90%; refit on all of it; score the 10%. Seeded.
+cross-validation on the 90%; refit on all of it; score the 10%. Splits and folds keep a trial's
+windows together (:func:`outer_splits`, :func:`whole_trial_folds`). Seeded.
 Each split is one task (:mod:`.split_fit`) run here or on a Dask cluster
 (:mod:`.fit_jobs`), with the same result either way: :func:`plan_evaluation` lists a point's
 tasks, :func:`assemble` makes its result from their fits (so a sweep can submit the fits of many
@@ -15,13 +16,16 @@ fold. The autoencoder is fitted inside each training fold (it is part of the sea
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any, NamedTuple
 
 import numpy as np
 from sklearn.base import clone
 from sklearn.model_selection import (
+    GroupKFold,
     KFold,
     ShuffleSplit,
+    StratifiedGroupKFold,
     StratifiedKFold,
     StratifiedShuffleSplit,
 )
@@ -112,12 +116,55 @@ def features_for(ws: WindowSet, kind: str, **params: Any) -> WindowFeatures:
     )
 
 
-def _splits(ws: WindowSet, k: int, test_size: float, seed: int):
-    if ws.is_regression:
-        return ShuffleSplit(n_splits=k, test_size=test_size, random_state=seed).split(ws.X, ws.y)
-    return StratifiedShuffleSplit(n_splits=k, test_size=test_size, random_state=seed).split(
-        ws.X, ws.y
+def outer_splits(
+    ws: WindowSet, k: int, test_size: float, seed: int
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """The protocol's K random ``(train, test)`` splits (stratified for classes), whole trials.
+
+    A set may hold several windows of one trial (``groups``: the same stream cut again by a
+    late reader, shifted copies); a trial's windows in the training and the test part would
+    score the model on near-copies of what it was fitted on. So trials are split, not windows
+    (a trial's class is its first window's), and every window follows its trial.
+    """
+    names, first, trial_of = np.unique(ws.groups, return_index=True, return_inverse=True)
+    splitter = (
+        ShuffleSplit(n_splits=k, test_size=test_size, random_state=seed)
+        if ws.is_regression
+        else StratifiedShuffleSplit(n_splits=k, test_size=test_size, random_state=seed)
     )
+    if names.size == len(ws.y):  # a trial per window: the windows themselves, as always
+        yield from splitter.split(ws.X, ws.y)
+        return
+    for train, test in splitter.split(np.zeros((names.size, 1)), ws.y[first]):
+        yield np.flatnonzero(np.isin(trial_of, train)), np.flatnonzero(np.isin(trial_of, test))
+
+
+def whole_trial_folds(cv: Any, ws: WindowSet, seed: int) -> Any:
+    """``cv`` when every window is a trial of its own; else as many folds over whole trials.
+
+    A set may hold several windows of one trial (``groups``), e.g. the same stream cut again
+    as a late reader reads it (``arrival_jitter.late_read_window_set``). Such copies in a
+    training and a validation fold would leak: the grid search and the probability calibration
+    would score the model on near-copies of what it was fitted on, and choose and calibrate
+    it too confidently. So their folds keep each trial whole.
+
+    Returns:
+        ``cv``, or a list of ``(train, test)`` index lists (as ``cv`` accepts; lists, so that
+        their ``repr`` in a split's cache key is whole).
+    """
+    groups = np.asarray(ws.groups)
+    if np.unique(groups).size == groups.size:
+        return cv
+    n = cv.get_n_splits()
+    split = (
+        GroupKFold(n, shuffle=True, random_state=seed)
+        if ws.is_regression
+        else StratifiedGroupKFold(n, shuffle=True, random_state=seed)
+    )
+    return [
+        (train.tolist(), test.tolist())
+        for train, test in split.split(np.zeros((len(groups), 1)), ws.y, groups)
+    ]
 
 
 def inner_cv(ws: WindowSet, y: np.ndarray, seed: int) -> KFold | StratifiedKFold:
@@ -197,7 +244,7 @@ def plan_evaluation(
         SplitTask(
             search_pipe,
             grid,
-            inner_cv(ws, ws.y[train], seed),
+            whole_trial_folds(inner_cv(ws, ws.y[train], seed), ws.subset(train), seed),
             ws.is_regression,
             labels,
             train,
@@ -206,7 +253,7 @@ def plan_evaluation(
             n_jobs,
             not precompute,
         )
-        for train, test in _splits(ws, k, test_size, seed)
+        for train, test in outer_splits(ws, k, test_size, seed)
     ]
     data = data_digest(search_X, ws.y)
     code = code_digest(search_pipe)

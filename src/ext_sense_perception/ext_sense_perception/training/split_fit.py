@@ -41,7 +41,7 @@ class SplitTask(NamedTuple):
 
     pipe: Any  # unfitted estimator searched (head only when features were precomputed)
     grid: dict[str, list[Any]]
-    cv: KFold | StratifiedKFold
+    cv: KFold | StratifiedKFold | list[tuple[list[int], list[int]]]  # lists: whole trials
     regression: bool
     labels: tuple[str, ...]
     train: np.ndarray

@@ -1,0 +1,77 @@
+"""The protocol's splits and folds keep a trial's windows together (no leak between them)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sklearn.model_selection import ShuffleSplit, StratifiedShuffleSplit
+
+from ext_sense_perception.data.window_set import WindowSet
+from ext_sense_perception.online.model_input import Geometry
+from ext_sense_perception.training.protocol import evaluate, features_for, outer_splits
+from ext_sense_runtime.stamps import MS
+
+
+def _set(n_trials: int, copies: int, classes: bool) -> WindowSet:
+    rng = np.random.default_rng(0)
+    y_trial = (
+        np.array(["a", "b"] * (n_trials // 2)) if classes else rng.uniform(0.02, 0.28, n_trials)
+    )
+    X = rng.poisson(1.0, (n_trials, 8, 60)).astype(np.float32)  # noqa: N806
+    X[:, :, 20:30] += (10 * (y_trial == "a") if classes else 30 * y_trial)[:, None, None]
+    reps = copies + 1
+    return WindowSet(
+        task="handover_stability" if classes else "tap_localization",
+        sensor="nuskin",
+        X=np.concatenate([X + rng.poisson(0.2, X.shape) for _ in range(reps)]),
+        y=np.tile(y_trial, reps),
+        geometry=Geometry(8, 60, MS, 20 * MS),
+        class_names=("a", "b") if classes else (),
+        groups=np.tile(np.arange(n_trials), reps),
+        rod_length_m=np.full(n_trials * reps, 0.3),
+        source="test",
+        data_hash="0",
+    )
+
+
+@pytest.mark.parametrize("classes", [False, True])
+def test_outer_splits_keep_each_trial_on_one_side(classes):
+    ws = _set(40, 2, classes)
+    splits = list(outer_splits(ws, 5, 0.1, 3))
+    assert len(splits) == 5
+    for train, test in splits:
+        assert not set(ws.groups[train]) & set(ws.groups[test])
+        assert len(train) + len(test) == len(ws.y)
+        assert len(set(ws.groups[test])) == 4  # 10 % of the 40 trials, each with its 3 windows
+        assert len(test) == 12
+        if classes:
+            assert set(ws.y[test]) == {"a", "b"}  # still stratified, by trial
+
+
+@pytest.mark.parametrize("classes", [False, True])
+def test_outer_splits_of_a_window_per_trial_are_the_plain_ones(classes):
+    ws = _set(40, 0, classes)
+    plain = (StratifiedShuffleSplit if classes else ShuffleSplit)(
+        n_splits=5, test_size=0.1, random_state=3
+    )
+    for (a, b), (c, d) in zip(outer_splits(ws, 5, 0.1, 3), plain.split(ws.X, ws.y), strict=True):
+        np.testing.assert_array_equal(a, c)
+        np.testing.assert_array_equal(b, d)
+
+
+def test_the_protocol_on_copies_searches_on_whole_trials():
+    ws = _set(40, 2, classes=False)
+    from ext_sense_perception.training.protocol import plan_evaluation
+
+    plan = plan_evaluation(ws, features_for(ws, "baseline", bin_ns=5 * MS), "svm_linear", k=2)
+    for t in plan.tasks:
+        inner = ws.groups[t.train]
+        assert isinstance(t.cv, list)
+        assert len(t.cv) == 4
+        for fit_idx, val_idx in t.cv:  # indices into the split's training part
+            assert not set(inner[fit_idx]) & set(inner[val_idx])
+    res = evaluate(
+        ws, features_for(ws, "baseline", bin_ns=5 * MS), "svm_linear", k=2, progress=False
+    )
+    assert res.k == 2
+    assert np.all(np.isfinite(res.scores))
