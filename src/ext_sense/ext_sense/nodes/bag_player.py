@@ -13,9 +13,11 @@ by a bag recomputes its own windows and estimates instead of seeing the recorded
 
 from __future__ import annotations
 
+import functools
 import importlib
 import threading
 import time
+from dataclasses import dataclass
 from typing import Any
 
 from rclpy.node import Node
@@ -27,8 +29,9 @@ from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare_all, param
 
+_ro = functools.partial(param, read_only=True)
 DEFAULT_TOPICS = [TOPIC_NUSKIN_PACKETS, TOPIC_BIOTAC_PACKETS, TOPIC_GROUND_TRUTH]
 """The graph inputs: the drivers' raw packets and the ground truth (a bag of decoded arrays from
 before packets: ``ext-sense bag migrate``)."""
@@ -60,59 +63,45 @@ def publisher_qos(topic: str) -> QoSProfile:
     )
 
 
+@dataclass(frozen=True)
+class BagPlayerParameters:
+    """``bag_player``'s parameters, all read-only."""
+
+    bag: str = _ro("", "rosbag2 directory or .mcap/.db3 file.")
+    rate: float = _ro(1.0, "Playback speed: 1.0 recorded pace, 0 flat out.", low=0.0, high=1000.0)
+    topics: tuple[str, ...] = _ro(
+        tuple(DEFAULT_TOPICS), "Topics to play (those in the bag); ['all'] plays every topic."
+    )
+    start_delay_s: float = _ro(
+        1.0, "Wait before the first message so subscribers can connect, s.", low=0.0, high=60.0
+    )
+    wait_subscribers_s: float = _ro(
+        15.0,
+        "Before playing, wait up to this long until every played topic has a subscriber, s.",
+        low=0.0,
+        high=600.0,
+    )
+    linger_s: float = _ro(
+        0.5,
+        "After the last message, wait this long "
+        "(and for reliable subscribers' acks) before reporting done, s.",
+        low=0.0,
+        high=60.0,
+    )
+
+
 class BagPlayerNode(Node):
     """Replays a bag's topics on a reader thread."""
+
+    PARAMETERS = BagPlayerParameters
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "bag_player"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        self.bag_path = declare(
-            self, "bag", "", "rosbag2 directory or .mcap/.db3 file.", read_only=True
-        )
-        self.rate = declare(
-            self,
-            "rate",
-            1.0,
-            "Playback speed: 1.0 recorded pace, 0 flat out.",
-            low=0.0,
-            high=1000.0,
-            read_only=True,
-        )
-        topics = declare(
-            self,
-            "topics",
-            list(DEFAULT_TOPICS),
-            "Topics to play (those in the bag); ['all'] plays every topic.",
-            read_only=True,
-        )
-        self.start_delay_s = declare(
-            self,
-            "start_delay_s",
-            1.0,
-            "Wait before the first message so subscribers can connect, s.",
-            low=0.0,
-            high=60.0,
-            read_only=True,
-        )
-        self.wait_subscribers_s = declare(
-            self,
-            "wait_subscribers_s",
-            15.0,
-            "Before playing, wait up to this long until every played topic has a subscriber, s.",
-            low=0.0,
-            high=600.0,
-            read_only=True,
-        )
-        self.linger_s = declare(
-            self,
-            "linger_s",
-            0.5,
-            "After the last message, wait this long "
-            "(and for reliable subscribers' acks) before reporting done, s.",
-            low=0.0,
-            high=60.0,
-            read_only=True,
-        )
+        p = declare_all(self, BagPlayerParameters)
+        self.bag_path, self.rate, topics = p.bag, p.rate, list(p.topics)
+        self.start_delay_s, self.wait_subscribers_s = p.start_delay_s, p.wait_subscribers_s
+        self.linger_s = p.linger_s
         self.published = 0
         self.play_seconds = 0.0
         self.total = 0
