@@ -7,6 +7,8 @@
   created).
 - ``bag recover BAG [--out DIR]`` rewrites every complete message of a bag a killed recorder
   left (no footer, no ``metadata.yaml``) as a complete bag, and prints what it recovered.
+- ``bag migrate BAG OUT`` rewrites a bag of decoded arrays (recorded before packets) as the
+  packet bag the graphs replay (:mod:`ext_sense.bag_migrate`).
 - ``replay BAG [--rate R | --flat-out]`` publishes the bag's graph inputs (sensor streams and
   ground truth) as recorded bytes, at recorded pace or flat out, and prints the throughput.
   ``view:=true`` (with ``view_host``, ``view_port``, ``view_rate``: the arguments and the
@@ -74,7 +76,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     bag = subparsers.add_parser(
         "bag",
-        help="bag tools: recover a bag a killed recorder left",
+        help="bag tools: recover a bag a killed recorder left, migrate one of decoded arrays",
         description="Bag tools (rosbag2, mcap or sqlite3).",
     )
     bag_sub = bag.add_subparsers(dest="bag_command", metavar="ACTION")
@@ -93,6 +95,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--out", type=Path, help="write the recovered bag here instead (must not exist)"
     )
     rcv.set_defaults(func=_bag_recover)
+    mig = bag_sub.add_parser(
+        "migrate",
+        help="rewrite a bag of decoded arrays (recorded before packets) as a packet bag",
+        description="Rewrite a bag recorded before the drivers published raw packets (its "
+        "TaxelEventBatch or BioTacFrame messages) as the packet bag the graphs replay: every "
+        "other topic is copied as recorded. The sensor's bytes are not in such a bag and cannot "
+        "be rebuilt exactly (what the decoder dropped is gone, the reads' times were not kept): "
+        "the events are encoded again with the drivers' word encoder (BioTac frames with the "
+        "bridge frame encoder), each word stamped within its transmission time of its recorded "
+        "time when decoded, with the driver's 'nothing read' packets while the recording is "
+        "silent.",
+    )
+    mig.add_argument("bag", type=Path, help="bag directory or .mcap/.db3 file to read")
+    mig.add_argument("out", type=Path, help="directory of the new packet bag (must not exist)")
+    mig.set_defaults(func=_bag_migrate)
 
     rep = subparsers.add_parser(
         "replay",
@@ -208,6 +225,23 @@ def _bag_recover(args: argparse.Namespace) -> int:
         print(f"not rewritten (no definition or type hash): {list(result.skipped_topics)}")
     if result.kept is not None:
         print(f"the damaged original is kept at {result.kept}")
+    return 0
+
+
+def _bag_migrate(args: argparse.Namespace) -> int:
+    from ext_sense.bag_migrate import migrate_bag
+    from ext_sense_bags import BagError
+
+    try:
+        done = migrate_bag(args.bag, args.out)
+    except BagError as err:
+        print(f"ext-sense bag migrate: {err}", file=sys.stderr)
+        return 2
+    print(f"wrote {done.out}:")
+    for topic, n in sorted(done.packets.items()):
+        print(f"  {topic}: {n} packets ({done.events} events, {done.frames} frames re-encoded)")
+    for topic, n in sorted(done.copied.items()):
+        print(f"  {topic}: {n} copied")
     return 0
 
 
