@@ -134,7 +134,9 @@ class BioTacParameters(LinkParameters):
 
 
 class BioTacDriverNode(ManagedLink, LifecycleNode):
-    """Publishes BioTac frames on ``frames`` from a serial, CAN or file bridge stream."""
+    """Publishes a BioTac bridge's bytes on ``packets`` from a serial, CAN or file source."""
+
+    PARAMETERS = BioTacParameters
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("biotac_driver", **kwargs)

@@ -164,6 +164,8 @@ def _liveness(p: NuskinParameters, config: DriverConfig, stream: str) -> DriverL
 class NuskinDriverNode(ManagedLink, LifecycleNode):
     """Publishes a NUSkin receiver's bytes on ``packets`` from a serial, CAN or file source."""
 
+    PARAMETERS = NuskinParameters
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("nuskin_driver", **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
