@@ -1,7 +1,7 @@
 """Device faults through driver and window nodes: garbage bytes, port closed and reopened.
 
 The nodes keep running, diagnostics say what happened, and a recording made meanwhile holds
-every batch the driver published.
+every packet the driver published.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from rosutil import spinning, wait_for
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]  # kills and restarts node processes
 
-EVENTS = "/extsense/nuskin/events"
+PACKETS = "/extsense/nuskin/packets"
 
 
 def _params(**kw):
@@ -71,7 +71,7 @@ def test_garbage_and_port_reopen_keep_nodes_alive_and_recording_complete(tmp_pat
     link = tmp_path / "nuskin.pty"
     master, slave = _open_pty(link)
     bag = tmp_path / "bag"
-    remap = ["--ros-args", "-r", f"events:={EVENTS}"]
+    remap = ["--ros-args", "-r", f"packets:={PACKETS}"]
     try:
         with spinning(
             lambda context: NuskinDriverNode(
@@ -79,11 +79,9 @@ def test_garbage_and_port_reopen_keep_nodes_alive_and_recording_complete(tmp_pat
                 parameter_overrides=_params(transport="serial", port=str(link)),
                 cli_args=remap,
             ),
-            lambda context: ContactWindowNode(
-                context=context, parameter_overrides=_params(input="decoded"), cli_args=remap
-            ),
+            lambda context: ContactWindowNode(context=context, cli_args=remap),
             lambda context: RecorderNode(
-                context=context, parameter_overrides=_params(bag=str(bag), topics=[EVENTS])
+                context=context, parameter_overrides=_params(bag=str(bag), topics=[PACKETS])
             ),
             listener,
         ) as (_driver, window, recorder, _):
@@ -112,14 +110,15 @@ def test_garbage_and_port_reopen_keep_nodes_alive_and_recording_complete(tmp_pat
             time.sleep(1.5)  # one more diagnostics period: counters after the last batch
             link_values = diagnostics["nuskin_driver: link"]
             assert int(link_values["disconnects"]) >= 1, link_values
-            assert int(diagnostics["nuskin_driver: decode"]["skipped_bytes"]) > 0
-            published = int(link_values["batches_published"])
+            packets = diagnostics["contact_window: windows"]  # the window node decodes
+            assert int(packets["packet_skipped_bytes"]) > 0, packets
+            published = int(link_values["packets_published"])
             assert published > 0
-            assert wait_for(lambda: recorder.received.get(EVENTS, 0) >= published, 5.0)
+            assert wait_for(lambda: recorder.received.get(PACKETS, 0) >= published, 5.0)
             assert "contact_window: windows" in diagnostics
     finally:
         for fd in (master, slave):
             with contextlib.suppress(OSError):
                 os.close(fd)
     with BagReader(bag) as reader:
-        assert reader.topics[EVENTS].count >= published
+        assert reader.topics[PACKETS].count >= published

@@ -1,9 +1,10 @@
-"""The NUSkin flag bit survives every hop: receiver bytes -> driver -> message -> bag -> CSV.
+"""The NUSkin flag bit survives every hop: receiver bytes -> driver -> packet -> bag -> CSV.
 
 Issue #15: the default decode wrote polarity 0 for every word and no column held the bit, so a
-wire bit was discarded. Now the driver fills ``TaxelEventBatch.flag`` as received, the recorder's
-raw CDR carries it into the bag, and the event CSV writes it in its own column, whatever the
-polarity choice makes of it (default ``ignore``: polarity 0).
+wire bit was discarded. Now the driver's packets carry the words as received, the recorder's raw
+CDR carries them into the bag, the library decoder gives each event's bit (``flag``), and the
+event CSV writes it in its own column, whatever the polarity choice makes of it (default
+``ignore``: polarity 0). Bags of decoded arrays keep the bit in ``TaxelEventBatch.flag``.
 """
 
 from __future__ import annotations
@@ -24,18 +25,27 @@ from ext_sense_drivers.nuskin.events_csv import CSV_HEADER, write_rows  # noqa: 
 from ext_sense_drivers.nuskin.wire import encode_words  # noqa: E402
 
 TOPIC = "/extsense/nuskin/events"
+PACKETS = "/extsense/nuskin/packets"
 TAXEL = [3, 41, 80, 7, 12]
 VALUE = [7, 1023, 0, 512, 99]
 FLAG = [1, 0, 1, 1, 0]
 
 
 def _csv_of_bag(bag_dir) -> list[str]:
+    from ext_sense_drivers.packets import make_decoder
+
     out = io.StringIO()
     out.write(CSV_HEADER + "\n")
     n = 0
+    decoder = None
     with BagReader(bag_dir) as reader:
-        for _, msg in reader.messages([TOPIC]):
-            n += write_rows(out, n, msg.polarity, msg.taxel, msg.value, msg.flag)
+        for _, msg in reader.messages([PACKETS]):
+            if decoder is None:
+                decoder = make_decoder(str(msg.encoding), str(msg.encoding_options))
+            decoded = decoder.decode(msg)
+            ev = decoded.events
+            if ev.size:  # the link's opening packet holds no word
+                n += write_rows(out, n, ev.polarity, ev.taxel, ev.value, decoded.flag)
     return out.getvalue().splitlines()
 
 
@@ -46,7 +56,7 @@ def test_a_set_flag_bit_survives_driver_message_bag_and_csv(tmp_path):
 
     from ext_sense_drivers.nodes.nuskin_driver import NuskinDriverNode
     from ext_sense_drivers.transports.base import LinkState
-    from ext_sense_msgs.msg import TaxelEventBatch
+    from ext_sense_msgs.msg import SensorPacket
     from ext_sense_runtime.qos import SENSOR_STREAM_QOS
 
     master, slave = os.openpty()
@@ -63,9 +73,7 @@ def test_a_set_flag_bit_survives_driver_message_bag_and_csv(tmp_path):
         probe = rclpy.create_node("probe", context=context)
         # as the recorder does: the serialized message, written unchanged into the bag
         raw: list[bytes] = []
-        probe.create_subscription(
-            TaxelEventBatch, "events", raw.append, SENSOR_STREAM_QOS, raw=True
-        )
+        probe.create_subscription(SensorPacket, "packets", raw.append, SENSOR_STREAM_QOS, raw=True)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(driver)
         executor.add_node(probe)
@@ -80,7 +88,7 @@ def test_a_set_flag_bit_survives_driver_message_bag_and_csv(tmp_path):
         os.write(master, encode_words(TAXEL, VALUE, FLAG))
         assert spin_until(lambda: _words(raw) >= len(TAXEL))
         for data in raw:
-            bag.write_raw(TOPIC, time.time_ns(), data, "ext_sense_msgs/msg/TaxelEventBatch")
+            bag.write_raw(PACKETS, time.time_ns(), data, "ext_sense_msgs/msg/SensorPacket")
     finally:
         bag.close()
         for node in (driver, probe):
@@ -99,11 +107,12 @@ def test_a_set_flag_bit_survives_driver_message_bag_and_csv(tmp_path):
 
 
 def _words(raw: list[bytes]) -> int:
+    """Receiver words in the raw packets (4 bytes each)."""
     from rclpy.serialization import deserialize_message
 
-    from ext_sense_msgs.msg import TaxelEventBatch
+    from ext_sense_msgs.msg import SensorPacket
 
-    return sum(len(deserialize_message(r, TaxelEventBatch).taxel) for r in raw)
+    return sum(len(deserialize_message(r, SensorPacket).data) // 4 for r in raw)
 
 
 def test_bag_batches_built_with_a_flag_keep_it_and_without_one_leave_it_empty(tmp_path):
