@@ -34,9 +34,8 @@ from ext_sense_runtime.stamps import fill_stamp
 
 LIVENESS_PERIOD_S = 0.1
 """How often the liveness of the stream is judged: a stall is on ``/diagnostics`` at most this
-long after it passed a threshold. 0.1 s, not 0.05: with the drain timer idle, this timer and
-the link watch (0.5 s) are what an idle driver wakes for (idle cost 1.2-1.3 % of a core at
-0.05 s and 0.2 s, 0.55 % now; ``bench/bench_idle.py``, issue #16 asks for at most 1 %)."""
+long after it passed a threshold. Not shorter: with the drain timer idle, this timer and the
+link watch (0.5 s) are what an idle driver wakes for (``bench/bench_idle.py``)."""
 
 
 def monotonic_to_ros_ns(node: Node) -> int:
@@ -217,9 +216,9 @@ class ManagedLink:
     def _drain(self: Any) -> None:
         """The drain timer: publish what arrived; with nothing more queued, stop ticking.
 
-        A drain timer ticking every ``batch_period_s`` with nothing to read cost 12 % of a
-        core per idle driver. It now runs only while bytes flow: when a tick leaves the queue
-        empty it is cancelled, and the reader thread restarts it with the next chunk
+        A drain timer ticking every ``batch_period_s`` with nothing to read would cost an idle
+        driver a good part of a core, so it runs only while bytes flow: when a tick leaves the
+        queue empty it is cancelled, and the reader thread restarts it with the next chunk
         (:meth:`_wake_drain`), so a batch still covers one period from its first bytes. The
         queue is looked at again after the cancel: a chunk queued in between restarts it.
         """
