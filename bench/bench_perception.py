@@ -80,63 +80,23 @@ def time_predict(model: ModelBundle, windows: list, repeat: int) -> tuple[float,
 
 
 def gru_model(ws: WindowSet, quick: bool) -> tuple[TrainedModel, str]:
-    """A GRU bundle: trained with torch when it is installed, else random weights."""
-    from sklearn.pipeline import Pipeline
-    from sklearn.preprocessing import StandardScaler
-
-    from ext_sense_perception.online.model_card import ModelCard
-    from ext_sense_perception.training.fit import nominal_rate_hz
-    from ext_sense_perception.training.gru import GRUEstimator, torch_available
-    from ext_sense_perception.training.gru_onnx import GRUNet
-    from ext_sense_perception.training.protocol import features_for
-
+    """A GRU bundle trained with torch (its ONNX graph is torch's export of the trained net)."""
     sub = ws.subset(np.arange(min(len(ws.y), 200)))
-    if torch_available():
-        t0 = time.perf_counter()
-        params = {"max_epochs": 10} if quick else None  # else the default 60 epochs
-        trained = fit_model(sub, "baseline", "gru", model_params=params)
-        return trained, f"trained on {len(sub.y)} taps in {time.perf_counter() - t0:.1f} s"
-    feats = features_for(sub, "baseline")
-    x = sub.X.reshape(len(sub.y), -1)
-    f = feats.fit(x[:1]).transform(x)
-    scale = StandardScaler(with_mean=False, with_std=False).fit(f)  # as make_pipeline's
-    c = sub.geometry.n_channels
-    rng = np.random.default_rng(0)
-    net = GRUNet(
-        *(rng.uniform(-0.25, 0.25, s).astype(np.float32) for s in ((48, c), (48, 16), 48, 48)),
-        layers=tuple(
-            (rng.uniform(-0.25, 0.25, (o, i)).astype(np.float32), np.zeros(o, np.float32))
-            for o, i in ((16, 16), (8, 16), (1, 8))
-        ),
-        n_channels=c,
-        n_steps=f.shape[1] // c,
-    )
-    pipe = Pipeline([("features", feats), ("scale", scale), ("model", GRUEstimator.from_net(net))])
-    card = ModelCard(
-        task=sub.task,
-        sensor=sub.sensor,
-        profile=sub.task_profile,
-        window=sub.geometry,
-        features="baseline",
-        feature_params={},
-        model="gru",
-        best_params={},
-        rate_hz=nominal_rate_hz(sub.sensor),
-        class_names=(),
-        metrics={},
-        n_train=len(sub.y),
-        data=sub.source,
-        data_hash=sub.data_hash,
-    )
-    return TrainedModel(pipe, card), "random weights (torch not installed)"
+    t0 = time.perf_counter()
+    params = {"max_epochs": 10} if quick else None  # else the default 60 epochs
+    trained = fit_model(sub, "baseline", "gru", model_params=params)
+    return trained, f"trained on {len(sub.y)} taps in {time.perf_counter() - t0:.1f} s"
 
 
 def bench_gru(ws: WindowSet, rows: list, fine: list, repeat: int, quick: bool) -> None:
-    """GRU one-window latency: ONNX Runtime against torch (when installed)."""
+    """GRU one-window latency: ONNX Runtime against torch (skipped without torch)."""
     from ext_sense_perception.training.gru import torch_available
 
+    if not torch_available():
+        print("GRU (16) + MLP: skipped, torch is not installed (requirements/train.txt)")
+        return
     trained, how = gru_model(ws, quick)
-    backends = ("sklearn", "onnx") if torch_available() else ("onnx",)
+    backends = ("sklearn", "onnx")
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
         save_bundle(trained, tmp)

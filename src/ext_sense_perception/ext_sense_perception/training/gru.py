@@ -10,16 +10,19 @@ Training (torch, imported lazily; its absence gives a clear :class:`PerceptionEr
 mini-batches with L2 weight decay for a fixed number of epochs (optional early stopping on a
 seeded validation split, best weights kept), regression targets standardised, gradient norm
 clipped at 1, torch pinned to ``n_threads`` CPU threads (the machine is shared). The learned
-network is kept as NumPy arrays (:class:`~ext_sense_perception.training.gru_onnx.GRUNet`), so a
-fitted estimator pickles without torch and exports to ONNX without it; only
+network is kept as NumPy arrays (:class:`GRUNet`) and as the ONNX graph torch's exporter makes of
+it at training time (``onnx_``, which :mod:`.onnx_export` splices into the whole model's graph),
+so a fitted estimator pickles and exports to ONNX without torch; only
 :meth:`GRUEstimator.predict` (the native path) needs torch.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import io
+import warnings
 import weakref
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from sklearn.base import BaseEstimator, ClassifierMixin, RegressorMixin
@@ -30,12 +33,79 @@ from sklearn.utils.validation import check_is_fitted
 
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.inputs import validated
-from ext_sense_perception.training.gru_onnx import GRUNet
 
 AUTO_UNSCALED_RMS = (0.1, 30.0)  # inputs of this RMS train better unscaled (see input_scaling)
 # torch modules rebuilt from an estimator's NumPy weights, kept beside it (never pickled, and
 # predict leaves the estimator's own state as it was)
 _MODULES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+ONNX_OPSET = 17
+
+
+class GRUNet(NamedTuple):
+    """A trained GRU + MLP head, everything inference needs (float32, torch's layout).
+
+    Attributes:
+        w_ih: ``(3 * hidden, n_channels)``, row blocks (r, z, n).
+        w_hh: ``(3 * hidden, hidden)``, row blocks (r, z, n).
+        b_ih: ``(3 * hidden,)``.
+        b_hh: ``(3 * hidden,)``.
+        layers: MLP layers ``(weight (out, in), bias (out,))``; ReLU between them, none after
+            the last.
+        n_channels: GRU inputs per step (channels of the flattened features).
+        n_steps: Time steps.
+        y_mean: Regression target mean (outputs are ``raw * y_scale + y_mean``).
+        y_scale: Regression target scale.
+        classes: Class labels (classification) or ``None`` (regression).
+        reverse: The GRU reads the steps last to first (ONNX ``direction="reverse"``).
+    """
+
+    w_ih: np.ndarray
+    w_hh: np.ndarray
+    b_ih: np.ndarray
+    b_hh: np.ndarray
+    layers: tuple[tuple[np.ndarray, np.ndarray], ...]
+    n_channels: int
+    n_steps: int
+    y_mean: float = 0.0
+    y_scale: float = 1.0
+    classes: np.ndarray | None = None
+    reverse: bool = False
+
+    @property
+    def hidden(self) -> int:
+        """GRU cells."""
+        return int(self.w_hh.shape[1])
+
+    def check(self) -> None:
+        """Raise a PerceptionError when an array has the wrong shape."""
+        h, c = self.hidden, self.n_channels
+        want = {
+            "w_ih": (3 * h, c),
+            "w_hh": (3 * h, h),
+            "b_ih": (3 * h,),
+            "b_hh": (3 * h,),
+        }
+        for name, shape in want.items():
+            got = tuple(np.shape(getattr(self, name)))
+            if got != shape:
+                raise PerceptionError(
+                    f"The GRU weight {name!r} must have shape {shape}. Got {got} instead."
+                )
+        n_in = h
+        for i, (w, b) in enumerate(self.layers):
+            if np.ndim(w) != 2 or np.shape(w)[1] != n_in or np.shape(b) != (np.shape(w)[0],):
+                raise PerceptionError(
+                    f"MLP layer {i} must be (out, {n_in}) with bias (out,). Got "
+                    f"{np.shape(w)} and {np.shape(b)} instead."
+                )
+            n_in = np.shape(w)[0]
+        if not self.layers:
+            raise PerceptionError("The 'layers' of a GRUNet must hold at least one layer.")
+        if self.classes is not None and len(self.classes) != n_in:
+            raise PerceptionError(
+                f"The last layer must have one output per class ({len(self.classes)}). "
+                f"Got {n_in} instead."
+            )
 
 
 def require_torch() -> Any:
@@ -90,9 +160,7 @@ class GRUEstimator(BaseEstimator):
             0.1 and 30 (binned spike counts), else global. Folded into the input weights
             afterwards, so the network takes the unscaled series. In a pipeline the
             per-feature scaler is left out for the GRU
-            (:func:`ext_sense_perception.models.make_pipeline`). Measured on simulated 30 cm
-            rod taps (baseline 5 ms bins, RMS 4.8, 3 folds): unscaled 3.11 cm MAE, global
-            3.62 cm, per-channel and per-(channel, step) scaling worse still.
+            (:func:`ext_sense_perception.models.make_pipeline`; docs/perception.md, the GRU).
         n_threads: torch CPU threads while fitting and predicting.
         random_state: Seed of weights, batches and the validation split.
     """
@@ -310,6 +378,7 @@ class GRUEstimator(BaseEstimator):
             self.classes_ = classes
         self.n_epochs_ = epochs
         self.best_val_loss_ = float(best)
+        self.onnx_ = self._export()
         return self
 
     @classmethod
@@ -327,7 +396,46 @@ class GRUEstimator(BaseEstimator):
         if net.classes is not None:
             est.classes_ = np.asarray(net.classes)
         est.n_features_in_ = int(net.n_channels) * int(net.n_steps)
+        est.onnx_ = est._export()
         return est
+
+    def _export(self) -> bytes:
+        """The network as ONNX, by torch's exporter (the TorchScript one: offline, no onnxscript).
+
+        Input ``features`` ``(n, n_channels * n_steps)`` float32; output ``(n, 1)`` estimates
+        (regression) or ``(n, n_classes)`` probabilities in ``classes_`` order.
+        """
+        torch = require_torch()
+        net, (gru, head) = self.net_, self._modules()
+        c, t = int(net.n_channels), int(net.n_steps)
+
+        class Network(torch.nn.Module):
+            def __init__(self) -> None:
+                super().__init__()
+                self.gru, self.head = gru, head
+
+            def forward(self, x):
+                seq = x.reshape(-1, c, t).transpose(1, 2)  # channel-major features -> steps
+                _, h = self.gru(torch.flip(seq, dims=[1]) if net.reverse else seq)
+                out = self.head(h[-1])
+                if net.classes is not None:
+                    return torch.softmax(out, dim=1)
+                return out * net.y_scale + net.y_mean
+
+        buf = io.BytesIO()
+        with warnings.catch_warnings():  # the exporter's deprecation and tracer notes
+            warnings.simplefilter("ignore")
+            torch.onnx.export(
+                Network().eval(),
+                (torch.zeros(1, c * t),),
+                buf,
+                dynamo=False,
+                input_names=["features"],
+                output_names=["out"],
+                dynamic_axes={"features": {0: "n"}, "out": {0: "n"}},
+                opset_version=ONNX_OPSET,
+            )
+        return buf.getvalue()
 
     def _modules(self):
         """Torch modules rebuilt from the NumPy weights (cached in ``_MODULES``)."""

@@ -8,8 +8,8 @@ divided by 100, which is the same problem).
 The GRU (16 cells) + MLP model needs torch for training, which is an optional extra: it is
 imported lazily and its absence gives a clear :class:`PerceptionError`. Its pipeline's scaler is
 the identity (the GRU scales its inputs per channel itself, see
-:class:`~ext_sense_perception.training.gru.GRUEstimator`); it exports to ONNX from its NumPy weights
-without torch (:mod:`ext_sense_perception.training.gru_onnx`).
+:class:`~ext_sense_perception.training.gru.GRUEstimator`); it exports to ONNX without torch, from
+the graph torch's exporter made of it at training time.
 
 ``taxel_svr`` (tap localisation only) is
 :class:`~ext_sense_perception.training.taxel_stack.TaxelStackSVR`:

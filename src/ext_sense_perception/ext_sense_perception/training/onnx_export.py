@@ -6,7 +6,7 @@ maps are constant matrices along the time axis, so the ONNX graph is ``Reshape``
 element-wise ops (magnitude, ``log1p``, encoder layers). The scaler and the estimator use
 skl2onnx's own converters, except the SVR (MatMul/Exp, faster), the taxel-wise stacked SVR
 (:mod:`ext_sense_perception.taxel_stack`, all channels' kernels in one batched MatMul) and the
-GRU (:mod:`ext_sense_perception.gru_onnx`, ONNX ``GRU`` from the NumPy weights, no torch). The
+GRU (the graph torch's exporter made of it at training time, spliced in, no torch). The
 exported graph takes ``window``: ``(n, n_channels * n_samples)`` float32, exactly what
 :func:`~ext_sense_perception.features.as_model_input` produces.
 """
@@ -22,7 +22,6 @@ from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.features.maps import FFT_SCALE_IN, FFT_SCALE_OUT, FeatureKind
 from ext_sense_perception.features.transformer import FAMILIES, WindowFeatures
 from ext_sense_perception.training.gru import GRUEstimator
-from ext_sense_perception.training.gru_onnx import emit_gru_net
 from ext_sense_perception.training.taxel_stack import TaxelStackSVR
 
 TARGET_OPSET = {"": 17, "ai.onnx.ml": 3}
@@ -248,37 +247,62 @@ def _gru_shape_calculator(operator) -> None:
 
 
 def _gru_converter(scope, operator, container) -> None:
-    """GRU + MLP from the estimator's NumPy weights (:mod:`ext_sense_perception.gru_onnx`)."""
-    from onnx import TensorProto, numpy_helper
+    """The GRU's graph as torch exported it at training (``GRUEstimator.onnx_``), spliced in.
 
-    def emit(op_type: str, ins: list[str], outs: list[str], attrs: dict) -> None:
-        container.add_node(
-            op_type,
-            ins,
-            outs,
-            name=scope.get_unique_operator_name(op_type),
-            op_version=container.target_opset,
-            **attrs,
+    Its names are made unique in the model; a classifier's label is the class of the highest
+    probability (``ArgMax``, ``Gather``).
+    """
+    from onnx import TensorProto, helper, load_from_string, numpy_helper
+
+    est = operator.raw_operator
+    if not isinstance(getattr(est, "onnx_", None), bytes):
+        raise PerceptionError(
+            "This GRU was fitted before its ONNX graph was kept with it: fit it again to export."
         )
+    graph = load_from_string(est.onnx_).graph
+    outs = [o.full_name for o in operator.outputs]
+    names = {graph.input[0].name: operator.inputs[0].full_name, graph.output[0].name: outs[-1]}
 
-    def const(hint: str, arr: np.ndarray) -> str:
-        name = scope.get_unique_variable_name(f"gru_{hint}")
-        if arr.dtype.kind in "US":
-            container.add_initializer(
-                name, TensorProto.STRING, list(arr.shape), [str(v) for v in arr.ravel()]
-            )
-        else:
-            container.add_initializer(name, None, None, numpy_helper.from_array(arr, name))
-        return name
+    def name(old: str) -> str:
+        if old and old not in names:
+            names[old] = scope.get_unique_variable_name(f"gru_{old}")
+        return names.get(old, old)
 
-    emit_gru_net(
-        operator.raw_operator.net_,
-        operator.inputs[0].full_name,
-        [o.full_name for o in operator.outputs],
-        emit,
-        const,
-        fresh=lambda hint: scope.get_unique_variable_name(f"gru_{hint}"),
-    )
+    def node(op: str, ins: list[str], out: list[str], **attrs) -> None:
+        name_ = scope.get_unique_operator_name(op)
+        container.add_node(op, ins, out, name=name_, op_version=container.target_opset, **attrs)
+
+    # skl2onnx cannot order nodes around an empty input name: the GRU's inputs end before its
+    # empty sequence_lens, so its initial state is ONNX's default zeros (torch's too), and the
+    # nodes that only made the zeros are left out with what else the output does not need
+    steps, used = [], {graph.output[0].name}
+    for n in reversed(graph.node):
+        ins = list(n.input)
+        if n.op_type == "GRU" and "" in ins:
+            ins = ins[: ins.index("")]
+        if used.intersection(n.output):
+            used.update(ins)
+            steps.append((n, ins))
+    for t in graph.initializer:
+        if t.name in used:
+            tensor = numpy_helper.from_array(numpy_helper.to_array(t), name(t.name))
+            container.add_initializer(name(t.name), None, None, tensor)
+    for n, ins in reversed(steps):
+        attrs = {a.name: helper.get_attribute_value(a) for a in n.attribute}
+        node(n.op_type, [name(i) for i in ins], [name(o) for o in n.output], **attrs)
+    if est.net_.classes is None:
+        return
+    classes = np.asarray(est.net_.classes)
+    table = scope.get_unique_variable_name("gru_classes")
+    if classes.dtype.kind in "US":
+        strings = [str(v) for v in classes]
+        container.add_initializer(table, TensorProto.STRING, [len(strings)], strings)
+    else:
+        values = classes.astype(np.int64)
+        container.add_initializer(table, None, None, numpy_helper.from_array(values, table))
+    best = scope.get_unique_variable_name("gru_argmax")
+    node("ArgMax", [outs[1]], [best], axis=1, keepdims=0)
+    node("Gather", [table, best], [outs[0]], axis=0)
 
 
 def register_converters() -> None:

@@ -1,6 +1,6 @@
 # ruff: noqa: N806
-"""GRU(16) + MLP: ONNX graph from weights against a NumPy reference (no torch), and, with torch,
-a trained model through ONNX Runtime against torch and through a saved bundle."""
+"""GRU(16) + MLP: the ONNX graph torch's exporter makes from given weights against a NumPy
+reference, and a trained model through ONNX Runtime against torch and through a saved bundle."""
 
 from __future__ import annotations
 
@@ -21,8 +21,7 @@ from ext_sense_perception.features.transformer import BaselineFeatures
 from ext_sense_perception.online.predictor import load_model
 from ext_sense_perception.training.bundle_io import save_bundle
 from ext_sense_perception.training.fit import fit_model
-from ext_sense_perception.training.gru import GRUEstimator, torch_available
-from ext_sense_perception.training.gru_onnx import GRUNet, onnx_gate_order, to_onnx_model
+from ext_sense_perception.training.gru import GRUEstimator, GRUNet, torch_available
 from ext_sense_perception.training.onnx_export import to_onnx_bytes
 
 HAVE_TORCH = torch_available()
@@ -99,27 +98,12 @@ def _agree(a: np.ndarray, b: np.ndarray, scale: float = 1.0) -> None:
     np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6 * scale)
 
 
-def test_gate_order_swaps_reset_and_update_blocks():
-    a = np.repeat(np.array([0.0, 1.0, 2.0]), 4)[:, None] * np.ones((1, 3))  # r, z, n blocks
-    out = onnx_gate_order(a, 4)
-    np.testing.assert_array_equal(out[:, 0], np.repeat([1.0, 0.0, 2.0], 4))
+def _exported(net: GRUNet):
+    """An ONNX Runtime session of the graph torch exports for ``net``."""
+    return _session(GRUEstimator.from_net(net).onnx_)
 
 
-def test_gate_order_matters():
-    """A graph built with torch's (r, z, n) order unchanged would disagree with the reference."""
-    net = random_net(3)
-    x = np.random.default_rng(0).normal(0, 1, (5, C * T)).astype(np.float32)
-    swapped = net._replace(
-        w_ih=onnx_gate_order(net.w_ih, H),
-        w_hh=onnx_gate_order(net.w_hh, H),
-        b_ih=onnx_gate_order(net.b_ih, H),
-        b_hh=onnx_gate_order(net.b_hh, H),
-    )
-    out = _session(to_onnx_model(swapped).SerializeToString()).run(None, {"features": x})[0]
-    ref = reference_forward(net, x) * net.y_scale + net.y_mean
-    assert np.max(np.abs(out - ref)) > 1e-3
-
-
+@needs_torch
 @settings(max_examples=25, deadline=None)
 @given(
     seed=st.integers(0, 2**16),
@@ -135,12 +119,13 @@ def test_gate_order_matters():
 )
 def test_onnx_regression_matches_numpy_reference(seed, reverse, x):
     net = random_net(seed, reverse=reverse)
-    out = _session(to_onnx_model(net).SerializeToString()).run(None, {"features": x})[0]
+    out = _exported(net).run(None, {"features": x})[0]
     ref = reference_forward(net, x) * net.y_scale + net.y_mean
     assert out.shape == (4, 1)
     _agree(out, ref, scale=net.y_scale)
 
 
+@needs_torch
 @settings(max_examples=15, deadline=None)
 @given(
     seed=st.integers(0, 2**16),
@@ -150,15 +135,15 @@ def test_onnx_regression_matches_numpy_reference(seed, reverse, x):
 def test_onnx_classifier_matches_numpy_reference(seed, scale, reverse):
     net = random_net(seed, classes=["apple", "tofu", "water"], reverse=reverse)
     x = (np.random.default_rng(seed).normal(0, 1, (6, C * T)) * scale).astype(np.float32)
-    label, proba = _session(to_onnx_model(net).SerializeToString()).run(None, {"features": x})
+    (proba,) = _exported(net).run(None, {"features": x})
     logits = reference_forward(net, x)
     e = np.exp(logits - logits.max(axis=1, keepdims=True))
     ref = e / e.sum(axis=1, keepdims=True)
     _agree(proba, ref)
-    assert list(label) == list(np.asarray(net.classes)[proba.argmax(axis=1)])
 
 
-def test_pipeline_export_chains_features_scaler_and_gru_without_torch():
+@needs_torch
+def test_pipeline_export_chains_features_scaler_and_gru():
     """Features -> scaler -> GRU (weights given) in one ONNX graph, against the reference."""
     from sklearn.pipeline import Pipeline
     from sklearn.preprocessing import StandardScaler
@@ -281,9 +266,7 @@ def test_input_scaling_is_folded_into_the_weights():
     a = GRUEstimator(**kw).fit(X, y)
     b = GRUEstimator(**kw).fit(X * 50.0 + offset, y)
     np.testing.assert_allclose(b.predict(X * 50.0 + offset), a.predict(X), rtol=1e-3, atol=1e-5)
-    onnx_b = _session(to_onnx_model(b.net_).SerializeToString()).run(
-        None, {"features": (X * 50.0 + offset).astype(np.float32)}
-    )[0]
+    onnx_b = _session(b.onnx_).run(None, {"features": (X * 50.0 + offset).astype(np.float32)})[0]
     np.testing.assert_allclose(onnx_b[:, 0], b.predict(X * 50.0 + offset), rtol=1e-4, atol=1e-6)
 
 
