@@ -53,8 +53,9 @@ from rclpy.node import Node
 from ext_sense_msgs.msg import ContactGroundTruth, ContactWindow, SensorPacket
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.nodes.window_parameters import (
-    declare_input_liveness,
-    declare_window_config,
+    WindowParameters,
+    input_liveness,
+    window_config,
 )
 from ext_sense_perception.online.messages import window_fields
 from ext_sense_perception.online.stage import WindowStage
@@ -65,6 +66,7 @@ from ext_sense_runtime.diagnostics import Level, RateTask, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_runtime.node_main import run_node
+from ext_sense_runtime.parameters import declare_all
 from ext_sense_runtime.qos import COMMAND_QOS, SENSOR_STREAM_QOS, WINDOW_QOS
 from ext_sense_runtime.qos_events import QosEventCounter
 from ext_sense_runtime.stamps import MS, fill_stamp, stamp_to_ns
@@ -76,16 +78,19 @@ MIN_WAIT_NS = 50_000
 class ContactWindowNode(Node):
     """Cuts contact windows from the sensor's packets (NUSkin events or BioTac frames)."""
 
+    PARAMETERS = WindowParameters
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "contact_window"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        config, sensor_ids, profile_source = declare_window_config(self)
+        p = declare_all(self, WindowParameters)
+        config, sensor_ids, profile_source = window_config(p, self.get_logger())
         try:
             self.stage = WindowStage(config, sensor_ids)
         except PerceptionError as err:
             raise ValueError(f"contact_window: {err}") from err
         self.config = config
-        self.liveness = declare_input_liveness(self, config, self.resolve_topic_name("packets"))
+        self.liveness = input_liveness(p, config, self.resolve_topic_name("packets"))
         self._first_packet = True
         self._stall_state = (False, False)
         self.published = 0
