@@ -16,7 +16,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "run",
         help="run a node graph (the same one the launch files start)",
         usage="ext-sense run [-h] [--in-process] [--show-args] [--dry-run] GRAPH [name:=value ...]",
-        description="Run a node graph without ros2 launch, one process per node.\n\n"
+        description="Run a node graph without ros2 launch, its processes as the launch files "
+        "start them (hot_path:=processes: one per node).\n\n"
         f"graphs:\n{graphs}\n\n"
         "Arguments are given as name:=value, as with ros2 launch; "
         "--show-args lists a graph's arguments.",
