@@ -298,28 +298,34 @@ def bench_worst_case(seconds: float, hot_path: str) -> dict:
 # ---------------------------------------------------------------- 3. replay throughput
 def bench_replay(seconds: float, tmp: Path) -> dict:
     import rclpy
+    from ext_sense_bags.messages import sensor_packet
     from rclpy.node import Node
 
-    from ext_sense_bags import BagWriter, taxel_event_batch
-    from ext_sense_msgs.msg import TaxelEventBatch
+    from ext_sense_bags import BagWriter
+    from ext_sense_drivers.nuskin.wire import encode_words
+    from ext_sense_drivers.packets import NUSKIN_WORDS_V1, PacketPacker
+    from ext_sense_drivers.transports.base import Chunk
+    from ext_sense_msgs.msg import SensorPacket
     from ext_sense_runtime.qos import SENSOR_STREAM_QOS
 
     bag = tmp / "worst_case_bag"
     n = int(seconds * 1000)
     taxel = np.tile(np.arange(1, 81, dtype=np.uint16), 4)
-    offsets = np.repeat(np.arange(4, dtype=np.int64) * 250_000, 80)
-    pol = np.ones(taxel.size, np.int8)
+    quarter = encode_words(taxel[:80], taxel[:80])  # every taxel once, 4 reads a ms
+    packer = PacketPacker(NUSKIN_WORDS_V1, "baud=4000000;flag_polarity=ignore")
     t0 = 1_700_000_000_000_000_000
     with BagWriter(bag) as w:
         for i in range(n):
             s = t0 + i * MS
-            w.write("/extsense/nuskin/events", s, taxel_event_batch(s, taxel, pol, taxel, offsets))
+            reads = [(1, Chunk(quarter, s + (k + 1) * 250_000)) for k in range(4)]
+            for packet in packer.pack(reads, link_down=False):
+                w.write("/extsense/nuskin/packets", packet.end_ns, sensor_packet(packet))
     rclpy.init(args=[])
     node = Node("bench_replay")
     count = [0]
     node.create_subscription(
-        TaxelEventBatch,
-        "/extsense/nuskin/events",
+        SensorPacket,
+        "/extsense/nuskin/packets",
         lambda m: count.__setitem__(0, count[0] + 1),
         SENSOR_STREAM_QOS,
     )

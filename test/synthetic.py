@@ -82,9 +82,10 @@ def stream_packets(batches: list[Batch], connection: int = 1, packer=None) -> li
     """The NUSkin driver's packets of a synthetic stream (``Packet`` records, no ROS).
 
     The link opens at the first batch's stamp (``PacketPacker.opened``, unless ``packer``, a
-    driver's packer to go on with, has that connection going); each batch with events is one
-    read returning at the batch's end with their receiver words (flag 0, as real receivers
-    send), and a batch without is the driver's "nothing read" packet at its end.
+    driver's packer to go on with, has that connection going); a batch with events is one
+    packet of a read per distinct event time, returning then with the events' receiver words
+    (flag 0, as real receivers send: each decodes within its transmission time of its time),
+    and a batch without is the driver's "nothing read" packet at the batch's end.
     """
     from ext_sense_drivers.nuskin.wire import encode_words
     from ext_sense_drivers.packets import NUSKIN_WORDS_V1, PacketPacker
@@ -93,12 +94,20 @@ def stream_packets(batches: list[Batch], connection: int = 1, packer=None) -> li
     packer = PacketPacker(NUSKIN_WORDS_V1, WORDS_OPTIONS) if packer is None else packer
     out = [p for p in [packer.opened(connection, batches[0].stamp_ns)] if p is not None]
     for b in batches:
-        end = b.stamp_ns + MS
-        if b.taxel.size:
-            read = Chunk(encode_words(b.taxel, b.value), end)
-            out += packer.pack([(connection, read)], link_down=False)
-        else:
-            out.append(packer.nothing_read(end))
+        if not b.taxel.size:
+            out.append(packer.nothing_read(b.stamp_ns + MS))
+            continue
+        t = np.asarray(b.offset_ns, np.int64) + np.int64(b.stamp_ns)
+        order = np.argsort(t, kind="stable")
+        t, taxel, value = t[order], np.asarray(b.taxel)[order], np.asarray(b.value)[order]
+        cuts = np.flatnonzero(np.diff(t)) + 1
+        reads = [
+            (connection, Chunk(encode_words(k, v), int(ts[-1])))
+            for k, v, ts in zip(
+                np.split(taxel, cuts), np.split(value, cuts), np.split(t, cuts), strict=True
+            )
+        ]
+        out += packer.pack(reads, link_down=False)
     return out
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from synthetic import MS, T0, CountingModel
-from test_record_replay import write_tap_bag
+from test_record_replay import write_old_tap_bag
 
 from ext_sense.bag_migrate import migrate_bag
 from ext_sense_bags import BagError, BagReader, biotac_frame
@@ -76,7 +76,7 @@ def test_a_migrated_tap_recording_replays_its_taps_and_feeds_a_graph(tmp_path):
     from ext_sense_perception.online.stage import WindowStage
     from ext_sense_perception.online.window import WindowConfig
 
-    write_tap_bag(tmp_path / "old")  # TaxelEventBatch through rosbags, as before packets
+    write_old_tap_bag(tmp_path / "old")  # TaxelEventBatch through rosbags, as before packets
     migrate_bag(tmp_path / "old", tmp_path / "new")
     config = WindowConfig.for_task("tap_localization", "nuskin")
     estimates = [
@@ -120,7 +120,7 @@ def test_biotac_frames_become_bridge_packets_that_decode_to_them(tmp_path):
 def test_bad_input_is_one_clear_error(tmp_path, capsys):
     from ext_sense import cli
 
-    write_tap_bag(tmp_path / "old")
+    write_old_tap_bag(tmp_path / "old")
     migrate_bag(tmp_path / "old", tmp_path / "new")
     with pytest.raises(BagError, match="holds packets already"):
         migrate_bag(tmp_path / "new", tmp_path / "again")

@@ -2,8 +2,8 @@
 and the display rate stays bounded while all 80 taxels fire at 4 kHz (issue 19's Show); the
 handover graph on the BioTac: its electrode grid and PAC panels on a running graph.
 
-Both graphs are the defaults: the drivers publish raw packets only (no ``decoded:=true``), so
-the view draws the sensor from the packets it decodes itself.
+Both graphs are the defaults: the drivers publish raw packets only, so the view draws the
+sensor from the packets it decodes itself.
 """
 
 from __future__ import annotations

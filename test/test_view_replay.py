@@ -9,9 +9,8 @@ schema name) and decode at least one message on each; the channels that pass the
 through must carry the very bytes the bag holds, and the estimate the view draws must read the
 same (numbers and picture) from both sources.
 
-The graph is the default one: its driver publishes raw packets only (no ``decoded:=true``), so
-the bag is a packet bag, as every bag recorded by default is, and both views draw the taxels
-from the packets they decode.
+The graph is the default one: its driver publishes raw packets only, so the bag is a packet
+bag, as every bag is, and both views draw the taxels from the packets they decode.
 """
 
 from __future__ import annotations

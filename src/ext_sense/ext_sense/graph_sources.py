@@ -123,7 +123,6 @@ def needed_files(task: str) -> Callable[[Mapping[str, str]], None]:
 def source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     """The device emulator or bag player, and the driver."""
     sensor, source = args["sensor"], args["source"]
-    rel, topic = SENSOR_STREAMS[sensor]
     packets = ("packets", SENSOR_PACKETS[sensor])
     nodes: list[NodeSpec] = []
     if source == "bag":
@@ -136,7 +135,7 @@ def source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                 # start_delay_s: after its own subscribers appear, let the nodes downstream
                 # (inference loading its model) come up before the first trial
                 parameters={"bag": args["bag"], "rate": 1.0, "start_delay_s": 4.0},
-                remappings=((rel, topic), packets, ("ground_truth", TOPIC_GROUND_TRUTH)),
+                remappings=(packets, ("ground_truth", TOPIC_GROUND_TRUTH)),
             ),
         )
     over_can = source == "can" or (source == "sim" and bool(args["can_channel"]))
@@ -201,7 +200,7 @@ def source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                 **({"expected_rate_hz": 0.0} if source == "sim" else {}),
                 "reader_priority": int(args["reader_priority"]),
             },
-            remappings=((rel, topic), packets),
+            remappings=(packets,),
             lifecycle=True,
             manage=as_bool(args["manage_drivers"]),
         )

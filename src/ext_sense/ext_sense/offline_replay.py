@@ -58,14 +58,18 @@ def offline_estimates(
     that differs between runs. For food the ground-truth stamps mark the motion start, as
     ``motion_start`` does in the graph.
 
-    A bag with the driver's raw packets is decoded from them with the library decoder, as the
-    live window node does (:meth:`WindowStage.on_packet`): the same bytes give the same windows
-    as the live run that recorded them. A bag without packets (recorded before they existed)
-    is read from its decoded arrays, as before. ``from_seq`` replays as a consumer that joined
-    the stream at that packet (the window node logs the first ``seq`` it saw).
+    The driver's raw packets are decoded with the library decoder, as the live window node
+    does (:meth:`WindowStage.on_packet`), and windows close by its one time rule: the same
+    packets give the same windows as the live run that recorded them. ``from_seq`` replays as a
+    consumer that joined the stream at that packet (the window node logs the first ``seq`` it
+    saw). After the last packet, windows still pending are closed as the stream ending would.
+
+    Raises:
+        BagError: The bag holds no packets of the sensor (a bag of decoded arrays from before
+            packets: ``ext-sense bag migrate``).
     """
-    from ext_sense.topics import SENSOR_PACKETS, SENSOR_STREAMS
-    from ext_sense_bags import BagReader
+    from ext_sense.topics import SENSOR_PACKETS
+    from ext_sense_bags import BagError, BagReader
     from ext_sense_perception.errors import PerceptionError
     from ext_sense_perception.online.stage import WindowStage
     from ext_sense_runtime.stamps import stamp_to_ns
@@ -83,9 +87,13 @@ def offline_estimates(
             yield "estimate", estimate
 
     with BagReader(bag_path) as bag:
-        packets = bag.topics.get(SENSOR_PACKETS[sensor])
-        use_packets = packets is not None and packets.count > 0
-        stream = SENSOR_PACKETS[sensor] if use_packets else SENSOR_STREAMS[sensor][1]
+        stream = SENSOR_PACKETS[sensor]
+        packets = bag.topics.get(stream)
+        if packets is None or not packets.count:
+            raise BagError(
+                f"{bag_path} holds no {stream}: a bag of decoded arrays from before packets is "
+                f"migrated first (ext-sense bag migrate {bag_path} OUT)."
+            )
         wanted = [t for t in (stream, "/extsense/ground_truth") if t in bag.topics]
         for rec, msg in bag.messages(wanted):
             if rec.topic == "/extsense/ground_truth":
@@ -93,15 +101,9 @@ def offline_estimates(
                     stage.on_motion_start(stamp_to_ns(msg.header.stamp))
                 yield "truth", msg
                 continue
-            if use_packets:
-                if int(msg.seq) < from_seq:
-                    continue
-                windows = stage.on_packet(msg)
-            elif sensor == "nuskin":
-                windows = stage.on_events(msg)
-            else:
-                windows = stage.on_frame(msg)
-            yield from run(windows)
+            if int(msg.seq) < from_seq:
+                continue
+            yield from run(stage.on_packet(msg))
         if stage.last_data_ns is not None:
             yield from run(stage.advance(stage.last_data_ns + config.post_ns))
         yield from run(stage.flush())

@@ -29,6 +29,6 @@ STANDARD_TOPICS: dict[str, TopicSpec] = {
 """Topic name -> spec, as in docs/conventions.md; sensor streams are best effort. The drivers'
 raw packets come first: ``ext-sense record`` records every topic here by default, and the
 packets are what makes a bag lossless (a decoder fix re-decodes them); the decoded arrays are
-recorded when a driver publishes them (``decoded:=true``, bags from before packets). Final
+in bags from before packets (``ext-sense bag migrate`` turns those into packet bags). Final
 estimates and the provisional (anytime) ones have topics of their own; bags from before hold
 both on ``/extsense/contact_estimate``, told apart by the message's ``provisional``."""

@@ -13,9 +13,8 @@
   ground truth) as recorded bytes, at recorded pace or flat out, and prints the throughput.
   ``view:=true`` (with ``view_host``, ``view_port``, ``view_rate``: the arguments and the
   ``foxglove_view`` node of every graph, :mod:`ext_sense.view.graph`) also starts the live view
-  in a process of its own, plays what the view reads (the sensor's raw packets, or its decoded
-  stream for a bag recorded before packets; ground truth, windows, estimates, ``/diagnostics``;
-  :func:`ext_sense.view.channels.view_inputs`) and keeps
+  in a process of its own, plays what the view reads (the sensor's raw packets, ground truth,
+  windows, estimates, ``/diagnostics``; :func:`ext_sense.view.channels.view_inputs`) and keeps
   the view up after the bag until Ctrl-C: the channels a live graph's view serves, with the
   recorded session's data.
 - ``replay BAG --offline`` drives the graph's core directly, without ROS: the same
@@ -284,25 +283,24 @@ def _replay_view(args: argparse.Namespace) -> NodeSpec | None:
 
 
 def _view_inputs(bag: Path, sensor: str) -> list[str]:
-    """What to play for the view: the bag's packets, else its decoded stream (an older bag).
+    """What to play for the view: the bag's packets and the topics passed through.
 
-    Says so when the bag holds neither: the view's sensor panels then stay empty.
+    Raises:
+        BagError: The bag holds no packets of the sensor (one of decoded arrays from before
+            packets is migrated first: ``ext-sense bag migrate``).
     """
-    from ext_sense.topics import SENSOR_PACKETS, SENSOR_STREAMS
+    from ext_sense.topics import SENSOR_PACKETS
     from ext_sense.view.channels import view_inputs
-    from ext_sense_bags import BagReader
+    from ext_sense_bags import BagError, BagReader
 
     with BagReader(bag) as reader:
         spec = reader.topics.get(SENSOR_PACKETS[sensor])
-        packets = spec is not None and spec.count > 0
-        decoded = SENSOR_STREAMS[sensor][1]
-        if not packets and decoded not in reader.topics:
-            print(
-                f"note: {bag} holds neither {SENSOR_PACKETS[sensor]} nor {decoded}: the view's "
-                "sensor panels stay empty",
-                file=sys.stderr,
-            )
-    return list(view_inputs(sensor, packets=packets))
+    if spec is None or not spec.count:
+        raise BagError(
+            f"{bag} holds no {SENSOR_PACKETS[sensor]} for the view: a bag of decoded arrays "
+            f"from before packets is migrated first (ext-sense bag migrate {bag} OUT)."
+        )
+    return list(view_inputs(sensor))
 
 
 def _replay_live(args: argparse.Namespace, view: NodeSpec | None = None) -> int:

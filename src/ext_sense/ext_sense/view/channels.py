@@ -17,7 +17,6 @@ from typing import Any
 from ext_sense.topics import NS as GRAPH_NS
 from ext_sense.topics import (
     SENSOR_PACKETS,
-    SENSOR_STREAMS,
     TOPIC_DIAGNOSTICS,
     TOPIC_ESTIMATE,
     TOPIC_GROUND_TRUTH,
@@ -131,12 +130,9 @@ def view_channels(sensor: str) -> tuple[str, ...]:
     return (*own, *PASSED_THROUGH)
 
 
-def view_inputs(sensor: str, packets: bool = True) -> tuple[str, ...]:
+def view_inputs(sensor: str) -> tuple[str, ...]:
     """The graph topics the view draws a sensor from; what a replay plays for the view.
 
-    The driver's raw packets (``packets``, what graphs publish and bags record by default) or
-    else its decoded stream (NUSkin events, BioTac frames: a bag recorded before packets), then
-    the topics passed through.
+    The driver's raw packets, then the topics passed through.
     """
-    stream = SENSOR_PACKETS[sensor] if packets else SENSOR_STREAMS[sensor][1]
-    return (stream, *PASSED_THROUGH)
+    return (SENSOR_PACKETS[sensor], *PASSED_THROUGH)

@@ -237,7 +237,7 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         first word and was judged "joined mid-stream". Sent with the first bytes' drain, not
         at the open: a recorder that starts with the sensor's first bytes then records it too,
         and its replay judges the first window as the live run did. Off with
-        ``quiet_packets_s`` 0, as every "nothing read" packet; not when chunks of an older
+        ``quiet_packets_period_s`` 0, as every "nothing read" packet; not when chunks of an older
         connection are in the drain (their bytes come first; the new connection's then start
         its stream).
         """

@@ -203,8 +203,8 @@ class StreamLiveness(StallCounts):
 
         Their bytes are gone: the windows across the gap are degraded, and the status is WARN
         for :data:`RECENT_NS`. A driver's packet holds the bytes of its reads, or none at all
-        when it says the link read nothing (the NUSkin driver's ``quiet_packets_s``, only while
-        the sensor sends nothing), so the lost words are not known. As for a shortfall in the
+        when it says the link read nothing (the NUSkin driver's ``quiet_packets_period_s``, only
+        while the sensor sends nothing), so the lost words are not known. As for a shortfall in the
         word count (:meth:`on_counts`), a gap of at least ``contact_words`` packets may have
         held the words of an onset (a shorter one cannot: the onset detector needs
         ``contact_words`` events): a lost contact if no window comes to cover it.
