@@ -35,6 +35,7 @@ from __future__ import annotations
 import array
 import time
 from collections import deque
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -59,7 +60,7 @@ from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
-from ext_sense_runtime.parameters import declare
+from ext_sense_runtime.parameters import declare_all, param
 from ext_sense_runtime.qos import ESTIMATE_QOS, WINDOW_QOS
 from ext_sense_runtime.qos_events import QosEventCounter
 from ext_sense_runtime.records import Estimate
@@ -69,71 +70,65 @@ LIVE_CLOCK_TOLERANCE_NS = 10_000 * MS
 """A window ending further than this from the host clock is not live (replayed bag)."""
 
 
+@dataclass(frozen=True)
+class InferenceParameters:
+    """``contact_inference``'s parameters; publish_provisional and deadline_ms change live."""
+
+    task: str = param("tap_localization", "Task of the model.", read_only=True)
+    sensor: str = param("nuskin", "Sensor of the model.", read_only=True)
+    backend: str = param(
+        "onnx", "Inference backend: onnx or sklearn.", read_only=True, choices=("onnx", "sklearn")
+    )
+    model_path: str = param(
+        "",
+        "Model bundle directory, or a model name looked up in $EXT_SENSE_MODELS, the user's "
+        "data directory, the package share and the checkout's build/models; empty: the "
+        "task's default model, <task>_<sensor>.",
+        read_only=True,
+    )
+    publish_provisional: bool = param(
+        True,
+        "Publish estimates of provisional (anytime) windows on contact_estimate/provisional.",
+    )
+    held_object: str = param(
+        "",
+        "The object the fingers hold, kind or kind:length_m (e.g. rod:0.30): a model "
+        "whose card records another is refused; empty: not checked.",
+        read_only=True,
+    )
+    reload_period_s: float = param(
+        2.0,
+        "Retry loading a missing or corrupt model this often, s.",
+        low=0.1,
+        high=3600.0,
+        read_only=True,
+    )
+    deadline_ms: float = param(
+        500.0,
+        "An estimate ready later than this after its window ended is degraded, ms "
+        "(live windows; a replayed bag's are measured from their arrival).",
+        low=1.0,
+        high=600000.0,
+    )
+
+
 class ContactInferenceNode(Node):
     """Runs a trained model on every contact window."""
+
+    PARAMETERS = InferenceParameters
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(kwargs.pop("node_name", "contact_inference"), **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
-        self.task = declare(self, "task", "tap_localization", "Task of the model.", read_only=True)
-        self.sensor = declare(self, "sensor", "nuskin", "Sensor of the model.", read_only=True)
-        self.backend = declare(
-            self, "backend", "onnx", "Inference backend: onnx or sklearn.", read_only=True
-        )
-        self.model_arg = declare(
-            self,
-            "model_path",
-            "",
-            "Model bundle directory, or a model name looked up in $EXT_SENSE_MODELS, the user's "
-            "data directory, the package share and the checkout's build/models; empty: the "
-            "task's default model, <task>_<sensor>.",
-            read_only=True,
-        )
+        p = declare_all(self, InferenceParameters, self._on_change)
+        self.task, self.sensor, self.backend = p.task, p.sensor, p.backend
+        self.model_arg = p.model_path
         self.model_path: Path | None = None
-        self.publish_provisional = declare(
-            self,
-            "publish_provisional",
-            True,
-            "Publish estimates of provisional (anytime) windows on contact_estimate/provisional.",
-        )
+        self._on_change(p)
         try:
-            self.held_object = HeldObject.parse(
-                declare(
-                    self,
-                    "held_object",
-                    "",
-                    "The object the fingers hold, kind or kind:length_m (e.g. rod:0.30): a model "
-                    "whose card records another is refused; empty: not checked.",
-                    read_only=True,
-                )
-            )
+            self.held_object = HeldObject.parse(p.held_object)
         except PerceptionError as err:
             raise ValueError(f"The 'held_object' parameter: {err}") from err
-        reload_s = declare(
-            self,
-            "reload_period_s",
-            2.0,
-            "Retry loading a missing or corrupt model this often, s.",
-            low=0.1,
-            high=3600.0,
-            read_only=True,
-        )
-        self.deadline_ns = round(
-            declare(
-                self,
-                "deadline_ms",
-                500.0,
-                "An estimate ready later than this after its window ended is degraded, ms "
-                "(live windows; a replayed bag's are measured from their arrival).",
-                low=1.0,
-                high=600000.0,
-            )
-            * MS
-        )
-        if self.backend not in ("onnx", "sklearn"):
-            raise ValueError(
-                f"The 'backend' parameter must be 'onnx' or 'sklearn'. Got {self.backend!r}."
-            )
         self.model: ModelBundle | None = None
         self._stamp: tuple[tuple[str, int, int], ...] = ()
         self.reloads = 0
@@ -180,7 +175,11 @@ class ContactInferenceNode(Node):
         self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
         self._load()
-        self.create_timer(reload_s, self.guard(self._retry_load))
+        self.create_timer(p.reload_period_s, self.guard(self._retry_load))
+
+    def _on_change(self, new: InferenceParameters) -> None:
+        self.publish_provisional = new.publish_provisional
+        self.deadline_ns = round(new.deadline_ms * MS)
 
     def _load(self) -> None:
         try:
