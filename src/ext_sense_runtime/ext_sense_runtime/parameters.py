@@ -39,19 +39,11 @@ _EMPTY_ARRAY_TYPES = {
 
 
 @dataclasses.dataclass(frozen=True)
-class _Meta:
-    description: str
-    low: float | int | None
-    high: float | int | None
-    read_only: bool
-    choices: tuple[Any, ...]
-    check: Callable[[Any], str | None] | None
-    name: str
-
-
-@dataclasses.dataclass(frozen=True)
 class ParamSpec:
-    """One declared parameter: what the descriptor and ``docs/parameters.md`` show."""
+    """One declared parameter: what the descriptor and ``docs/parameters.md`` show.
+
+    ``name`` is the parameter's, ``field`` the schema's attribute holding it.
+    """
 
     name: str
     field: str
@@ -109,7 +101,9 @@ def param(
     """
     if (low is None) != (high is None):
         raise ValueError(f"parameter {name or description!r}: give both low and high, or neither")
-    meta = _Meta(description, low, high, read_only, tuple(choices), check, name)
+    meta = ParamSpec(
+        name, "", "", default, description, low, high, read_only, tuple(choices), check
+    )
     return dataclasses.field(default=default, metadata={_KEY: meta})
 
 
@@ -144,20 +138,8 @@ def specs(schema: type) -> tuple[ParamSpec, ...]:
         type_name = _type_name(hints[f.name], f.default, where)
         if meta.low is not None and type_name not in ("int", "double"):
             raise TypeError(f"{where}: a range needs an int or float parameter")
-        out.append(
-            ParamSpec(
-                meta.name or f.name,
-                f.name,
-                type_name,
-                f.default,
-                meta.description,
-                meta.low,
-                meta.high,
-                meta.read_only,
-                meta.choices,
-                meta.check,
-            )
-        )
+        name = meta.name or f.name
+        out.append(dataclasses.replace(meta, name=name, field=f.name, type_name=type_name))
     return tuple(out)
 
 
@@ -248,30 +230,6 @@ def declare_all(
     callback = guard.wrap(on_set, fallback=refused) if guard is not None else on_set
     node.add_on_set_parameters_callback(callback)
     return config[0]
-
-
-def declare(
-    node: Node,
-    name: str,
-    default: Any,
-    description: str,
-    *,
-    low: float | int | None = None,
-    high: float | int | None = None,
-    read_only: bool = False,
-) -> Any:
-    """Declare one parameter with a descriptor and return its value (nodes not yet on a schema).
-
-    Raises:
-        ValueError: A range on a non-numeric default, or only one bound.
-    """
-    if (low is None) != (high is None):
-        raise ValueError(f"Parameter '{name}': give both low and high, or neither.")
-    if low is not None and (isinstance(default, bool) or not isinstance(default, int | float)):
-        raise ValueError(f"Parameter '{name}': a range needs a numeric default.")
-    type_name = "double" if isinstance(default, float) else "int"
-    spec = ParamSpec(name, name, type_name, default, description, low, high, read_only, (), None)
-    return node.declare_parameter(name, default, _descriptor(spec)).value
 
 
 def _result(reason: str | None) -> SetParametersResult:
