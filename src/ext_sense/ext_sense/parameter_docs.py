@@ -1,9 +1,10 @@
-"""Render ``docs/parameters.md`` from the nodes themselves.
+"""Render ``docs/parameters.md`` from the nodes' parameter schemas, starting no process.
 
-Each node of every graph is started once, with the parameters its graph gives it, and its
-declared parameters are read back with their descriptors; so the table can only show what the
-nodes really declare, and the test that regenerates it fails when the document is stale.
-Starting a node here also proves it comes up with its graph's defaults and no device attached.
+Every node class names its schema (``PARAMETERS``, a frozen dataclass of
+:func:`ext_sense_runtime.parameters.param` fields), which is also what the node declares with
+:func:`~ext_sense_runtime.parameters.declare_all`; so the table shows what the nodes declare,
+and ``test/test_parameter_docs.py`` fails when the document is stale. Beside each default, the
+values the graphs (``ext_sense.graphs``) give the parameter, for every sensor and source.
 
 Usage: ``python -m ext_sense.parameter_docs [--out docs/parameters.md]``.
 """
@@ -12,112 +13,84 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 from collections.abc import Iterable
-from dataclasses import asdict
 from pathlib import Path
 
 from ext_sense.graph import NodeSpec
 from ext_sense.graphs import GRAPHS
-
-TYPE_NAMES = {
-    1: "bool",
-    2: "int",
-    3: "double",
-    4: "string",
-    5: "byte[]",
-    6: "bool[]",
-    7: "int[]",
-    8: "double[]",
-    9: "string[]",
-}
-
-CHILD = """
-import json, sys
-import rclpy
-from ext_sense.graph import NodeSpec
-from ext_sense.runner import _node_kwargs
-raw = json.loads(sys.argv[1])
-spec = NodeSpec(**{**raw, "remappings": tuple(tuple(r) for r in raw["remappings"])})
-rclpy.init(args=[])
-node = spec.node_class()(**_node_kwargs(spec, False))
-try:
-    hidden = ("use_sim_time", "start_type_description_service")
-    names = sorted(n for n in node._parameters if n not in hidden)
-    out = []
-    for name, desc in zip(names, node.describe_parameters(names)):
-        value = node.get_parameter(name).value
-        fr = [(r.from_value, r.to_value) for r in desc.floating_point_range]
-        ir = [(r.from_value, r.to_value) for r in desc.integer_range]
-        out.append({"name": name, "type": desc.type, "default": value,
-                    "description": desc.description, "range": (fr or ir or [None])[0],
-                    "read_only": desc.read_only})
-    print("PARAMS " + json.dumps(out), flush=True)
-finally:
-    node.destroy_node()
-    rclpy.try_shutdown()
-"""
+from ext_sense_runtime.parameters import ParamSpec, specs
 
 
-def graph_nodes() -> list[NodeSpec]:
-    """Every distinct node (by executable) of every graph, with behaviours, on the simulator."""
+def graph_nodes() -> list[tuple[NodeSpec, dict[str, list[object]]]]:
+    """Every distinct node (by executable) of every graph, and the values the graphs give it.
+
+    Graphs are built (not started) for both sensors, both sources, with behaviours and view.
+    """
     seen: dict[str, NodeSpec] = {}
+    given: dict[str, dict[str, list[object]]] = {}
     for graph in GRAPHS.values():
         for sensor in ("nuskin", "biotac"):
             for source in ("sim", "bag"):
-                given = {"sensor": sensor, "source": source, "behaviours": "true", "view": "true"}
-                for spec in graph.nodes(given):
+                args = {"sensor": sensor, "source": source, "behaviours": "true", "view": "true"}
+                for spec in graph.nodes(args):
                     seen.setdefault(spec.executable, spec)
-    return sorted(seen.values(), key=lambda s: (s.package, s.executable))
+                    values = given.setdefault(spec.executable, {})
+                    for name, value in spec.parameters.items():
+                        if value not in values.setdefault(name, []):
+                            values[name].append(value)
+    order = sorted(seen.values(), key=lambda s: (s.package, s.executable))
+    return [(spec, given[spec.executable]) for spec in order]
 
 
-def describe(spec: NodeSpec, timeout_s: float = 30.0) -> list[dict]:
-    """Start the node in a child process and return its declared parameters.
+def schema_of(spec: NodeSpec) -> tuple[ParamSpec, ...]:
+    """The parameters the node declares, from its class's ``PARAMETERS`` schema.
 
     Raises:
-        RuntimeError: The node failed to start or to report.
+        TypeError: The node class names no schema.
     """
-    proc = subprocess.run(
-        [sys.executable, "-c", CHILD, json.dumps(asdict(spec))],
-        capture_output=True,
-        text=True,
-        timeout=timeout_s,
-        check=False,
-    )
-    for line in proc.stdout.splitlines():
-        if line.startswith("PARAMS "):
-            return json.loads(line[len("PARAMS ") :])
-    raise RuntimeError(f"node {spec.name} did not start:\n{proc.stderr[-2000:]}")
+    cls = spec.node_class()
+    schema = getattr(cls, "PARAMETERS", None)
+    if schema is None:
+        raise TypeError(f"{spec.plugin} has no PARAMETERS schema")
+    return specs(schema)
 
 
-def _cell(value: object) -> str:
-    text = json.dumps(value) if not isinstance(value, str) else f'"{value}"'
-    return text.replace("|", "\\|")
+def _value(value: object) -> str:
+    if isinstance(value, tuple):
+        value = list(value)
+    return json.dumps(value).replace("|", "\\|")
 
 
-def render(rows: Iterable[tuple[NodeSpec, list[dict]]]) -> str:
-    """Markdown tables, one per node."""
+def _range(p: ParamSpec) -> str:
+    return f"{p.low} .. {p.high}" if p.low is not None else ""
+
+
+def render(rows: Iterable[tuple[NodeSpec, dict[str, list[object]]]]) -> str:
+    """Markdown tables, one per node, parameters by name."""
     out = [
         "# Node parameters",
         "",
-        "Generated by `python -m ext_sense.parameter_docs --out docs/parameters.md` from the nodes",
-        "themselves (each started once with its graph's parameters); `test/test_parameter_docs.py`",
-        "fails when this file is stale. Defaults shown are those the graphs start the nodes with.",
-        "Every node also has `use_sim_time`.",
+        "Generated by `python -m ext_sense.parameter_docs --out docs/parameters.md` from each",
+        "node's parameter schema (the `PARAMETERS` dataclass the node declares);",
+        "`test/test_parameter_docs.py` fails when this file is stale. The default is the",
+        "node's own; 'graphs' lists what `ext_sense.graphs` (the launch files and `ext-sense",
+        "run`) give it. Every node also has `use_sim_time`.",
     ]
-    for spec, params in rows:
+    for spec, given in rows:
         out += ["", f"## `{spec.executable}` ({spec.package})", ""]
         out += [
-            "| parameter | type | default | range | read-only | description |",
-            "|---|---|---|---|---|---|",
+            "| parameter | type | default | graphs | range | read-only | description |",
+            "|---|---|---|---|---|---|---|",
         ]
-        for p in params:
-            rng = f"{p['range'][0]} .. {p['range'][1]}" if p["range"] else ""
+        for p in sorted(schema_of(spec), key=lambda p: p.name):
+            graphs = " / ".join(_value(v) for v in given.get(p.name, []))
+            description = p.description.replace("|", "\\|")
+            if p.choices:
+                description += " One of: " + ", ".join(_value(c) for c in p.choices) + "."
             out.append(
-                f"| `{p['name']}` | {TYPE_NAMES.get(p['type'], p['type'])} | {_cell(p['default'])}"
-                f" | {rng} | {'yes' if p['read_only'] else ''} | "
-                f"{p['description'].replace('|', chr(92) + '|')} |"
+                f"| `{p.name}` | {p.type_name} | {_value(p.default)} | {graphs} | {_range(p)}"
+                f" | {'yes' if p.read_only else ''} | {description} |"
             )
     return "\n".join(out) + "\n"
 
@@ -127,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="write here instead of stdout")
     args = parser.parse_args(argv)
-    text = render((spec, describe(spec)) for spec in graph_nodes())
+    text = render(graph_nodes())
     if args.out:
         args.out.write_text(text)
     else:
