@@ -4,7 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import yaml
+
 from ext_sense.parameter_docs import graph_nodes, render, schema_of
+from ext_sense_runtime.parameters import build, specs
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "parameters.md"
 
@@ -24,3 +27,23 @@ def test_every_parameter_is_described_and_the_graphs_give_only_declared_ones():
             assert p.description.strip(), f"{spec.name}.{p.name} has no description"
         undeclared = sorted(set(given) - declared)
         assert not undeclared, f"graphs give {spec.name} undeclared parameters {undeclared}"
+
+
+TYPES = {"bool": bool, "int": int, "double": float, "string": str}
+
+
+def test_the_shipped_parameter_files_name_only_declared_parameters_of_their_type():
+    schemas = {spec.executable: spec.node_class().PARAMETERS for spec, _ in graph_nodes()}
+    files = sorted((DOC.parents[1] / "src").glob("*/config/*.yaml"))
+    assert files
+    for path in files:
+        for node, body in yaml.safe_load(path.read_text()).items():
+            values = body["ros__parameters"]
+            declared = {p.name: p for p in specs(schemas[node])}
+            assert set(values) <= set(declared), (
+                f"{path.name}: {node} has {set(values) - set(declared)}"
+            )
+            for name, value in values.items():
+                wanted = TYPES.get(declared[name].type_name, list)
+                assert type(value) is wanted, f"{path.name}: {node}.{name} is not a {wanted}"
+            build(schemas[node], values)  # in range, accepted together
