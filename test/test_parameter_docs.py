@@ -1,9 +1,10 @@
-"""docs/parameters.md is the rendering of the nodes' parameter schemas (no node started)."""
+"""docs/parameters.md renders the nodes' parameter schemas, and the nodes declare exactly those."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 import yaml
 
 from ext_sense.parameter_docs import graph_nodes, render, schema_of
@@ -47,3 +48,32 @@ def test_the_shipped_parameter_files_name_only_declared_parameters_of_their_type
                 wanted = TYPES.get(declared[name].type_name, list)
                 assert type(value) is wanted, f"{path.name}: {node}.{name} is not a {wanted}"
             build(schemas[node], values)  # in range, accepted together
+
+
+@pytest.mark.ros
+def test_every_node_declares_its_schema_and_nothing_else():
+    """Each graph node, started with its graph's parameters, declares exactly its schema."""
+    import rclpy
+    from rclpy.context import Context
+
+    from ext_sense.runner import _node_kwargs
+
+    for spec, _ in graph_nodes():
+        context = Context()
+        rclpy.init(context=context, args=[])
+        try:
+            node = spec.node_class()(**_node_kwargs(spec, False, context))
+            try:
+                hidden = {"use_sim_time", "start_type_description_service"}
+                names = sorted(set(node._parameters) - hidden)
+                expected = sorted(p.name for p in schema_of(spec))
+                assert names == expected, spec.executable
+                described = node.describe_parameters(expected)
+                for p, d in zip(
+                    sorted(schema_of(spec), key=lambda p: p.name), described, strict=True
+                ):
+                    assert (d.description, d.read_only) == (p.description, p.read_only)
+            finally:
+                node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=context)
