@@ -25,7 +25,8 @@ def test_a_taken_port_is_refused_with_what_to_do() -> None:
         try:
             with pytest.raises(ValueError, match=rf"cannot listen on ws://127\.0\.0\.1:{port}.*"):
                 FoxgloveViewNode(
-                    context=context, parameter_overrides=[Parameter("port", value=port)]
+                    context=context,
+                    parameter_overrides=[Parameter("port", value=port), Parameter("nice", value=0)],
                 )
         finally:
             # the context destroys the half-built node: its teardown must not fail in turn

@@ -159,7 +159,7 @@ class FoxgloveViewNode(Node):
         self.guard = CallbackGuard(self.get_logger().error)
         p = declare_all(self, ViewParameters)
         if p.nice:  # before the server's threads start: they inherit it
-            os.setpriority(os.PRIO_PROCESS, 0, max(os.getpriority(os.PRIO_PROCESS, 0), p.nice))
+            _lower_priority(p.nice)
         self.sensor = p.sensor
         host, port, rate_hz = p.host, p.port, p.display_rate_hz
         self.top_hz = p.top_rate_hz
@@ -386,6 +386,23 @@ class FoxgloveViewNode(Node):
                 server.stop()
         finally:
             super().destroy_node()
+
+
+def _lower_priority(nice: int) -> None:
+    """Give every thread of this process at least niceness ``nice`` (Linux: it is per thread).
+
+    The threads started later (the WebSocket server's) inherit it from the thread that starts
+    them. Where the OS refuses, the view runs as it was.
+    """
+    try:
+        threads = [int(t) for t in os.listdir("/proc/self/task")]
+    except OSError:
+        threads = [0]
+    for tid in threads:
+        try:
+            os.setpriority(os.PRIO_PROCESS, tid, max(os.getpriority(os.PRIO_PROCESS, tid), nice))
+        except OSError:
+            continue
 
 
 def _json_bytes(schema: dict[str, Any]) -> bytes:

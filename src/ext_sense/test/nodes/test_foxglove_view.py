@@ -7,6 +7,7 @@ Every channel it advertises is subscribed and at least one message of each decod
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -78,6 +79,7 @@ def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
             parameter_overrides=[
                 Parameter("port", value=0),
                 Parameter("display_rate_hz", value=20.0),
+                Parameter("nice", value=0),  # in the test's own process: leave its priority
             ],
             **kw,
         )
@@ -190,7 +192,8 @@ def test_a_client_connecting_as_the_server_starts_is_offered_every_channel(
     def view(**kw):
         from rclpy.parameter import Parameter
 
-        return FoxgloveViewNode(parameter_overrides=[Parameter("port", value=0)], **kw)
+        overrides = [Parameter("port", value=0), Parameter("nice", value=0)]
+        return FoxgloveViewNode(parameter_overrides=overrides, **kw)
 
     def source(**kw):
         from rclpy.node import Node
@@ -209,3 +212,30 @@ def test_a_client_connecting_as_the_server_starts_is_offered_every_channel(
     finally:
         for client in early:
             client.close()
+
+
+def test_the_view_lowers_every_thread_of_its_process() -> None:
+    """``nice``: the threads there are and those started after, never raised back."""
+    import subprocess
+    import sys
+
+    code = (
+        "import os, threading\n"
+        "from ext_sense.view.node import _lower_priority\n"
+        "t = threading.Thread(target=lambda: __import__('time').sleep(1)); t.start()\n"
+        "_lower_priority(7)\n"
+        "late = []\n"
+        "u = threading.Thread(target=lambda: late.append(os.getpriority(os.PRIO_PROCESS, 0)))\n"
+        "u.start(); u.join()\n"
+        "print(sorted({os.getpriority(os.PRIO_PROCESS, int(x)) "
+        "for x in os.listdir('/proc/self/task')}), late)\n"
+        "_lower_priority(3)\n"
+        "print(os.getpriority(os.PRIO_PROCESS, 0))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    first, second = out.stdout.splitlines()
+    base = os.getpriority(os.PRIO_PROCESS, 0)
+    want = max(base, 7)
+    assert first == f"[{want}] [{want}]"
+    assert second == str(want)  # 3 is below: never raised back
