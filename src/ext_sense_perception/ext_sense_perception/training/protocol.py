@@ -167,12 +167,12 @@ def whole_trial_folds(cv: Any, ws: WindowSet, seed: int) -> Any:
     ]
 
 
-def inner_cv(ws: WindowSet, y: np.ndarray, seed: int) -> KFold | StratifiedKFold:
-    """The 4-fold grid-search split (stratified for classes, fewer folds for rare classes)."""
+def inner_cv(ws: WindowSet, y: np.ndarray, seed: int, folds: int = 4) -> KFold | StratifiedKFold:
+    """The grid-search split into ``folds`` folds (the paper's 4; stratified for classes)."""
     if ws.is_regression:
-        return KFold(4, shuffle=True, random_state=seed)
+        return KFold(folds, shuffle=True, random_state=seed)
     smallest = int(np.min(np.unique(y, return_counts=True)[1]))
-    return StratifiedKFold(min(4, max(smallest, 2)), shuffle=True, random_state=seed)
+    return StratifiedKFold(min(folds, max(smallest, 2)), shuffle=True, random_state=seed)
 
 
 def default_k(ws: WindowSet, model: str) -> int:

@@ -9,7 +9,8 @@ windows and the :class:`Recipe` choices, never in how it was trained. What the r
   channel selection, a BioTac decimation rate, and the default grid of feature parameters
   searched inside the folds (:func:`~.models.default_feature_grid`);
 - anytime models for the task profile's anytime post-contact times;
-- the grid search with 4-fold CV and refit of :func:`~.fit.fit_model`;
+- the grid search with K-fold CV (4 folds for classes, 10 for tap positions) and refit of
+  :func:`~.fit.fit_model`;
 - NUSkin feature bins: the task's kernel (:data:`DEFAULT_BIN_KERNEL`) unless named: tap
   localisation bins with Gaussian weights, so a window whose onset the arrival clock moves by a
   millisecond or two gives nearly the same estimate (``bench/bench_window_shift.py``);
