@@ -30,13 +30,6 @@ from ext_sense_perception.training.protocol import features_for, inner_cv, whole
 
 PI_Z = 1.959963984540054  # two-sided 95% normal quantile
 
-REGRESSION_FOLDS = 10
-"""Grid-search folds of a deployed regression model with 200 trials or more, whose card's CV
-MAE is its promise: a fold's model learns from (k - 1) / k of the windows, and a tap model's
-error still falls with more taps, so 4 folds (the paper's protocol) scored it about a tenth
-worse than the model fitted on them all did on fresh taps; 10 folds, a few percent. Smaller
-sets get fewer (at least 4), each fold holding 20 trials or more."""
-
 
 def nominal_rate_hz(sensor: str) -> float:
     """The sensor's own sampling rate when none was reduced: NUSkin 4 kHz, BioTac PAC 2200 Hz."""
@@ -69,11 +62,12 @@ def fit_model(
     n_jobs: int = 1,
     rate_hz: float | None = None,
     model_params: dict[str, Any] | None = None,
+    cv_folds: int = 4,
 ) -> TrainedModel:
     """Fit a deployable model on all windows (grid search with K-fold CV, then refit).
 
-    K is 4 for classes (the paper's protocol) and up to :data:`REGRESSION_FOLDS` for tap
-    positions.
+    K is 4 for classes (the paper's protocol); for tap positions ``cv_folds``, fewer when the
+    set has under 20 trials a fold (at least 4).
 
     BLAS/OpenMP is pinned to one thread: small matrices on a shared 2-core machine run up to 20x
     slower with threaded BLAS (threads spin against each other).
@@ -88,6 +82,7 @@ def fit_model(
         n_jobs: Grid-search jobs.
         rate_hz: Sampling rate the windows were reduced to (for the card), Hz.
         model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
+        cv_folds: Grid-search folds of a regression set (the card's CV MAE comes from them).
 
     Returns:
         The fitted pipeline and its model card.
@@ -119,7 +114,7 @@ def fit_model(
         grid.update(feature_grid or {})
         precompute = FeatureKind.parse(features) is not FeatureKind.AUTOENCODER and not feature_grid
         trials = int(np.unique(ws.groups).size)
-        k = min(REGRESSION_FOLDS, max(4, trials // 20)) if ws.is_regression else 4
+        k = min(int(cv_folds), max(4, trials // 20)) if ws.is_regression else 4
         cv = whole_trial_folds(inner_cv(ws, ws.y, seed, k), ws, seed)
         scoring = "neg_mean_absolute_error" if ws.is_regression else "accuracy"
         with warnings.catch_warnings():
