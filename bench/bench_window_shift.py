@@ -14,9 +14,11 @@ graph cuts them:
 Each fresh window is then cut again from the driver-stamped events with its onset moved by
 +-0.5, +-1 and +-2 ms (``data.device_stream.recut``): the move of the estimate, median and 90th
 percentile over the windows and both signs (issue 30: at most 0.3 cm median and 1 cm p90 up to
-2 ms), beside the model's CV MAE (its card's) and its fresh-tap MAE. Without ``--quick`` or
-``--model`` a model on the paper's box feature bins is trained on the same windows beside the
-default (Gaussian bins, ``training.recipe.DEFAULT_BIN_KERNEL``), for the choice.
+2 ms), beside the model's CV MAE (its card's) and its fresh-tap MAE with its standard error
+(a set of 200 fresh taps is itself a sample: other seeds' sets score a tenth better or worse).
+Without ``--quick`` or ``--model`` a model on the paper's box feature bins is trained on the
+same windows beside the default (Gaussian bins, ``training.recipe.DEFAULT_BIN_KERNEL``), for
+the choice.
 
     python bench/bench_window_shift.py            # 300 training taps, 200 fresh taps
     python bench/bench_window_shift.py --quick    # 100 / 60
@@ -81,9 +83,10 @@ def fresh_taps(
     )
 
 
-def mae_cm(predict: Predict, taps: FreshTaps) -> float:
-    """Mean absolute error on the taps, cm."""
-    return float(np.mean(np.abs(predict(taps.X.reshape(len(taps.y), -1)) - taps.y)) * 100)
+def mae_cm(predict: Predict, taps: FreshTaps) -> tuple[float, float]:
+    """Mean absolute error on the taps and its standard error, cm."""
+    err = np.abs(predict(taps.X.reshape(len(taps.y), -1)) - taps.y) * 100
+    return float(np.mean(err)), float(np.std(err, ddof=1) / np.sqrt(err.size))
 
 
 def row(
@@ -103,14 +106,15 @@ def row(
         config,
         [d * sign for d in steps for sign in (-1, 1)],
     )
-    fresh_mae, late_mae = mae_cm(predict, fresh), mae_cm(predict, late)
+    (fresh_mae, fresh_se), (late_mae, late_se) = mae_cm(predict, fresh), mae_cm(predict, late)
     cells = []
     for d in steps:
         both = 100 * np.concatenate([moves[d], moves[-d]])
         cells.append(f"{np.median(both):5.2f} / {np.percentile(both, 90):4.2f}")
     return (
-        f"  {name:16s} {cv_cm:6.2f} {fresh_mae:6.2f} {late_mae:6.2f} {cv_cm / fresh_mae:6.2f}"
-        f" {late_mae / fresh_mae:6.2f}   " + "   ".join(cells)
+        f"  {name:16s} {cv_cm:6.2f} {fresh_mae:5.2f}+-{fresh_se:4.2f}"
+        f" {late_mae:5.2f}+-{late_se:4.2f} {cv_cm / fresh_mae:6.2f} {late_mae / fresh_mae:6.2f}   "
+        + "   ".join(cells)
     )
 
 
@@ -171,9 +175,10 @@ def main() -> int:
         )
     header = "   ".join(f"+-{s:g} ms".center(12) for s in SHIFTS_MS)
     print(
-        f"  {'model':16s} {'cv':>6s} {'fresh':>6s} {'late':>6s} {'cv/fr':>6s} {'lt/fr':>6s}"
+        f"  {'model':16s} {'cv':>6s} {'fresh':>11s} {'late':>11s} {'cv/fr':>6s} {'lt/fr':>6s}"
         f"   estimate moves, cm, median / p90, onset moved by:\n"
-        f"  {'':16s} {'MAE cm':>6s} {'MAE cm':>6s} {'MAE cm':>6s} {'':6s} {'':6s}   {header}"
+        f"  {'':16s} {'MAE cm':>6s} {'MAE+-se cm':>11s} {'MAE+-se cm':>11s} {'':6s} {'':6s}"
+        f"   {header}"
     )
     for name, cv_cm, predict in models:
         print(row(name, cv_cm, predict, fresh, late, config), flush=True)
