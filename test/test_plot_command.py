@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from sim_models import cli
-from synthetic import T0, tap_stream
+from synthetic import T0, stream_packets, tap_stream
 
 from ext_sense_runtime.stamps import MS
 
@@ -22,14 +22,13 @@ def _tap_bag(path: Path) -> Path:
         ground_truth,
         header,
         make_message,
-        taxel_event_batch,
+        sensor_packet,
     )
     from ext_sense_bags.writer import BagWriter
 
     with BagWriter(path) as bag:
-        for b in tap_stream(ONSETS_MS, 2000, taxels=20, burst_ms=30):
-            msg = taxel_event_batch(b.stamp_ns, b.taxel, b.polarity, b.value, b.offset_ns)
-            bag.write("/extsense/nuskin/events", b.stamp_ns + MS, msg)
+        for p in stream_packets(tap_stream(ONSETS_MS, 2000, taxels=20, burst_ms=30)):
+            bag.write("/extsense/nuskin/packets", p.end_ns, sensor_packet(p, "nuskin"))
         for k, (onset, true_m) in enumerate(zip(ONSETS_MS, TRUE_M, strict=True)):
             stamp = T0 + int(onset * MS)
             truth = ground_truth(
@@ -122,9 +121,19 @@ def test_plot_a_bag_draws_the_overview_and_each_contact(tmp_path: Path) -> None:
 
 
 def test_plot_refuses_what_it_cannot_read(tmp_path: Path) -> None:
+    from ext_sense_bags.messages import taxel_event_batch
+    from ext_sense_bags.writer import BagWriter
+
+    from ext_sense.view.errors import ViewError
+    from ext_sense.view.sessions import load_session
+
     out = cli("plot", str(tmp_path / "absent"), timeout=60)
     assert out.returncode == 2
     assert "no such file or directory" in out.stdout
+    with BagWriter(tmp_path / "old") as bag:  # decoded arrays, from before packets
+        bag.write("/extsense/nuskin/events", T0, taxel_event_batch(T0, [3], [0], [9], [0]))
+    with pytest.raises(ViewError, match="ext-sense bag migrate"):
+        load_session(tmp_path / "old")
 
 
 @pytest.mark.real_data

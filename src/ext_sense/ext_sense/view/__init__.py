@@ -13,7 +13,7 @@ ROS and draws the same from a live graph or a bag.
 - :mod:`.traces`: event rate per finger, the BioTac PAC trace.
 - :mod:`.raster`: a contact window as a taxels x time raster with its onset.
 - :mod:`.estimate`: an estimate drawn (tap on the rod, class bars, stability) and summed up.
-- :mod:`.feed`: the sensor input: the drivers' raw packets decoded, or decoded arrays.
+- :mod:`.feed`: the sensor input: the drivers' raw packets, decoded here.
 - :mod:`.pacing`: the display-rate gate.
 - :mod:`.channels`: the view's channel names and JSON schemas.
 - :mod:`.layout`: the Foxglove layout shipped with the package.

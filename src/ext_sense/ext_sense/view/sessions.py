@@ -17,8 +17,6 @@ import numpy as np
 
 from ext_sense.topics import SENSOR_PACKETS
 from ext_sense.topics import TOPIC_ESTIMATE as ESTIMATES
-from ext_sense.topics import TOPIC_EVENTS as EVENTS
-from ext_sense.topics import TOPIC_FRAMES as FRAMES
 from ext_sense.topics import TOPIC_GROUND_TRUTH as TRUTHS
 from ext_sense.topics import TOPIC_WINDOW as WINDOWS
 from ext_sense.view.errors import ViewError
@@ -113,28 +111,17 @@ def from_bag(path: Path) -> PlotSession:
         with BagReader(path) as bag:
             have = bag.topics
             sensor = _bag_sensor(have)
-            # the driver's raw packets when the bag has them (recorded by default), decoded with
-            # the library decoder as the live nodes do; else the decoded arrays of older bags
+            # the driver's raw packets, decoded with the library decoder as the live nodes do
             packets = SENSOR_PACKETS[sensor]
-            streams = (packets,) if packets in have and have[packets].count else (EVENTS, FRAMES)
-            wanted = [t for t in (*streams, WINDOWS, ESTIMATES, TRUTHS) if t in have]
+            if packets not in have or not have[packets].count:
+                raise ViewError(
+                    f"Cannot plot {path}: it holds no {packets}. A bag of decoded arrays from "
+                    f"before packets is migrated first: ext-sense bag migrate {path} OUT."
+                )
+            wanted = [t for t in (packets, WINDOWS, ESTIMATES, TRUTHS) if t in have]
             for rec, msg in bag.messages(wanted):
                 if rec.topic == packets:
                     blocks += _packet_blocks(msg, decoders)
-                elif rec.topic == EVENTS:
-                    t0 = stamp_to_ns(msg.header.stamp)
-                    blocks.append(
-                        EventBlock.of(np.asarray(msg.offset_ns, np.int64) + t0, msg.taxel)
-                    )
-                elif rec.topic == FRAMES:
-                    pac = np.asarray(msg.pac, np.int64)
-                    blocks.append(
-                        EventBlock.of(
-                            [stamp_to_ns(msg.header.stamp)],
-                            [int(msg.sensor_id) + 1],
-                            value=[int(np.ptp(pac))],
-                        )
-                    )
                 elif rec.topic == WINDOWS and not msg.provisional:
                     onset = stamp_to_ns(msg.header.stamp)
                     finals.append(
@@ -168,9 +155,8 @@ def from_bag(path: Path) -> PlotSession:
 
 
 def _bag_sensor(have: Any) -> str:
-    """The bag's sensor: BioTac when it holds BioTac packets or frames and no NUSkin stream."""
-    nuskin = any(t in have for t in (EVENTS, SENSOR_PACKETS["nuskin"]))
-    biotac = any(t in have for t in (FRAMES, SENSOR_PACKETS["biotac"]))
+    """The bag's sensor: BioTac when it holds BioTac packets and no NUSkin ones."""
+    nuskin, biotac = (SENSOR_PACKETS[s] in have for s in ("nuskin", "biotac"))
     return "biotac" if biotac and not nuskin else "nuskin"
 
 
