@@ -120,6 +120,7 @@ def row(
 
 def main() -> int:
     from ext_sense_sim.default_models import TRAIN_SEED, TRIAL_PERIOD_S, training_set
+    from ext_sense_sim.errors import SceneError
     from ext_sense_sim.scene import DEFAULT_SCENES, load_scene
     from ext_sense_sim.trial_plan import lay_out_stream
 
@@ -133,7 +134,25 @@ def main() -> int:
     n_train = args.train or (100 if args.quick else 300)
     n_fresh = args.fresh or (60 if args.quick else 200)
     config = WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.NUSKIN)
-    scene = load_scene(args.scene)
+    if min(n_train, n_fresh) < 8:
+        print("bench_window_shift: error: --train and --fresh must be at least 8", file=sys.stderr)
+        return 2
+    try:
+        scene = load_scene(args.scene)
+    except SceneError as err:
+        print(f"bench_window_shift: error: {err}", file=sys.stderr)
+        return 2
+
+    bundle = None
+    if args.model:
+        from ext_sense_perception.errors import PerceptionError
+        from ext_sense_perception.online.predictor import load_model
+
+        try:
+            bundle = load_model(args.model, "sklearn", "tap_localization", "nuskin")
+        except PerceptionError as err:
+            print(f"bench_window_shift: error: {err}", file=sys.stderr)
+            return 2
 
     t0 = time.perf_counter()
     laid = lay_out_stream(scene, FRESH_SEED, n_fresh, TRIAL_PERIOD_S)
@@ -148,10 +167,7 @@ def main() -> int:
     )
 
     models: list[tuple[str, float, Predict]] = []
-    if args.model:
-        from ext_sense_perception.online.predictor import load_model
-
-        bundle = load_model(args.model, "sklearn", "tap_localization", "nuskin")
+    if bundle is not None:
         card = bundle.card
         label = f"{card.feature_params.get('bin_kernel', 'box')} bins"
         models.append((label, 100 * card.metrics["cv_mae_m"], lambda x: bundle.raw_predict(x)[0]))
