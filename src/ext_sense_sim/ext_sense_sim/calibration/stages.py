@@ -30,14 +30,13 @@ TAP_FREE = (
     FreeParameter("beam_modes", "grasp_damping_ratio", 0.001, 0.2),
     FreeParameter("grasp_transfer", "finger_load_share", 0.01, 0.6, spread=(1 / 3, 5 / 3)),
     FreeParameter("grasp_transfer", "strip_sigma_m", 0.0008, 0.004),
-    FreeParameter("receiver_link", "words_per_s", 20_000.0, 200_000.0),
 )
 """What the tap fit moves: the tap's force and length and its impact, the grasp's damping,
-the load share between the fingers, the pads' contact strip, the receiver link's word rate.
-Ranges keep their ends' ratio to the centre: one person's taps, x0.8-1.25 around it (a wider
-spread of forces gives windows far more varied than the real ones, whose events per window vary
-by p75 / p25 = 1.2). The sensor's noise is fitted before, on the quiet stretch
-(:data:`NOISE_FREE`)."""
+the load share between the fingers, the pads' contact strip. Ranges keep their ends' ratio to
+the centre: one person's taps, x0.8-1.25 around it (a wider spread of forces gives windows far
+more varied than the real ones, whose events per window vary by p75 / p25 = 1.2). The sensor's
+noise is fitted before, on the quiet stretch (:data:`NOISE_FREE`); the receiver link's word rate
+is the sensor's too, read off the real captures' ceiling (``receiver_link``), not fitted."""
 
 TAP_TOLERANCES = {
     "events": (math.log(1.4), True),
@@ -45,13 +44,15 @@ TAP_TOLERANCES = {
     "last_100ms": (0.07, False),
     "busiest_10": (0.10, False),
     "finger_imbalance": (0.07, False),
-    "active_taxels": (5.0, False),
-    "half_peak_ms": (30.0, False),
+    "active_taxels": (10.0, False),
     "taxel_rate_max": (math.log(1.4), True),
-    "events_p75_over_p25": (math.log(1.4), True),
 }
 """Statistic to ``(tolerance, compared as log ratio)``: the issue's targets where it sets one
-(events x0.7-1.4, shares 0.07 / 0.07 / 0.10), else about the real sessions' spread."""
+(events x0.7-1.4, shares 0.07 / 0.07 / 0.10), else about the real sessions' spread. How long
+the rate stays near its peak and how much the windows' event counts vary (p75 / p25) are
+measured (``window_medians``, ``sim fidelity``) but not fitted: the real taps' counts hardly
+depend on where the rod was struck (p75 / p25 1.2), the simulated ones do (about 2.2) whatever
+the tap, and fitting them pulled the shares the issue targets off (docs/simulator.md)."""
 
 
 def window_medians(stats: Mapping[str, np.ndarray]) -> dict[str, float]:
@@ -77,13 +78,15 @@ def tap_measure(trials: int, seed: int) -> Measure:
 FOOD_FREE = (
     FreeParameter("sensor_noise", "white_pa", 50.0, 2000.0),
     FreeParameter("sensor_noise", "white_spread", 0.05, 1.5),
+    FreeParameter("sensor_noise", "drift_pa", 10.0, 2000.0),
     FreeParameter("nuskin_transduction", "offset_counts", 20.0, 300.0),
     FreeParameter("nuskin_transduction", "offset_spread", 0.05, 1.5),
     FreeParameter("grasp_transfer", "strip_sigma_m", 0.0005, 0.004),
     FreeParameter("grasp_transfer", "grip_force_n", 2.0, 60.0, spread=(0.75, 1.25)),
 )
-"""What the food fit moves: the sensor's noise (and its spread over taxels) and resting
-readings, the pads' contact strip and the grip that presses the fork's handle into them."""
+"""What the food fit moves: the sensor's noise (its spread over taxels, its slow drift) and
+resting readings, the pads' contact strip and the grip that presses the fork's handle into
+them."""
 
 FOOD_TOLERANCES = {
     "events_per_s": (math.log(1.25), True),

@@ -13,6 +13,12 @@ Taxels are not equally noisy either: with nothing touched, the 3 April food capt
 fire from 0 to 13 events/s (5th to 95th percentile) at one report per 40 ms. ``white_spread``
 (default 0) scales each taxel's white noise by a log-normal factor of that standard deviation,
 fixed per sensor.
+A slow drift beside it (``drift_pa``, default 0): noise low-passed at ``drift_hz`` (a
+first-order filter, standard deviation ``drift_pa`` after it), independent per taxel. It moves
+a resting reading across its count boundaries a few times a second: the 3 April capture with
+nothing touched reads each taxel with a spread of about 0.6 count and 7 events/s (median), a
+rate that white noise of any level gives only on a knife's edge (below it hardly any events,
+above it every taxel at its refractory limit).
 ``spurious_events``: a Poisson process of rate ``rate_hz`` per taxel of events with random
 polarity (line glitches the receiver still decodes as valid words); their value field is the
 value of the taxel's last real event, or ``value_counts`` when it had none.
@@ -20,9 +26,11 @@ value of the taxel's last real event, or ``value_counts`` when it had none.
 
 from __future__ import annotations
 
+import math
 from typing import Any, ClassVar
 
 import numpy as np
+from scipy.signal import lfilter
 
 from ext_sense_runtime.records import EventBlock
 from ext_sense_sim.effects.base import Effect, Signals, TimeBase
@@ -38,6 +46,8 @@ class SensorNoise(Effect):
     defaults: ClassVar[dict[str, Any]] = {
         "white_pa": 150.0,
         "white_spread": 0.0,
+        "drift_pa": 0.0,
+        "drift_hz": 2.0,
         "chatty_taxels": 0,
         "chatty_pa": 0.0,
     }
@@ -64,6 +74,13 @@ class SensorNoise(Effect):
             if self.scale is not None and pressure.shape[1] == 80:
                 noise *= self.scale[None, :, None]
             pressure += noise
+        drift = self.scalar("drift_pa", 0.0)
+        if drift > 0:
+            pole = math.exp(-2.0 * math.pi * self.scalar("drift_hz", 1e-3, 1e3) * time.dt)
+            kick = rng.standard_normal(pressure.shape, dtype=np.float32)
+            kick[..., 0] /= math.sqrt(1.0 - pole**2)  # start in the filter's steady state
+            slow = lfilter([math.sqrt(1.0 - pole**2)], [1.0, -pole], kick, axis=-1)
+            pressure += (slow * drift).astype(np.float32)
         chatty = self.scalar("chatty_pa", 0.0)
         if self.chatty.size and chatty > 0 and pressure.shape[1] == 80:
             level = chatty * 0.9 ** np.arange(self.chatty.size)
