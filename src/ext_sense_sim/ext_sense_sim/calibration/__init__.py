@@ -135,7 +135,7 @@ def calibrate_scene(
         scene: A NUSkin tap or food scene.
         real: Real session folders (as for ``sim fidelity``).
         stages: Stages to run (default: ``noise, taps`` for taps, ``food`` for food).
-        trials: Simulated trials per evaluation (default: noise 20, taps 60, food 21).
+        trials: Simulated trials per evaluation (default: noise 20, taps 200, food 21).
         seed: Seed of every evaluation.
         max_evaluations: Simulations per stage at most.
         log: Where progress lines go.
@@ -156,7 +156,7 @@ def calibrate_scene(
     sessions = read_sessions(scene, real)
     for stage in stages:
         stats = real_statistics(stage, sessions)
-        n = trials or {"noise": 20, "taps": 60, "food": 21}[stage]
+        n = trials or {"noise": 20, "taps": 200, "food": 21}[stage]
         log(f"[{stage}] {n} simulated trials a step, seed {seed}; real medians:")
         log("    " + ", ".join(f"{k} {v:.4g}" for k, v in stats.items()))
 
