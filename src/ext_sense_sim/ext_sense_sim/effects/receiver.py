@@ -14,7 +14,9 @@ per window p75 / p25 about 1.2), and on the 20 cm rod the rate stays at the ceil
 100 ms and then stops within a bin, as a drained queue does, not as a ringing rod fades.
 
 Event times become the times the words leave the receiver (what a host stamps, and what the
-lab's captures hold); ``words_per_s: 0`` (default) is an unlimited link.
+lab's captures hold); ``words_per_s: 0`` (default) is an unlimited link. Words still queued at
+the trial's end are left out (counted in ``dropped``): a trial is the span the scene simulates,
+and its words must not run into the next trial's when trials are laid back to back.
 """
 
 from __future__ import annotations
@@ -60,6 +62,10 @@ class ReceiverLink(Effect):
     gives = ("events",)
     defaults: ClassVar[dict[str, Any]] = {"words_per_s": 0.0}
 
+    def setup(self) -> None:
+        """Count the words left in the queue at the trials' ends."""
+        self.dropped = 0
+
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
         """Replace each event's time by the time its word leaves the receiver."""
         rate = self.scalar("words_per_s", 0.0, 1e8)
@@ -68,4 +74,7 @@ class ReceiverLink(Effect):
         trial, events = signals.need("events", self.name)
         starts = trial_bounds(trial, time.n_trials)
         departed = drain_times(events.t_ns, starts, 1e9 / rate)
-        signals["events"] = (trial, events._replace(t_ns=departed))
+        inside = departed < round(time.n_samples * time.dt * 1e9)
+        self.dropped += int(inside.size - np.count_nonzero(inside))
+        kept = np.flatnonzero(inside)
+        signals["events"] = (trial[kept], events._replace(t_ns=departed).select(kept))

@@ -51,10 +51,17 @@ def test_the_effect_delays_events_and_zero_words_per_s_is_an_unlimited_link() ->
         np.ones(n, np.int8),
         np.full(n, 100, np.uint16),
     )
-    time = TimeBase(16000.0, 1600, 1)
-    for rate, last in ((0.0, 0), (10_000.0, 499 * 100_000)):
+    time = TimeBase(16000.0, 1600, 1)  # a 0.1 s trial
+    for rate, kept, last in (
+        (0.0, n, 0),
+        (10_000.0, 500, 499 * 100_000),
+        (4000.0, 400, 399 * 250_000),
+    ):
         signals = Signals(events=(np.zeros(n, np.int32), events))
-        ReceiverLink({"words_per_s": rate}).run(signals, time, np.random.default_rng(0))
+        link = ReceiverLink({"words_per_s": rate})
+        link.run(signals, time, np.random.default_rng(0))
+        assert signals["events"][1].size == kept  # words queued past the trial's end are left out
+        assert link.dropped == n - kept
         assert int(signals["events"][1].t_ns[-1]) == last
 
 
