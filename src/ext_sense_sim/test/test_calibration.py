@@ -38,10 +38,16 @@ def test_with_values_writes_scalars_and_ranges_and_start_values_reads_them_back(
 
 
 def test_start_values_fall_back_to_the_effects_defaults_and_stay_in_bounds() -> None:
-    scene = load_scene("handover_rod_nuskin")  # grasp_transfer without parameters
+    scene = load_scene("tap_rod30_nuskin_wire")  # grasp_transfer without parameters
     strip = FreeParameter("grasp_transfer", "strip_sigma_m", 0.0005, 0.004)
     share = FreeParameter("grasp_transfer", "finger_load_share", 0.01, 0.6)
     assert start_values(scene, (strip, share)) == pytest.approx([0.0015, 0.01])
+
+
+def test_a_range_read_as_a_scalar_is_refused_by_name() -> None:
+    share = FreeParameter("grasp_transfer", "finger_load_share", 0.01, 0.6)  # no spread
+    with pytest.raises(SceneError, match=r"'grasp_transfer\.finger_load_share' is a range"):
+        start_values(load_scene("tap_rod30_nuskin"), (share,))
 
 
 def test_a_parameter_of_an_effect_the_scene_lacks_is_refused() -> None:

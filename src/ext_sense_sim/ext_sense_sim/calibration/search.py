@@ -59,6 +59,11 @@ class FreeParameter:
         """The fitted value a scene's parameters hold (a range's centre by ``spread``)."""
         value = params[self.key]
         if self.spread is None:
+            if isinstance(value, (list, tuple)):
+                raise SceneError(
+                    f"Parameter '{self.name}' is a range {value!r}: fit it with a spread "
+                    "(the ratios of its ends to the fitted centre)."
+                )
             return float(value)
         if not isinstance(value, (list, tuple)):
             return float(value)

@@ -109,7 +109,8 @@ def _fidelity(scene: str, days: tuple[Path, ...]) -> dict:
 def test_each_tap_scene_is_within_the_real_sessions_spread(rod_days, scene, rod):
     result = _fidelity(scene, tuple(rod_days))
     assert result["rod_cm"] == rod
-    assert result["groups"][POOLED]["windows"] >= 150
+    assert result["groups"][POOLED]["windows"] >= 20
+    assert result["groups"]["simulated"]["windows"] >= 150
     failing = [t["stat"] for t in result["targets"] if not t["pass"]]
     assert not failing, f"{scene}: {', '.join(failing)} off target\n{format_table(result)}"
 
@@ -120,7 +121,7 @@ def test_each_tap_scene_is_within_the_real_sessions_spread(rod_days, scene, rod)
 @pytest.mark.xfail(
     strict=True,
     reason="issue 30's two-sample target is not met yet: the simulated windows vary with the "
-    "tap position far more than the real ones (AUC 0.97-0.99 against limits 0.72-0.84; "
+    "tap position far more than the real ones (AUC 0.99 against limits 0.72-0.84; "
     "docs/simulator.md, 'Calibration against the real sensor')",
 )
 @pytest.mark.parametrize(("scene", "rod"), TAP_SCENES)
