@@ -36,15 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "targets, a classifier two-sample test (docs/simulator.md)."
         ),
     )
-    p.add_argument("scene", help="shipped scene name or path of a scene YAML file")
-    p.add_argument(
-        "--real",
-        action="append",
-        required=True,
-        metavar="DIR",
-        help="a real session: a day's rod-tap folder (or its rodNN/), or a food-poking "
-        "folder; repeat for several sessions",
-    )
+    _scene_and_real(p)
     p.add_argument("--trials", type=int, default=None, help="simulated trials (taps 60, food 35)")
     p.add_argument("--seed", type=int, default=None, help="seed (scene default)")
     p.add_argument("--json", default=None, metavar="PATH", help="also write the result as JSON")
@@ -65,14 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "resting readings, contact strip and grip on the trials after the motion start."
         ),
     )
-    p.add_argument("scene", help="shipped scene name or path of a scene YAML file")
-    p.add_argument(
-        "--real",
-        action="append",
-        required=True,
-        metavar="DIR",
-        help="a real session (as for fidelity); repeat for several sessions",
-    )
+    _scene_and_real(p)
     p.add_argument(
         "--stages",
         default=None,
@@ -96,6 +81,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--period", type=float, default=1.0, help="seconds between trial starts")
     p.add_argument("--link", default=None, help="also create this symlink to the pty")
     p.set_defaults(func=_serve)
+
+
+def _scene_and_real(p: argparse.ArgumentParser) -> None:
+    """The scene and the real sessions that ``fidelity`` and ``calibrate`` hold it against."""
+    p.add_argument("scene", help="shipped scene name or path of a scene YAML file")
+    p.add_argument(
+        "--real",
+        action="append",
+        required=True,
+        metavar="DIR",
+        help="a real session: a day's rod-tap folder (or its rodNN/), or a food-poking "
+        "folder; repeat for several sessions",
+    )
 
 
 def _list(args: argparse.Namespace) -> int:
