@@ -101,3 +101,27 @@ def test_effect_lines_read_back_as_the_same_effects() -> None:
 def test_a_stage_of_another_task_is_refused_before_reading_anything() -> None:
     with pytest.raises(SceneError, match=r"calibrates the stages \('noise', 'taps'\)"):
         calibrate_scene(load_scene("tap_rod30_nuskin"), ["/nonexistent"], ("food",))
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["tap_rod30_nuskin", "--real", "/nonexistent"], "does not exist"),
+        (["tap_rod30_nuskin", "--real", "/tmp", "--stages", "food"], "calibrates the stages"),
+        (["handover_rod_nuskin", "--real", "/tmp"], "has no real captures"),
+        (["tap_rod30_nuskin", "--real", "/tmp", "--evaluations", "0"], "--evaluations"),
+    ],
+)
+def test_the_command_refuses_bad_input_in_one_line(argv, message, capsys) -> None:
+    import argparse
+
+    from ext_sense_sim import cli
+
+    parser = argparse.ArgumentParser()
+    cli.register(parser.add_subparsers())
+    args = parser.parse_args(["sim", "calibrate", *argv])
+    assert args.func(args) == 2
+    err = capsys.readouterr().err
+    assert message in err
+    assert err.count("\n") == 1
+    assert "Traceback" not in err
