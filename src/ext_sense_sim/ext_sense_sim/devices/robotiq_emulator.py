@@ -57,6 +57,9 @@ class LinkFault(IntEnum):
     """Replies go out with a corrupted CRC, like line noise."""
     GRIPPER_FAULT = 3
     """The gripper raises gFLT (default 0x0E overcurrent) and stops until reset."""
+    BAD_CRC_ON_WRITE = 4
+    """Only replies to register writes are corrupted: the command is carried out but its
+    acknowledgement is lost, while status reads still answer cleanly."""
 
 
 @dataclass
@@ -267,7 +270,11 @@ class RobotiqEmulator:
             return None
         reply = self._answer(request)
         self.counters.replies += 1
-        if self.link_fault == LinkFault.BAD_CRC:
+        corrupt_write = (
+            self.link_fault == LinkFault.BAD_CRC_ON_WRITE
+            and request.function == modbus.Function.WRITE_MULTIPLE_REGISTERS
+        )
+        if self.link_fault == LinkFault.BAD_CRC or corrupt_write:
             self.counters.corrupted_replies += 1
             reply = reply[:-2] + bytes([reply[-2] ^ 0xFF, reply[-1]])
         return reply

@@ -125,6 +125,16 @@ def test_bad_crc_retries_then_raises():
     assert client.counters.crc_errors == 2
 
 
+def test_bad_crc_on_write_loses_only_the_acknowledgement():
+    client, emulator, _, _ = make(retries=0)
+    client.activate()
+    emulator.set_fault(LinkFault.BAD_CRC_ON_WRITE)
+    assert client.read_status().ready  # reads still answer cleanly
+    with pytest.raises(RobotiqError, match="CRC mismatch"):
+        client.move(position=200, speed=255, force=10)
+    assert emulator.status().position_request == 200  # the write itself was carried out
+
+
 def test_link_recovers_after_a_transient_fault():
     client, emulator, _port, _ = make(retries=2)
     client.activate()
