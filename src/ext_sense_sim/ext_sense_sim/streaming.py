@@ -7,7 +7,10 @@ burst); trial ``k`` starts
 host clock reaches the trial start plus the chunk's time. When the first chunk at or after the
 true contact onset is written, ``on_onset`` gets the ground truth stamped with the host time
 (``time.time_ns``, the clock drivers stamp arrival with) of that write. A trial that could not
-be simulated before its start is sent late and counted in ``late_trials``.
+be simulated before its start starts when it is ready, at its own pace, and the trials after it
+keep their spacing (counted in ``late_trials``): the world waits for the simulator, as a real
+tap simply happens later; sending the overdue bytes at once would squeeze the tap into a burst
+no receiver makes and overflow the link.
 
 The trials come from :mod:`~ext_sense_sim.trial_plan`, simulated here or, with ``ahead`` (the
 ``sim_device`` node and ``sim serve``), in a low-priority child process
@@ -111,6 +114,7 @@ def _stream(
     period_ns = round(max(period_s, scene.trial_s) * 1e9)
     stats = StreamStats() if stats is None else stats
     start: int | None = None
+    delay_ns = 0  # how far late trials have pushed the schedule
     rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
     upcoming: PlannedTrial | None = next(plans, None)
     line, bridge = _device_line(scene, write, clock, stats)
@@ -122,9 +126,12 @@ def _stream(
             break
         if start is None:  # the first trial is simulated before the clock starts
             start = clock()
-        t0 = start + plan.trial * period_ns
-        if clock() > t0:
-            stats.late_trials += 1
+        t0 = start + plan.trial * period_ns + delay_ns
+        now = clock()
+        if now > t0:
+            stats.late_trials += now - t0 > LATE_WRITE_NS
+            delay_ns += now - t0
+            t0 = now
         _play(plan, t0, line.write, stats, scene, rod, on_onset, stop, clock, sleep)
         stats.trials += 1
         last = bool(trials) and plan.trial + 1 >= trials
@@ -345,6 +352,11 @@ def _stream_on_trigger(
         t0 = trigger.stamp_ns - plan.onset_ns if align == "onset" else clock()
         for j in range(per_trigger):
             start = t0 + j * period_ns
+            now = clock()
+            if j and now > start:  # simulated late: it starts when ready (see stream)
+                stats.late_trials += now - start > LATE_WRITE_NS
+                t0 += now - start
+                start = now
             onset_only = align == "onset" and j == 0
             _play(
                 plan,

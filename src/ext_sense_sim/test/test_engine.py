@@ -161,6 +161,48 @@ def test_streaming_stamps_onset_on_a_fake_clock():
         assert 0.045e9 <= onset_wall <= 0.055e9 + 0.002e9  # onset + 1 ms receiver latency
 
 
+def test_a_trial_simulated_late_starts_when_ready_at_its_own_pace(monkeypatch):
+    """A slow simulator delays the tap; it never squeezes the tap's bytes into one burst."""
+    import ext_sense_sim.streaming as streaming
+
+    sc = scene(
+        ["contact_impulse", "beam_modes", "grasp_transfer", "nuskin_transduction", "nuskin_wire"]
+    )
+    start = 10**18
+    now = [start]
+    written, truths = [], []
+
+    def slow_plans(scene, seed):
+        for plan in plan_trials(scene, seed):
+            if plan.trial == 1:
+                now[0] += 700_000_000  # drawn after trial 0's 0.1 s: due at 0.2 s, ready at 0.8 s
+            yield plan
+
+    def sleep(s):
+        now[0] += max(int(s * 1e9), 1000)
+
+    plan_trials = streaming.plan_trials
+    monkeypatch.setattr(streaming, "plan_trials", slow_plans)
+    stats = stream(
+        sc,
+        lambda data: written.append((now[0], data)),
+        seed=1,
+        trials=3,
+        period_s=0.2,
+        on_onset=truths.append,
+        clock=lambda: now[0],
+        sleep=sleep,
+    )
+    assert stats.trials == 3
+    assert stats.late_trials == 1
+    onsets = [gt.onset_ns - start for gt in truths]
+    assert onsets[1] - onsets[0] == pytest.approx(0.8e9, abs=15e6)  # 0.2 s period + 0.6 s late
+    assert onsets[2] - onsets[1] == pytest.approx(0.2e9, abs=15e6)  # the spacing is kept
+    late_trial = [t for t, _ in written if start + 0.8e9 <= t < start + 1.0e9]
+    assert len(late_trial) > 10  # written over time, not in one burst
+    assert max(late_trial) - min(late_trial) > 0.05e9
+
+
 def test_stream_refuses_a_scene_without_wire():
     sc = scene(["contact_impulse", "beam_modes", "grasp_transfer", "nuskin_transduction"])
     with pytest.raises(SceneError, match="needs effect 'nuskin_wire'"):

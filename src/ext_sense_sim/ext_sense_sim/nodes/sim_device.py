@@ -213,7 +213,8 @@ class SimDeviceNode(Node):
             f"trial {gt.trial} ({gt.class_label or f'{gt.tap_position_m:.3f} m'}) onset at "
             f"{gt.onset_ns} ns (so far: {getattr(self.sink, 'dropped_bytes', 0)} bytes dropped, "
             f"{self.stats.extra.get('late_writes', 0)} of {self.stats.writes} writes > 2 ms late, "
-            f"max {self.stats.extra.get('max_late_ns', 0) / 1e6:.1f} ms)"
+            f"max {self.stats.extra.get('max_late_ns', 0) / 1e6:.1f} ms, "
+            f"{self.stats.late_trials} trials started late: simulated after they were due)"
         )
 
     def _check(self) -> tuple[Level, str, dict[str, object]]:
@@ -228,6 +229,7 @@ class SimDeviceNode(Node):
                 "skipped_bytes": self.stats.extra.get("skipped_bytes", 0),
                 "late_writes": self.stats.extra.get("late_writes", 0),
                 "max_late_ms": round(self.stats.extra.get("max_late_ns", 0) / 1e6, 2),
+                "late_trials": self.stats.late_trials,
             },
         )
 
