@@ -1,25 +1,15 @@
 """Labelled windows from a rosbag2 bag, cut by the live graph's own windowing code (no ROS).
 
-A bag (mcap or sqlite3, as :mod:`ext_sense_bags` reads them) holds the driver stream and, when
-recorded with the simulator or a labelled session, ``ContactGroundTruth``. The driver stream is
-its raw packets (``SensorPacket``, what ``ext-sense record`` keeps by default), or, in bags
-recorded before packets existed or written by tools, its decoded arrays (``TaxelEventBatch`` or
-``BioTacFrame``); packets are preferred when a bag has both, as the live window node reads
-them. The sensor messages go, in log-time order, through
-:class:`ext_sense_perception.online.stage.WindowStage`, the core of the ``contact_window``
-node, so the windows are the ones the graph cuts from the same messages. Onsets:
+The sensor stream (``SensorPacket``, preferred, or the decoded ``TaxelEventBatch`` /
+``BioTacFrame`` of older bags) goes through
+:class:`~ext_sense_perception.online.stage.WindowStage` in log-time order. Onsets:
 
-- ``"truth"`` (default when the bag has ground truth): every ground-truth stamp is an onset
-  (food: the arm's motion start), as the simulator's ``dataset.npz`` is cut; labels come from
-  the same messages. Debounce is off, so trials closer than the live debounce all count.
-- ``"detected"``: the windower detects onsets from the signal, as live; each final window is
-  labelled by the ground truth stamped nearest its onset
-  (:func:`ext_sense_perception.data.device_stream.match_truths`). Without ground truth the windows
-  are unlabelled (``y`` NaN or ``""``), for inspection with ``ext-sense features``.
+- ``"truth"`` (default with ground truth): every ``ContactGroundTruth`` stamp is an onset, with
+  debounce off, as ``dataset.npz`` is cut.
+- ``"detected"``: onsets detected as live, each window labelled by the nearest truth
+  (unlabelled without ground truth).
 
-Messages that do not decode are counted and dropped (:class:`BagCounts`), as are malformed
-batches (the stage's ``bad_messages``); a bag that cannot be read at all raises
-:class:`~ext_sense_perception.errors.PerceptionError`.
+Undecodable messages and malformed batches are counted and dropped (:class:`BagCounts`).
 """
 
 from __future__ import annotations
@@ -49,8 +39,7 @@ PACKETS_TYPE = "ext_sense_msgs/msg/SensorPacket"
 TRUTH_TYPE = "ext_sense_msgs/msg/ContactGroundTruth"
 ONSET_MODES = ("auto", "truth", "detected")
 MARK_AHEAD_NS = 1 * S
-"""Truth onsets are marked when a message stamped this close to their window start is read
-(longer than any sensor message, so no window's first data is fed before its onset)."""
+"""Truth onsets are marked this far ahead of the data (longer than any sensor message)."""
 SENSOR_ID_PEEK = 256
 """BioTac frames read to find the sensor ids when none are given."""
 
@@ -75,13 +64,9 @@ class BagCounts(NamedTuple):
     """What became of a bag's messages and windows.
 
     Attributes:
-        sensor_messages: Sensor-stream messages read.
-        truths: Ground-truth messages read.
-        undecodable: Messages dropped because their bytes do not decode as their type.
+        undecodable: Messages whose bytes do not decode as their type.
         bad_messages: Decoded sensor messages the window stage dropped (malformed arrays).
-        windows: Final windows cut.
-        truncated: Of those, windows the bag ended inside (zero-padded tail).
-        labelled: Windows with a ground-truth label.
+        truncated: Windows the bag ended inside (zero-padded tail).
         unmatched_windows: Windows no truth was near (``"detected"`` onsets).
         missed_truths: Truths no window was cut for.
     """
@@ -141,16 +126,7 @@ def _infer_sensor(topics: dict[str, Any], names: BagTopics, custom: dict[str, st
 
 
 def read_truths(bag: Any, topic: str, drops: list[int]) -> tuple[list[GroundTruth], str]:
-    """The bag's ground truth (stamp = onset) and the first task name.
-
-    Args:
-        bag: An open :class:`ext_sense_bags.BagReader`.
-        topic: The ground-truth topic.
-        drops: One-element counter of undecodable messages.
-
-    Returns:
-        ``(truths in log-time order, task name of the first one or "")``.
-    """
+    """The bag's ground truth in log-time order and the first task name (or "")."""
     truths = [truth_of(msg) for msg in _decoded(bag, topic, drops)]
     return truths, next((g.task for g in truths if g.task), "")
 
@@ -209,7 +185,7 @@ def window_set_from_bag(
     match_tolerance_ns: int = 300 * MS,
     require_labels: bool = True,
 ) -> tuple[WindowSet, BagCounts]:
-    """Windows of a bag's sensor stream, labelled by its ground truth.
+    """Windows of a bag's sensor stream, labelled by its ground truth (``groups``: the trial).
 
     Args:
         path: Bag directory, or a single ``.mcap`` / ``.db3`` file.
@@ -217,21 +193,15 @@ def window_set_from_bag(
         sensor: Sensor (default: ``custom_data``, else the sensor topic present).
         topics: Topic names.
         onsets: ``"truth"``, ``"detected"`` or ``"auto"`` (truth when the bag has any).
-        config: Window configuration (default: the task profile's for the sensor).
-        rate_hz: NUSkin: per-taxel refractory drop to this rate before windowing (None: none);
-            ignored for BioTac, whose decimation is a feature step (``rate_hz`` feature option).
-        sensor_ids: BioTac sensors joined into one window, in channel order (default: every
-            ``sensor_id`` among the first frames).
+        config: Window configuration (default: the task profile's).
+        rate_hz: NUSkin: per-taxel refractory drop before windowing (ignored for BioTac).
+        sensor_ids: BioTac sensors joined into one window (default: those among the first frames).
         match_tolerance_ns: ``"detected"``: largest onset-to-truth distance for a label, ns.
-        require_labels: Raise when no window gets a label (training needs them).
-
-    Returns:
-        ``(window set, counts)``; ``groups`` is the ground truth's trial number.
+        require_labels: Raise when no window gets a label.
 
     Raises:
-        PerceptionError: The bag is missing, unreadable or empty; it has no sensor topic, or a
-            topic holds another type; task or sensor cannot be told; food without ground truth
-            (its window starts at the arm's motion start); no labelled window when required.
+        PerceptionError: An unreadable or empty bag, a missing or mistyped topic, an unknown task or
+            sensor, food without ground truth, or no labelled window when required.
     """
     path = Path(path)
     if onsets not in ONSET_MODES:

@@ -1,23 +1,10 @@
-"""Training windows cut from a raw NUSkin device stream by the live graph's own code (no ROS).
+"""Training windows cut from a raw NUSkin byte stream by the live graph's own code (no ROS).
 
-A model trained on windows cut offline at the true onset (``dataset.npz``) meets different
-windows live: there the driver stamps words on arrival, the windower detects the onset from
-the stamped events, and the window is cut around that detected onset. This module removes that
-train/serve skew by construction: the receiver bytes, as written to the link, go through the
-driver's decoding path (:meth:`ext_sense_drivers.nuskin.driver_config.DriverConfig.make_stream`:
-``WordDecoder`` and the arrival clock), are fed as event blocks to
-:class:`ext_sense_perception.online.stage.WindowStage`, the core of the ``contact_window`` node.
-Each final window is labelled by the ground truth whose stamp is nearest its detected onset
-(within ``match_tolerance_ns``, as the estimate monitor scores).
-
-Reads are modelled as the live link delivers them: the streamer wakes at least every
-millisecond and writes everything due (``ext_sense_sim.streaming.stream``) and the driver reads
-as soon as bytes wait, so the writes of each ``read_period_ns`` tick are read together at the
-tick's end. Windows here then match the live graph's when no byte is lost.
-
-:func:`cut_stream` can keep the events as the driver stamped them; :func:`recut` cuts the same
-windows again with their onsets moved (how far a model's estimate moves when the arrival clock
-moves a window's onset, and windows at moved onsets to train on).
+Removes the train/serve skew of windows cut at the true onset: the bytes go through the
+driver's decoder and arrival clock (``DriverConfig.make_stream``) into
+:class:`~ext_sense_perception.online.stage.WindowStage`, the ``contact_window`` node's core. The
+writes of each ``read_period_ns`` tick are read together, as the live streamer wakes every
+millisecond and the driver reads as soon as bytes wait.
 """
 
 from __future__ import annotations
@@ -59,9 +46,8 @@ class StreamCut(NamedTuple):
     """What the live graph makes of a byte stream.
 
     Attributes:
-        windows: The final (non-provisional) windows, oldest first.
-        events: Every decoded event as the driver stamped it, in arrival order (empty unless
-            asked for).
+        windows: The final windows, oldest first.
+        events: Every decoded event as stamped, in arrival order (empty unless asked for).
         words: Decoded words.
         skipped_bytes: Bytes the decoder skipped.
     """
@@ -86,14 +72,12 @@ def cut_stream(
 
     Args:
         writes: ``(t_ns, bytes)`` per write to the link, in time order (any clock).
-        config: Window configuration (default: the ``contact_window`` node's for tap
-            localisation).
-        baud: Link rate the driver's arrival clock assumes, bit/s.
+        config: Window configuration (default: the ``contact_window`` node's for taps).
+        baud: Link rate the arrival clock assumes, bit/s.
         read_period_ns: Writes within one tick of this length are read together, ns.
-        read_jitter: Each tick lasts ``read_period_ns * U(1 - j, 1 + j)`` (live reads come at
-            irregular times; training on several read patterns makes a model robust to them).
+        read_jitter: Each tick lasts ``read_period_ns * U(1 - j, 1 + j)``, as live reads vary.
         seed: Seed of the jitter.
-        keep_events: Keep every decoded event (memory: 15 bytes an event).
+        keep_events: Keep every decoded event (15 bytes an event).
 
     Raises:
         PerceptionError: A BioTac configuration, or a read period or jitter out of range.
@@ -159,13 +143,7 @@ def stream_windows(
     read_jitter: float = 0.0,
     seed: int = 0,
 ) -> tuple[list[ContactWindow], int, int]:
-    """Final windows the live graph cuts from a NUSkin receiver byte stream.
-
-    Arguments as :func:`cut_stream`'s.
-
-    Returns:
-        The final (non-provisional) windows, the decoded word count and the skipped bytes.
-    """
+    """The final windows, decoded word count and skipped bytes of :func:`cut_stream`."""
     cut = cut_stream(
         writes,
         config,
@@ -185,15 +163,12 @@ def recut(
 ) -> np.ndarray:
     """Windows of ``events`` cut again with each onset moved by its shift.
 
-    With no shift this is the window the ``contact_window`` node cut at that onset (its final
-    window holds every event from ``onset - pre`` to ``onset + post``); a shift moves the
-    window's grid against the events, as an arrival clock that stamps them later or earlier
-    moves them against the detected onset.
+    With no shift this is the window the ``contact_window`` node cut at that onset.
 
     Args:
         events: Events in time order, as the driver stamped them.
         onsets_ns: ``(n,)`` onsets of the windows, ns.
-        config: The window configuration (a NUSkin one).
+        config: A NUSkin window configuration.
         shifts_ns: Onset shift, ns: one for all, or ``(n,)`` (positive: the window starts later).
 
     Returns:
@@ -226,15 +201,9 @@ def recut(
 def match_truths(
     windows: Sequence[ContactWindow], truths: Sequence[GroundTruth], tolerance_ns: int
 ) -> tuple[list[tuple[ContactWindow, GroundTruth]], int, int]:
-    """Label windows by the ground truth stamped nearest their onset, each truth used once.
+    """Label windows by the truth stamped nearest their onset, each truth used once.
 
-    This is how the estimate monitor scores live estimates, so a set labelled here trains on
-    the windows the graph really cuts.
-
-    Args:
-        windows: Final windows, oldest first.
-        truths: Ground truth, any order, stamps on the windows' clock.
-        tolerance_ns: Largest distance from a window's onset to its truth's stamp, ns.
+    As the estimate monitor scores live estimates.
 
     Returns:
         ``(pairs of window and truth, windows left unmatched, truths left unmatched)``.
@@ -274,16 +243,10 @@ def window_set_from_stream(
 ) -> tuple[WindowSet, StreamCounts]:
     """A labelled training set cut from a raw stream exactly as the live graph cuts it.
 
-    Args:
-        writes: ``(t_ns, bytes)`` per write to the link, in time order.
-        truths: Ground truth per trial, stamps on the same clock as ``writes``.
-        config: Window configuration (default: the ``contact_window`` node's, tap).
-        baud: Link rate the driver's arrival clock assumes, bit/s.
-        read_period_ns: Writes within one tick of this length are read together, ns.
-        read_jitter: Relative jitter of the read ticks (see :func:`stream_windows`).
-        seed: Seed of the jitter.
+    Args are :func:`cut_stream`'s, and:
+        truths: Ground truth per trial, stamped on the writes' clock.
         match_tolerance_ns: Largest distance from a window's onset to its truth's stamp, ns.
-        source: Description stored in the set (file names, scene).
+        source: Description stored in the set.
 
     Returns:
         The window set (one window per matched trial, ``groups`` the trial) and counts.

@@ -1,14 +1,8 @@
-"""Readers for the recordings models are trained on (no ROS).
+"""Readers for the recordings models are trained on (no ROS); times become int64 ns.
 
-- the paper's NUSkin ``.tact`` (``isPos taxel removable t``) and its ``*_essentials.csv``;
-- the paper's BioTac ``.csv`` (columns ``pac`` and ``t``);
-- the paper's preprocessed ``.npz`` (``signals``, ``labels``);
-- the real NUSkin food-poking captures (``.tact`` as ``col0 taxel value t`` plus a ROS 1 bag of
-  ``franka_msgs/msg/FrankaState`` giving the start of the arm's motion);
-- the simulator's ``dataset.npz`` (docs/conventions.md).
-
-Times become integer nanoseconds on the way in. Each reader raises
-:class:`~ext_sense_perception.errors.PerceptionError` on a missing or malformed file.
+Paper NUSkin ``.tact`` and ``*_essentials.csv``, paper BioTac ``.csv``, paper preprocessed
+``.npz``, real NUSkin food-poking captures (``.tact`` plus a ROS 1 bag of ``FrankaState``), and
+the simulator's ``dataset.npz`` (docs/conventions.md).
 """
 
 from __future__ import annotations
@@ -76,11 +70,11 @@ def read_paper_tact(
     Args:
         path: The file.
         policy: Strict (default) or lenient input rules (:mod:`.validation`).
-        markers: Whether the first and last lines are markers (the paper's files) or ordinary
-            events (the lab's real-time rod-tap captures, REFERENCE.md section 2).
+        markers: Whether the first and last lines are markers (the paper's files) or events (the
+            lab's rod-tap captures, REFERENCE.md section 2).
 
     Returns:
-        Events with polarity +1 (``isPos`` 1) or -1 (``isPos`` 0), in time order.
+        Events with polarity +1 (``isPos`` 1) or -1, in time order.
 
     Raises:
         PerceptionError: when the file is missing or malformed, or a row breaks a rule.
@@ -102,16 +96,8 @@ def read_paper_tact(
 def read_capture_tact(path: str | Path, policy: InputPolicy | None = None) -> EventBlock:
     """A real food-poking capture ``.tact``: ``col0 taxel value t`` between marker lines.
 
-    The markers (``1 1 1 t`` first, ``2 2 2 t`` last) are dropped; ``col0`` (the receiver's
-    polarity bit, 0 in these captures) becomes polarity 0, which counts +1 in windows.
-
-    Args:
-        path: The file.
-        policy: Strict (default) or lenient input rules (:mod:`.validation`): finite epoch
-            times in order, taxels 1..80, values 0..1023, at least one event.
-
-    Returns:
-        Events with their 10-bit values.
+    The markers (``1 1 1 t`` first, ``2 2 2 t`` last) are dropped; ``col0`` (0 in these captures)
+    becomes polarity 0, which counts +1 in windows.
 
     Raises:
         PerceptionError: when the file is missing or malformed, or a row breaks a rule.
@@ -136,12 +122,6 @@ def read_capture_tact(path: str | Path, policy: InputPolicy | None = None) -> Ev
 
 def read_csv_columns(path: str | Path) -> dict[str, np.ndarray]:
     """A CSV with a header line as columns (numbers where every value parses, else strings).
-
-    Args:
-        path: The file (the paper's ``*_essentials.csv`` or BioTac ``.csv``).
-
-    Returns:
-        Column name to array.
 
     Raises:
         PerceptionError: when the file is missing or empty.
@@ -171,16 +151,9 @@ def read_csv_columns(path: str | Path) -> dict[str, np.ndarray]:
 
 
 def read_biotac_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """The paper's BioTac recording: PAC samples and their times.
+    """The paper's BioTac CSV (columns ``pac``, ``t``) as ``(pac (n,) float64, t_ns (n,) int64)``.
 
-    Every row must hold a 12-bit PAC sample and a finite epoch time, in time order: the samples
-    are a series, so a bad row is always an error (dropping it would shift every later sample).
-
-    Args:
-        path: CSV with columns ``pac`` and ``t`` (epoch seconds).
-
-    Returns:
-        ``(pac (n,) float64, t_ns (n,) int64)``.
+    A bad row is always an error: dropping a sample would shift every later one.
 
     Raises:
         PerceptionError: when a column is missing, or a row breaks a rule.
@@ -206,15 +179,7 @@ def read_biotac_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def load_preprocessed_npz(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """The paper's preprocessed ``.npz``: ``signals`` and ``labels``.
-
-    NUSkin signals are ``(n, 80, n_bins)`` signed counts; BioTac ``(n, n_samples)`` PAC.
-
-    Args:
-        path: The file.
-
-    Returns:
-        ``(signals as (n, n_channels, n_samples) float32, labels)``.
+    """The paper's preprocessed ``.npz``: ``(signals (n, n_channels, n_samples) float32, labels)``.
 
     Raises:
         PerceptionError: when the file is missing or lacks the arrays.
@@ -235,13 +200,6 @@ def read_arm_motion(bag: str | Path, speed_threshold: float = 0.05) -> ArmMotion
     """Start and stop of the arm's motion from a ROS 1 bag of ``franka_msgs/msg/FrankaState``.
 
     Motion is where the sum of absolute joint velocities exceeds ``speed_threshold`` rad/s.
-
-    Args:
-        bag: The ``.bag`` file.
-        speed_threshold: Threshold on the summed joint speeds, rad/s.
-
-    Returns:
-        The motion's start and stop (header stamps, ns).
 
     Raises:
         PerceptionError: when the bag is missing, unreadable, or the arm never moves.
@@ -273,11 +231,7 @@ def read_arm_motion(bag: str | Path, speed_threshold: float = 0.05) -> ArmMotion
 
 
 class Recording(NamedTuple):
-    """One labelled trial of the real captures.
-
-    ``capture_start_ns`` is the capture's first line (its ``1 1 1 t`` marker, or its first event
-    where the marker is missing); ``motion`` is None when the trial has no arm bag.
-    """
+    """One labelled trial of the real captures (``motion`` None when it has no arm bag)."""
 
     name: str
     label: str
@@ -316,12 +270,11 @@ def food_poking_trials(
 
     Args:
         directory: A session folder such as ``../shared/data/nuskin_food_poking``.
-        include_empty: Keep the single ``empty`` trial (excluded by default: one trial cannot be
-            split into train and test sets).
-        policy: Strict (default) or lenient input rules; a lenient load drops (and names in
-            the excluded list) a trial with no valid event.
-        arm_motion: Read each trial's arm bag for the motion start (a missing bag is then an
-            error); False: leave ``motion`` None.
+        include_empty: Keep the single ``empty`` trial (one trial cannot be split into folds).
+        policy: Strict (default) or lenient input rules; a lenient load excludes a trial with no
+            valid event.
+        arm_motion: Read each trial's arm bag (a missing bag is then an error); False: ``motion``
+            None.
 
     Returns:
         ``(recordings sorted by name, names of the excluded trials)``.
@@ -383,13 +336,7 @@ def _no_trials(directory: Path, excluded: list[str]) -> str:
 
 
 def load_sim_dataset(path: str | Path) -> dict[str, np.ndarray]:
-    """The simulator's ``dataset.npz`` as a dict of arrays (format in docs/conventions.md).
-
-    Args:
-        path: The file.
-
-    Returns:
-        Its arrays; strings are plain ``str``.
+    """The simulator's ``dataset.npz`` as a dict of arrays, strings as ``str``.
 
     Raises:
         PerceptionError: when the file is missing or lacks the common fields.

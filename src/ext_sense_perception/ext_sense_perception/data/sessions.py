@@ -1,15 +1,9 @@
-"""Sessions: the unit of data, each a recording with its metadata kept beside it (no ROS).
+"""Sessions, the unit of data: a recording with its metadata beside it (no ROS).
 
-A session is one capture folder, one bag or one simulator run, recorded on one day with one
-sensor. Its metadata (date, sensor and its id, robot, label set, notes, a baseline capture with
-nothing touched) lives in ``session.json`` beside the data: inside a capture folder or a bag
-directory, or as ``<file>.session.json`` beside a single-file bag or dataset. Where there is no
-such file (the read-only captures in ``../shared``), the metadata is inferred: the date from the
-first capture's host clock, the label set from the data's classes, the baseline from a
-``zero.tact`` in the folder.
-
-The label set is what the operator declares the session can hold (the foods on today's plate);
-:mod:`ext_sense_perception.training.scoring` restricts a model's decisions to it.
+A session is one capture folder, bag or simulator run. Its metadata lives in ``session.json``
+inside the folder or as ``<file>.session.json``; without one (the read-only captures) it is
+inferred from the data. The label set is what the session can hold; scoring restricts
+decisions to it.
 """
 
 from __future__ import annotations
@@ -38,13 +32,9 @@ class SessionInfo:
     """A session's metadata.
 
     Attributes:
-        name: Short name (default: the folder or file name).
         date: Day of the recording, ``YYYY-MM-DD`` (empty: unknown).
-        sensor: Sensor kind (``nuskin``, ``biotac``).
-        sensor_id: The physical sensor's id (serial number, empty: unknown).
-        robot: Arm and gripper used.
+        sensor_id: The physical sensor's serial number (empty: unknown).
         labels: The classes the session may hold (empty: the data's own, or regression).
-        notes: Free text.
         baseline: A capture with nothing touched, relative to the session path (empty: none).
         inferred: Whether the metadata was inferred rather than read from a file.
     """
@@ -85,9 +75,7 @@ def read_info(path: str | Path) -> SessionInfo | None:
     """The metadata file of the session at ``path`` (None: there is none).
 
     Raises:
-        PerceptionError: A file that is not JSON, or not an object of the fields of
-            :data:`SESSION_SCHEMA` with the kinds it names; the message names the file, the
-            field, what was expected and what arrived.
+        PerceptionError: A file that is not JSON or breaks :data:`SESSION_SCHEMA`.
     """
     meta = metadata_file(path)
     if not meta.is_file():
@@ -114,14 +102,6 @@ SESSION_SCHEMA: dict[str, str] = {
 
 def info_from_json(values: object, meta: str | Path, default_name: str) -> SessionInfo:
     """The metadata of a ``session.json``'s parsed ``values``, checked against the schema.
-
-    Args:
-        values: The file's JSON value.
-        meta: The file (named in errors).
-        default_name: The session's name when the file gives none.
-
-    Returns:
-        The metadata.
 
     Raises:
         PerceptionError: The first field that breaks :data:`SESSION_SCHEMA`.
@@ -229,18 +209,7 @@ def load_session(
     policy: InputPolicy | None = None,
     anchor: Anchor | str | None = None,
 ) -> Session:
-    """One session's windows (each window named by the session) and its metadata.
-
-    Args:
-        path: The session's data (see :func:`~.sources.load_window_set`).
-        task: Task (needed for preprocessed files).
-        sensor: Sensor (needed for preprocessed files).
-        rate_hz: NUSkin: per-taxel refractory drop to this rate (None: none).
-        policy: Strict (default) or lenient input rules.
-        anchor: Capture folders: what the onsets are tied to (None: the source's default).
-
-    Returns:
-        The session.
+    """One session's windows and metadata (arguments as :func:`~.sources.load_window_set`'s).
 
     Raises:
         PerceptionError: Unreadable data or metadata, or metadata naming another sensor.
@@ -250,14 +219,10 @@ def load_session(
 
 
 def as_session(path: str | Path, ws: WindowSet) -> Session:
-    """The session of the windows ``ws`` loaded from ``path``: every loader's one way there.
-
-    The metadata is read from the ``session.json`` beside the data (checked against
-    :data:`SESSION_SCHEMA`), else inferred; each window is named by the session.
+    """The session of the windows ``ws`` loaded from ``path``, each window named by the session.
 
     Raises:
-        PerceptionError: Metadata that breaks the schema, or names another sensor than the
-            data's.
+        PerceptionError: Metadata that breaks the schema, or names another sensor than the data's.
     """
     info = read_info(path) or infer_info(path, ws)
     if info.sensor and info.sensor != ws.sensor:

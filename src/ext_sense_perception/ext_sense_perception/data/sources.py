@@ -1,9 +1,6 @@
-"""Window sets from the sources models are trained on (no ROS).
+"""Window sets from every training source, cut by the online windowers' own cut (no ROS).
 
-The simulator's ``dataset.npz``, the real NUSkin food-poking captures, the paper's preprocessed
-``.npz`` and rosbag2 bags (:mod:`.bags`); :func:`load_window_set` picks the reader by what the
-path is. Windows are cut by :func:`~ext_sense_perception.online.window.window_from_recording`,
-the online windowers' own cut, with the task profile (:mod:`ext_sense_perception.profiles`).
+:func:`load_window_set` picks the reader by what the path is.
 """
 
 from __future__ import annotations
@@ -61,11 +58,7 @@ def from_sim_dataset(
         path: The dataset.
         config: Windows to cut (default: the task profile's for the dataset's sensor).
         rate_hz: NUSkin: per-taxel refractory drop to this rate before binning (None: none).
-        policy: Strict (default) or lenient input rules: taxels in 1..80, finite tap
-            positions (a lenient load drops the event or the trial and counts it).
-
-    Returns:
-        The window set.
+        policy: Strict (default) or lenient input rules (a lenient load drops and counts).
 
     Raises:
         PerceptionError: when the file is malformed.
@@ -148,9 +141,8 @@ def from_sim_dataset(
 def food_capture_config(anchor: Anchor | str = Anchor.ARM_MOTION) -> WindowConfig:
     """The real food captures' windows at ``anchor`` (see ``profiles.capture_profile``).
 
-    The captures end about 3.1 s after the arm starts moving, so the paper's 2 s to 8 s window
-    does not fit them; a model trained on them records the window used in its card. Contact
-    windows use ``online.window.FOOD_CONTACT_DETECTOR``.
+    The captures end about 3.1 s after the arm starts moving, too early for the paper's 2-8 s
+    window.
     """
     return WindowConfig.for_profile(capture_profile(anchor), Sensor.NUSKIN)
 
@@ -177,23 +169,18 @@ def from_food_poking(
     policy: InputPolicy | None = None,
     anchor: Anchor | str | None = None,
 ) -> WindowSet:
-    """Windows of one session of real NUSkin food-poking captures.
+    """Windows of one session of real NUSkin food-poking captures (:func:`food_capture_config`).
 
     Args:
-        directory: A session folder (``../shared/data/nuskin_food_poking``).
-        include_empty: Keep the single ``empty`` trial (excluded by default).
+        directory: The session folder.
+        include_empty: Keep the single ``empty`` trial.
         rate_hz: Per-taxel refractory drop to this rate before binning (None: none).
         policy: Strict (default) or lenient input rules (:mod:`.validation`).
-        anchor: What the onsets are tied to (None: :func:`default_anchor`); ``arm_motion``
-            needs every trial's arm bag.
-
-    Returns:
-        The window set (``excluded`` names the trials left out, ``anchor`` the anchor used),
-        cut with :func:`food_capture_config`.
+        anchor: What the onsets are tied to (None: :func:`default_anchor`).
 
     Raises:
-        PerceptionError: No trials, a missing bag for ``arm_motion``, a row breaking a rule, or
-            no trial with a detected contact.
+        PerceptionError: No trials, a missing bag for ``arm_motion``, a row breaking a rule, or no
+            trial with a detected contact.
     """
     anchor = default_anchor(directory) if anchor is None else Anchor.parse(anchor)
     recs, excluded = food_poking_trials(
@@ -246,26 +233,14 @@ def from_preprocessed_npz(
     rate_hz: float | None = None,
     policy: InputPolicy | None = None,
 ) -> WindowSet:
-    """The paper's preprocessed ``.npz`` as a window set.
+    """The paper's preprocessed ``.npz`` as a window set (handover: ``isPos`` as stable/unstable).
 
-    NUSkin: 5 ms bins from 50 ms before contact (handover v2 and food: from 0). BioTac: 2200 Hz
-    (or ``frequency_hz`` after decimation) from 100 samples before contact.
-
-    Args:
-        path: The file.
-        task: Task name.
-        sensor: Sensor name.
-        frequency_hz: BioTac sample rate of the file (None: 2200 Hz).
-        rate_hz: NUSkin refractory drop; refused, because the file holds binned counts and the
-            drop needs the events themselves (BioTac decimation happens in the features).
-        policy: Strict (default) or lenient input rules: finite windows and positions (a
-            lenient load drops and counts the window).
-
-    Returns:
-        The window set; handover labels are the first label column (``isPos``) as stable/unstable.
+    NUSkin: 5 ms bins from 50 ms before contact (handover v2 and food: from 0). BioTac: 2200 Hz (or
+    ``frequency_hz``) from 100 samples before contact.
 
     Raises:
-        PerceptionError: a NUSkin ``rate_hz``, a malformed file, or a window breaking a rule.
+        PerceptionError: a NUSkin ``rate_hz`` (the file holds bin counts, not events), a malformed
+            file, or a window breaking a rule.
     """
     task_e, sensor_e = Task.parse(task, PerceptionError), Sensor.parse(sensor, PerceptionError)
     if rate_hz is not None and sensor_e is Sensor.NUSKIN:
@@ -315,12 +290,7 @@ def from_preprocessed_npz(
 
 
 def names_own_kind(data: str | Path) -> bool:
-    """Whether the data at ``data`` says its own task and sensor.
-
-    Capture folders (food, NUSkin) and the simulator's datasets do; bags, recordings and the
-    paper's preprocessed ``.npz`` are read as the task and sensor given (a bag only defaults
-    to its own).
-    """
+    """Whether the data says its own task and sensor (capture folders and simulator datasets do)."""
     path = Path(data)
     if path.is_dir():
         return not is_bag(path)
@@ -344,23 +314,16 @@ def load_window_set(
     """Any supported source as a window set, chosen by what ``data`` is.
 
     Args:
-        data: A rosbag2 bag (directory, ``.mcap`` or ``.db3``; see
-            :func:`ext_sense_perception.data.bags.window_set_from_bag`), a food-poking
-            directory, a simulator ``dataset.npz`` or a preprocessed ``.npz``.
+        data: A rosbag2 bag, a food-poking directory, a simulator ``dataset.npz`` or a preprocessed
+            ``.npz``.
         task: Task (needed for preprocessed files).
         sensor: Sensor (needed for preprocessed files).
         rate_hz: NUSkin: per-taxel refractory drop to this rate (None: none).
-        policy: Strict (default) or lenient input rules of the file readers (bags count their
-            malformed messages instead).
-        anchor: Capture folders: what the onsets are tied to (None: :func:`default_anchor`).
-            Other sources hold their own onsets and accept only None.
-
-    Returns:
-        The window set.
+        policy: Strict (default) or lenient input rules of the file readers.
+        anchor: Capture folders only: what the onsets are tied to.
 
     Raises:
-        PerceptionError: when the source is not recognised, or an anchor is given for a source
-            that has its own onsets.
+        PerceptionError: an unrecognised source, or an anchor for a source with its own onsets.
     """
     path = Path(data)
     if anchor is not None and not (path.is_dir() and not is_bag(path)):
