@@ -26,7 +26,7 @@ from ext_sense_runtime.teardown_guard import TEARDOWN_LIMIT_S
 
 HUNG_NODE = """
 import sys, time
-from ext_sense_runtime.node_main import install_stop_handlers
+from ext_sense_runtime.stop import install_stop_handlers
 
 def stuck_in_a_callback():
     while True:  # a stop request is recorded, never looked at

@@ -1,16 +1,9 @@
 """One guard for every node callback: an exception is caught, counted, logged once, diagnosed.
 
-An exception escaping a subscription, timer or service callback reaches the executor, which
-ends the node's spin (``[FATAL] Exception in 'subscriptions' callback``) and with it the graph:
-one malformed message or one bad model card would stop a whole session. The guard wraps each
-callback so that the exception stays inside it: it is counted per callback, logged once per
-callback and exception type with its cause (type, message, where it was raised), and shown on
-``/diagnostics`` through the node's :class:`~ext_sense_runtime.diagnostics.Updater`: ERROR
-while exceptions are recent, WARN once they stop, OK when there were none. The callback's next
-call runs normally.
-
-No rclpy here: the node hands in its logger's ``error`` method, so the guard is plain Python
-and testable without ROS. Usage in a node::
+An exception escaping a callback ends the node's spin, and with it the graph: one malformed
+message would stop a session. Guarded, it is counted per callback, logged once per callback and
+type with where it was raised, and shown on ``/diagnostics`` (ERROR while recent, then WARN).
+No rclpy: the node hands in its logger's ``error``. Usage in a node::
 
     self.guard = CallbackGuard(self.get_logger().error)
     self.create_subscription(Msg, "topic", self.guard(self._on_msg), qos)
@@ -82,17 +75,14 @@ class CallbackGuard:
     ) -> F:
         """Return ``fn`` guarded: its exceptions are caught and reported, it returns ``None``.
 
-        Coroutine functions get an async wrapper (rclpy awaits them). ``BaseException``s that
-        are not ``Exception``s (``KeyboardInterrupt``, ``SystemExit``) pass: they are stops,
-        not faults.
+        Coroutine functions get an async wrapper. Non-``Exception``s (``KeyboardInterrupt``,
+        ``SystemExit``) pass: they are stops, not faults.
 
         Args:
             fn: The callback.
             name: Its name in the log and on ``/diagnostics``; default ``fn.__name__``.
-            fallback: Gives the return value after an exception, for callbacks whose caller
-                needs one (an on-set-parameters callback must return a
-                ``SetParametersResult``: ``lambda err: SetParametersResult(successful=False,
-                reason=str(err))``); default ``None``.
+            fallback: Gives the return value after an exception (an on-set-parameters callback
+                must return a ``SetParametersResult``: :func:`~.parameters.refused`).
         """
         label = name or getattr(fn, "__name__", None) or repr(fn)
         if inspect.iscoroutinefunction(fn):
@@ -118,11 +108,7 @@ class CallbackGuard:
         return guarded  # type: ignore[return-value]
 
     def caught(self, callback: str, err: BaseException) -> None:
-        """Count, and log the first of its kind, an exception caught in ``callback``.
-
-        Public so that a node with its own ``try`` (e.g. around a device read) can report an
-        unexpected exception the same way.
-        """
+        """Count, and log the first of its kind, an exception caught in ``callback``."""
         cause = f"{callback}: {describe(err)}"
         key = (callback, type(err).__name__)
         with self._lock:
@@ -159,10 +145,7 @@ class CallbackGuard:
 
 
 def describe(err: BaseException) -> str:
-    """``"<Type>: <message> (at <file>:<line> in <function>)"``: the cause in one line.
-
-    The place is the innermost frame of the traceback, where the exception was raised.
-    """
+    """``"<Type>: <message> (at <file>:<line> in <function>)"``, the innermost frame."""
     text = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
     frames = traceback.extract_tb(err.__traceback__) if err.__traceback__ else []
     if frames:

@@ -1,9 +1,7 @@
-"""A small diagnostics updater in the spirit of ros/diagnostics, with no rclpy import.
+"""A small diagnostics updater in the spirit of ros/diagnostics (not on PyPI), no rclpy.
 
-The Python ``diagnostic_updater`` is not on PyPI, so ext_sense keeps its own: one task per
-concern (link state, rates, decode errors, latency), each returning a level, a message and
-key-values whose keys carry their units. The clock is injected, so tests never sleep.
-:mod:`ext_sense_runtime.diagnostics_ros` turns reports into ``diagnostic_msgs`` messages.
+One task per concern, each returning a level, a message and key-values whose keys carry their
+units; the clock is injected, so tests never sleep. :mod:`.diagnostics_ros` publishes reports.
 """
 
 from __future__ import annotations
@@ -149,8 +147,7 @@ class Updater:
     def update(self, force: bool = False) -> list[StatusReport]:
         """Run every task when due (or forced); return their reports, else an empty list.
 
-        A task that raises is reported as ERROR with the exception text instead of killing the
-        node that hosts the updater.
+        A task that raises is reported as ERROR instead of killing the node.
         """
         if not (force or self.due()):
             return []

@@ -1,8 +1,6 @@
 """Tasks and sensors: the closed sets of names every ext_sense package speaks (no rclpy).
 
-One definition for the simulator (scenes, datasets, bags) and perception (windows, models,
-importers): ``label`` is the string used in files, parameters and messages
-(``ContactGroundTruth.task``, ``ContactWindow.sensor``), so the two sides cannot drift apart.
+``label`` is the string used in files, parameters and messages, one definition for all.
 """
 
 from __future__ import annotations
@@ -27,12 +25,8 @@ class _Named(IntEnum):
     def parse(cls, value: str | int | Self, error: type[Exception] = ValueError) -> Self:
         """Member from its label, enum name, alias or value (case and ``-``/``_`` ignored).
 
-        Args:
-            value: What to parse.
-            error: Exception type raised on a bad value, so each package raises its own.
-
         Raises:
-            error: The value names no member; the message names the parameter.
+            error: The value names no member (each package passes its own exception type).
         """
         if isinstance(value, cls):
             return value

@@ -1,14 +1,9 @@
 """Choosing and spinning the executor.
 
-``EventsExecutor`` where rclpy has it (Kilted), else single-threaded: at 4 kHz the
-SingleThreadedExecutor drops messages where the EventsExecutor with a deep history keeps up;
-Jazzy's rclpy 7.1 has no EventsExecutor.
-
-Never call ``EventsExecutor.spin()`` directly: in rclpy 9.1 it busy-waits (most of a core with
-nothing to do; docs/ros2-from-pypi.md) and does not return on SIGINT or SIGTERM, while a loop of
-``spin_once(timeout_sec)`` idles and ends when a stop is requested (the stop handlers of
-:mod:`ext_sense_runtime.stop`) or the context is shut down. :func:`spin_until_shutdown` is
-that loop.
+``EventsExecutor`` where rclpy has it (Kilted; it keeps up at 4 kHz where the single-threaded
+one drops), else single-threaded (Jazzy). Never call ``EventsExecutor.spin()``: in rclpy 9.1 it
+busy-waits and ignores stop signals (docs/ros2-from-pypi.md); :func:`spin_until_shutdown` loops
+on ``spin_once`` instead.
 """
 
 from __future__ import annotations
@@ -37,13 +32,9 @@ def spin_until_shutdown(
     timeout_s: float = 0.1,
     stop: Callable[[], bool] | None = None,
 ) -> None:
-    """Run callbacks until a stop is requested or the context is shut down (a node finishing).
+    """Run callbacks until ``stop()`` or the context (default: rclpy's) is shut down.
 
-    Args:
-        executor: The executor with the nodes added.
-        context: The context to watch; the default context when ``None``.
-        timeout_s: Longest wait for one callback; bounds how late a stop or shutdown is noticed.
-        stop: Polled between callbacks: true ends the loop (e.g. Ctrl-C or SIGTERM received).
+    ``timeout_s`` is the longest wait for one callback: how late the end may be noticed.
     """
     import rclpy
 

@@ -1,30 +1,15 @@
 """Intra-process delivery between nodes of one process, as rclcpp's intra-process comms.
 
-When the hot path runs in one process (``hot_path:=one_process``), a packet still went from the
-driver's publisher through the middleware to the window node's subscription in the same
-process, and the window likewise to the inference node: each hop a serialisation, a loopback
-delivery and an executor wake-up (docs/benchmarks.md, run 8). rclcpp avoids this
-for composed nodes (``use_intra_process_comms``); rclpy has no such thing, so this module does
-the same for the hot path's topics:
+rclpy has none, so in the hot path's one process each hop would be a serialisation, a loopback
+delivery and an executor wake-up (docs/benchmarks.md, run 8). After :func:`enable`, an
+:class:`IntraProcessPublisher` hands each message straight to this process's subscriptions on
+that topic, in the publishing callback (driver -> window -> estimate in one callback), then
+publishes its bytes once. The subscriptions still take the middleware's messages (a bag replay,
+another process), raw, and drop the byte-identical copies of what was handed over: matching
+bytes, because rclpy's ``EventsExecutor`` cannot pass a ``MessageInfo`` (Kilted).
 
-- :class:`IntraProcessPublisher` hands each message, before it goes to the middleware, straight
-  to the callbacks of this process's :func:`create_subscription` subscriptions on that topic
-  (same context, same resolved topic name), in the publishing callback: the chain driver ->
-  window -> estimate runs in the driver's one callback.
-- The subscription still takes what the middleware delivers (a bag replay, another process's
-  driver), but drops its copies of what this process's intra-process publishers handed over:
-  the publisher serialises each message once, publishes those bytes, and leaves them with the
-  local subscriptions, which take the middleware's messages serialised (``raw``) and drop a
-  byte-identical one (so a dropped copy is never deserialised). Matching bytes rather than
-  publisher gids: rclpy's ``EventsExecutor`` cannot call a subscription with its
-  ``MessageInfo`` ("SystemError: null argument to internal routine", Kilted), and the bytes
-  need no graph lookups.
-
-It applies only after :func:`enable` (the node group's process calls it before building its
-nodes: ``ext_sense.runner.run_in_process``); a process of one node publishes and subscribes as
-rclpy does. Delivery is synchronous on the publisher's thread, so both nodes must be spun by
-one single-threaded executor (the node group's is). As with rclcpp's, the message object itself
-is handed over: a subscriber must not change it, nor a publisher reuse it after publishing.
+Delivery is synchronous, so both nodes must share one single-threaded executor. The message
+object itself is handed over: a subscriber must not change it, nor a publisher reuse it.
 """
 
 from __future__ import annotations
@@ -32,7 +17,6 @@ from __future__ import annotations
 import weakref
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 from rclpy.node import Node
@@ -44,8 +28,7 @@ from rclpy.subscription import Subscription
 _enabled = False
 
 HANDED_OVER_KEPT_MIN = 64
-"""Fewest handed-over messages a subscription remembers until the middleware's copy comes (at
-least its QoS depth: a copy further back than that was dropped from the reader's queue)."""
+"""Fewest handed-over messages a subscription remembers until their middleware copies come."""
 
 
 def enable() -> None:
@@ -54,31 +37,20 @@ def enable() -> None:
     _enabled = True
 
 
-def enabled() -> bool:
-    """Whether :func:`enable` was called in this process."""
-    return _enabled
+_TOPICS: weakref.WeakKeyDictionary[Any, dict[str, list[IntraProcessSubscription]]] = (
+    weakref.WeakKeyDictionary()
+)
+"""The intra-process subscriptions per rclpy context (gone with it), per resolved topic name."""
 
 
-@dataclass
-class _Topic:
-    """The intra-process subscriptions of one topic in one context."""
-
-    subscriptions: list[IntraProcessSubscription] = field(default_factory=list)
-
-
-_TOPICS: weakref.WeakKeyDictionary[Any, dict[str, _Topic]] = weakref.WeakKeyDictionary()
-"""Per rclpy context (gone with it), per resolved topic name."""
-
-
-def _topic(node: Node, name: str) -> _Topic:
-    return _TOPICS.setdefault(node.context, {}).setdefault(name, _Topic())
+def _topic(node: Node, name: str) -> list[IntraProcessSubscription]:
+    return _TOPICS.setdefault(node.context, {}).setdefault(name, [])
 
 
 class IntraProcessPublisher:
     """A publisher that also hands messages straight to this process's subscriptions.
 
-    Attributes not defined here are the rclpy publisher's (``topic_name``,
-    ``get_subscription_count``...).
+    Other attributes are the rclpy publisher's.
     """
 
     def __init__(self, node: Node, publisher: Publisher) -> None:
@@ -87,7 +59,7 @@ class IntraProcessPublisher:
 
     def publish(self, msg: Any) -> None:
         """Hand ``msg`` to the local subscriptions' callbacks, then publish it."""
-        subscriptions = tuple(self._topic.subscriptions)
+        subscriptions = tuple(self._topic)
         if not subscriptions:
             self.publisher.publish(msg)
             return
@@ -98,8 +70,7 @@ class IntraProcessPublisher:
                     delivered.append(subscription)  # also when its callback raises: no copy
                     subscription.deliver_local(msg)
         finally:
-            # serialised after the hand-over (0.04-0.18 ms for a 380 kB window, off the hot path),
-            # once as publish would, and left with the subscriptions before their copy can come
+            # serialised once, after the hand-over, and left with the subscriptions first
             raw = serialize_message(msg)
             for subscription in delivered:
                 subscription.await_copy(raw)
@@ -144,13 +115,13 @@ class IntraProcessSubscription:
             msg_type, topic, self._on_middleware, qos, raw=True, **kwargs
         )
         self._topic = _topic(node, self.subscription.topic_name)
-        self._topic.subscriptions.append(self)
+        self._topic.append(self)
 
     def alive(self) -> bool:
         """Whether the subscription still exists; one destroyed with its node is forgotten."""
         if self.subscription in self.node.subscriptions:
             return True
-        self._topic.subscriptions.remove(self)
+        self._topic.remove(self)
         return False
 
     def deliver_local(self, msg: Any) -> None:

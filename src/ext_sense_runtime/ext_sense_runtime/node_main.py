@@ -1,28 +1,15 @@
 """The spin-and-signal helper of every rclpy entry point: init, spin, one clean teardown.
 
-Node executables (``run_node``, ``run_nodes``: ``ros2 run``, ``ros2 launch``, ``ext-sense
-run``'s children), ``ext-sense record`` and ``replay`` and ``ext-sense collect`` all go through
-:class:`RosSession`. A stop signal (:data:`~ext_sense_runtime.stop.STOP_SIGNALS`: Ctrl-C,
-SIGTERM, SIGHUP, SIGQUIT, often twice: the terminal's and the one ``ros2 launch`` or
-``ext-sense run`` forwards) and a node finishing its job (it shuts its context down) end the
-process with exit code 0, no abort and no traceback; and before the process ends its nodes are
-destroyed and its context shut down *and destroyed*, so its middleware participant leaves the
-graph at once instead of lingering in ``ros2 node list`` until its lease runs out.
+Node executables (``run_node``, ``run_nodes``), ``ext-sense record``, ``replay`` and ``collect``
+all go through :class:`RosSession`. A stop signal (:data:`~ext_sense_runtime.stop.STOP_SIGNALS`,
+often twice) or a node shutting its context down ends the process with 0, no abort and no
+traceback, after its nodes are destroyed and its context shut down *and destroyed*, so its
+middleware participant leaves the graph at once.
 
-rclpy's own signal handlers are not used: ``rclpy.init`` installs SIGINT/SIGTERM handlers that
-shut the context down and then chain to Python's default SIGINT handler, which raises
-``KeyboardInterrupt`` in the main thread wherever it happens to be: inside a callback the
-EventsExecutor's C++ called (``[FATAL] Exception in 'timers' callback``), inside a pybind11 call
-that cannot pass it on (``terminate called after throwing an instance of
-'pybind11::error_already_set'``, ``Fatal Python error: Aborted``, exit -6), or in
-``destroy_node`` when a second SIGINT lands in the cleanup. Here rclpy is initialised with
-``SignalHandlerOptions.NO`` and the handlers of :class:`~ext_sense_runtime.stop.StopRequest`
-only record that a stop was asked; the spin loop notices it within its poll period (0.1 s) and
-then, from the main thread and outside any callback, the executor is shut down, each node
-destroyed and rclpy shut down, once each. Further signals are the same request, and once the
-cleanup is done they are ignored (:meth:`~ext_sense_runtime.stop.StopRequest.ignore_further`):
-the process is exiting, and a signal during the interpreter's finalisation would otherwise end
-it with -2.
+rclpy's own handlers are not used: they raise ``KeyboardInterrupt`` wherever the main thread is,
+which aborts the process inside a callback the executor's C++ called or inside a pybind11 call.
+Here the handlers only record the stop; the spin loop notices it within its poll period and
+tears down from the main thread, outside any callback, once.
 """
 
 from __future__ import annotations
@@ -42,26 +29,8 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from ext_sense_runtime.executor import make_executor, spin_until_shutdown
-from ext_sense_runtime.stop import (
-    STACKS_SIGNAL,
-    STOP,
-    STOP_SIGNALS,
-    StopRequest,
-    install_stop_handlers,
-)
+from ext_sense_runtime.stop import install_stop_handlers
 from ext_sense_runtime.teardown_guard import TeardownGuard
-
-__all__ = [
-    "STACKS_SIGNAL",
-    "STOP",
-    "STOP_SIGNALS",
-    "RosSession",
-    "StopRequest",
-    "destroy_node",
-    "install_stop_handlers",
-    "run_node",
-    "run_nodes",
-]
 
 N = TypeVar("N", bound=Node)
 
@@ -78,26 +47,18 @@ class RosSession:
             node = ros.add(MyNode())
             ros.spin(until=lambda: node.done)
 
-    On the way out (also on an exception, which then propagates) the executor is shut down,
-    every added node destroyed (in the order added), rclpy shut down and its context destroyed
-    (the participant leaves the graph now), and further stop signals ignored. A hang in the
-    middleware's part of that ends the process after every node's own cleanup
-    (:class:`~ext_sense_runtime.teardown_guard.TeardownGuard`).
-
-    Off the main thread (nodes run inside a test process) no handlers can be installed and
-    rclpy's own are kept.
+    On the way out (also on an exception) everything is torn down once (:meth:`close`). Off
+    the main thread (a test process) no handlers can be installed and rclpy's own are kept.
 
     Args:
         args: Command-line arguments for ``rclpy.init`` (``--ros-args ...``); ``None`` reads
             ``sys.argv``.
-        interrupt: The first stop signal also raises ``KeyboardInterrupt`` in the main thread,
-            for a main thread that waits on an operator while :meth:`spin_in_background` runs
-            the callbacks (``ext-sense collect``).
+        interrupt: The first stop signal also raises ``KeyboardInterrupt`` in the main thread
+            (one waiting on an operator while :meth:`spin_in_background` runs the callbacks).
     """
 
     def __init__(self, args: Sequence[str] | None = None, *, interrupt: bool = False) -> None:
         self.stop = install_stop_handlers(interrupt)
-        # Off the main thread (no handlers of ours) rclpy's defaults are kept.
         options = SignalHandlerOptions.NO if self.stop.installed else None
         rclpy.init(args=args, signal_handler_options=options)
         self.context: Context = rclpy.get_default_context()
@@ -159,15 +120,13 @@ class RosSession:
         self._background.start()
 
     def close(self) -> None:
-        """The teardown (once): executor, nodes, rclpy and its context; signals ignored."""
+        """The teardown (once): executor, nodes, rclpy and its context; then signals ignored."""
         if self.closed:
             return
         self.closed = True
         self._background_done.set()
         if self._background is not None:
             self._background.join(timeout=BACKGROUND_JOIN_S)
-        # a hang in rclpy's own teardown ends the process after every node's cleanup (off the
-        # main thread, e.g. in a test process, the guard does nothing)
         with TeardownGuard(self.nodes, enabled=self.stop.installed) as guard:
             self.executor.shutdown()  # before the nodes: it lets go of their entities
             for node in self.nodes:
@@ -183,13 +142,10 @@ class RosSession:
 
 
 def destroy_node(node: Node) -> None:
-    """``node.destroy_node()``; for a lifecycle node also its state machine, which rclpy keeps.
+    """``node.destroy_node()``; for a lifecycle node also its state machine.
 
-    rclpy's ``LifecycleNode`` (Jazzy, Kilted) never destroys its ``LifecycleStateMachine``, and
-    the state machine holds the node's handle, which holds the context's: the context was never
-    finalised, so the process ended with its middleware participant alive and the node stayed
-    in ``ros2 node list`` until the participant's lease ran out (15-19 s for ``nuskin_driver``
-    after a launch ended, while the graph's other nodes left at once).
+    rclpy's ``LifecycleNode`` never destroys its state machine, which holds the context: the
+    node would stay in ``ros2 node list`` until its participant's lease ran out.
     """
     node.destroy_node()
     # a lifecycle node's class imported rclpy.lifecycle; the other nodes never need it
@@ -201,9 +157,7 @@ def destroy_node(node: Node) -> None:
 def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | None = None) -> int:
     """Create nodes after ``rclpy.init``, spin them on one executor until a stop, clean up once.
 
-    Stops on a stop signal (see the module docstring) or when the context is shut down (a node
-    that finished its job). An exception from a factory or a callback is not a clean stop: it
-    propagates after the cleanup.
+    An exception from a factory or a callback propagates after the cleanup.
 
     Args:
         factories: Each builds one node (usually a Node subclass itself).
@@ -223,25 +177,11 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
 
 
 def freeze_startup_objects() -> None:
-    """Move every object alive now into the collector's permanent generation (``gc.freeze``).
-
-    A node's start-up objects (modules, messages, the model) live as long as the process, but
-    each full (generation 2) collection would scan them all again, a pause of milliseconds
-    inside a callback on the hot path. Frozen, a full collection scans only what came since.
-    Garbage is collected first, so none of it is kept.
-    """
+    """``gc.freeze`` start-up objects: full collections then skip them (ms on the hot path)."""
     gc.collect()
     gc.freeze()
 
 
 def run_node(factory: Callable[[], Node], args: Sequence[str] | None = None) -> int:
-    """Create the node after ``rclpy.init`` and spin it until a stop (:func:`run_nodes`).
-
-    Args:
-        factory: Builds the node (usually the Node subclass itself).
-        args: Command-line arguments (``--ros-args ...``); ``None`` reads ``sys.argv``.
-
-    Returns:
-        Process exit code: 0 on a clean stop.
-    """
+    """:func:`run_nodes` with one node factory (usually the Node subclass itself)."""
     return run_nodes([factory], args)

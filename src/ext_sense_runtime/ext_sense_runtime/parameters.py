@@ -1,16 +1,9 @@
 """Node parameters from one schema: a frozen dataclass per node, declared with descriptors.
 
-Each field of a node's schema is one parameter, made with :func:`param`: its default (whose
-type is the parameter's: ``1.0`` for a double, never ``1``), a description with its unit, an
-inclusive range, ``read_only`` for what cannot change while running (port, baud, window
-sizes), allowed ``choices`` and a ``check`` returning a reason; checks across fields go in the
-schema's ``__post_init__`` (raise ``ValueError``). :func:`declare_all` declares every field on a
-node with a ``ParameterDescriptor``, validates the values given at start-up and every runtime
-change (an on-set callback that answers with the reason), and returns the schema instance: the
-typed config the node hands to its pure core. :func:`specs` lists the parameters without a
-node, so ``docs/parameters.md`` is rendered from the schemas alone.
-
-Nothing here imports rclpy at module level: schemas can live beside the pure core.
+Each field is one parameter made with :func:`param`; checks across fields go in the schema's
+``__post_init__`` (raise ``ValueError``). :func:`declare_all` declares them on a node,
+validates start-up values and runtime changes, and returns the typed config for the pure core;
+:func:`specs` lists them without a node (``docs/parameters.md``). No rclpy at module level.
 """
 
 from __future__ import annotations
@@ -88,15 +81,15 @@ def param(
     """A schema field that is a node parameter.
 
     Args:
-        default: Default value; lists are tuples (the config is frozen).
-        description: What it does, with its unit (REP-103: metres, seconds).
-        low: Inclusive lower bound, given together with ``high`` (a ``FloatingPointRange``
-            for a double, an ``IntegerRange`` for an int).
+        default: Default value, of the parameter's type (``1.0`` for a double); lists are
+            tuples.
+        description: What it does, with its unit.
+        low: Inclusive lower bound, given together with ``high``.
         high: Inclusive upper bound.
         read_only: Refuse changes after start-up.
-        choices: The values allowed (strings such as a sensor name).
-        check: Returns why a value is refused (completing "The 'x' parameter ...", e.g.
-            ``"must be a loopback address"``), or ``None``/``""`` to accept it.
+        choices: The values allowed.
+        check: Returns why a value is refused (completing "The 'x' parameter ..."), or
+            ``None``/``""`` to accept it.
         name: The parameter's name when it is not the field's (``franka.state_topic``).
     """
     if (low is None) != (high is None):
@@ -185,17 +178,15 @@ def declare_all(
 ) -> T:
     """Declare every parameter of ``schema`` on ``node`` and return the typed config.
 
-    Runtime changes are validated by an on-set callback (choices, checks, ``__post_init__``;
-    rclpy itself enforces type, range and ``read_only``); an accepted change builds the new
-    config and hands it to ``on_change``, which may still refuse by returning a reason.
+    Runtime changes are validated by an on-set callback (rclpy itself enforces type, range and
+    ``read_only``).
 
     Args:
         node: The node that owns the parameters.
         schema: The node's frozen dataclass of :func:`param` fields.
         on_change: Called with the new config before a change is accepted; returns ``None`` to
             accept or the reason to refuse.
-        guard: Wraps the on-set callback (an exception in ``on_change`` is counted in the
-            node's diagnostics and the change refused).
+        guard: Wraps the on-set callback (an exception refuses the change).
 
     Raises:
         ValueError: A value given at start-up is refused, with the parameter's name.
@@ -239,9 +230,5 @@ def _result(reason: str | None) -> SetParametersResult:
 
 
 def refused(err: Exception) -> SetParametersResult:
-    """The answer of an on-set callback that raised: the change is refused, with the cause.
-
-    The ``fallback`` of a guarded on-set callback
-    (``guard.wrap(self._on_set, fallback=refused)``): rclpy needs a result, not ``None``.
-    """
+    """The ``fallback`` of a guarded on-set callback that raised: refused, with the cause."""
     return _result(f"{type(err).__name__}: {err}")

@@ -1,11 +1,10 @@
 """QoS profiles of ext_sense, chosen on purpose and named for what they carry.
 
-- Raw tactile streams (event batches, BioTac frames): best effort like
-  ``qos_profile_sensor_data`` (a late sample is worthless, and retransmission would add
-  latency), but a deep history: at 4 kHz a burst of 1000 batches is 0.25 s, enough for no
-  drop at the worst-case input (``bench/bench_runtime.py --only worst``).
-- Contact windows, estimates and commands: reliable with an explicit depth; each is rare and
-  each matters. Estimates are transient-local-free so late joiners do not act on stale contact.
+- Raw tactile streams: best effort like ``qos_profile_sensor_data`` (a late sample is
+  worthless, a retransmission adds latency), but deep: 1000 packets ride out a 0.25 s burst at
+  4 kHz (``bench/bench_runtime.py --only worst``).
+- Windows, estimates and commands: reliable with an explicit depth; rare, and each matters.
+  Volatile, so late joiners do not act on a stale contact.
 - Ground truth: reliable, deep (one per trial, recorded beside the data).
 - Diagnostics: reliable, depth 10, as diagnostic_aggregator expects.
 """
@@ -14,52 +13,19 @@ from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-SENSOR_STREAM_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.BEST_EFFORT,
-    durability=DurabilityPolicy.VOLATILE,
-)
 
-RELIABLE_STREAM_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-"""For recording and replay, where a subscriber must see every batch."""
+def _keep_last(depth: int, reliability: ReliabilityPolicy) -> QoSProfile:
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=reliability,
+        durability=DurabilityPolicy.VOLATILE,
+    )
 
-WINDOW_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=20,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
 
-ESTIMATE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=50,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-
-COMMAND_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-
-GROUND_TRUTH_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-
-DIAGNOSTICS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
+SENSOR_STREAM_QOS = _keep_last(1000, ReliabilityPolicy.BEST_EFFORT)
+WINDOW_QOS = _keep_last(20, ReliabilityPolicy.RELIABLE)
+ESTIMATE_QOS = _keep_last(50, ReliabilityPolicy.RELIABLE)
+COMMAND_QOS = _keep_last(10, ReliabilityPolicy.RELIABLE)
+GROUND_TRUTH_QOS = _keep_last(1000, ReliabilityPolicy.RELIABLE)
+DIAGNOSTICS_QOS = _keep_last(10, ReliabilityPolicy.RELIABLE)

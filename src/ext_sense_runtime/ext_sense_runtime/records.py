@@ -1,14 +1,8 @@
 """The records every ext_sense package passes around: one type per idea (no rclpy).
 
-- :class:`EventBlock`: NUSkin taxel events as parallel arrays, from the simulator and the
-  drivers' decoders to the window stage, the importers and the training sets.
-- :class:`GroundTruth`: what really happened in one trial (simulator, labelled sessions, bags).
-- :class:`Estimate`: what a model concluded about one contact window (the fields of
-  ``ext_sense_msgs/ContactEstimate``), for the inference node, the offline replay, the
-  scoreboard and the behaviours.
-
-:func:`estimate_of` and :func:`truth_of` read the messages (rclpy or rosbags: the same field
-names), so no package needs its own view of them.
+:class:`EventBlock` (NUSkin events), :class:`GroundTruth` (one trial), :class:`Estimate` (one
+window's conclusion); :func:`estimate_of` and :func:`truth_of` read the messages (rclpy or
+rosbags: the same field names).
 """
 
 from __future__ import annotations

@@ -1,9 +1,7 @@
 """A stream's stalls: silence past a WARN threshold, then past an ERROR one, ended by data.
 
-Shared by the drivers' liveness (a device silent while it must send) and the window node's
-(input silent while a contact is open or a BioTac streams), so that WARN, ERROR, the stall
-count and the longest stall mean the same on every ``/diagnostics`` status that reports them.
-No ROS; times are monotonic integer nanoseconds given by the caller.
+Shared by the drivers' and the window node's liveness, so stall levels and counts mean the
+same on every ``/diagnostics`` status. Times are monotonic integer ns given by the caller.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """Conversions between integer nanoseconds and ROS time fields.
 
-Time inside ext_sense is always an ``int`` of nanoseconds (epoch or monotonic, as stated where
-it is used); floats of seconds lose sub-microsecond precision at epoch magnitudes, so they only
-appear at the edges (printing, plotting). The unit constants ``S``, ``MS`` and ``US`` (nanoseconds
-per unit) are defined here and nowhere else.
+Time inside ext_sense is always an ``int`` of nanoseconds: floats of seconds lose
+sub-microsecond precision at epoch magnitudes, so they appear only at the edges. The unit
+constants ``S``, ``MS`` and ``US`` (nanoseconds per unit) are defined here and nowhere else.
 """
 
 from __future__ import annotations
@@ -14,25 +13,17 @@ MS = 1_000_000
 """Nanoseconds in a millisecond."""
 US = 1_000
 """Nanoseconds in a microsecond."""
-NS_PER_S = S
 
 
 def split_ns(ns: int) -> tuple[int, int]:
-    """Split integer nanoseconds into ``(sec, nanosec)`` with ``0 <= nanosec < 1e9``.
-
-    Args:
-        ns: Time or duration in nanoseconds (may be negative).
-
-    Returns:
-        The ``sec`` and ``nanosec`` fields of ``builtin_interfaces`` Time or Duration.
-    """
-    sec, nanosec = divmod(int(ns), NS_PER_S)
+    """``builtin_interfaces`` ``(sec, nanosec)`` of integer ns (negative too), ``nanosec >= 0``."""
+    sec, nanosec = divmod(int(ns), S)
     return sec, nanosec
 
 
 def join_ns(sec: int, nanosec: int) -> int:
     """Join ``builtin_interfaces`` ``(sec, nanosec)`` fields into integer nanoseconds."""
-    return int(sec) * NS_PER_S + int(nanosec)
+    return int(sec) * S + int(nanosec)
 
 
 def stamp_to_ns(stamp: object) -> int:

@@ -1,14 +1,8 @@
 """Stop signals recorded as one request: node processes, ``ext-sense run`` and the commands.
 
-Every process of a graph stops on the same signals, the ones a terminal, a supervisor or a
-session manager sends to end a program: SIGINT (Ctrl-C), SIGTERM (``kill``, ``ros2 launch``'s
-escalation, systemd), SIGHUP (the terminal closed, ``kill -HUP``) and SIGQUIT
-(Ctrl-backslash). Their default actions kill a process at once (the node's middleware
-participant then lingers in the graph until its lease runs out, and a killed ``ext-sense run``
-leaves its nodes running); here a handler only records that a stop was asked, and the
-process's spin loop notices it and ends cleanly. Repeated signals are the same request.
-
-No rclpy here: the runner, which starts node processes but runs none, uses it too.
+SIGINT, SIGTERM, SIGHUP and SIGQUIT would kill a process at once (its participant lingering in
+the graph, a killed runner's nodes left running); here a handler only records the stop, and the
+spin loop ends cleanly. Repeated signals are the same request. No rclpy: the runner uses it too.
 """
 
 from __future__ import annotations
@@ -28,19 +22,15 @@ STOP_SIGNALS: tuple[signal.Signals, ...] = (
 )
 """The signals that ask a process to stop."""
 STACKS_SIGNAL = signal.SIGUSR1
-"""Makes a node process print every thread's stack to stderr and go on (``faulthandler``):
-``ext-sense run`` sends it to a node that did not stop in time, before killing it, so the log
-says where it hung."""
+"""Prints every thread's stack (``faulthandler``): sent to a node that did not stop in time."""
 
 
 class StopRequest:
     """The stop signals recorded as a request to stop; repeated signals are the same request.
 
     With ``interrupt`` the first signal also raises ``KeyboardInterrupt`` in the main thread,
-    for a program whose main thread waits in Python code of its own (an operator prompt) while
-    its ROS callbacks run in another thread: the signal then ends the wait. Never use it while
-    the main thread runs callbacks (an exception raised inside a callback the executor's C++
-    called aborts the process).
+    to end an operator prompt while callbacks run in another thread; never while the main
+    thread runs callbacks (an exception inside one the executor's C++ called aborts).
     """
 
     def __init__(self) -> None:
@@ -67,15 +57,12 @@ class StopRequest:
                 signal.signal(signum, self._on_signal)
             faulthandler.register(STACKS_SIGNAL, all_threads=True)
             self.installed = True
-            # `ext-sense run` starts its children with these signals blocked, so that one
-            # arriving while the interpreter starts and imports is held, not a KeyboardInterrupt:
-            # delivered now, to the handler.
+            # children start with them blocked (stop_signals_blocked): delivered now
             signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
         return self.installed
 
     def _on_signal(self, signum: int, _frame: FrameType | None) -> None:
-        # Runs in the main thread between two bytecodes, possibly inside a callback: it must
-        # not call into rclpy, and raises only when asked to (``interrupt``).
+        # possibly inside a callback: no rclpy here, and raise only when asked to
         self.count += 1
         if self.signum is None:
             self.signum = signum
@@ -91,11 +78,10 @@ class StopRequest:
         return 128 + int(self.signum or signal.SIGINT)
 
     def ignore_further(self) -> None:
-        """Ignore stop signals from now on: call once the process is done and about to exit.
+        """Ignore stop signals from now on, once the process is done and about to exit.
 
-        Python's finalisation resets a signal whose handler is a Python function to the
-        default action, so a second Ctrl-C arriving while the interpreter tears down would kill
-        the process with -2 after a clean stop; an ignored signal stays ignored.
+        Finalisation resets Python handlers to the default action: a late Ctrl-C would end a
+        clean stop with -2. An ignored signal stays ignored.
         """
         if self.installed:
             for signum in STOP_SIGNALS:
@@ -107,14 +93,7 @@ STOP = StopRequest()
 
 
 def install_stop_handlers(interrupt: bool = False) -> StopRequest:
-    """Install the stop handlers now (idempotent), e.g. before slow imports.
-
-    Args:
-        interrupt: Also raise ``KeyboardInterrupt`` at the first signal (:class:`StopRequest`).
-
-    Returns:
-        :data:`STOP`, this process's stop request.
-    """
+    """Install the stop handlers now (idempotent) and return :data:`STOP`."""
     STOP.install(interrupt)
     return STOP
 
@@ -123,9 +102,8 @@ def install_stop_handlers(interrupt: bool = False) -> StopRequest:
 def stop_signals_blocked() -> Iterator[None]:
     """Block :data:`STOP_SIGNALS` in this thread while a child process is started.
 
-    The mask survives ``exec``: a stop signal that comes while the child's interpreter starts
-    and imports stays pending until it installs its handlers (:meth:`StopRequest.install`
-    unblocks them), instead of killing it or raising ``KeyboardInterrupt`` in some import.
+    The mask survives ``exec``: a signal during the child's imports stays pending until
+    :meth:`StopRequest.install` unblocks it, instead of a ``KeyboardInterrupt`` in some import.
     """
     previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     try:

@@ -1,19 +1,11 @@
 """Ends a node process whose middleware teardown hangs, even while that hang holds the GIL.
 
-A node process may finish its own work and then hang for good inside rclpy's
-``Node.destroy_node``, in the C++ call that destroys the middleware node
-(``destroy_when_not_in_use``), until ``ext-sense run`` kills it 5 s after the SIGINT
-(docs/runtime.md, "Stopping a graph"). That call does not release the GIL, so nothing written
-in Python can run during such a hang, and the guard uses two things that need no GIL:
-
-- ``faulthandler.dump_traceback_later``: every thread's stack after :data:`TEARDOWN_LIMIT_S`,
-  for a hang anywhere in the teardown (the C watchdog thread of ``faulthandler``);
-- :class:`NativeExitTimer`: a POSIX timer whose expiry the C library handles in a thread of its
-  own (``SIGEV_THREAD``) by calling ``perror`` with a message, then ``_exit(0)``. It is armed
-  only while rclpy itself tears down the process's last node (entered by its base
-  ``Node.destroy_node``, found with a profile hook) or shuts rclpy down: every node's own
-  cleanup is then done, and what is left is the middleware letting go. A hang in a node's own
-  cleanup (a recorder closing its bag) is never cut short: the supervisor decides.
+rclpy's ``Node.destroy_node`` can hang for good in a C++ call that keeps the GIL
+(docs/runtime.md, "Stopping a graph"), so the guard uses what needs no GIL: ``faulthandler``'s
+stack dump after :data:`TEARDOWN_LIMIT_S`, and :class:`NativeExitTimer`, a POSIX timer whose C
+thread prints a message and calls ``_exit(0)``. The timer is armed only while rclpy tears down
+the last node (its base ``destroy_node``, found with a profile hook) or shuts down: a hang in a
+node's own cleanup (a recorder closing its bag) is left to the supervisor.
 """
 
 from __future__ import annotations
@@ -29,17 +21,14 @@ from typing import Any
 from rclpy.node import Node
 
 TEARDOWN_LIMIT_S = 3.0
-"""Longest the middleware's part of the cleanup may take before the process exits without it
-(below ``ext-sense run``'s 5 s and ``ros2 launch``'s SIGTERM timeout); also when every thread's
-stack is printed if the teardown has not ended."""
+"""Longest the middleware's part of the cleanup may take (below the supervisors' 5 s)."""
 
 _CLOCK_MONOTONIC = 1
 _SIGEV_THREAD = 2
 _MESSAGE_TO_EXIT_S = 0.05
 """Between the message and ``_exit``: the message thread writes before the process ends."""
 _AFTER_THE_STACKS_S = 0.1
-"""The exit timer's delay beyond :data:`TEARDOWN_LIMIT_S`: it is armed after the stack dump's
-timer, so the stacks come first and the message can point at them."""
+"""The exit comes this long after the stack dump, so the message can point at the stacks."""
 
 
 class _Timespec(ctypes.Structure):
@@ -66,10 +55,8 @@ class _Sigevent(ctypes.Structure):
 class NativeExitTimer:
     """``perror(message)`` then ``_exit(0)`` after ``delay_s``, from C library threads.
 
-    The notify function of a ``SIGEV_THREAD`` timer receives the timer's ``sigev_value`` as its
-    one argument: the message's address for ``perror`` (which appends ": " and the text of the
-    thread's ``errno``), 0 for ``_exit``. Raises ``OSError`` where the C library has no such
-    timers (the caller then goes without).
+    Each ``SIGEV_THREAD`` notify function gets ``sigev_value``: the message's address for
+    ``perror``, 0 for ``_exit``. Raises ``OSError`` where the C library has no such timers.
     """
 
     def __init__(self, delay_s: float, message: str) -> None:
@@ -113,10 +100,9 @@ class NativeExitTimer:
 class TeardownGuard:
     """Bounds the middleware's part of a node process's teardown (see the module docstring).
 
-    Use around the cleanup: ``with TeardownGuard(nodes) as guard:`` then
-    :meth:`destroying` before each node's ``destroy_node`` and :meth:`middleware` around
-    ``rclpy.try_shutdown``. ``enabled=False`` (off the main thread, e.g. nodes run inside a
-    test process) makes it do nothing: the exit and the stack dump are process-wide.
+    ``with TeardownGuard(nodes) as guard:``, :meth:`destroying` before each node's
+    ``destroy_node``, :meth:`middleware` around ``rclpy.try_shutdown``. ``enabled=False`` (off
+    the main thread) makes it do nothing: the exit and the stack dump are process-wide.
     """
 
     _RCLPY_DESTROY = Node.destroy_node.__code__
