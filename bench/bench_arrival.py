@@ -42,8 +42,6 @@ import contextlib
 import json
 import multiprocessing as mp
 import os
-import signal
-import subprocess
 import sys
 import time
 import tty
@@ -51,6 +49,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+from common import start_hog, stop_hog
 
 from ext_sense_drivers.nuskin.driver_config import DriverConfig
 from ext_sense_drivers.nuskin.wire import encode_words
@@ -122,25 +121,6 @@ def _emit(master: int, sched: Schedule, t0_ns: int, log_path: str) -> None:
     np.save(log_path, np.asarray(log, dtype=np.int64).reshape(-1, 4))
     Path(log_path + ".policy").write_text(got.describe())
     time.sleep(0.5)  # keep the master open until the reader took the last bytes
-
-
-# ------------------------------------------------------------------------------ the hog
-def start_hog(n: int) -> list[subprocess.Popen[bytes]]:
-    """``n`` busy-looping processes (one per core keeps both cores busy)."""
-    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
-
-
-def stop_hog(procs: list[subprocess.Popen[bytes]]) -> None:
-    """Stop the hog's processes (by their own pids)."""
-    for p in procs:
-        if p.poll() is None:
-            p.send_signal(signal.SIGTERM)
-    for p in procs:
-        try:
-            p.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait(timeout=5)
 
 
 # ------------------------------------------------------------------------------ one run

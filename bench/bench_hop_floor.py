@@ -40,11 +40,9 @@ import threading
 import time
 from collections.abc import Callable
 
-from graph_runs import spin_in_background
-from latency_figures import pct
+from common import local_ros_domain, pct, spin_in_background
 
-os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
-os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+local_ros_domain()
 
 MS = 1_000_000
 PACKETS_TOPIC = "/bench_hop_floor/packets"

@@ -1,74 +1,28 @@
 """Idle cost: CPU per node process of a graph with no input (issue #16: at most 1 % of a core).
 
     python bench/bench_idle.py                          # hot_path:=processes, then one_process
-    python bench/bench_idle.py --hot-path processes     # one process per node only
     python bench/bench_idle.py --baseline /tmp/old_src  # also an older source tree, side by side
 
-The ``tap_localization`` graph is started as ``ext-sense run`` starts it (``source:=serial`` on a
-pty this script opens and never writes to, the monitor without a trial count, so nothing ends
-it); once every node process is up and ``--settle`` seconds have passed, each process's CPU time
-(``utime + stime`` of ``/proc/<pid>/stat``, every thread) is read ``--seconds`` apart. The
-figure is that CPU time over the wall time, in % of one core. The target is per node: a
-``node_group`` process holding n nodes (``hot_path:=one_process``) may use n %. The driver's
-link is silent here; a real receiver sends idle words (about 540 words/s), which the driver
-then decodes as they come.
-
-``--baseline DIR`` runs the same measurement on another source tree: ``DIR`` holds the package
-directories as ``src/`` does (``DIR/ext_sense_perception/ext_sense_perception/...``), put first
-on ``PYTHONPATH`` so they shadow the venv's editable installs (messages stay the venv's). The two
-runs alternate ``--rounds`` times, so both see the same machine load; the load average is
-printed with the figures.
+The ``tap_localization`` graph on a pty nobody writes to (``trials:=0``: nothing ends it); after
+``--settle`` s each process's CPU time is read ``--seconds`` apart, as % of one core. A process
+holding n nodes (``hot_path:=one_process``) may use n %. ``--baseline`` runs alternate with this
+tree's ``--rounds`` times, so both see the same load.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
-import signal
 import subprocess
 import sys
 import time
 import tty
 from pathlib import Path
 
-from source_tree import baseline_path
+from common import baseline_path, children, cpu_percent, cpu_ticks, process_name, stop_group
 
 TARGET_PERCENT = 1.0
-CLK_TCK = os.sysconf("SC_CLK_TCK")
-
-
-def cpu_ticks(pid: int) -> int | None:
-    """User plus system CPU time of a process (all its threads), clock ticks; None when gone."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return None
-    return int(fields[11]) + int(fields[12])  # utime, stime (fields 14 and 15 of stat)
-
-
-def children(pid: int) -> list[int]:
-    """Direct children of ``pid``."""
-    out = []
-    for task in Path(f"/proc/{pid}/task").glob("*"):
-        with contextlib.suppress(OSError):
-            out += [int(p) for p in (task / "children").read_text().split()]
-    return out
-
-
-def process_name(pid: int) -> str:
-    """The graph names of the nodes a runner child holds (its JSON payload), else its command."""
-    try:
-        argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-    except OSError:
-        return f"pid {pid}"
-    for arg in argv:
-        if arg.startswith(b"{"):
-            payload = json.loads(arg)
-            specs = payload.get("specs") or [payload["spec"]]
-            return "+".join(s["name"] for s in specs)
-    return Path(argv[0].decode()).name
 
 
 def measure(
@@ -111,21 +65,10 @@ def measure(
         wall = time.monotonic() - t0
         end = {p: cpu_ticks(p) for p in pids}
     finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(runner.pid, signal.SIGINT)
-        try:
-            runner.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(runner.pid, signal.SIGKILL)
-            runner.wait()
+        stop_group(runner)
         os.close(master)
         os.close(slave)
-    out = {}
-    for pid, name in pids.items():
-        a, b = start[pid], end[pid]
-        out[name] = float("nan") if a is None or b is None else (b - a) / CLK_TCK / wall * 100
-    return out
+    return {pids[p]: v for p, v in cpu_percent(start, end, wall).items()}
 
 
 def main() -> int:

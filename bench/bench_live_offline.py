@@ -57,7 +57,6 @@ import itertools
 import json
 import math
 import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -67,7 +66,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bench_arrival import start_hog, stop_hog
+from common import start_hog, stop_group, stop_hog
 
 from ext_sense.topics import (
     SENSOR_PACKETS,
@@ -174,19 +173,6 @@ def ensure_models(out: Path) -> dict[str, Path]:
 
 
 # ------------------------------------------------------------------------------ processes
-def _stop_group(proc: subprocess.Popen[bytes], timeout: float = 20.0) -> None:
-    """SIGINT to a child's process group (a graph's runner and its nodes), SIGKILL if stuck."""
-    if proc.poll() is None:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGINT)
-    try:
-        proc.wait(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait(timeout=5)
-
-
 @contextlib.contextmanager
 def recording(bag: Path, topics: Sequence[str], env: dict[str, str], log: Path) -> Iterator[None]:
     """``ext-sense record`` of ``topics`` into ``bag`` while the block runs, up before it."""
@@ -207,7 +193,7 @@ def recording(bag: Path, topics: Sequence[str], env: dict[str, str], log: Path) 
         yield
         time.sleep(1.0)  # the last estimates and a flush
     finally:
-        _stop_group(proc)
+        stop_group(proc)
 
 
 @contextlib.contextmanager
@@ -235,7 +221,7 @@ def run_graph(
     except subprocess.TimeoutExpired:
         print(f"[live-offline] {task.graph}: still running after {timeout_s:.0f} s, stopped")
     finally:
-        _stop_group(proc)
+        stop_group(proc)
     lines = [x for x in log.read_text(errors="replace").splitlines() if "summary:" in x]
     return lines[-1].split("summary:", 1)[1].strip() if lines else ""
 

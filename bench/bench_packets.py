@@ -1,27 +1,16 @@
 """Raw packets at the worst case: 80 taxels at 4 kHz for 60 s through the graph (issue #16).
 
-The tap graph's serial driver and window node (``source:=serial`` on a pty; the driver
-publishes packets only, the window node decodes them) and ``ext-sense record`` on the packets;
-this process writes the receiver's words into the pty, 320 words every millisecond (every
-taxel at 4 kHz). Printed side by side:
-
-- packets the driver published, and packets lost by ``seq`` at the window node (target 0) and
-  in the bag;
-- CPU per node process, % of one core, over the streaming time;
-- bag bytes per minute: the recorded packets, against the same stream as decoded arrays
-  (``TaxelEventBatch``, what bags held before packets: the packet bag decoded with the library
-  decoder and written with the same writer).
-
-``--quick`` streams 10 s. ``--seconds S`` sets the time.
+The tap graph's serial driver and window node on a pty, and ``ext-sense record`` on the
+packets. Printed: packets lost by ``seq`` at the window node (target 0) and in the bag, CPU per
+process, and bag bytes per minute beside the same stream as decoded ``TaxelEventBatch`` arrays.
+``--quick`` streams 10 s; ``--seconds S`` sets the time.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -30,8 +19,18 @@ import tty
 from pathlib import Path
 
 import numpy as np
-from bench_idle import CLK_TCK, children, cpu_ticks, process_name
-from graph_runs import start_graph, stop_graph, watch_diagnostics
+from common import (
+    children,
+    cpu_percent,
+    cpu_ticks,
+    process_name,
+    start_graph,
+    stop_graph,
+    stop_group,
+    watch_diagnostics,
+    worst_case_ms,
+    write_every_ms,
+)
 
 PACKETS = "/extsense/nuskin/packets"
 
@@ -73,8 +72,6 @@ def run(seconds: float) -> dict:
     import rclpy
     from rclpy.node import Node
 
-    from ext_sense_drivers.nuskin.wire import encode_words
-
     tmp = Path(tempfile.mkdtemp(prefix="bench_packets_"))
     master, slave = os.openpty()
     tty.setraw(slave)
@@ -97,7 +94,6 @@ def run(seconds: float) -> dict:
     diag = watch_diagnostics(node)
     executor = rclpy.executors.SingleThreadedExecutor()
     executor.add_node(node)
-    sent = 0
     try:
         end = time.monotonic() + 60.0  # the window node and the recorder subscribed
         while time.monotonic() < end and node.count_subscribers(PACKETS) < 2:
@@ -107,18 +103,10 @@ def run(seconds: float) -> dict:
             executor.spin_once(timeout_sec=0.05)
         pids = {p: process_name(p) for p in children(graph.pid)}
         pids[recorder.pid] = "recorder (ext-sense record)"
-        taxels = np.tile(np.arange(1, 81), 4)  # one ms: 4 ticks of all 80 taxels
-        values = np.random.default_rng(0).integers(0, 1024, taxels.size)
-        chunk = encode_words(taxels, values)
+        chunk, words = worst_case_ms()
         start = {p: cpu_ticks(p) for p in pids}
-        t0 = time.monotonic()
-        for i in range(int(seconds * 1000)):
-            delay = t0 + (i + 1) / 1000 - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-            os.write(master, chunk)
-            sent += taxels.size
-        wall = time.monotonic() - t0
+        wall = write_every_ms(master, chunk, seconds)
+        sent = words * int(seconds * 1000)
         stop = {p: cpu_ticks(p) for p in pids}
         end = time.monotonic() + 3.0  # drain, then two diagnostics periods
         while time.monotonic() < end:
@@ -127,9 +115,7 @@ def run(seconds: float) -> dict:
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(recorder.pid, signal.SIGINT)
-        recorder.wait(timeout=30)
+        stop_group(recorder, 30)
         stop_graph(graph)
         os.close(master)
         os.close(slave)
@@ -143,11 +129,7 @@ def run(seconds: float) -> dict:
     packet_bytes, decoded_bytes = _dir_bytes(bag), _dir_bytes(tmp / "decoded")
     shutil.rmtree(tmp, ignore_errors=True)  # 340 MB at 60 s
     win = diag.get("contact_window: windows", {})
-    cpu = {
-        name: (b - a) / CLK_TCK / wall * 100
-        for p, name in pids.items()
-        if (a := start[p]) is not None and (b := stop[p]) is not None
-    }
+    cpu = {pids[p]: v for p, v in cpu_percent(start, stop, wall).items() if v == v}
     return {
         "seconds": seconds,
         "write_wall_s": wall,

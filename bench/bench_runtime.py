@@ -3,41 +3,19 @@
     python bench/bench_runtime.py            # full: 60 taps, 60 s worst case, 20 s bag
     python bench/bench_runtime.py --quick    # a few seconds each (plus training a model)
 
-The nodes are started as ``ext-sense run`` starts them: the ``tap_localization`` graph of
-``ext_sense.graphs`` (the node descriptions the launch files use too) run by
-``ext_sense.runner.run_graph`` (``graph_runs.py``), with the nodes this bench does not need
-left out of the graph (the bench itself is their source).
+The ``tap_localization`` graph's nodes are started as ``ext-sense run`` starts them, without
+the ones this process stands in for.
 
-1. Latency: the graph's ``contact_window`` and ``contact_inference`` (``monitor:=false``); this
-   process is the sensor: synthetic taps (80 taxels firing at 4 kHz for 40 ms, over a
-   receiver's idle stream of 540 words/s) at real-time pace, stamped with the host clock.
-   It publishes them as ``nuskin_driver`` does: its encoding and options, its ``PacketPacker``
-   and message code, one ``SensorPacket`` per 1 ms drain holding that ms's reads (4 per ms),
-   and when nothing was read its empty "nothing read" packet on the driver's cadence
-   (``quiet_packets_period_s``; none for a ``--baseline`` tree from before them), on
-   ``/extsense/nuskin/packets`` (``source:=serial`` without the driver: the window node
-   decodes the packets as live).
-   Per final estimate it measures the wall time from the end of the window (onset + 250 ms) to
-   the estimate arriving here, beside the model's own compute on the same windows (features +
-   ONNX here, ``latency_figures.py``). Targets (#16): p50 <= compute + 1 ms, p99 <= 5 ms quiet,
-   <= 25 ms with both cores loaded. Every ``--load`` (``quiet``; ``hog``: one busy-looping
-   process per core, started before the graph and stopped after it), ``--input``, ``--hot-path``
-   (the nodes in processes of their own, or in one) and a ``--baseline`` source tree are
-   measured in turn in one run, then printed side by side with the load average before each.
-   After the runs it prints the floor under that latency for each ``--hot-path``, a hot path of
-   no work (``bench_hop_floor.py``).
-   ``--hops`` also subscribes to the windows and splits the latency: window end -> the first
-   input past it published (``wait``), -> window received (``window_node``), -> estimate ready
-   (``inference``), -> estimate received (``estimate``). The model is ``--model``, else the
-   demo's (``tap_localization_nuskin``, found as the graphs find it); when that is missing the
-   demo's training (``ext_sense_sim.default_models.ensure_model``) trains one
-   into a temporary directory first.
-2. Worst case: 80 taxels at 4 kHz (320k events/s) as receiver words over a pty into the graph's
-   ``nuskin_driver`` (``source:=serial``), then its ``contact_window``; events sent vs events
-   the window node counted, packets the driver published vs the window node got and lost by
-   ``seq``.
-3. Replay: a bag of worst-case batches published flat out by ``ext-sense replay --flat-out``;
-   messages/s and events/s, and how many a subscriber here received.
+1. Latency: this process is the NUSkin driver (its packer and message code, one packet per 1 ms
+   drain) playing synthetic taps at real-time pace into ``contact_window`` and
+   ``contact_inference``. Per final estimate: window end -> estimate received, beside the
+   model's own compute on the same windows. Targets (#16): p50 <= compute + 1 ms, p99 <= 5 ms
+   quiet, <= 25 ms with both cores loaded. Every ``--load``, ``--hot-path`` and ``--baseline``
+   tree is measured in turn and printed side by side, then the floor of a hot path with no
+   work (``bench_hop_floor.py``). ``--hops`` splits the latency into its hops.
+2. Worst case: 80 taxels at 4 kHz as receiver words over a pty into ``nuskin_driver`` and
+   ``contact_window``: events sent against events counted, packets lost by ``seq``.
+3. Replay: a bag of worst-case packets played by ``ext-sense replay --flat-out``.
 """
 
 from __future__ import annotations
@@ -54,26 +32,26 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from bench_arrival import start_hog, stop_hog
 from bench_hop_floor import measure as floor_of
-from graph_runs import spin_in_background, start_graph, stop_graph, watch_diagnostics
-from latency_figures import (
-    Final,
-    Source,
-    hops,
-    latency_model,
-    node_work,
+from common import (
+    baseline_path,
+    local_ros_domain,
     pct,
-    print_latency,
-    print_table,
-    tap_batches,
+    spin_in_background,
+    start_graph,
+    start_hog,
+    stop_graph,
+    stop_hog,
+    tap_model,
+    watch_diagnostics,
+    worst_case_ms,
+    write_every_ms,
 )
-from source_tree import baseline_path
+from latency_figures import Final, Source, hops, node_work, print_latency, print_table, tap_batches
 
 from ext_sense_runtime.stamps import MS
 
-os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
-os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+local_ros_domain()
 
 GRAPH = "tap_localization"
 STARTUP_TIMEOUT_S = 30.0
@@ -106,7 +84,7 @@ def bench_latency(
     from ext_sense_runtime.qos import ESTIMATE_QOS, SENSOR_STREAM_QOS, WINDOW_QOS
     from ext_sense_runtime.stamps import stamp_to_ns
 
-    model_dir, how = latency_model(model, train_taps, tmp)
+    model_dir, how = tap_model(model, tmp, train_taps)
     card = read_card(model_dir)
     overrides = {"sensor": "nuskin", "monitor": "false", "model": str(model_dir)}
     # the bench is the driver: source:=serial without nuskin_driver; the window node reads
@@ -148,10 +126,7 @@ def bench_latency(
             if graph.poll() is not None or pub.get_subscription_count() < 1:
                 raise SystemExit("bench_runtime: the graph's contact_window did not come up")
             time.sleep(5.0)  # let the inference node load the model
-            # The bench is the sensor, and a sensor does not pause: a full collection of the
-            # bench's own objects (every message it sent is kept) stopped its stream for about
-            # 20 ms at the same tap of most runs, and the window node's clock closed that
-            # window (22.6-23.8 ms). No collection while it streams.
+            # a sensor does not pause: no garbage collection while the bench streams
             gc.collect()
             gc.disable()
             base = time.time_ns() + 50 * MS
@@ -227,14 +202,12 @@ def bench_latency(
 
 # ---------------------------------------------------------------- 2. worst case
 def bench_worst_case(seconds: float, hot_path: str) -> dict:
+    import tty
+
     import rclpy
     from rclpy.node import Node
 
-    from ext_sense_drivers.nuskin.wire import encode_words
-
     master, slave = os.openpty()
-    import tty
-
     tty.setraw(slave)
     port = os.ttyname(slave)
     # the graph's serial driver on the pty, and its window node (no model: the task's profile)
@@ -250,21 +223,11 @@ def bench_worst_case(seconds: float, hot_path: str) -> dict:
     node = Node("bench_worst_case")
     diag = watch_diagnostics(node)
     halt = spin_in_background(node)
-    sent = 0
     try:
         time.sleep(4.0)  # nodes up, port open
-        taxels = np.tile(np.arange(1, 81), 4)  # one ms: 4 ticks of all 80 taxels
-        values = np.random.default_rng(0).integers(0, 1024, taxels.size)
-        chunk = encode_words(taxels, values)
-        t0 = time.monotonic()
-        n_ms = int(seconds * 1000)
-        for i in range(n_ms):
-            delay = t0 + (i + 1) / 1000 - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-            os.write(master, chunk)
-            sent += taxels.size
-        wall = time.monotonic() - t0
+        chunk, words = worst_case_ms()
+        wall = write_every_ms(master, chunk, seconds)
+        sent = words * int(seconds * 1000)
         time.sleep(3.0)  # drain, then two diagnostics periods
     finally:
         halt()
@@ -412,22 +375,14 @@ def main() -> int:
                 trees.insert(0, (baseline_path(args.baseline), None if says_quiet else 0.0))
             results["latency"] = []
             for load in _listed(args.load):
-                for kind in ("packets",):
-                    for hot_path in _listed(args.hot_path):
-                        for path, quiet_s in trees:
-                            run = {"input": kind, "load": load, "hot_path": hot_path}
-                            r = bench_latency(
-                                taps,
-                                args.model,
-                                train_taps,
-                                Path(tmp),
-                                run,
-                                path,
-                                args.hops,
-                                quiet_s,
-                            )
-                            results["latency"].append(r)
-                            print_latency(r, taps)
+                for hot_path in _listed(args.hot_path):
+                    for path, quiet_s in trees:
+                        run = {"input": "packets", "load": load, "hot_path": hot_path}
+                        r = bench_latency(
+                            taps, args.model, train_taps, Path(tmp), run, path, args.hops, quiet_s
+                        )
+                        results["latency"].append(r)
+                        print_latency(r, taps)
             print_table(results["latency"])
             # beside it, the part of that no node's work is in (bench_hop_floor.py)
             results["floor"] = []

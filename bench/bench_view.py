@@ -20,10 +20,8 @@ missing, as bench_runtime does).
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import re
-import signal
 import socket
 import subprocess
 import sys
@@ -32,9 +30,9 @@ import time
 from pathlib import Path
 
 import psutil
+from common import local_ros_domain, process_name, stop_group, tap_model
 
-os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
-os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+local_ros_domain()
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))  # foxglove_client
 
 GRAPH = "tap_localization"
@@ -42,42 +40,10 @@ DROPPED = re.compile(r"so far: (\d+) bytes dropped")
 LOST = re.compile(r"\((\d+) contact\(s\) lost, \d+ degraded\)")
 
 
-def _model(model: str, tmp: Path, train_taps: int) -> Path:
-    from ext_sense_perception.errors import PerceptionError
-    from ext_sense_perception.online.model_store import find_model
-    from ext_sense_sim.default_models import ensure_model
-
-    if model:
-        return Path(model).resolve()
-    try:
-        return find_model("", GRAPH, "nuskin")
-    except PerceptionError:
-        pass
-    out = tmp / "model"
-    ensure_model(out, GRAPH, "nuskin", train_taps, log=lambda line: print(line, file=sys.stderr))
-    return out
-
-
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
-
-
-def _node_name(proc: psutil.Process) -> str:
-    try:
-        cmd = proc.cmdline()
-    except psutil.Error:
-        return "?"
-    if len(cmd) >= 4 and cmd[2] == "ext_sense.runner":
-        try:
-            payload = json.loads(cmd[3])
-            if "specs" in payload:  # a node group: the hot path in one process
-                return "+".join(spec["name"] for spec in payload["specs"])
-            return payload["spec"]["name"]
-        except (ValueError, KeyError):
-            return "?"
-    return "runner"
 
 
 def _cpu(procs: list[psutil.Process]) -> dict[int, float]:
@@ -109,7 +75,7 @@ def measure(model: Path, tmp: Path, view: bool, client: bool, warm_s: float, spa
         time.sleep(warm_s)
         root = psutil.Process(proc.pid)
         procs = [root, *root.children(recursive=True)]
-        names = {p.pid: _node_name(p) for p in procs}
+        names = {p.pid: process_name(p.pid) for p in procs}
         n0 = len(fg.messages()) if fg else 0
         c0, t0 = _cpu(procs), time.monotonic()
         time.sleep(span_s)
@@ -118,12 +84,7 @@ def measure(model: Path, tmp: Path, view: bool, client: bool, warm_s: float, spa
     finally:
         if fg is not None:
             fg.close()
-        os.killpg(proc.pid, signal.SIGINT)
-        try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        stop_group(proc)
     log.seek(0)
     text = log.read()
     log.close()
@@ -147,7 +108,7 @@ def main() -> int:
     warm_s, span_s = (8.0, 10.0) if args.quick else (15.0, 30.0)
     with tempfile.TemporaryDirectory(prefix="bench_view_") as tmp_name:
         tmp = Path(tmp_name)
-        model = _model(args.model, tmp, 100 if args.quick else 300)
+        model, _ = tap_model(args.model, tmp, 100 if args.quick else 300)
         print(
             f"tap_localization graph on the emulated NUSkin, {span_s:g} s measured after "
             f"{warm_s:g} s; CPU as % of one core (user + system), {os.cpu_count()} cores"

@@ -1,19 +1,14 @@
-"""The latency benchmark's pure parts (``bench_runtime.py``): stream, packets, figures, lines.
-
-The synthetic tap stream, as decoded 1 ms batches and as the NUSkin driver's raw packets of the
-same words; the model's own compute, printed beside the end-to-end latency so that the target
-(issue #16: p50 at most the model's compute + 1 ms) is read against the same model on the same
-machine in the same run; and the split of the latency into its hops (``--hops``).
-"""
+"""The latency benchmark's pure parts (``bench_runtime.py``): the synthetic tap stream as the
+driver's packets, the nodes' own work replayed on it, the split into hops, the printed lines."""
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
+from common import pct
 
 from ext_sense_runtime.records import EventBlock
 from ext_sense_runtime.stamps import MS
@@ -87,33 +82,6 @@ def batch_reads(batch: Batch) -> list[tuple[int, bytes]]:
         for i, (lo, hi) in enumerate(zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True))
         if hi > lo
     ]
-
-
-def latency_model(model: str, train_taps: int, tmp: Path) -> tuple[Path, str]:
-    """The bundle to serve and how it was found: ``--model``, the demo's, or trained here."""
-    from ext_sense_perception.errors import PerceptionError
-    from ext_sense_perception.online.model_store import find_model
-    from ext_sense_sim.default_models import ensure_model
-
-    if model:
-        path = Path(model).resolve()
-        if not (path / "model_card.json").is_file():
-            raise SystemExit(f"bench_runtime: --model {model}: no model_card.json there")
-        return path, str(path)
-    try:
-        default = find_model("", "tap_localization", "nuskin")
-        return default, f"{default} (the demo's)"
-    except PerceptionError as err:
-        missing = str(err)
-    out = tmp / "model"
-    t0 = time.monotonic()
-    ensure_model(
-        out, "tap_localization", "nuskin", train_taps, log=lambda line: print(line, file=sys.stderr)
-    )
-    return out, (
-        f"the demo's, trained here on {train_taps} streamed taps in "
-        f"{time.monotonic() - t0:.0f} s ({missing})"
-    )
 
 
 class Source:
@@ -196,14 +164,6 @@ def node_work(model_dir: Path, inputs: list[Any]) -> NodeWork:
         model.predict(w)
         compute.append((time.perf_counter_ns() - t0) / MS)
     return NodeWork(cut, compute)
-
-
-def pct(values: list[float]) -> tuple[float, float]:
-    """p50 and p99 of ``values`` (NaN when empty)."""
-    a = np.asarray(values, dtype=np.float64)
-    if not a.size:
-        return float("nan"), float("nan")
-    return float(np.percentile(a, 50)), float(np.percentile(a, 99))
 
 
 class Final(NamedTuple):
