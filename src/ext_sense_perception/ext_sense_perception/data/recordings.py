@@ -32,10 +32,9 @@ def from_recording(
 ) -> WindowSet:
     """Windows of one raw recording: the paper's ``.tact`` or BioTac ``.csv``, or a real capture.
 
-    Onsets: from the paper's essentials CSV (``t`` or ``tapped_time`` in epoch seconds, or
-    BioTac ``orignal_index``); for a real capture ``.tact`` without essentials, the start of
-    the arm's motion from the ``.bag`` beside it. Labels: ``label_y`` (cm, to metres), ``isPos``
-    (handover: stable/unstable), or the capture's food name.
+    Onsets come from the paper's essentials CSV (``t`` / ``tapped_time`` epoch seconds, or BioTac
+    ``orignal_index``), or for a capture without essentials from the arm bag beside it. Labels:
+    ``label_y`` (cm, to metres), ``isPos`` (stable/unstable), or the capture's food name.
 
     Args:
         path: The recording.
@@ -44,9 +43,6 @@ def from_recording(
         essentials: The paper's essentials CSV (None for real captures).
         config: Windows to cut (default: the task profile's; a capture: 0-3 s after motion).
         policy: Strict (default) or lenient input rules of the NUSkin readers.
-
-    Returns:
-        The window set.
 
     Raises:
         PerceptionError: when onsets cannot be found.

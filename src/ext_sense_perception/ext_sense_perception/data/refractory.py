@@ -1,7 +1,4 @@
-"""The paper's NUSkin sampling-rate reduction: a per-taxel refractory drop of events (no ROS).
-
-It works on events, before windowing and binning, so it belongs with the data, not the features.
-"""
+"""The paper's NUSkin sampling-rate reduction, on events before windowing (no ROS)."""
 
 from __future__ import annotations
 
@@ -13,15 +10,7 @@ from ext_sense_perception.errors import PerceptionError
 def refractory_mask(t_ns: np.ndarray, taxel: np.ndarray, rate_hz: float) -> np.ndarray:
     """Events kept when each taxel drops any spike closer than ``1/rate_hz`` to its last kept one.
 
-    This is the paper's NUSkin sampling-rate reduction.
-
-    Args:
-        t_ns: Event times, int64 ns, sorted.
-        taxel: Taxel ids, same length.
-        rate_hz: Target rate per taxel, Hz (> 0).
-
-    Returns:
-        Boolean mask of kept events.
+    ``t_ns`` sorted int64 ns, ``taxel`` of the same length.
 
     Raises:
         PerceptionError: when the rate is not positive.

@@ -1,11 +1,8 @@
 """Input rules for every import path: a clear error naming file, row and rule, or a counted drop.
 
-Training never proceeds silently on poisoned input. Each reader checks what it reads against
-the rules below; by default the first row that breaks one raises
-:class:`~ext_sense_perception.errors.PerceptionError` naming the file, the row (1-based, as the
-file is read) and the rule. With a lenient :class:`InputPolicy` (``--lenient`` on the CLI) the
-row (or the whole trial, when nothing valid is left of it) is dropped instead and counted by
-rule, so the caller can print what was dropped.
+By default the first bad row raises :class:`~ext_sense_perception.errors.PerceptionError`
+naming the file, the 1-based row and the rule; a lenient :class:`InputPolicy` (``--lenient``)
+drops the row (or the trial left empty) and counts it by rule.
 """
 
 from __future__ import annotations
@@ -90,17 +87,9 @@ def check_event_rows(
     where: str,
     policy: InputPolicy,
 ) -> np.ndarray:
-    """Rows of a NUSkin event file that satisfy every rule (strict: all, or an error).
+    """Mask of the rows of a NUSkin event file that satisfy every rule (strict: all, or an error).
 
-    Args:
-        t_s: Host times, epoch seconds (float).
-        taxel: Taxel ids as read (float).
-        value: 10-bit values as read (float), or None when the format has none.
-        where: The file, for messages.
-        policy: Strict or lenient.
-
-    Returns:
-        Boolean mask of the rows to keep, in file order (times non-decreasing).
+    ``t_s`` are epoch seconds, ``value`` None when the format has none.
     """
     keep = np.ones(len(t_s), dtype=bool)
     with np.errstate(invalid="ignore"):

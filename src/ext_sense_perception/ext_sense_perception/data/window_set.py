@@ -19,15 +19,12 @@ from ext_sense_perception.profiles import TaskProfile, profile_for
 class WindowSet(NamedTuple):
     """Windows with labels.
 
-    ``X`` is ``(n_windows, n_channels, n_samples)`` float32; ``y`` is float64 metres
-    (regression) or ``<U`` class labels; ``groups`` is the trial (or recording) of each window.
-    ``profile`` is the task profile the windows were cut with (None: the task's own, see
-    :attr:`task_profile`); a model trained on the set records it in its card, so the live graph
-    cuts the same windows. ``sessions`` names the recording session of each window (None: one
-    unnamed session; see :mod:`ext_sense_perception.data.sessions`); ``anchor`` is what the
-    onsets were tied to (food: ``arm_motion``, ``capture_start`` or ``contact``; empty: the
-    source's own onsets); ``held_object`` is the object the windows were felt through, when
-    the source names it (otherwise :func:`held_object_of` tells a rod from its lengths).
+    ``X`` is ``(n_windows, n_channels, n_samples)`` float32; ``y`` float64 metres (regression) or
+    ``<U`` class labels; ``groups`` the trial of each window. ``profile`` is the task profile the
+    windows were cut with (None: the task's own), recorded in a model's card so the live graph cuts
+    the same windows. ``sessions`` names each window's session (None: one unnamed session);
+    ``anchor`` what the onsets were tied to (empty: the source's own); ``held_object`` the object
+    the windows were felt through, when the source names it.
     """
 
     task: str
@@ -94,9 +91,9 @@ class WindowSet(NamedTuple):
 def held_object_of(ws: WindowSet) -> HeldObject | None:
     """The object a model trained on ``ws`` was trained on, for its card.
 
-    The set's own ``held_object`` when its source named one; else a rod when every window
-    has a rod length (one length, or none recorded when they differ by more than
-    :data:`~ext_sense_perception.online.model_card.LENGTH_TOLERANCE_M`); else None (unknown).
+    The set's own ``held_object``; else a rod when every window has a rod length (no length when
+    they differ by more than :data:`~ext_sense_perception.online.model_card.LENGTH_TOLERANCE_M`);
+    else None.
     """
     if ws.held_object is not None:
         return ws.held_object
@@ -109,11 +106,7 @@ def held_object_of(ws: WindowSet) -> HeldObject | None:
 
 
 def common_held_object(sets: list[WindowSet]) -> HeldObject | None:
-    """The object of window sets joined into one.
-
-    Their kind when they share it (a length only when they share that too), else None (then
-    :func:`held_object_of` tells a rod from the windows' lengths).
-    """
+    """The object of window sets joined into one: their shared kind (and length), else None."""
     objects = {ws.held_object for ws in sets}
     if None in objects or len({o.kind for o in objects if o is not None}) != 1:
         return None
@@ -151,23 +144,20 @@ def window_set_of(
     n_channels: int | None = None,
     profile: TaskProfile | None = None,
 ) -> WindowSet:
-    """A window set from windows cut with ``config`` and their labels.
+    """A window set from windows cut with ``config`` (its task decides the label kind).
 
     Args:
-        config: The configuration the windows were cut with (its task decides the label kind).
+        config: The configuration the windows were cut with.
         windows: The windows, in label order.
         labels: Tap positions (m) or class labels, one per window.
         source: Where they came from (file names, scene).
         data_hash: Hash of that data.
-        groups: Trial (or recording) of each window (default: their order).
+        groups: Trial of each window (default: their order).
         rod_length_m: Rod length per window, m (default NaN).
         excluded: Trials left out.
         n_channels: Channels of an empty set (default: the config's taxels).
-        profile: The profile to record (default: the config's); offline cutting changes
-            onset source and debounce, which the live graph must not inherit.
-
-    Returns:
-        The window set.
+        profile: The profile to record (default: the config's); offline cutting changes onset source
+            and debounce, which the live graph must not inherit.
     """
     n = len(windows)
     if windows:

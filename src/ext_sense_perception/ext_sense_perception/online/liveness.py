@@ -1,35 +1,20 @@
 """Liveness of the window node's input stream: stalls, lost input, and the windows they spoil.
 
-A stopped driver (``kill -STOP``), a stalled executor or a blocked link looks, downstream, like
-silence followed by a burst; a window cut across it silently misses signal and the estimate of
-it is wrong (measured: onset +209 ms, 12 cm off) while every status says OK. This module is
-the window node's account of it, with no ROS and an injectable clock:
+A stopped driver or blocked link looks downstream like silence then a burst, and a window cut
+across it misses signal while every status says OK. No ROS; the clock is injectable.
 
-- *Streaming* is when input must arrive: always for BioTac (frames come at 100 Hz whatever
-  touches the finger), and for NUSkin while the driver's stream goes (its packets carry the
-  sensor's bytes, or say every few ms that it read nothing). The node says which through
-  :meth:`StreamLiveness.update`'s ``streaming`` argument.
-- A *stall* is silence while streaming longer than ``warn_ns`` (WARN), then ``error_ns``
-  (ERROR). It stays reported until data returns, even once the contact has been flushed, and
-  is kept as an interval of stream time, so that every window overlapping it is marked.
-- A *late packet* arrived more than ``late_ns`` after the stream's usual delay (the smallest
-  ``arrival - stamp`` seen recently: a constant clock offset, as in a replayed bag, is not
-  lateness). It is counted, but degrades no window: a window is cut when the stream passes its
-  end, and the stream is in order, so a late packet inside a window is in it (a 3 s food window
-  under load is as complete as on a quiet machine). Whether the estimate came too late is the
-  inference node's deadline.
-- *Lost input*: NUSkin batches carry the driver's running word count; words the driver decoded
-  that never reached this node (a best-effort stream dropped them while this node was stopped
-  or starved) show as a count that grew by more than the events that arrived
-  (:meth:`StreamLiveness.on_counts`). Batches split from one drain share their count, so a
-  shortfall is judged only once the count moves on.
+- *Streaming*: input must arrive (always for BioTac; for NUSkin while the driver's stream goes).
+- A *stall*: silence while streaming beyond ``warn_ns`` (WARN), then ``error_ns`` (ERROR), kept
+  as an interval of stream time so every window overlapping it is marked.
+- A *late packet*: more than ``late_ns`` over the stream's usual delay (its smallest recent
+  ``arrival - stamp``). Counted only: the stream is in order, so a late packet is still in its
+  window.
+- *Lost input*: the driver's running word count grew by more than the events that arrived
+  (:meth:`StreamLiveness.on_counts`), or packets are missing by ``seq``.
 
-Windows overlapping a stall or lost input get a reason from :meth:`fault_in`; the node
-publishes them with ``degraded`` set. Contacts are counted, not gaps: a final window across a
-stall or lost input is a *degraded* contact (``contacts_degraded``: it still got an estimate);
-lost input no window came to cover, once the stream is ``contact_horizon_ns`` past it, is a
-*lost* contact if it could hold an onset (``contact_words``), and gaps closer together than
-``debounce_ns`` (the onset detector's) count as one (``contacts_lost``).
+Windows overlapping a fault get a reason from :meth:`StreamLiveness.fault_in` and are published
+``degraded``. Lost input no window covered, once the stream is ``contact_horizon_ns`` past it,
+is a lost contact if it could hold an onset; gaps closer than ``debounce_ns`` count once.
 """
 
 from __future__ import annotations
@@ -54,10 +39,10 @@ MARGIN_NS = 100_000
 
 @dataclass
 class Fault:
-    """A stall (``start_ns`` to ``end_ns``, stream time) or a late packet (one instant).
+    """A stall (``start_ns`` to ``end_ns``, stream time) or lost input.
 
-    ``lost_words`` is how many words a lost-input gap misses (0 for a stall). A lost-input
-    gap that ``may_hold_contact`` and no window ``covered`` is a lost contact once settled.
+    ``lost_words`` is what a lost-input gap misses (0 for a stall); a gap that ``may_hold_contact``
+    and no window ``covered`` is a lost contact once settled.
     """
 
     start_ns: int
@@ -74,8 +59,7 @@ class StreamLiveness(StallCounts):
 
     Args:
         stream: The stream's name in messages (its topic).
-        expected_rate_hz: Messages per second while streaming (shown, and the unit of the
-            default thresholds).
+        expected_rate_hz: Messages per second while streaming (shown).
         warn_ns: Silence while streaming that is a stall (WARN).
         error_ns: Silence while streaming that is an ERROR.
         late_ns: Extra delay over the stream's usual one that makes a packet late.
@@ -132,10 +116,7 @@ class StreamLiveness(StallCounts):
         return self.stall.stalled_since_ns
 
     def on_message(self, stamp_ns: int, wall_ns: int) -> None:
-        """Count one message: ``stamp_ns`` its header stamp, ``wall_ns`` the host time now.
-
-        Ends a stall in progress (its interval closes at this stamp) and records a late packet.
-        """
+        """Count one message (header stamp, host time now): ends a stall, records a late packet."""
         now = self.clock()
         silent = self.stall.end(now)
         if silent is not None:
@@ -158,13 +139,10 @@ class StreamLiveness(StallCounts):
         self._forget(stamp_ns)
 
     def on_counts(self, stamp_ns: int, words_total: int, bad_words: int, n_events: int) -> None:
-        """Check the driver's running word count against the events received (NUSkin).
+        """Check the driver's running count of good words against the events received (NUSkin).
 
-        Args:
-            stamp_ns: The batch's stamp.
-            words_total: Words the driver decoded so far (``words_total``).
-            bad_words: Of those, words it dropped (``bad_taxel_words``).
-            n_events: Events in this batch.
+        Batches split from one drain share their count, so a shortfall is judged once the count
+        moves on.
         """
         good = int(words_total) - int(bad_words)
         last = self._last_total
@@ -201,13 +179,8 @@ class StreamLiveness(StallCounts):
     def on_lost_packets(self, before_ns: int, stamp_ns: int, n: int) -> None:
         """``n`` packets are missing between the packet stamped ``before_ns`` and this one.
 
-        Their bytes are gone: the windows across the gap are degraded, and the status is WARN
-        for :data:`RECENT_NS`. A driver's packet holds the bytes of its reads, or none at all
-        when it says the link read nothing (the NUSkin driver's ``quiet_packets_period_s``, only
-        while the sensor sends nothing), so the lost words are not known. As for a shortfall in the
-        word count (:meth:`on_counts`), a gap of at least ``contact_words`` packets may have
-        held the words of an onset (a shorter one cannot: the onset detector needs
-        ``contact_words`` events): a lost contact if no window comes to cover it.
+        Their word count is unknown; a gap of at least ``contact_words`` packets may have held an
+        onset, and is a lost contact if no window comes to cover it.
         """
         if n <= 0:
             return
@@ -228,11 +201,7 @@ class StreamLiveness(StallCounts):
             self._unsettled.append(fault)
 
     def _settle(self, now_stamp_ns: int) -> None:
-        """Count the lost contacts of the gaps the stream is ``contact_horizon_ns`` past.
-
-        A gap no window covered may have swallowed a contact whole; gaps closer together than
-        ``debounce_ns`` count once (the onset detector allows no closer contacts).
-        """
+        """Count the lost contacts of the gaps the stream is ``contact_horizon_ns`` past."""
         while self._unsettled:
             gap = self._unsettled[0]
             if gap.end_ns is None or now_stamp_ns - gap.end_ns < self.contact_horizon_ns:
@@ -263,10 +232,7 @@ class StreamLiveness(StallCounts):
     def next_change_ns(self, streaming: bool) -> int | None:
         """Monotonic time at which the status changes if nothing arrives, or ``None``.
 
-        While streaming and not stalled: when the silence passes ``warn_ns`` (a stall starts);
-        while stalled and not yet ERROR: when it passes ``error_ns``; otherwise nothing to watch
-        (the next message ends the stall). The node arms its one timer for it, so an idle
-        node does not wake.
+        The node arms its one timer for it, so an idle node does not wake.
         """
         if self.last_arrival_ns is None:
             return None
@@ -285,8 +251,8 @@ class StreamLiveness(StallCounts):
     def fault_in(self, start_ns: int, end_ns: int, final: bool = False) -> str:
         """Why a window spanning ``[start_ns, end_ns]`` (stream time) is degraded, or ``""``.
 
-        The lost input inside is then covered (its contact got a window); a ``final`` window
-        with a fault is a degraded contact.
+        The lost input inside is then covered; a ``final`` window with a fault is a degraded
+        contact.
         """
         inside = [
             f

@@ -1,11 +1,8 @@
 """Contact windows: the record, how they are cut (from the task profile), binning (no ROS).
 
-:class:`ContactWindow` carries the fields of ``ext_sense_msgs/ContactWindow``: NUSkin windows
-hold signed event counts per taxel and bin (+1 per positive, -1 per negative spike, +1 for
-polarity 0) at the profile's ``sample_ns``; BioTac windows hold the raw PAC samples.
-:class:`WindowConfig` is a task profile (:mod:`ext_sense_perception.profiles`) for one sensor,
-plus the onset detector's settings. :func:`window_from_recording` cuts one window offline at a
-known onset, with the same result as the online windowers (:mod:`.windowers`).
+NUSkin windows hold signed event counts per taxel and bin (+1 per positive or polarity-0 spike,
+-1 per negative); BioTac windows the raw PAC samples. :func:`window_from_recording` cuts one
+window offline at a known onset, as the online windowers (:mod:`.windowers`) do.
 """
 
 from __future__ import annotations
@@ -23,24 +20,19 @@ from ext_sense_runtime.stamps import MS
 
 NUSKIN_TAXELS = 80
 FOOD_CONTACT_DETECTOR = {"activity_window_ns": 300 * MS, "activity_min_events": 230}
-"""The NUSkin onset detector's settings for a fork's contact with food: 230 events within 300 ms
-(2.5 times the idle rate of about 550 events/s on 1 April 2021). Firm foods trip it (apple and
-watermelon 11 of 11 on 1 April, dragonfruit 12 of 15 on 3 April), soft ones rarely (tofu 2 of 26,
-water 1 of 11): a trial without a detected contact is left out and named, so ``contact`` is no
-default anchor."""
+"""NUSkin onset detector for a fork's contact with food: 230 events in 300 ms (2.5x the idle
+rate). Soft foods rarely trip it, so ``contact`` is no default anchor (docs/decisions.md).
+"""
 
 
 class ContactWindow(NamedTuple):
-    """A segment of sensor signal around one contact.
+    """A segment of sensor signal around one contact (the fields of ``ContactWindow.msg``).
 
-    ``data`` has shape ``(n_channels, n_samples)``; sample ``k`` covers
-    ``[onset_ns - pre_onset_ns + k * sample_period_ns, ... + sample_period_ns)``. A negative
-    ``pre_onset_ns`` means the window starts after the onset (food: 2 s after motion start).
-    ``provisional`` windows are the shortened (anytime) ones cut before a contact's final
-    window; ``truncated`` ones were closed early (the stream stopped) with a zero-padded tail.
-    ``degraded`` ones miss data (a stall or input lost in them), begin before the first input
-    (the consumer joined mid-stream) or hold a stuck taxel; ``degraded_reason`` says which:
-    their estimates are not normal ones.
+    ``data`` is ``(n_channels, n_samples)``; sample ``k`` starts at
+    ``onset_ns - pre_onset_ns + k * sample_period_ns`` (negative ``pre_onset_ns``: the window starts
+    after the onset). ``provisional``: an anytime window before the final one; ``truncated``:
+    closed early with a zero-padded tail; ``degraded``: missing data, joined mid-stream or holding
+    a stuck taxel, as ``degraded_reason`` says.
     """
 
     task: str
@@ -71,16 +63,15 @@ class WindowConfig:
         sensor: The sensor the windows are cut from.
         activity_window_ns: NUSkin onset: the sliding window events are counted in, ns.
         activity_min_events: NUSkin onset: events within ``activity_window_ns`` that mean contact.
-        activity_min_taxels: NUSkin onset: distinct taxels those events must come from, at most
-            ``activity_min_events`` (a contact is many taxels; one taxel at its ceiling is a
-            fault, not a contact).
+        activity_min_taxels: NUSkin onset: distinct taxels those events must come from (one taxel at
+            its ceiling is a fault, not a contact).
         stuck_rate_hz: NUSkin: events per second of one taxel that count as its ceiling.
-        stuck_after_ns: NUSkin: a taxel at that rate for longer than this is stuck and masked
-            from onset detection until it quiets, ns (longer than any contact lasts).
+        stuck_after_ns: NUSkin: a taxel at that rate longer than this is masked from onset detection
+            until it quiets, ns.
         pac_energy_window_ns: BioTac onset: the sliding window of the PAC energy, ns.
         pac_threshold_sigma: BioTac onset: threshold as a multiple of the PAC noise RMS.
         pac_min_rms: BioTac onset: threshold floor of the PAC RMS deviation, ADC counts.
-        pac_baseline_tau_ns: BioTac: time constant of the PAC baseline (DC) tracker, ns.
+        pac_baseline_tau_ns: BioTac: time constant of the PAC baseline tracker, ns.
         n_taxels: NUSkin taxels (ids 1..n_taxels become channels).
         history_ns: Extra stream history kept for late external onsets, ns.
     """
@@ -130,16 +121,7 @@ class WindowConfig:
     def for_task(
         cls, task: str | Task, sensor: str | Sensor, **profile_changes: Any
     ) -> WindowConfig:
-        """The task's profile (:func:`~ext_sense_perception.profiles.profile_for`) for a sensor.
-
-        Args:
-            task: Task name or enum.
-            sensor: Sensor name or enum.
-            **profile_changes: Fields of :class:`~ext_sense_perception.profiles.TaskProfile` to
-                change (a node's parameters, an offline study).
-
-        Returns:
-            The configuration.
+        """The task's profile for a sensor, with ``profile_changes`` applied to its fields.
 
         Raises:
             PerceptionError: An unknown task or sensor, or a change out of range.
@@ -156,10 +138,7 @@ class WindowConfig:
     def for_profile(cls, profile: TaskProfile, sensor: str | Sensor) -> WindowConfig:
         """The configuration that cuts ``profile``'s windows, with the detector it needs.
 
-        A food profile whose onset comes from the signal (a model trained on windows anchored
-        at the fork's contact) gets :data:`FOOD_CONTACT_DETECTOR`; every other profile the
-        default detector. The window node and the offline cut both call this, so a
-        contact-anchored food model meets the same onsets live as in training.
+        A contact-anchored food profile gets :data:`FOOD_CONTACT_DETECTOR`, live and offline alike.
         """
         food_contact = (
             profile.task is Task.FOOD_IDENTIFICATION and profile.onset_source is OnsetSource.SIGNAL
@@ -220,17 +199,9 @@ def _check(ok: bool, name: str, expected: str, got: object) -> None:
 def bin_events(
     events: EventBlock, start_ns: int, n_bins: int, bin_ns: int, n_taxels: int = NUSKIN_TAXELS
 ) -> np.ndarray:
-    """Signed event counts per taxel and bin.
+    """Signed event counts per taxel and bin, ``(n_taxels, n_bins)`` float32.
 
-    Args:
-        events: The events (taxel ids outside 1..n_taxels are ignored; polarity 0 counts +1).
-        start_ns: Start of bin 0, ns.
-        n_bins: Number of bins.
-        bin_ns: Bin width, ns.
-        n_taxels: Rows of the result.
-
-    Returns:
-        Counts, shape ``(n_taxels, n_bins)`` float32.
+    Taxel ids outside 1..n_taxels are ignored; polarity 0 counts +1.
     """
     rel = events.t_ns.astype(np.int64, copy=False) - np.int64(start_ns)
     idx = np.floor_divide(rel, np.int64(bin_ns))
@@ -254,9 +225,7 @@ def window_from_recording(
     pac: np.ndarray | None = None,
     pac_t0_ns: int = 0,
 ) -> ContactWindow:
-    """Cut one final window offline from a whole recording at a known onset.
-
-    Same output as the online windowers (used to build training sets from recordings).
+    """Cut one final window offline from a whole recording at a known onset, as the windowers do.
 
     Args:
         config: Window configuration.
@@ -264,9 +233,6 @@ def window_from_recording(
         events: NUSkin events.
         pac: BioTac PAC ``(n_sensors, n_samples)`` from ``pac_t0_ns``.
         pac_t0_ns: Time of PAC sample 0, ns.
-
-    Returns:
-        The window.
 
     Raises:
         PerceptionError: when the sensor's arrays are missing.
