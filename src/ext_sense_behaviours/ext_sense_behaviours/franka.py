@@ -1,23 +1,10 @@
 """The franka_ros2 side of the arm adapter, without rclpy: names, conversions, thresholds.
 
-franka_msgs is not on PyPI (``scripts/setup.sh`` builds the definitions used here into the venv
-from ``interfaces/franka_msgs``; a ROS install has the real package), so nothing here imports it
-at module load: :func:`import_franka_msgs` does it on demand and says what is missing. Names
-of the topic, service and action come from parameters (:class:`FrankaNames`), defaulting to
-franka_ros2's:
-
-- state: ``/franka_robot_state_broadcaster/robot_state`` (``franka_msgs/msg/FrankaRobotState``;
-  external wrench ``o_f_ext_hat_k`` (WrenchStamped, base frame), pose ``o_t_ee`` (PoseStamped));
-- collision thresholds: ``/service_server/set_full_collision_behavior``
-  (``franka_msgs/srv/SetFullCollisionBehavior``);
-- error recovery: ``/action_server/error_recovery`` (``franka_msgs/action/ErrorRecovery``);
-- motion: ``/fr3_arm_controller/follow_joint_trajectory``
-  (``control_msgs/action/FollowJointTrajectory``), the ``joint_trajectory_controller`` that
-  franka_ros2's MoveIt configuration (``franka_fr3_moveit_config``) loads and most franka_ros2
-  user code drives. franka_ros2 has no commandable Cartesian controller (its Cartesian examples
-  generate their own motion), so the adapter turns the fork's straight vertical line into joint
-  waypoints (:mod:`ext_sense_behaviours.panda_kinematics`) and stops by cancelling the goal, on
-  which the controller holds its position.
+franka_msgs is not on PyPI (``scripts/setup.sh`` builds it into the venv), so it is imported on
+demand (:func:`import_franka_msgs`). The names default to franka_ros2's: the robot state
+broadcaster, the collision-behaviour service, the error-recovery action and the
+``fr3_arm_controller``'s ``FollowJointTrajectory`` (franka_ros2 has no commandable Cartesian
+controller, so straight lines become joint waypoints, :mod:`ext_sense_behaviours.panda_kinematics`).
 """
 
 from __future__ import annotations

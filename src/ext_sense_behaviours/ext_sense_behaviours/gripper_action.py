@@ -1,21 +1,11 @@
 """The Robotiq 2F in the units of ``control_msgs`` gripper actions, and when a goal is done.
 
-MoveIt, ``ros2_control``'s ``GripperActionController`` and most user code command a gripper
-through ``control_msgs/action/GripperCommand`` (goal ``command.position``: the gap between the
-fingers in metres; ``command.max_effort`` in newtons) or ``ParallelGripperCommand`` (a
-``sensor_msgs/JointState``). The Robotiq registers count 0 (open) .. 255 (closed) for position,
-speed and force; :class:`GripperScale` converts between the two, linearly over the stroke (the
-real finger gap is close to linear in gPO on the 2F-85 and 2F-140). :func:`goal_outcome` decides
-from one status read whether a goal is finished, with the result fields the actions report:
-``stalled`` (the fingers stopped on an object, gOBJ 1 or 2: object detection) and
-``reached_goal`` (gOBJ 3). Both count as success, as ``GripperActionController`` does with
-``allow_stalling``: stopping on the object is the point of a grasp.
-
-A goal the gripper cannot carry out as asked is rejected before anything moves
-(:func:`goal_problem`): a gap, speed or effort that is not a finite number, and a gap outside
-the stroke (0 .. ``stroke_m``, give or take one position count). ``reached_goal`` means the
-fingers are at the commanded gap (control_msgs); clamping a 1.0 m goal to the 2F-85's
-0.085 m and reporting it reached would say the gripper did what it cannot.
+:class:`GripperScale` converts the finger gap (m), effort (N) and speed (m/s) of
+``GripperCommand`` / ``ParallelGripperCommand`` to register counts (0 open .. 255 closed),
+linearly over the stroke. :func:`goal_problem` rejects a goal the gripper cannot carry out as
+asked (not finite, or outside the stroke): reporting a clamped goal reached would lie.
+:func:`goal_outcome` judges a goal from one status: ``stalled`` (gOBJ 1 or 2) and
+``reached_goal`` (gOBJ 3) are both success, as ``GripperActionController`` with ``allow_stalling``.
 """
 
 from __future__ import annotations

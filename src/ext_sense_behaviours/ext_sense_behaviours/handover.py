@@ -3,20 +3,15 @@
 States::
 
     IDLE --start--> HOLDING --N in a row P(stable) >= threshold--> RELEASING --open--> RELEASED
-                      |                                              |
-                      +--safety timeout--> TIMED_OUT (keep holding)  +--release timeout--> FAULT
+                      +--safety timeout--> TIMED_OUT (keep holding)
                       +--gripper fault / link lost--> FAULT (keep holding, stop commanding)
-    FAULT --status read once the link answers--> RELEASED (the open command ran)
-                                              or FAULT (fingers still closed: logged as such)
+    RELEASING --release timeout--> FAULT
+    FAULT --status read once the link answers--> RELEASED (the open command ran) or FAULT
 
-The safe state is always "keep holding": dropping an object costs more than a slow handover.
-A link error after the open command is ambiguous (a corrupted reply does not mean the write
-failed: the fingers may be opening), so after any fault the machine waits for one status read
-from the link (:meth:`HandoverMachine.on_status_after_fault`) and logs where the fingers really
-are.
-A provisional (anytime) estimate never counts unless ``accept_provisional`` is set; an estimate
-below the threshold, NaN, or for another task breaks the streak or is ignored, and every one of
-those choices is logged with its reason.
+The safe state is always "keep holding". A link error after the open command is ambiguous (the
+fingers may be opening), so after a fault the machine waits for one status read
+(:meth:`HandoverMachine.on_status_after_fault`). Provisional estimates count only with
+``accept_provisional``; every estimate ignored or breaking the streak is logged with its reason.
 """
 
 from __future__ import annotations

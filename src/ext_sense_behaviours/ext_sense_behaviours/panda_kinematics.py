@@ -1,15 +1,9 @@
 """Kinematics of the Franka Panda / FR3 arm: forward kinematics, Jacobian, straight-line IK.
 
-Why here: franka_ros2 users command the arm through ``joint_trajectory_controller``'s
-``FollowJointTrajectory`` action (the controller franka_fr3_moveit_config runs), which takes
-joint positions, while the food probe moves the fork straight down at a set Cartesian speed. The
-adapter turns that vertical line into joint waypoints with these functions (plain NumPy, the
-same model libfranka reports ``O_T_EE`` with), and the simulated arm uses the forward kinematics
-to report the pose the real robot would.
-
-Model: Franka's published modified (Craig) Denavit-Hartenberg parameters, flange 0.107 m after
-joint 7, and the Franka Hand's end effector 0.1034 m beyond the flange, turned -45 degrees about
-z (libfranka's default ``F_T_EE``). Lengths in metres, angles in radians.
+franka_ros2's ``joint_trajectory_controller`` takes joint positions while the food probe moves
+the fork straight down, so the adapter turns that line into joint waypoints here (plain NumPy).
+Model: Franka's modified Denavit-Hartenberg parameters, flange 0.107 m after joint 7, the Franka
+Hand's end effector 0.1034 m beyond it turned -45 degrees about z (libfranka's ``F_T_EE``).
 """
 
 from __future__ import annotations

@@ -1,11 +1,8 @@
 """One deadline at a time on a node's executor: how long an action client waits for an answer.
 
-An action's goal response and result are service replies, and the middleware can lose one
-(a live handover graph once logged ``failed to send response (timeout)`` from an action server
-at start-up and then waited nine minutes for a reply). The action clients of the behaviours
-(the gripper client, the Franka adapter) therefore arm a :class:`Deadline` while they wait,
-and end the goal themselves when it expires. A one-shot timer on the node's own executor,
-so the expiry runs like any other callback of the node, never concurrently with it.
+The middleware can lose an action's goal response or result, so the behaviours' action clients
+arm a :class:`Deadline` while they wait and end the goal themselves when it expires. A one-shot
+timer on the node's executor, so the expiry never runs concurrently with the node's callbacks.
 """
 
 from __future__ import annotations

@@ -1,20 +1,12 @@
 """``food_behaviour`` node: lower the fork, stop on contact, classify, retract, publish.
 
-Runs :class:`~ext_sense_behaviours.food.FoodMachine` on an arm adapter (``arm`` = ``sim``: the
-simulated arm inside the node; ``franka``: a franka_ros2 robot, or the ``sim_arm`` node that
-stands in for one, through :class:`~ext_sense_behaviours.nodes.franka_adapter.FrankaArmAdapter`:
-robot state, collision thresholds, ``FollowJointTrajectory`` goals) from a timer at
-``control_rate_hz``. Publishes ``motion_start`` (``ContactGroundTruth``, task
-``food_identification``, stamp = motion start) so the ``contact_window`` node cuts the food
-window, takes the final food ``ContactEstimate`` for that motion start from ``contact_estimate``
-(or, with ``accept_provisional``, a provisional one from ``contact_estimate/provisional``),
-and republishes it on ``food/result`` once retracted; every decision goes to
-``food/decision`` (``std_msgs/String``) and the log; every arm state sample read while
-probing goes to ``arm/state`` (``sensor_msgs/JointState``, joint ``ee_z``: position = height z
-in m, velocity = vertical velocity in m/s, effort = external force norm in N). A probe starts on
-``food/start`` (``std_msgs/Bool`` true) or at start-up with ``auto_start`` (once
-``motion_start`` has ``start_subscribers`` subscribers), and again ``repeat_s`` after each one
-ends.
+Runs :class:`~ext_sense_behaviours.food.FoodMachine` on an arm adapter (``arm`` sim: simulated
+in the node; franka: :class:`~ext_sense_behaviours.nodes.franka_adapter.FrankaArmAdapter`) from
+a timer at ``control_rate_hz``. Publishes ``motion_start`` (``ContactGroundTruth``) so the
+``contact_window`` node cuts the food window, takes the food estimate for that motion start and
+republishes it on ``food/result`` once retracted. Decisions go to ``food/decision`` and the log,
+arm states read while probing to ``arm/state`` (JointState ``ee_z``: z, vertical velocity, force
+norm). A probe starts on ``food/start`` or with ``auto_start``, again ``repeat_s`` after one ends.
 """
 
 from __future__ import annotations

@@ -1,31 +1,17 @@
 """The franka_ros2 arm adapter: the food probe's arm on a Panda / FR3 under franka_ros2.
 
-Implements :class:`~ext_sense_behaviours.arm.ArmAdapter` on a node, through the interfaces a
-franka_ros2 robot offers (names are parameters, :class:`~ext_sense_behaviours.franka.FrankaNames`):
+Implements :class:`~ext_sense_behaviours.arm.ArmAdapter` on a node, through franka_ros2's
+interfaces (names in :class:`~ext_sense_behaviours.franka.FrankaNames`): it reads
+``FrankaRobotState`` (force, height, joints, collision flags, mode), sets the collision reflex
+(``SetFullCollisionBehavior``, asynchronously) as a safety net behind the 10 N software stop,
+moves through the ``joint_trajectory_controller``'s ``FollowJointTrajectory`` (vertical lines
+as joint waypoints; ``stop`` cancels the goal), stops the descent itself on a contact or
+collision flag or reflex mode, and offers ``ErrorRecovery``.
 
-- reads ``franka_msgs/msg/FrankaRobotState`` from the robot state broadcaster: external force
-  ``o_f_ext_hat_k``, height from ``o_t_ee``, measured joints, collision indicators, robot mode;
-- sets the robot's collision reflex through ``franka_msgs/srv/SetFullCollisionBehavior`` once
-  the service is there (asynchronously: the node never blocks waiting for the robot), as a
-  safety net behind the behaviour's 10 N software stop;
-- moves through ``control_msgs/action/FollowJointTrajectory`` of the ``joint_trajectory_controller``
-  franka_ros2's MoveIt configuration runs (``fr3_arm_controller``): the vertical descent and
-  retract become joint waypoints (:func:`~ext_sense_behaviours.panda_kinematics.vertical_line`)
-  planned from the measured joints; ``stop`` cancels the goal, on which the controller holds
-  the position it has;
-- stops the descent by itself when the robot raises a Cartesian contact or collision flag (its
-  lower threshold crossed) or reports reflex mode, whatever the behaviour decides;
-- offers error recovery through ``franka_msgs/action/ErrorRecovery`` after a reflex;
-- ends every motion goal it sends: one the controller does not answer within
-  ``accept_timeout_s`` is canceled by its own goal id (the controller may have accepted it and
-  be moving, its answer lost), one whose result does not come within its planned duration plus
-  ``result_margin_s`` is canceled; either fails like a rejected, aborted or foreign-canceled
-  one. The failure is reported once through :meth:`FrankaArmAdapter.take_failure`, so the
-  behaviour stops and holds at once instead of waiting for a motion that will not happen (a
-  lost goal response used to leave the probe retracting forever).
-
-The simulated arm ``ext_sense_sim.nodes.sim_arm`` speaks exactly these interfaces, so the tests
-and the food graph's simulated source run this code. Imported lazily by ``food_behaviour``.
+Every motion goal ends: one not accepted within ``accept_timeout_s`` or without a result within
+its planned duration plus ``result_margin_s`` is canceled and reported once through
+:meth:`FrankaArmAdapter.take_failure`, so the behaviour stops and holds. The simulated arm
+``ext_sense_sim.nodes.sim_arm`` speaks the same interfaces.
 """
 
 from __future__ import annotations

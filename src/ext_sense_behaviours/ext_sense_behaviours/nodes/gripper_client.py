@@ -1,18 +1,10 @@
 """A ``control_msgs/action/GripperCommand`` client with one callback per goal.
 
-The handover commands the gripper through the standard action, not through anything of our
-Robotiq node, so it works unchanged with ``ros2_control``'s ``GripperActionController`` (or
-PickNik's Robotiq driver) on ``/robotiq_gripper_controller/gripper_cmd``. This wraps rclpy's
-``ActionClient`` futures into one :class:`GripperReply` per goal, delivered on the executor, so
-the node's decisions stay plain callbacks. Not an executable: a helper of the behaviour nodes.
-
-Every goal gets an answer. The goal response and the result are service replies, and the
-middleware can lose one: a live handover graph once logged ``failed to send response
-(timeout)`` from the gripper's action server at start-up, and the handover waited for its
-grasp goal for the rest of the run (nine minutes, no trial played). So a goal not accepted
-within ``accept_timeout_s`` ends as ``unanswered`` and a result that does not come within
-``result_timeout_s`` as ``timed out`` (the goal is then canceled); an answer after that is
-ignored. The caller retries as for any failed goal.
+The handover uses the standard action, so any gripper action server works. rclpy's futures are
+wrapped into one :class:`GripperReply` per goal, delivered on the executor. Every goal gets an
+answer, since the middleware can lose a reply: a goal not accepted within ``accept_timeout_s``
+ends ``unanswered``, a result not in within ``result_timeout_s`` ``timed out`` (and is
+canceled); a later answer is ignored.
 """
 
 from __future__ import annotations

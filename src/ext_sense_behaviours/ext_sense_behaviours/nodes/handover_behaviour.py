@@ -1,23 +1,13 @@
 """``handover_behaviour`` node: open the gripper once the person's grasp is stable.
 
-Subscribes ``contact_estimate`` (``ContactEstimate``, task ``handover_stability``; the
-provisional ones on ``contact_estimate/provisional`` count only with ``accept_provisional``) and
-commands the gripper through ``control_msgs/action/GripperCommand`` on ``gripper_action``
-(default ``/robotiq_gripper_controller/gripper_cmd``: our ``robotiq_gripper`` node, or a
-``ros2_control`` ``GripperActionController`` unchanged): a grasp goal (gap 0) whose result
-``stalled`` means it holds an object, an open goal (gap ``open_position_m``) whose success means
-it released. ``gripper/status`` (from ``robotiq_gripper`` only; optional) adds faults with their
-cause and, after a fault, where the fingers really are. Publishes every
-decision with its reason on ``handover/decision`` (``std_msgs/String``) and in the log, and
-``handover/offer`` (``ContactGroundTruth``, task ``handover_stability``, stamped when a handover
-starts: the object is offered; the simulated sensor plays the person's grasp on it). The
-node first closes the gripper on the object (``grasp_on_start``); the handover starts
-when the grasp result reports it holds an object (``auto_start``) or on ``handover/start``
-(``std_msgs/Bool`` true; after a fault this is the only way out); with ``regrasp_s`` > 0 it
-grasps again after each release or timeout for the next handover (demos with many trials).
-The decisions are those of :class:`~ext_sense_behaviours.handover.HandoverMachine`; any gripper
-error keeps the object held, and the first status read after it (``link`` = ``ok``) is logged
-with the real finger position (RELEASED when the open command ran despite the error).
+Feeds ``contact_estimate`` (provisional ones only with ``accept_provisional``) to
+:class:`~ext_sense_behaviours.handover.HandoverMachine` and commands the gripper through
+``control_msgs/action/GripperCommand`` on ``gripper_action``, so a ``GripperActionController``
+works as well as our ``robotiq_gripper``. It first grasps the object (``grasp_on_start``); the
+handover starts when the grasp stalls on it (``auto_start``) or on ``handover/start``, and with
+``regrasp_s`` > 0 again after each release or timeout. Publishes each decision on
+``handover/decision`` and ``handover/offer`` when the object is offered. Any gripper error keeps
+the object held; the first status read after it (``gripper/status``) logs where the fingers are.
 """
 
 from __future__ import annotations

@@ -1,47 +1,21 @@
 """``robotiq_gripper`` node: a Robotiq 2F over Modbus RTU behind the standard gripper actions.
 
-It speaks what MoveIt and ``ros2_control`` gripper controllers speak, so user code written for
-PickNik's ``ros2_robotiq_gripper`` (a ``GripperActionController``) works unchanged:
+It serves what MoveIt and ``ros2_control`` gripper controllers serve, so code written for
+PickNik's ``ros2_robotiq_gripper`` works unchanged: ``/<controller_name>/gripper_cmd``
+(``GripperCommand``: gap in m, ``max_effort`` in N) and ``/<parallel_controller_name>/gripper_cmd``
+(``ParallelGripperCommand``). Results carry the final gap, ``stalled`` (gOBJ 1 or 2) and
+``reached_goal`` (gOBJ 3), both a success. A goal outside the stroke or not finite is rejected
+before anything moves; a goal fails on a link error, a fault, an inactive gripper or after
+``goal_timeout_s``; a newer goal preempts the running one; a cancel stops the fingers.
 
-- ``/<controller_name>/gripper_cmd`` (``control_msgs/action/GripperCommand``; default
-  ``/robotiq_gripper_controller/gripper_cmd``, as PickNik's driver): goal ``command.position``
-  the finger gap in metres (0 closed .. ``stroke_m`` open), ``command.max_effort`` the grip
-  force in newtons (0: the ``force`` parameter); speed from the ``speed`` parameter.
-- ``/<parallel_controller_name>/gripper_cmd`` (``control_msgs/action/ParallelGripperCommand``;
-  default ``/robotiq_parallel_gripper_controller/gripper_cmd``, the shape of Jazzy's
-  ``parallel_gripper_action_controller``): ``command.position[0]`` the gap in metres, optional
-  ``velocity[0]`` (m/s) and ``effort[0]`` (N).
+Publishes ``joint_states`` (the finger gap) and ``gripper/status`` (``DiagnosticStatus`` with
+the register fields and ``link`` ok / error) every poll; ``gripper/activate`` (Bool) resets and
+activates (true) or resets (false).
 
-Both results carry the measured final gap, ``stalled`` (stopped on an object: gOBJ 1 or 2) and
-``reached_goal`` (gOBJ 3: at the commanded gap), both a success. A goal with a non-finite gap,
-speed or effort, or a gap outside the stroke, is rejected, nothing moved (``goal_problem``); one
-sent before the first status read or the activation's end waits for them. A goal fails (aborted)
-on a link error, a fault, a gripper not activated, or after ``goal_timeout_s``; a newer goal
-preempts the one running (aborted); a cancel stops the fingers where they are.
-
-Topics:
-
-- ``joint_states`` (``sensor_msgs/JointState``, out, every poll): ``joint_name`` at the finger
-  gap in metres.
-- ``gripper/activate`` (``std_msgs/Bool``, in): true resets and activates (clears faults),
-  false resets (rACT = 0).
-- ``gripper/status`` (``diagnostic_msgs/DiagnosticStatus``, out, every poll): level OK / WARN
-  (not ready) / ERROR (fault or link error), a readable message, and the register fields as
-  key-values ``gACT gGTO gSTA gOBJ gFLT gPR gPO gCU``, plus ``link`` = ``ok`` when they were
-  read just now or ``error`` when they are the last values read before a link error.
-
-A lifecycle node, as the sensor drivers are: configure opens the Modbus link (the worker thread
-starts, connects and polls; status and ``joint_states`` flow), activate serves (goals are
-accepted only while active; inactive, the action servers refuse them), deactivate stops serving
-(a goal under way is aborted) with the link kept open, cleanup and shutdown close the link.
-``autostart`` (default true: ``ros2 run``, tests) configures and activates at start-up; the
-graphs set it false and drive the transitions (launch events, ``ext-sense run``), or leave them
-to an external manager (``manage_drivers:=false``).
-
-The serial link lives in a worker thread
-(:class:`~ext_sense_behaviours.gripper_worker.GripperWorker`), so the executor never blocks on
-the device; a goal's execute callback awaits a future that the worker's status callback
-completes.
+A lifecycle node like the sensor drivers: configure opens the link, activate serves goals,
+deactivate aborts a running goal and keeps the link, cleanup closes it; ``autostart`` does the
+first two at start-up. The serial link lives in a
+:class:`~ext_sense_behaviours.gripper_worker.GripperWorker` thread, so the executor never blocks.
 """
 
 from __future__ import annotations
