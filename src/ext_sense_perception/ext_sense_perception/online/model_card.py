@@ -1,10 +1,7 @@
-"""The model card: a bundle's typed description, with a schema version, read by one loader.
+"""The model card: a bundle's typed, versioned description, read only by :func:`read_card`.
 
-A bundle directory holds ``model.onnx`` (features + scaler + estimator as one ONNX graph),
-``model.joblib`` (the same fitted scikit-learn pipeline) and ``model_card.json``: the task,
-sensor and task profile the windows were cut with, the window the model accepts, the features
-and model, metrics, the data it was trained on, and the anytime models beside it. Cards are
-written by :mod:`ext_sense_perception.training.bundle_io` and read only by :func:`read_card`.
+A bundle directory holds ``model.onnx`` (features, scaler and estimator as one graph),
+``model.joblib`` (the same fitted pipeline) and ``model_card.json``.
 """
 
 from __future__ import annotations
@@ -84,8 +81,7 @@ class HeldObject(NamedTuple):
 def object_mismatch(trained: HeldObject | None, held: HeldObject | None) -> str:
     """Why a model trained on ``trained`` must not serve a graph holding ``held`` ('' if not).
 
-    An object neither names, or a length one of them leaves open, is no mismatch: the caller
-    warns about a card that records no object (:func:`object_unknown`).
+    An object or length either leaves open is no mismatch (see :func:`object_unknown`).
     """
     if trained is None or held is None:
         return ""
@@ -115,37 +111,23 @@ class ModelCard:
     """What a bundle holds and how its windows must be cut.
 
     Attributes:
-        task: Task label.
-        sensor: Sensor label.
         profile: The task profile the training windows were cut with.
-        window: The window the model accepts (``n_channels`` x ``n_samples`` at ``period_ns``
-            from ``pre_ns`` before the onset).
-        features: Feature family name.
+        window: The window the model accepts.
         feature_params: Parameters of the feature transformer (JSON values).
-        model: Model name.
         model_params: Fixed estimator parameters.
         best_params: Hyper-parameters the grid search chose.
         rate_hz: Sampling rate the windows were reduced to, Hz.
         class_names: Classes (empty for regression).
         metrics: Cross-validated figures (``cv_mae_m``, ``residual_std_m`` or ``cv_accuracy``).
-        n_train: Windows trained on.
-        data: Where the training data came from.
-        data_hash: Hash of that data.
         excluded: Trials left out of the data.
-        train_s: Training time, s.
         onnx: What the ONNX graph holds (None when export failed).
         anytime_post_ms: Post-onset times of the anytime bundles beside it, ms.
-        anchor: What the training windows' onsets were tied to (food: ``arm_motion``,
-            ``capture_start`` or ``contact``; empty: the source's own onsets).
-        sessions: The sessions the model was trained on.
-        label_set: The classes decisions are restricted to (a calibrated model: its session's
-            label set; empty: all of ``class_names``).
-        calibration: How the bundle was adapted to a session (``ext-sense calibrate``): the
-            session, trials per class, their weight and the base model's id (empty: none).
-        held_object: The object the training windows were felt through (None: not known, as
-            on cards written before it was recorded: accepted with a warning).
-        id: The card id (task, sensor, features, model and a hash of the rest).
-        schema_version: :data:`SCHEMA_VERSION`.
+        anchor: What the training onsets were tied to (empty: the source's own).
+        label_set: The classes decisions are restricted to (empty: all of ``class_names``).
+        calibration: How ``ext-sense calibrate`` adapted the bundle to a session (empty: not).
+        held_object: The object the windows were felt through (None: unknown, accepted with a
+            warning).
+        id: Task, sensor, features, model and a hash of the rest.
     """
 
     task: str
@@ -292,11 +274,7 @@ def _kind(value: object) -> str:
 
 
 def _check_types(values: dict[str, Any]) -> None:
-    """The card's JSON values have the kinds of the schema (before any conversion).
-
-    Raises:
-        PerceptionError: The first field of the wrong kind, named with what was expected.
-    """
+    """The card's JSON values have the kinds of the schema (before any conversion)."""
     for name, kinds in _FIELD_KINDS.items():
         if name not in values:
             continue
@@ -363,11 +341,7 @@ def _fail(name: str, expected: str, got: object) -> PerceptionError:
 
 
 def _check_semantics(card: ModelCard) -> None:
-    """Rules that tie the fields together: the kind of model, the window, the periods.
-
-    Raises:
-        PerceptionError: The first rule broken, naming the field, the rule and the value.
-    """
+    """Rules that tie the fields together: the kind of model, the window, the periods."""
     task = Task.parse(card.task, PerceptionError)
     names = card.class_names
     if isinstance(names, str):

@@ -1,21 +1,10 @@
 """Where model bundles are found: by name along a fixed search path, or by path (no ROS).
 
-A model is named (``tap_localization_nuskin``; empty: the task's default, ``<task>_<sensor>``)
-or given by path (absolute, or holding a ``/``, or starting with ``.`` or ``~``). A name is
-looked up in these places, first hit wins, and never in the working directory:
-
-1. ``$EXT_SENSE_MODELS`` (when set);
-2. the user's data directory, ``$XDG_DATA_HOME/ext_sense/models`` (default
-   ``~/.local/share/ext_sense/models``): where ``ext-sense models create`` and ``ext-sense demo``
-   write unless told otherwise;
-3. the installed package share, ``share/ext_sense_perception/models``, found through the ament
-   index (``AMENT_PREFIX_PATH``, as a sourced colcon workspace sets it) and under
-   ``sys.prefix``;
-4. the checkout's ``build/models``, when this package runs from a source checkout.
-
-A bundle is a directory holding ``model_card.json``. :func:`find_model` raises
-:class:`ModelNotFoundError`, whose one-line message lists every place searched and names the
-command that creates the default models.
+A path is absolute, holds a ``/`` or starts with ``.`` or ``~``; a name (empty: the task's
+default ``<task>_<sensor>``) is looked up, first hit wins, never in the working directory, in
+``$EXT_SENSE_MODELS``, the user's data directory (``$XDG_DATA_HOME/ext_sense/models``, where
+``ext-sense models create`` writes), the installed package share, and a source checkout's
+``build/models``.
 """
 
 from __future__ import annotations
@@ -41,12 +30,7 @@ class ModelNotFoundError(PerceptionError):
 
 
 class SearchPlace(NamedTuple):
-    """One place of the search path.
-
-    Attributes:
-        label: What the place is (``$EXT_SENSE_MODELS``, ``user data``, ...).
-        root: The directory searched; None when the place does not apply (variable unset).
-    """
+    """One place of the search path (``root`` None when it does not apply)."""
 
     label: str
     root: Path | None
@@ -70,11 +54,7 @@ def create_command(sensor: str) -> str:
 
 
 def create_hint(sensor: str) -> str:
-    """How to create the default models, and where that writes them.
-
-    A colcon workspace installs ``ext-sense`` under ``lib/ext_sense``, off ``PATH``: there it is
-    ``ros2 run ext_sense ext-sense ...``.
-    """
+    """How to create the default models, where that writes them, and the colcon form."""
     command = create_command(sensor)
     return (
         f"create the default models with '{command}' (it writes {default_store()}; in a colcon "
@@ -83,21 +63,14 @@ def create_hint(sensor: str) -> str:
 
 
 def user_models_dir() -> Path:
-    """``$XDG_DATA_HOME/ext_sense/models``; ``~/.local/share/...`` when that is unset or relative.
-
-    The XDG base directory specification ignores a relative ``XDG_DATA_HOME``.
-    """
+    """``$XDG_DATA_HOME/ext_sense/models`` (``~/.local/share`` when unset or relative, per XDG)."""
     xdg = os.environ.get("XDG_DATA_HOME", "")
     base = Path(xdg) if xdg and Path(xdg).is_absolute() else Path.home() / ".local" / "share"
     return base / "ext_sense" / "models"
 
 
 def default_store() -> Path:
-    """Where new models are written unless told otherwise: the first writable place searched.
-
-    ``$EXT_SENSE_MODELS`` when set (so what is written there is what a name finds), else the
-    user's data directory.
-    """
+    """Where new models are written: ``$EXT_SENSE_MODELS`` when set, else the user's data."""
     env = os.environ.get(ENV_VAR, "")
     return Path(env).expanduser() if env else user_models_dir()
 
@@ -120,12 +93,7 @@ def share_models_dirs() -> list[Path]:
 
 
 def checkout_root(start: Path | None = None) -> Path | None:
-    """The source checkout this package runs from, if any.
-
-    The nearest directory above this file holding ``pyproject.toml`` and
-    ``src/ext_sense_perception/package.xml``: the repository root, whether the package runs
-    editable from ``src/`` or installed by colcon into ``ros2_ws/install`` inside the checkout.
-    """
+    """The source checkout this package runs from (editable or colcon-installed in it)."""
     here = (start or Path(__file__)).resolve()
     for parent in here.parents:
         if (parent / "pyproject.toml").is_file() and (
@@ -149,11 +117,7 @@ def search_places() -> list[SearchPlace]:
 
 
 def is_path(name_or_path: str | Path) -> bool:
-    """Whether a model is given by path rather than named.
-
-    A ``Path`` object, or a string that is absolute, holds a separator or starts with ``.`` or
-    ``~``. A bare name is never taken from the working directory: write ``./name`` for that.
-    """
+    """Whether a model is given by path rather than named (a bare name never means ``./name``)."""
     if isinstance(name_or_path, Path):
         return True
     text = str(name_or_path)
@@ -179,16 +143,11 @@ def describe(place: SearchPlace) -> str:
 
 
 def find_model(name_or_path: str | Path, task: str, sensor: str) -> Path:
-    """The bundle directory of a model named or given by path.
-
-    Args:
-        name_or_path: A model name, a bundle path, or ``""`` for the task's default model.
-        task: Task the model is for (names the default model and the error).
-        sensor: Sensor the model is for.
+    """The bundle directory of a model named or given by path (``""``: the task's default).
 
     Raises:
-        ModelNotFoundError: No bundle there; for a name, the message lists every place searched
-            and names the command that creates the default models (one line).
+        ModelNotFoundError: No bundle there; for a name, the one-line message lists every place
+            searched and the command that creates the default models.
         PerceptionError: An unknown task or sensor.
     """
     hint = create_hint(sensor)
@@ -213,10 +172,7 @@ def find_model(name_or_path: str | Path, task: str, sensor: str) -> Path:
 
 
 def locate_model(name_or_path: str | Path, task: str, sensor: str) -> Path:
-    """As :func:`find_model`, but a path is returned as given, unchecked.
-
-    For the nodes, which load a missing or corrupt bundle again until it is fixed and report
-    why it failed: the loader names what is wrong with a given path.
+    """As :func:`find_model`, but a path is returned unchecked (the nodes retry it and say why).
 
     Raises:
         ModelNotFoundError: A name (or the default) found nowhere.
@@ -227,14 +183,7 @@ def locate_model(name_or_path: str | Path, task: str, sensor: str) -> Path:
 
 
 class StoredModel(NamedTuple):
-    """A bundle found in one place of the search path (``ext-sense models list``).
-
-    Attributes:
-        place: The place.
-        name: The bundle's directory name.
-        path: The bundle directory.
-        shadowed: A place earlier on the search path holds a bundle of the same name.
-    """
+    """A bundle found in one place of the search path (``shadowed``: an earlier one wins)."""
 
     place: SearchPlace
     name: str

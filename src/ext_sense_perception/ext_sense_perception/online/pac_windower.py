@@ -14,15 +14,9 @@ from ext_sense_runtime.enums import Sensor, Task
 class PacWindower(WindowerBase):
     """Contact windows from BioTac PAC samples (one or more sensors, 2200 Hz).
 
-    Onset: the RMS deviation of PAC from its slowly tracked baseline, over
-    ``pac_energy_window_ns`` and averaged over sensors, exceeds
-    ``max(pac_min_rms, pac_threshold_sigma * noise_rms)``; ``noise_rms`` is tracked while no
-    window is pending. Gaps in the frame times are filled by holding the last value
-    (``gap_samples``); samples flagged invalid are held too (``invalid_samples``).
-
-    Args:
-        config: Window configuration (``sensor`` must be BioTac).
-        n_sensors: PAC channels (BioTac sensors) per sample.
+    Onset: the RMS deviation of PAC from its tracked baseline over ``pac_energy_window_ns``,
+    averaged over sensors, exceeds ``max(pac_min_rms, pac_threshold_sigma * noise_rms)``, the noise
+    tracked while no window is pending. Gaps and invalid samples hold the last value (counted).
     """
 
     def __init__(self, config: WindowConfig | None = None, n_sensors: int = 1) -> None:
@@ -37,9 +31,7 @@ class PacWindower(WindowerBase):
                 f"The 'n_sensors' parameter must be >= 1. Got {n_sensors!r} instead."
             )
         super().__init__(config)
-        # scipy.signal is imported here, not with the module: it takes about 1 s, which every
-        # contact_window start paid, NUSkin ones too (a BioTac one pays it while configuring,
-        # not at its first contact)
+        # imported here: scipy.signal takes about 1 s, which NUSkin nodes need not pay
         from scipy.signal import lfilter
 
         self._lfilter = lfilter
@@ -67,12 +59,9 @@ class PacWindower(WindowerBase):
 
         Args:
             t0_ns: Time of the first sample, ns.
-            pac: Samples, shape ``(n,)`` or ``(n_sensors, n)``, raw ADC counts.
+            pac: Raw ADC counts, ``(n,)`` or ``(n_sensors, n)``.
             period_ns: Sample period, ns (fixed for the stream's life).
             valid: Optional boolean mask like ``pac``; invalid samples hold the previous value.
-
-        Returns:
-            Completed and provisional windows, oldest first.
 
         Raises:
             PerceptionError: on a wrong shape, NaN/inf, or a changed sample period.

@@ -1,11 +1,7 @@
 # ruff: noqa: N803, N806  (X for the sample matrix, as in scikit-learn)
 """The runtime predictor: a model bundle turning contact windows into estimates (no ROS).
 
-:func:`load_model` reads a bundle directory (see :mod:`.model_card`) and returns a
-:class:`ModelBundle` whose :meth:`ModelBundle.predict` takes a ``ContactWindow`` (or its data
-array) and returns an :class:`~ext_sense_runtime.records.Estimate`. The ONNX backend needs only
-ONNX Runtime: this module imports neither scikit-learn's training stack nor torch (the
-``sklearn`` backend unpickles a pipeline, which imports what the pipeline holds).
+The ONNX backend needs only ONNX Runtime, neither scikit-learn's training stack nor torch.
 """
 
 from __future__ import annotations
@@ -93,9 +89,7 @@ class ModelBundle:
         return np.asarray(self._runner.predict(X), dtype=np.float64).reshape(-1), None
 
     def model_for(self, window: Any) -> ModelBundle:
-        """The model for a window's post-onset length.
-
-        This model, or for a shorter (provisional) window the longest anytime model that fits.
+        """This model, or for a shorter (provisional) window the longest anytime model that fits.
 
         Raises:
             PerceptionError: when no model fits the window's post-onset length.
@@ -113,13 +107,9 @@ class ModelBundle:
         return fits[-1]
 
     def predict(self, window: Any) -> Estimate:
-        """The estimate for one window (provisional windows use the matching anytime model).
+        """The estimate for one window or ``(n_channels, n_samples)`` array.
 
-        Args:
-            window: A ``ContactWindow`` (or an array ``(n_channels, n_samples)``).
-
-        Returns:
-            The estimate; ``compute_latency_ns`` covers input checks, features and the model.
+        ``compute_latency_ns`` covers input checks, features and the model.
 
         Raises:
             PerceptionError: on NaN/inf, or a window that does not fit any model.
@@ -178,12 +168,7 @@ def load_model(
     task: str | None = None,
     sensor: str | None = None,
 ) -> ModelBundle:
-    """Load a bundle for inference, with its anytime models, and check it before use.
-
-    The card is checked against its schema (:func:`~.model_card.read_card`), against the
-    ``task`` and ``sensor`` of whoever loads it, and against the model itself
-    (:func:`check_outputs`): a card that describes another model than the one beside it would
-    otherwise fail at the first window, inside a callback.
+    """Load a bundle with its anytime models, checked before use rather than at the first window.
 
     Args:
         directory: The bundle directory.
@@ -191,12 +176,9 @@ def load_model(
         task: The task the caller serves (label or alias); ``None``: any.
         sensor: The sensor the caller serves; ``None``: any.
 
-    Returns:
-        The loaded model.
-
     Raises:
-        PerceptionError: when a file is missing or corrupt, the card is invalid, is for another
-            task or sensor, or does not describe the model; or the backend is unknown.
+        PerceptionError: a missing or corrupt file, an invalid card, a card for another task or
+            sensor or that does not describe the model, or an unknown backend.
     """
     d = Path(directory)
     if backend not in BACKENDS:
@@ -251,12 +233,10 @@ def _check_serves(card: ModelCard, d: Path, task: str | None, sensor: str | None
 
 
 def check_outputs(card: ModelCard, backend: str, runner: Any, path: Path) -> None:
-    """The model answers a probe batch as its card says: regression or the card's classes.
+    """The model answers two all-zero windows as its card says: regression or the card's classes.
 
-    Two all-zero rows of the card's window size go through the model; what comes back must be
-    one number per row (regression) or one probability per named class (classification), and
-    class labels must be among the card's ``class_names`` (a scikit-learn classifier's
-    ``classes_`` must be them, in order: the estimate's class index is read from them).
+    A classifier's labels and ``classes_`` must be the card's ``class_names`` in order, since the
+    estimate's class index is read from them.
 
     Raises:
         PerceptionError: naming the model file, what the card says and what the model gave.

@@ -1,21 +1,13 @@
 """The window node's core, with no rclpy import: sensor messages in, contact windows out.
 
-The node only moves messages; everything it decides happens here, so that the offline replay
-(``ext-sense replay --offline``), training from bags and device streams drive the very same code
-and two runs on one bag give identical windows. Messages are duck-typed: rclpy messages and
-rosbags messages have the same field names.
+The node only moves messages, so the offline replay, training from bags and device streams run
+the same code. Messages are duck-typed (rclpy and rosbags share field names); packets are
+decoded with the drivers' :func:`~ext_sense_drivers.packets.make_decoder`.
 
-Raw packets (``SensorPacket``, :meth:`WindowStage.on_packet`) are decoded here with the drivers'
-library decoder (:func:`ext_sense_drivers.packets.make_decoder`): the live node and the offline
-replay of a packet bag decode the same bytes with the same code.
-
-The one time rule, the same live and in a replay: a window closes when the stream passes its
-end, and only the packets move the stream: their events, or, with none, the time up to which
-the driver had read everything (a packet's last read, or the driver's "nothing read" packet,
-which it sends on a cadence of its own while the sensor is silent); a packet that ends the
-stream (``end_of_stream``: the link was lost, a capture ended) closes every pending window,
-zero-padded and ``truncated``. No clock of the consumer's enters: fed the packets a live node
-got, in their order, a replay cuts exactly the windows the live node cut.
+The one time rule, live and in replay: a window closes when the stream passes its end, and only
+packets move the stream (their events, or the time the driver had read everything up to); an
+``end_of_stream`` packet closes every pending window, ``truncated``. No consumer clock enters,
+so a replay of the packets a live node got cuts exactly its windows.
 """
 
 from __future__ import annotations
@@ -93,11 +85,7 @@ class WindowStage:
         return StageCounters(**self._counts)
 
     def on_events(self, msg: Any) -> list[ContactWindow]:
-        """Feed one ``TaxelEventBatch``; returns the windows that became due.
-
-        A malformed batch (arrays of different lengths, negative offsets) is counted in
-        ``bad_messages`` and dropped whole.
-        """
+        """Feed one ``TaxelEventBatch``; a malformed one is counted and dropped."""
         self._counts["batches"] += 1
         events = events_of(msg)
         if events is None:
@@ -108,17 +96,13 @@ class WindowStage:
     def on_block(
         self, events: EventBlock, stamp_ns: int | None = None, complete_ns: int | None = None
     ) -> list[ContactWindow]:
-        """Feed a block of decoded events (a driver's, the simulator's); windows that became due.
-
-        ``stamp_ns`` is the batch's stamp (the start of the time it covers): with no events,
-        stream time still reaches it, so an empty batch past a window's end closes the window
-        on data, as an event there would (the stream is in order: nothing earlier can follow).
+        """Feed a block of decoded events; returns the windows that became due.
 
         Args:
             events: The events.
-            stamp_ns: The batch's stamp (the start of the time it covers).
-            complete_ns: For a decoded packet, the stream time up to which every event is out
-                (the last read's return): stream time reaches it, events or none.
+            stamp_ns: The batch's stamp: with no events stream time still reaches it (the stream is
+                in order).
+            complete_ns: For a decoded packet, the stream time up to which every event is out.
         """
         self._counts["events"] += events.size
         now = complete_ns if complete_ns is not None else (None if events.size else stamp_ns)
@@ -134,15 +118,12 @@ class WindowStage:
     ) -> list[ContactWindow]:
         """Feed one ``SensorPacket`` (rclpy, rosbags or a ``Packet``); windows that became due.
 
-        ``thin`` (NUSkin, offline only) reduces the decoded events before windowing, e.g. a
-        refractory drop to a lower rate.
-
-        The decoder is made from the packet's ``encoding`` and ``encoding_options``, and made
-        again when they change (a driver restarted with other settings). A packet that cannot
-        be read (its arrays disagree, an unknown encoding) is counted in ``bad_packets`` and
-        dropped, with the reason in :attr:`last_packet_error`; a ``seq`` gap is counted in
-        ``lost_packets`` (:attr:`last_lost_packets` for this packet). A packet that ends the
-        stream closes every pending window (:meth:`flush`).
+        ``thin`` (NUSkin, offline) reduces the decoded events first. The decoder is made again when
+        the
+        encoding or its options change. An unreadable packet is counted in ``bad_packets`` (reason
+        in
+        :attr:`last_packet_error`); a ``seq`` gap in ``lost_packets``; an ``end_of_stream`` packet
+        flushes.
         """
         from ext_sense_drivers.packets import Packet, PacketError, make_decoder
 
@@ -175,8 +156,9 @@ class WindowStage:
     def on_frame(self, msg: Any) -> list[ContactWindow]:
         """Feed one ``BioTacFrame``; frames of several sensors are joined by sequence number.
 
-        Frames of sensors not in ``sensor_ids`` are counted and dropped; a sequence whose
-        sibling frames never arrive is dropped (counted) once ``JOIN_DEPTH`` newer ones wait.
+        Frames of other sensors are counted and dropped, as is a sequence whose siblings never
+        arrive
+        once ``JOIN_DEPTH`` newer ones wait.
         """
         self._counts["frames"] += 1
         sid = int(msg.sensor_id)
@@ -230,10 +212,9 @@ class WindowStage:
 
 
 def events_of(msg: Any) -> EventBlock | None:
-    """The events of a ``TaxelEventBatch``, or None when the batch is malformed.
+    """The events of a ``TaxelEventBatch``, or None when its arrays differ or an offset is negative.
 
-    Malformed: the arrays differ in length (an empty ``value`` stands for all zeros) or an
-    offset is negative.
+    An empty ``value`` stands for all zeros.
     """
     offset = np.asarray(msg.offset_ns, dtype=np.int64)
     taxel = np.asarray(msg.taxel, dtype=np.uint16)

@@ -1,15 +1,9 @@
 """Stuck or saturated NUSkin taxels: per-taxel event rates on stream time (no ROS).
 
-A taxel that keeps firing near its refractory ceiling (a shorted pad, a stuck comparator: 4000
-events/s from one taxel and nothing else) passes any count-of-events onset test every few
-milliseconds, and every window cut from it is a contact that never was. A real contact is short
-and wide: a tap rings about 150 ms over some 40 taxels. So a taxel that fires at ``rate_hz`` or
-more for longer than ``after_ns`` is *stuck*: the onset detector ignores it until it quiets
-(a whole bucket below half the rate).
-
-Rates are counted per taxel in fixed buckets of stream time (``bucket_ns``), one
-:func:`numpy.bincount` per block of events: the window node's hot path pays a few microseconds
-per packet.
+A taxel firing near its ceiling (a shorted pad) passes any event-count onset test every few
+milliseconds; a real contact is short and wide. A taxel at ``rate_hz`` or more for longer than
+``after_ns`` is *stuck*, ignored by onset detection until a whole bucket falls below half the
+rate. Rates are counted in fixed buckets of stream time, one ``bincount`` per block.
 """
 
 from __future__ import annotations
@@ -67,11 +61,7 @@ class StuckTaxels:
         return int(self._busy_ns[taxel])
 
     def feed(self, t_ns: np.ndarray, taxel: np.ndarray) -> bool:
-        """Count a block of events (sorted by time; ids in ``1..n_taxels``).
-
-        Returns:
-            Whether the set of stuck taxels changed.
-        """
+        """Count a block of events sorted by time; whether the set of stuck taxels changed."""
         if not t_ns.size:
             return False
         if self._bucket_end is None:

@@ -1,11 +1,9 @@
-"""Online, causal contact windows: the windower shared part and the NUSkin windower (no ROS).
+"""Online, causal contact windows: the shared windower part and the NUSkin windower (no ROS).
 
-A windower is fed the sensor stream in arrival order and returns every contact window that
-became complete (or, for anytime estimates, every provisional window whose shortened
-post-contact time has passed). Contact onset is detected causally from the signal itself
-(NUSkin: event activity here; BioTac: PAC energy in :mod:`.pac_windower`) or given from outside
-with :meth:`WindowerBase.mark_onset` (food: the start of the arm's motion). A history of the
-stream is kept so the signal before the onset is in the window.
+A windower is fed the stream in arrival order and returns every window that became complete
+(and every provisional, anytime one whose shortened post-onset time passed). Onsets are detected
+from the signal (NUSkin here, BioTac in :mod:`.pac_windower`) or given with
+:meth:`WindowerBase.mark_onset` (food: the arm's motion start).
 """
 
 from __future__ import annotations
@@ -72,7 +70,7 @@ class WindowerBase:
 
     @property
     def first_ns(self) -> int | None:
-        """Stream time of the first data fed, ns (None before any): the stream is known from it."""
+        """Stream time of the first data fed, ns (None before any)."""
         return self._first_ns
 
     def _joined(self, t_ns: int) -> None:
@@ -87,10 +85,7 @@ class WindowerBase:
 
     @property
     def next_due_ns(self) -> int | None:
-        """Stream time at which the next window (provisional or final) becomes due, ns.
-
-        ``None`` when no window is pending: the stream time the next packet must pass.
-        """
+        """Stream time at which the next window becomes due, ns (None: none pending)."""
         due = [
             p.onset_ns + post
             for p in self._pending
@@ -100,14 +95,7 @@ class WindowerBase:
         return min(due) if due else None
 
     def mark_onset(self, onset_ns: int) -> bool:
-        """Start a window at an onset known from outside (e.g. the arm's motion start).
-
-        Args:
-            onset_ns: Onset time, ns (same clock as the stream).
-
-        Returns:
-            False when the onset was debounced (too close after the previous one).
-        """
+        """Start a window at an onset known from outside; False if debounced."""
         return self._add_onset(int(onset_ns))
 
     def _add_onset(self, onset_ns: int) -> bool:
@@ -119,13 +107,9 @@ class WindowerBase:
         return True
 
     def advance(self, now_ns: int) -> list[ContactWindow]:
-        """Declare that the stream is complete up to ``now_ns`` and emit what became due.
+        """Declare the stream complete up to ``now_ns`` and return the windows that became due.
 
-        Args:
-            now_ns: Stream time, ns; earlier than the current stream time is ignored.
-
-        Returns:
-            The windows that became due, oldest first.
+        An earlier ``now_ns`` than the current stream time is ignored.
         """
         now_ns = int(now_ns)
         if self._now_ns is None or now_ns > self._now_ns:
@@ -133,11 +117,7 @@ class WindowerBase:
         return self._emit_due()
 
     def flush(self) -> list[ContactWindow]:
-        """Close every pending window now (the stream stopped); their tails are zero-padded.
-
-        Returns:
-            The final windows of all pending onsets, marked ``truncated`` when incomplete.
-        """
+        """Close every pending window (the stream stopped), zero-padded and ``truncated``."""
         out = self._emit_due()
         for pending in self._pending:
             out.append(
@@ -243,14 +223,10 @@ class WindowerBase:
 class EventWindower(WindowerBase):
     """Contact windows from a NUSkin event stream.
 
-    Onset: the first time ``activity_min_events`` events from at least
-    ``activity_min_taxels`` taxels fall within ``activity_window_ns``; the onset is the first
-    event of that burst. Taxels stuck at their ceiling (:class:`.stuck_taxels.StuckTaxels`) are
-    left out of it until they quiet, and windows cut while one is stuck go out degraded. Events
-    are kept in a buffer of chunks covering the pre-onset signal and every pending window.
-
-    Args:
-        config: Window configuration (``sensor`` must be NUSkin).
+    Onset: the first event of the first burst of ``activity_min_events`` events from at least
+    ``activity_min_taxels`` taxels within ``activity_window_ns``. Stuck taxels
+    (:class:`.stuck_taxels.StuckTaxels`) are left out of it until they quiet, and windows cut while
+    one is stuck are degraded.
     """
 
     def __init__(self, config: WindowConfig | None = None) -> None:
@@ -270,16 +246,12 @@ class EventWindower(WindowerBase):
         """Whether the stuck taxels changed in the last :meth:`feed` (the node reports it)."""
 
     def feed(self, events: EventBlock, now_ns: int | None = None) -> list[ContactWindow]:
-        """Add a block of events and return the windows that became due.
+        """Add a block of events and return the windows that became due, oldest first.
 
         Args:
-            events: Events in arrival order (one clock throughout, epoch or monotonic); taxel
-                ids outside 1..n_taxels are counted in ``bad_taxel_events`` and dropped.
-            now_ns: Stream time after this block, ns (e.g. the batch's end); default: the
-                newest event.
-
-        Returns:
-            Completed and provisional windows, oldest first.
+            events: Events in arrival order, one clock throughout; taxel ids outside 1..n_taxels are
+                counted in ``bad_taxel_events`` and dropped.
+            now_ns: Stream time after this block, ns (default: the newest event).
 
         Raises:
             PerceptionError: The block's arrays differ in length or its times are not integers.
@@ -368,12 +340,7 @@ class EventWindower(WindowerBase):
         return self.stuck.ids
 
     def stuck_status(self) -> tuple[Level, str, dict[str, object]]:
-        """The window node's ``taxels`` check: WARN naming the stuck taxels while any is.
-
-        Key-values carry their units: ``stuck_taxel_rate_events_per_s`` (the fastest stuck
-        taxel over the last bucket), ``stuck_for_s``, the thresholds, and the counts of events
-        masked, one-taxel bursts refused and windows cut with a stuck taxel.
-        """
+        """The window node's ``taxels`` check: WARN naming the stuck taxels while any is."""
         guard = self.stuck
         ids = guard.ids
         rate = max((guard.last_rate_hz[i] for i in ids), default=0.0)
@@ -410,12 +377,8 @@ class EventWindower(WindowerBase):
     def _compact(self) -> None:
         """Join the buffered chunks into one block, without the events no window can need.
 
-        A contact's provisional and final windows are cut from one span of the buffer, which
-        holds a chunk per packet (about 150 for a tap window): joining them at every cut cost
-        the closing packet 0.2 ms. Joined once here, the next cut joins only the chunks that
-        came since. Events before :meth:`_keep_from_ns` (before every pending window's start
-        and the onset detector's look-back) are dropped, so the joined block does not grow
-        across contacts; :meth:`_prune` would drop them with their chunks anyway.
+        The buffer holds a chunk per packet (about 150 for a tap window); joined once here, the next
+        cut joins only the chunks that came since.
         """
         if len(self._chunks) < 2:
             return
