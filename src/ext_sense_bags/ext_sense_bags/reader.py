@@ -2,28 +2,15 @@
 
 ::
 
-    from ext_sense_bags import BagReader
-
     with BagReader("out/run1") as bag:
-        print(bag.topics)                       # {topic: TopicSummary(msgtype, count, type_hash)}
-        for rec in bag.records(["/extsense/nuskin/events"]):    # in log-time order
-            msg = bag.decode(rec)               # rosbags message object (NumPy arrays)
-            rec.data                            # the CDR bytes, as recorded
-            bag.current_cdr(rec)                # the bytes in the current definition: publish
+        for rec, msg in bag.messages(["/extsense/nuskin/packets"]):  # in log-time order
+            bag.current_cdr(rec)        # the bytes in the current definition: publish them
 
-Reading goes through rosbags' ``AnyReader``, whose typestore is built from the message
-definitions the bag stores: a bag recorded before a ``.msg`` changed decodes as it was written,
-its messages with the fields as recorded (a field added since is missing: read it with
-``getattr(msg, name, default)``). A type the bag stores no definition of decodes with the
-current typestore when the bag recorded no other hash for it. :meth:`BagReader.current_cdr`
-turns a message of another definition into the current type, new fields at their defaults,
-for a live graph.
-
-A bag a killed recorder left (an mcap file without footer, a bag directory without
-``metadata.yaml``, a sqlite3 file with its write-ahead log or journal) is rewritten by
-:func:`ext_sense_bags.recover.recover_bag` into a temporary directory and read from there,
-with ``salvaged`` saying what was wrong (``ext-sense bag recover`` rewrites it in place). When
-nothing can be read the :class:`BagError` names the file and what is wrong with it.
+Reading goes through rosbags' ``AnyReader`` with the definitions the bag stores, so a bag
+recorded before a ``.msg`` changed decodes as written (read new fields with ``getattr``);
+:meth:`BagReader.current_cdr` converts to the current definition for a live graph. A bag a
+killed recorder left is recovered into a temporary directory and read from there
+(``salvaged`` says what was wrong).
 """
 
 from __future__ import annotations
@@ -90,10 +77,7 @@ class BagReader:
         self._differs: dict[str, bool] = {}
 
     def open(self) -> BagReader:
-        """Open the bag and read its index; returns ``self``.
-
-        A bag without footer or metadata is read as far as it is complete (``salvaged``).
-        """
+        """Open the bag (a damaged one as far as it is complete); returns ``self``."""
         if incomplete(self.path):
             return self._open_recovered()
         try:
@@ -211,9 +195,7 @@ class BagReader:
         """Deserialize one record to a rosbags message object, with the fields as recorded.
 
         Raises:
-            BagError: The type is in neither the bag nor the typestore, or the bytes do not
-                decode (the message says when the bag recorded another definition it does
-                not store).
+            BagError: The type is in neither the bag nor the typestore, or does not decode.
         """
         store = self._store(record)
         try:
@@ -227,9 +209,8 @@ class BagReader:
     def current_cdr(self, record: BagRecord) -> bytes:
         """``record``'s bytes in the current definition of its type (e.g. to publish them).
 
-        The stored bytes when the bag recorded the current definition; else the message
-        decoded as recorded, converted (fields added since at their defaults) and serialized
-        anew, so a live subscriber of the current type can read it.
+        The stored bytes when the bag recorded the current definition; else converted with
+        :func:`to_current` and serialized anew.
 
         Raises:
             BagError: The message does not decode or does not convert.

@@ -1,21 +1,9 @@
 """Rewriting a bag a killed recorder left into a complete one (``ext-sense bag recover``).
 
-::
-
-    from ext_sense_bags.recover import recover_bag
-
-    result = recover_bag("out/run1")   # in place; the damaged original moves to out/run1.damaged
-    result.counts                      # {topic: messages recovered}
-    result.report.describe()           # what was wrong, chunks and bytes dropped
-
-Every complete message (:mod:`ext_sense_bags.salvage`) is written, in the order it was
-recorded, into a new bag of the same storage through :class:`ext_sense_bags.BagWriter`, which
-writes the index and a rosbag2 ``metadata.yaml`` with the message counts, the offered QoS and
-the definitions and type hashes as the original recorded them. Where it recorded no hash, the
-hash is computed from the ``ros2msg`` definition it stored (a bag older than a ``.msg`` change
-keeps its own definition and hash, so it still decodes as written), and only without either
-from the current typestore. The original is never deleted: in place, it is renamed
-``<bag>.damaged`` (``.damaged.2``, ...).
+Every complete message (:mod:`ext_sense_bags.salvage`) is written in recorded order into a new
+bag of the same storage, with the definitions, type hashes and QoS the original recorded (a hash
+it did not record is computed from its stored definition, else the current typestore's). The
+original is never deleted: in place, it is renamed ``<bag>.damaged`` (``.damaged.2``, ...).
 """
 
 from __future__ import annotations
@@ -146,11 +134,7 @@ def _rewrite(path: Path, out: Path) -> Recovery:
 
 
 def _stored_hash(topic: SalvagedTopic) -> str:
-    """RIHS01 hash of the ``ros2msg`` definition a file stored without its hash ('' if none).
-
-    The current typestore's hash would not do: it names the current definition, which an old
-    bag's bytes do not follow.
-    """
+    """RIHS01 hash of the ``ros2msg`` definition a file stored without one ('' if none)."""
     if not topic.msgdef or topic.encoding != "ros2msg":
         return ""
     store = get_typestore(Stores.EMPTY)

@@ -1,12 +1,10 @@
 """Reading what a killed recorder left: an mcap file without footer, a sqlite3 bag left open.
 
-The writer flushes at least every ``flush_period_s``, so such a file is a run of complete
-records followed, at worst, by one cut off mid-write. mcap: mcap's ``StreamReader`` reads it
-record by record from the magic (no summary needed); a chunk whose size or CRC does not match is
-dropped and the scan goes on; it ends at the first record cut off or unreadable. sqlite3:
-SQLite's own crash recovery runs when the file is opened read-write, in place; rosbags' reader
-then reads it. :func:`salvage` yields the topics and messages in file order and fills a
-:class:`Report`; :func:`ext_sense_bags.recover.recover_bag` writes them into a complete bag.
+The writer flushes every ``flush_period_s``, so such a file is complete records followed at worst
+by one cut off. mcap: read record by record with mcap's ``StreamReader``; a chunk failing its
+size or CRC is dropped, the scan ends at the first record cut off. sqlite3: SQLite's own crash
+recovery runs on opening read-write, then rosbags reads it. :func:`salvage` yields topics and
+messages in file order and fills a :class:`Report`.
 """
 
 from __future__ import annotations
@@ -106,9 +104,6 @@ def storage_file(path: Path) -> Path:
 
 def incomplete(path: Path) -> str:
     """Why the bag at ``path`` was not closed by its writer ('' when it was).
-
-    A sqlite3 file with its write-ahead log or journal beside it, an mcap file that does not
-    end with the mcap magic (no footer), a directory without ``metadata.yaml``.
 
     Raises:
         BagError: ``path`` does not exist, or is a directory without ``metadata.yaml`` and

@@ -26,9 +26,6 @@ STANDARD_TOPICS: dict[str, TopicSpec] = {
     "/extsense/ground_truth": TopicSpec("ext_sense_msgs/msg/ContactGroundTruth", True, 1000),
     "/diagnostics": TopicSpec("diagnostic_msgs/msg/DiagnosticArray", True, 10),
 }
-"""Topic name -> spec, as in docs/conventions.md; sensor streams are best effort. The drivers'
-raw packets come first: ``ext-sense record`` records every topic here by default, and the
-packets are what makes a bag lossless (a decoder fix re-decodes them); the decoded arrays are
-in bags from before packets (``ext-sense bag migrate`` turns those into packet bags). Final
-estimates and the provisional (anytime) ones have topics of their own; bags from before hold
-both on ``/extsense/contact_estimate``, told apart by the message's ``provisional``."""
+"""Topic name -> spec, as in docs/conventions.md; sensor streams are best effort. ``ext-sense
+record`` records every topic here by default; the decoded arrays are in bags from before packets
+(``ext-sense bag migrate`` turns those into packet bags)."""

@@ -1,10 +1,8 @@
 """A rosbags typestore holding the ROS 2 standard types plus the ``ext_sense_msgs`` messages.
 
-The ext_sense types are parsed from the same ``.msg`` files rosidl builds, so the RIHS01 type
-hashes written into bags equal the ones the built interfaces report (``ros2 bag play`` and
-``ros2 bag info`` compare them). The ``.msg`` files are looked up, in order, in
-``$EXT_SENSE_MSGS_DIR``, in the source tree beside this package (``src/ext_sense_msgs/msg``),
-in the ament index (an installed workspace) and in ``<sys.prefix>/share/ext_sense_msgs/msg``.
+The ext_sense types are parsed from the ``.msg`` files rosidl builds, so the RIHS01 hashes in
+bags equal the built interfaces'. The files are looked up in ``$EXT_SENSE_MSGS_DIR``, the source
+tree, the ament index, then ``<sys.prefix>/share/ext_sense_msgs/msg``.
 """
 
 from __future__ import annotations
@@ -34,13 +32,10 @@ STORES = {"kilted": Stores.ROS2_KILTED, "jazzy": Stores.ROS2_JAZZY}
 
 
 def msg_dir() -> Path:
-    """Directory holding the ``ext_sense_msgs`` ``.msg`` files.
-
-    Returns:
-        The first existing candidate (see the module docstring).
+    """The first directory holding the ``ext_sense_msgs`` ``.msg`` files (module docstring).
 
     Raises:
-        BagError: No candidate holds the ``.msg`` files.
+        BagError: None does.
     """
     candidates: list[Path] = []
     if env := os.environ.get("EXT_SENSE_MSGS_DIR"):
@@ -61,14 +56,9 @@ def msg_dir() -> Path:
 
 
 def make_typestore(distro: str = "kilted") -> Typestore:
-    """Return the typestore of ``distro`` with the ext_sense messages registered.
+    """The shared (cached) typestore of ``distro`` (kilted, jazzy) with the ext_sense messages.
 
-    Args:
-        distro: ``"kilted"`` (default) or ``"jazzy"``; the standard types (std_msgs,
-            builtin_interfaces, diagnostic_msgs, ...) come from that distribution's store.
-
-    Returns:
-        A shared (cached) typestore; do not register further types into it.
+    Do not register further types into it.
 
     Raises:
         BagError: Unknown distribution or missing ``.msg`` files.

@@ -1,35 +1,16 @@
 """Writing rosbag2 bags (mcap by default, or sqlite3) that ``ros2 bag play`` accepts.
 
-The writer API (used by the simulator for its bags and by ``ext-sense record``)::
-
-    from ext_sense_bags import BagWriter, Storage, taxel_event_batch, ground_truth
+::
 
     with BagWriter("out/run1", storage=Storage.MCAP) as bag:     # a new directory
-        bag.write("/extsense/nuskin/events", t_ns,
-                  taxel_event_batch(t_ns, taxel, polarity, value, offset_ns))
-        bag.write("/extsense/ground_truth", onset_ns,
-                  ground_truth(onset_ns, "tap_localization", trial, tap_position_m=0.12))
+        bag.write("/extsense/ground_truth", onset_ns, ground_truth(onset_ns, task, trial))
         bag.write_raw("/extsense/contact_estimate", t_ns, cdr_bytes)  # rclpy raw=True bytes
 
-- ``write`` takes a rosbags message object (:func:`ext_sense_bags.make_message`, the helpers
-  of :mod:`ext_sense_bags.messages`), ``write_raw`` CDR bytes (rclpy ``raw=True``). The log
-  time is the receive time in integer ns (epoch): ``ros2 bag play`` paces on it.
-- A topic is registered on its first write, its type from the message, ``msgtype=`` or
-  :data:`~ext_sense_bags.topics.STANDARD_TOPICS`, its offered QoS from ``add_topic`` or that
-  table. Each carries the full message definition and the RIHS01 hash of the rosidl build
-  (``metadata.yaml`` and the mcap channel's ``topic_type_hash``), so rosbag2 and
-  ``mcap-ros2-support`` decode the file without ext_sense.
-- mcap files are written by mcap's ``Writer`` (:class:`McapStorage`), sqlite3 ones by rosbags';
-  rosbags' ``Writer`` keeps the directory and ``metadata.yaml``. The bag is complete after
-  ``close()`` (the context manager closes it, also on an exception).
-- At least every ``flush_period_s`` (1 s; on the write that finds it due, or from
-  :meth:`BagWriter.flush_if_due`, which a recorder calls on a timer) the pending mcap chunk is
-  closed, written and fsynced, or the sqlite3 transaction committed: a writer killed at any
-  moment leaves every flushed message readable (:class:`~ext_sense_bags.BagReader`,
-  ``ext-sense bag recover``).
-- A failed write (disk full, file too large, I/O error) raises :class:`BagError` naming the bag
-  and the cause and sets ``failed``; later writes raise at once. What was flushed stays
-  recoverable.
+Log times are receive times in integer ns (``ros2 bag play`` paces on them). Each topic
+carries its full definition and RIHS01 hash, so rosbag2 decodes the bag without ext_sense.
+Every ``flush_period_s`` the pending mcap chunk is written and fsynced (sqlite3: committed),
+so a killed writer leaves every flushed message recoverable. A failed write raises
+:class:`BagError` naming the cause and sets ``failed``.
 """
 
 from __future__ import annotations
@@ -85,13 +66,7 @@ def offered_qos(reliable: bool, depth: int) -> Qos:
 
 
 class McapStorage:
-    """rosbag2's mcap storage written by mcap's ``Writer``: chunks with CRCs, flushed on demand.
-
-    A storage of rosbags' ``Writer`` (its storage protocol: ``add_msgtype``, ``add_connection``,
-    ``write``, ``close``, ``abort``), which keeps the bag directory and ``metadata.yaml``. Profile
-    ``ros2``, schemas ``ros2msg``, CDR messages, and per channel the offered QoS and the
-    ``topic_type_hash``, as rosbag2 writes them.
-    """
+    """rosbag2's mcap storage for rosbags' ``Writer``, written by mcap's: flushed on demand."""
 
     def __init__(self, path: Path, compression: CompressionMode) -> None:
         self.path = path / f"{path.name}.mcap"
@@ -167,7 +142,7 @@ def _reason(err: BaseException) -> str:
 
 
 class BagWriter:
-    """A rosbag2 writer for ext_sense messages (see the module docstring for the API).
+    """A rosbag2 writer for ext_sense messages.
 
     Args:
         path: Directory of the new bag; must not exist yet.
@@ -253,9 +228,7 @@ class BagWriter:
             msgtype: Full type name; defaults to the standard table's.
             reliable: Offered reliability; defaults to the standard table's (else True).
             depth: Offered history depth; defaults to the standard table's (else 100).
-            definition: ``(message definition text, RIHS01 hash)`` to store instead of the
-                typestore's (a bag rewritten from another keeps its own; the type then need
-                not be in the typestore).
+            definition: ``(definition text, RIHS01 hash)`` to store instead of the typestore's.
             qos: Offered QoS profiles to store instead of ``reliable``/``depth``.
 
         Raises:
@@ -348,11 +321,7 @@ class BagWriter:
             self.flush()
 
     def flush(self) -> None:
-        """Write what is pending to the disk now (close the mcap chunk and fsync; commit).
-
-        Raises:
-            BagError: The write failed (see ``failed``).
-        """
+        """Write what is pending to the disk now (close the mcap chunk and fsync; commit)."""
         if not self._open:
             raise BagError(f"Bag {self.path} is not open.")
         self._guard(lambda: self._writer.storage.flush())  # type: ignore[union-attr]
@@ -360,11 +329,7 @@ class BagWriter:
         self._last_flush = time.monotonic()
 
     def flush_if_due(self) -> bool:
-        """:meth:`flush` when messages are pending and ``flush_period_s`` has passed.
-
-        Returns:
-            Whether it flushed.
-        """
+        """Flush when messages are pending and ``flush_period_s`` has passed; whether it did."""
         due = time.monotonic() - self._last_flush >= self.flush_period_s
         if self._open and due and self._written > self.flushed:
             self.flush()
