@@ -1,29 +1,17 @@
-"""Arrival jitter as a late reader makes it: re-stamping events per read, for training and tests.
+"""Arrival jitter as a late reader makes it: re-stamping events per read (no ROS).
 
-The NUSkin words carry no time; the driver stamps each read when it returns and spreads its
-words over the time since the previous read (``ext_sense_drivers.nuskin.clock.ArrivalClock``).
-A reader that returns late stamps a whole chunk at once (issue #16). This module replays that:
-the read model (:class:`ReadDelay`) is measured by ``bench/bench_arrival.py``, the time from
-when the oldest unread word was due to when the read that takes it returns. A read then takes
-every word due by its return, and the driver's own arrival clock stamps them.
+The driver stamps each read's words over the time since the previous read, so a late read
+stamps a whole chunk at once (issue #16). The read model (:class:`ReadDelay`, measured by
+``bench/bench_arrival.py``) is the time from when the oldest unread word was due to the read's
+return; a read takes every word then due.
 
-Two uses, one model:
-
-- :func:`rechunk_writes` groups a device byte stream into the reads a late reader makes
-  (event level; test windows cut from it by ``data.device_stream`` meet live-like jitter);
-  :func:`late_read_window_set` trains on such cuts beside the ideal one (the simulated
-  handover model: ``ext-sense models create``);
-- :func:`augment` re-stamps the events of binned NUSkin windows in place (training-time
-  augmentation, ``Recipe.arrival_jitter``): each window's counts become events spread evenly
-  within their bins, are re-stamped by the read model, re-aligned on the re-stamped onset (the
-  live window follows its detected onset; not for external onsets) and binned again. Every
-  event stays in the window (clipped to its ends), so the event count is kept; only times move;
-- :func:`onset_shifted` adds copies of the NUSkin windows with their onset moved by up to
-  ``max_shift_ns`` (``Recipe.onset_shifts``): an arrival clock that stamps a window's events a
-  little later or earlier moves the detected onset against them, and a model must not read
-  position from where the events fall in the onset's bin.
-
-Plain NumPy, no ROS.
+- :func:`rechunk_writes` groups a byte stream into a late reader's reads;
+  :func:`late_read_window_set` trains on such cuts beside the ideal one.
+- :func:`augment` re-stamps binned NUSkin windows in place (``Recipe.arrival_jitter``),
+  re-aligned on the re-stamped onset; only times move.
+- :func:`onset_shifted` adds copies with the onset moved by up to ``max_shift_ns``
+  (``Recipe.onset_shifts``), so a model does not read position from where events fall in the
+  onset's bin.
 """
 
 from __future__ import annotations
@@ -79,11 +67,9 @@ MEASURED_READ_DELAY = ReadDelay(
 """Read delays of the driver's reader without real-time priority on a loaded machine."""
 
 DEFAULT_FRACTION: dict[Task, float] = {Task.HANDOVER_STABILITY: 0.5}
-"""The recipe's ``arrival_jitter`` when it names none, by task (others: 0). Handover, because
-its default model (FFT + SVM on 1 ms bins) is the one the live stamps hurt: on jittered
-windows 0.70 -> 1.00 and 0.62 -> 0.93 with 0.5 (two seeds, ``bench/bench_jitter_models.py``),
-and live on the simulator stable grasps got P(stable) 0.0-0.6 against 0.54-0.97 offline
-(``bench/bench_live_offline.py``); taps gain nothing measurable (docs/perception.md)."""
+"""The recipe's ``arrival_jitter`` when it names none, by task (others: 0): the handover
+model is the one live stamps hurt (docs/perception.md).
+"""
 
 
 def default_fraction(task: Task | str) -> float:
@@ -94,19 +80,14 @@ def default_fraction(task: Task | str) -> float:
 def read_groups(
     t_ns: np.ndarray, delay: ReadDelay, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The reads a late reader makes of words due at ``t_ns``.
+    """The reads a late reader makes of words due at ``t_ns`` (non-decreasing, ns).
 
-    A read returns ``delay`` after the oldest word not yet read was due (never before the
-    previous read) and takes every word due by then.
-
-    Args:
-        t_ns: ``(n,)`` due times, non-decreasing, ns.
-        delay: The read model.
-        rng: Random generator.
+    A read returns ``delay`` after the oldest unread word was due (never before the previous read)
+    and takes every word due by then.
 
     Returns:
         ``(ends, read_ns)``: read ``k`` takes words ``ends[k-1]:ends[k]`` and returns at
-        ``read_ns[k]``.
+            ``read_ns[k]``.
     """
     t = np.asarray(t_ns, dtype=np.int64)
     ends: list[int] = []
@@ -146,10 +127,9 @@ def restamp(t_ns: np.ndarray, delay: ReadDelay, rng: np.random.Generator) -> np.
 def rechunk_writes(
     writes: Iterable[tuple[int, bytes]], delay: ReadDelay, rng: np.random.Generator
 ) -> list[tuple[int, bytes]]:
-    """A device byte stream regrouped into the reads a late reader makes: ``(read_ns, bytes)``.
+    """A device byte stream regrouped into a late reader's reads: ``(read_ns, bytes)``.
 
-    Feed the result to ``data.device_stream.window_set_from_stream`` with ``read_period_ns=1``
-    (each item is then one read, at its own time).
+    Cut it with ``window_set_from_stream(..., read_period_ns=1)`` (each item one read).
     """
     items = list(writes)
     if not items:
@@ -173,10 +153,9 @@ def jitter_window(
     """One binned NUSkin window as a late reader would have stamped its events.
 
     Args:
-        x: ``(n_channels, n_samples)`` signed event counts (rounded to whole events).
+        x: ``(n_channels, n_samples)`` signed event counts.
         period_ns: The bin, ns.
-        onset_bin: Bin of the onset (the window is re-aligned on the re-stamped onset event),
-            or None (external onset: no re-alignment).
+        onset_bin: Bin of the onset to re-align on, or None (external onset).
         delay: The read model.
         rng: Random generator.
 
@@ -213,8 +192,8 @@ def augment(
 ) -> WindowSet:
     """The set with ``fraction`` of its NUSkin windows re-stamped in place by :func:`jitter_window`.
 
-    In place rather than added copies: copies of one trial in different grid-search folds would
-    leak. BioTac windows are returned as they are (its frames carry the sensor's own clock).
+    In place, since copies of one trial in different folds would leak. BioTac windows (stamped by
+    the sensor's own clock) are returned as they are.
 
     Raises:
         PerceptionError: ``fraction`` not in [0, 1].
@@ -241,24 +220,21 @@ def augment(
 
 
 ONSET_SHIFT_NS = 2_000_000
-"""How far :func:`onset_shifted` moves an onset at most, ns: the arrival clock of a real serial
-link moves the detected onset by up to about 2 ms (issue 30)."""
+"""How far :func:`onset_shifted` moves an onset at most, ns (the arrival clock of a real
+link moves it by up to about 2 ms, issue 30).
+"""
 
 
 def shift_window(x: np.ndarray, shift_ns: int, period_ns: int) -> np.ndarray:
     """A binned NUSkin window cut again with its onset moved by ``shift_ns``.
 
-    The events of a bin are taken as spread evenly inside it (unknown within a bin), as in
-    :func:`jitter_window`; events moved past either end of the window leave it, and none come
-    in (what lies beyond the window is unknown).
+    A bin's events are taken as spread evenly inside it; events moved past either end leave the
+    window and none come in.
 
     Args:
-        x: ``(..., n_samples)`` signed event counts (rounded to whole events).
-        shift_ns: Onset shift, ns (positive: the window starts later, its events come earlier).
+        x: ``(..., n_samples)`` signed event counts.
+        shift_ns: Onset shift, ns (positive: the window starts later).
         period_ns: The bin, ns.
-
-    Returns:
-        The shifted counts, same shape and dtype.
     """
     q, f = divmod(int(shift_ns), int(period_ns))
     counts = np.rint(x).astype(np.float64)
@@ -279,10 +255,8 @@ def onset_shifted(
 ) -> WindowSet:
     """The set and ``copies`` more of each NUSkin window, onsets moved by ``U(-max, +max)``.
 
-    The copies keep their trial's ``groups`` entry, so the training folds keep a trial whole
-    (``training.fit.whole_trial_folds``). BioTac windows and windows of an external onset
-    (food: the arm's motion start, stamped by the arm, not the sensor's clock) are returned as
-    they are.
+    Copies keep their trial's ``groups`` entry, so folds keep a trial whole. BioTac windows and
+    external onsets (stamped by the arm) are returned as they are.
 
     Raises:
         PerceptionError: ``copies`` negative or ``max_shift_ns`` not positive.
@@ -325,14 +299,9 @@ def late_read_window_set(
 ) -> tuple[WindowSet, StreamCounts]:
     """A device stream cut as the live graph cuts it: with ideal reads, and again per late read.
 
-    Each of the ``late_reads`` extra cuts reads the same bytes as a late reader would
-    (:func:`rechunk_writes`, a fresh draw of ``delay`` each): the events, the read pattern
-    and the onset the window node detects all move as they do live, which bin-level
-    re-stamping (:func:`augment`) only approximates. Every trial then has up to
-    ``late_reads + 1`` windows, one ``groups`` entry each, and ``training.fit`` keeps a
-    trial's windows in one fold. Measured on one live handover bag (docs/benchmarks.md,
-    "Late-read training"; 80 training trials): stable grasps reaching the release rule went
-    from 5 to 7 of 20 with two late reads, accuracy from 0.843 to 0.868.
+    Each extra cut reads the bytes as a late reader would (a fresh draw of ``delay``), so events,
+    reads and detected onsets move as they do live, which :func:`augment` only approximates.
+    Figures: docs/benchmarks.md, "Late-read training".
 
     Args:
         writes: ``(t_ns, bytes)`` per write to the link, in time order.
@@ -342,8 +311,8 @@ def late_read_window_set(
         delay: The late reader's read delays.
         seed: Seed of the read delays.
         source: Description stored in the set.
-        n_jobs: Processes cutting side by side (joblib). The reads are drawn first, in order,
-            so the windows are the same whatever the count.
+        n_jobs: Processes cutting side by side; the reads are drawn first, so the result does not
+            depend on it.
 
     Returns:
         The windows of every cut, and the ideal cut's counts.

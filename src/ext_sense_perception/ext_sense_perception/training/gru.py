@@ -1,19 +1,12 @@
 # ruff: noqa: N803, N806  (X / F for sample matrices, as in scikit-learn)
-"""GRU(16) + MLP(16, 8) estimator on the binned series (torch for training, optional extra).
+"""GRU(16) + MLP(16, 8) estimator on the binned series (the paper's RNN; torch, optional extra).
 
-The paper's RNN: 16 GRU cells run over the time axis of the feature vector reshaped to
-``(n, n_channels, n_steps)`` (the feature step flattens channel-major, so with the baseline
-features one step is one bin of every taxel), backwards in time by default, then the MLP
-(16, 8, ReLU) reads the last hidden state.
-
-Training (torch, imported lazily; its absence gives a clear :class:`PerceptionError`): Adam on
-mini-batches with L2 weight decay for a fixed number of epochs (optional early stopping on a
-seeded validation split, best weights kept), regression targets standardised, gradient norm
-clipped at 1, torch pinned to ``n_threads`` CPU threads (the machine is shared). The learned
-network is kept as NumPy arrays (:class:`GRUNet`) and as the ONNX graph torch's exporter makes of
-it at training time (``onnx_``, which :mod:`.onnx_export` splices into the whole model's graph),
-so a fitted estimator pickles and exports to ONNX without torch; only
-:meth:`GRUEstimator.predict` (the native path) needs torch.
+The GRU runs over the time axis of the features reshaped to ``(n, n_channels, n_steps)``
+(backwards by default), and the MLP reads its last hidden state. Trained with Adam, weight
+decay and gradient clipping on ``n_threads`` CPU threads. The network is kept as NumPy arrays
+(:class:`GRUNet`) and as torch's ONNX export (``onnx_``, spliced into the whole model's graph
+by :mod:`.onnx_export`), so a fitted estimator pickles and exports without torch; only
+:meth:`GRUEstimator.predict` needs it.
 """
 
 from __future__ import annotations
@@ -47,16 +40,10 @@ class GRUNet(NamedTuple):
     Attributes:
         w_ih: ``(3 * hidden, n_channels)``, row blocks (r, z, n).
         w_hh: ``(3 * hidden, hidden)``, row blocks (r, z, n).
-        b_ih: ``(3 * hidden,)``.
-        b_hh: ``(3 * hidden,)``.
-        layers: MLP layers ``(weight (out, in), bias (out,))``; ReLU between them, none after
-            the last.
-        n_channels: GRU inputs per step (channels of the flattened features).
-        n_steps: Time steps.
+        layers: MLP layers ``(weight (out, in), bias (out,))``; ReLU between them.
         y_mean: Regression target mean (outputs are ``raw * y_scale + y_mean``).
-        y_scale: Regression target scale.
         classes: Class labels (classification) or ``None`` (regression).
-        reverse: The GRU reads the steps last to first (ONNX ``direction="reverse"``).
+        reverse: The GRU reads the steps last to first.
     """
 
     w_ih: np.ndarray
@@ -109,7 +96,7 @@ class GRUNet(NamedTuple):
 
 
 def require_torch() -> Any:
-    """The torch module (an optional extra, imported lazily).
+    """The torch module, imported lazily.
 
     Raises:
         PerceptionError: torch is not installed.
@@ -125,12 +112,7 @@ def require_torch() -> Any:
 
 
 def torch_available() -> bool:
-    """Whether torch is installed (the GRU can be trained).
-
-    Looked up, not imported: importing torch takes about 3.5 s, which every test collection
-    and report paid whether or not it trained a GRU. An installed torch that fails to import
-    fails where it is used, with :func:`require_torch`'s error.
-    """
+    """Whether torch is installed, looked up without the 3.5 s import."""
     return importlib.util.find_spec("torch") is not None
 
 
@@ -141,26 +123,18 @@ class GRUEstimator(BaseEstimator):
         regression: Regression (MSE on standardised targets) or classification (cross-entropy).
         n_channels: Channels of the flattened feature vector (its first axis); the rest is time.
         hidden: GRU cells.
-        max_epochs: Training epochs (an upper bound when early stopping is on).
-        patience: Epochs without a better validation loss before stopping (early stopping).
+        max_epochs: Training epochs (an upper bound with early stopping).
+        patience: Epochs without a better validation loss before stopping.
         batch_size: Mini-batch size.
         lr: Adam learning rate.
-        weight_decay: Adam's L2 penalty on all weights (on standardised targets).
-        reverse_time: Read the window backwards (last step first), so that the final hidden
-            state, which the MLP reads, is nearest the onset, where a tap's position is carried;
-            the decision is made once the whole window is in either way.
-        validation_fraction: Share of the training set held out for early stopping; 0 (the
-            default) trains ``max_epochs`` on everything. Early stopping measured worse with
-            weight decay: the loss plateaus near the mean for 10-20 epochs before it falls, and
-            the stop fired there on some splits. Never used below 20 samples.
-        input_scaling: How the GRU's inputs are standardised while training, over all samples
-            and time steps: ``"global"`` (each channel's mean removed, one scale for all
-            channels: keeps the channels' relative sizes), ``"channel"`` (mean and scale per
-            channel), ``"none"``, or ``"auto"``: none when the inputs' RMS is already between
-            0.1 and 30 (binned spike counts), else global. Folded into the input weights
-            afterwards, so the network takes the unscaled series. In a pipeline the
-            per-feature scaler is left out for the GRU
-            (:func:`ext_sense_perception.models.make_pipeline`; docs/perception.md, the GRU).
+        weight_decay: Adam's L2 penalty on all weights.
+        reverse_time: Read the window backwards, so the final hidden state the MLP reads is nearest
+            the onset, where a tap's position is carried.
+        validation_fraction: Share held out for early stopping (never below 20 samples); 0 trains
+            ``max_epochs`` on everything, which measured better with weight decay.
+        input_scaling: How inputs are standardised while training: ``"global"`` (per-channel mean,
+            one scale), ``"channel"``, ``"none"``, or ``"auto"`` (none when their RMS is in
+            :data:`AUTO_UNSCALED_RMS`, else global). Folded into the input weights afterwards.
         n_threads: torch CPU threads while fitting and predicting.
         random_state: Seed of weights, batches and the validation split.
     """
@@ -381,29 +355,12 @@ class GRUEstimator(BaseEstimator):
         self.onnx_ = self._export()
         return self
 
-    @classmethod
-    def from_net(cls, net: GRUNet, **params) -> GRUEstimator:
-        """A fitted estimator from given weights (tests, or weights trained elsewhere)."""
-        net.check()
-        est = cls(
-            regression=net.classes is None,
-            n_channels=int(net.n_channels),
-            hidden=net.hidden,
-            reverse_time=bool(net.reverse),
-            **params,
-        )
-        est.net_ = net
-        if net.classes is not None:
-            est.classes_ = np.asarray(net.classes)
-        est.n_features_in_ = int(net.n_channels) * int(net.n_steps)
-        est.onnx_ = est._export()
-        return est
-
     def _export(self) -> bytes:
-        """The network as ONNX, by torch's exporter (the TorchScript one: offline, no onnxscript).
+        """The network as ONNX by torch's TorchScript exporter (offline, no onnxscript).
 
-        Input ``features`` ``(n, n_channels * n_steps)`` float32; output ``(n, 1)`` estimates
-        (regression) or ``(n, n_classes)`` probabilities in ``classes_`` order.
+        Input ``(n, n_channels * n_steps)`` float32; output ``(n, 1)`` estimates or ``(n,
+        n_classes)``
+        probabilities in ``classes_`` order.
         """
         torch = require_torch()
         net, (gru, head) = self.net_, self._modules()

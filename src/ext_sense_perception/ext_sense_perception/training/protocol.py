@@ -1,17 +1,12 @@
 # ruff: noqa: N806  (X / F for sample matrices, as in scikit-learn)
 """The paper's evaluation protocol (no ROS).
 
-K times: a random 90/10 split (stratified for classes); a grid search with 4-fold
-cross-validation on the 90%; refit on all of it; score the 10%. Splits and folds keep a trial's
-windows together (:func:`outer_splits`, :func:`whole_trial_folds`). Seeded.
-Each split is one task (:mod:`.split_fit`) run here or on a Dask cluster
-(:mod:`.fit_jobs`), with the same result either way: :func:`plan_evaluation` lists a point's
-tasks, :func:`assemble` makes its result from their fits (so a sweep can submit the fits of many
-points at once), and :func:`evaluate` does both for one point.
-
-Features without learned state (everything but the autoencoder) are computed once for all
-windows: their maps do not depend on any label or window, so this equals computing them per
-fold. The autoencoder is fitted inside each training fold (it is part of the searched pipeline).
+K times: a random 90/10 split (stratified for classes), a grid search with 4-fold CV on the
+90%, refit, score the 10%; splits and folds keep a trial's windows together. Seeded. Each split
+is one task (:mod:`.split_fit`) run here or on Dask (:mod:`.fit_jobs`) with the same result:
+:func:`plan_evaluation` lists a point's tasks, :func:`assemble` makes its result, and
+:func:`evaluate` does both. Features without learned state (all but the autoencoder) are
+computed once for all windows, which equals computing them per fold.
 """
 
 from __future__ import annotations
@@ -83,18 +78,9 @@ class EvalResult(NamedTuple):
 
 
 def features_for(ws: WindowSet, kind: str, **params: Any) -> WindowFeatures:
-    """The feature family ``kind`` for a window set's geometry.
+    """The unfitted feature family ``kind`` for a window set's geometry.
 
-    NUSkin families with a feature bin get the task profile's (on the windows' sample grid)
-    unless ``params`` name one.
-
-    Args:
-        ws: The windows.
-        kind: Feature family name.
-        **params: Other parameters of the family (bin_ns, channels, rate_hz, ...).
-
-    Returns:
-        The (unfitted) transformer.
+    NUSkin families get the task profile's feature bin unless ``params`` name one.
 
     Raises:
         PerceptionError: An unknown family or a parameter it does not have.
@@ -121,10 +107,8 @@ def outer_splits(
 ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """The protocol's K random ``(train, test)`` splits (stratified for classes), whole trials.
 
-    A set may hold several windows of one trial (``groups``: the same stream cut again by a
-    late reader, shifted copies); a trial's windows in the training and the test part would
-    score the model on near-copies of what it was fitted on. So trials are split, not windows
-    (a trial's class is its first window's), and every window follows its trial.
+    Trials are split, not windows (a trial's class is its first window's), so near-copies of a
+    trial (``groups``) never score a model fitted on them.
     """
     names, first, trial_of = np.unique(ws.groups, return_index=True, return_inverse=True)
     splitter = (
@@ -142,15 +126,8 @@ def outer_splits(
 def whole_trial_folds(cv: Any, ws: WindowSet, seed: int) -> Any:
     """``cv`` when every window is a trial of its own; else as many folds over whole trials.
 
-    A set may hold several windows of one trial (``groups``), e.g. the same stream cut again
-    as a late reader reads it (``arrival_jitter.late_read_window_set``). Such copies in a
-    training and a validation fold would leak: the grid search and the probability calibration
-    would score the model on near-copies of what it was fitted on, and choose and calibrate
-    it too confidently. So their folds keep each trial whole.
-
-    Returns:
-        ``cv``, or a list of ``(train, test)`` index lists (as ``cv`` accepts; lists, so that
-        their ``repr`` in a split's cache key is whole).
+    Copies of a trial across folds would make the grid search and the calibration too confident.
+    Folds are returned as lists, so their ``repr`` in a split's cache key is whole.
     """
     groups = np.asarray(ws.groups)
     if np.unique(groups).size == groups.size:
@@ -212,8 +189,6 @@ def plan_evaluation(
     model_params: dict[str, Any] | None = None,
 ) -> EvalPlan:
     """The point's K split tasks (arguments as :func:`evaluate`'s); nothing is fitted yet.
-
-    Features without learned state are computed here, once for every window.
 
     Raises:
         PerceptionError: when there are too few windows or classes.
@@ -319,14 +294,11 @@ def evaluate(
         seed: Seed of splits, folds and models.
         progress: Show the fits' progress line (runs without an executor).
         n_jobs: Parallel grid-search jobs.
-        feature_grid: Feature parameters to search too (keys ``features__<param>``); the
-            features are then recomputed inside every fold.
+        feature_grid: Feature parameters to search too (``features__<param>``), recomputed in every
+            fold.
         model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
-        executor: Where the K split fits run and are cached (:mod:`.fit_jobs`; default:
-            here, one after the other, uncached). The result does not depend on it.
-
-    Returns:
-        Scores per split and the pooled test predictions.
+        executor: Where the split fits run and are cached (default: here, uncached); the result does
+            not depend on it.
 
     Raises:
         PerceptionError: when there are too few windows or classes, or a fit failed.
