@@ -4,48 +4,21 @@
     python bench/bench_live_offline.py --quick    # 6 taps + 2 grasps, quiet and loaded (~3 min)
     python bench/bench_live_offline.py --json out.json --models DIR
 
-Issue #16's target: the live figures within 10% of the offline ones on a quiet machine, within
-25% with both cores loaded. Per condition (``quiet``; ``loaded``: one busy-looping process per
-core, the hog of ``bench_arrival.py``, started and stopped here; ``loaded+priority``: the same
-with ``reader_priority:=50``; not in ``--quick``; ``+one_process`` after either load runs the
-graphs with ``hot_path:=one_process``, e.g. ``--conditions quiet+one_process``) this runs, as a
-user would:
+Issue #16's target: live within 10% of offline on a quiet machine, 25% with both cores loaded.
+Per condition (``quiet``, ``loaded``: a busy loop per core, ``loaded+priority``:
+``reader_priority:=50``; ``+one_process`` for ``hot_path:=one_process``) it runs ``ext-sense
+run tap_localization`` and ``ext-sense run handover behaviours:=true`` (the Robotiq emulator
+served from here) on the simulator beside ``ext-sense record``, then scores the same trials:
 
-- ``ext-sense run tap_localization source:=sim seed:=S trials:=N model:=...`` (the estimate
-  monitor ends it after the last trial), and
-- ``ext-sense run handover behaviours:=true sim_labels:=stable,unstable grasp_trials:=4 ...``
-  with the Robotiq emulator on a pty served from this process: the behaviour offers the object,
-  the simulated device plays one person's grasp (4 trials of one class) per offer,
+- ``live``: the estimates the graph published;
+- ``bag``: ``ext-sense replay --offline``'s core on the recorded packets (what the live graph
+  itself loses);
+- ``plan``: the same trials simulated again from the seed and cut with ideal reads, as models
+  are trained (adds what the host's arrival clock does to the stamps).
 
-each beside ``ext-sense record`` of the driver's raw packets, the ground truth, the estimates
-and the handover offers. The same trials are then scored three ways:
-
-- ``live``: the estimates the graph published (as recorded), against the recorded ground truth;
-- ``bag``: ``ext-sense replay --offline``'s core (``ext_sense.offline_replay.offline_estimates``)
-  on that bag: the very bytes and arrival stamps the live driver published, cut and classified
-  without ROS. It isolates what the live graph itself loses (late or dropped windows, estimates);
-- ``plan``: the same trial numbers simulated again from the seed (``ext_sense_sim.trial_plan.
-  plan_trials``, what ``sim_device`` streams), laid out 1 s apart and cut with ideal reads
-  (``ext_sense_perception.data.device_stream.stream_windows``, how the models are trained and
-  validated). It also covers what the host's arrival clock does to the stamps (issue #16: a late
-  reader stamps a whole chunk at once), which the bag keeps.
-
-Scores: the estimate monitor's own ``Scoreboard`` (``ext_sense.nodes.scoreboard``: each final
-estimate matched to the nearest trial onset) for MAE and accuracy, and the release rule of
-``ext_sense_behaviours.handover.HandoverMachine`` (3 final estimates in a row with
-P(stable) >= 0.8, its defaults, as the graph's handover node runs it) fed each stable grasp's
-final estimates in onset order: the release-rule fraction is the share of stable grasps for
-which it returns OPEN_GRIPPER. The ratio printed is live / offline for accuracy and the
-fraction, offline / live for MAE (so below 1 is always worse live); "within" means
-|1 - ratio| <= the condition's tolerance.
-
-Models: ``--models DIR`` (created there as ``ext-sense models create`` does,
-``ext_sense_sim.default_models.create_models``, kept when current), else trained into a temporary
-directory.
-Every graph runs in ROS domain 44 (``--domain``), localhost only; the simulated sensor's pty is
-in the run's temporary directory.
-
-Each run's line ends with the emulated sensor's own count of writes more than 2 ms late: the
+MAE and accuracy as the estimate monitor's ``Scoreboard`` computes them; the release-rule
+fraction is the share of stable grasps on which ``HandoverMachine``'s rule opens. Ratios are
+below 1 when live is worse. Each run's line ends with the emulated sensor's late writes: the
 live figures measure the graph only if the device wrote on time. ``--keep`` keeps the bags.
 """
 
@@ -62,7 +35,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -94,7 +67,7 @@ OBJECT_POSITION = 128
 
 @dataclass(frozen=True)
 class Task:
-    """One of the two jobs: its graph, its task label and the figure it is judged on."""
+    """A graph, its task label and the figure it is judged on."""
 
     graph: str
     task: str
@@ -118,8 +91,7 @@ class Score:
     released_grasps: int = 0
     unmatched: int = 0
     degraded: int = 0
-    """Final estimates the window node flagged degraded (a stall, a late packet): matched to
-    their trial and not scored, as the estimate monitor does."""
+    """Final estimates flagged degraded: not scored, as the estimate monitor does."""
 
 
 @dataclass
@@ -142,9 +114,7 @@ class RunResult:
     packets: int = 0
     packet_seq_gaps: int = 0
     emulator: str = ""
-    """The emulated sensor's own lateness (its last log line's counts): a live figure is only
-    the graph's if the device wrote on time."""
-    extra: dict[str, Any] = field(default_factory=dict)
+    """The emulated sensor's own count of late writes."""
 
 
 # ------------------------------------------------------------------------------ environment
@@ -259,11 +229,7 @@ def scoreboard_score(task: Task, truths: Sequence[GroundTruth], ests: Sequence[E
 
 
 def reaches_release(ests: Sequence[Estimate]) -> bool:
-    """Whether the handover node's release rule opens on these estimates (in onset order).
-
-    The graph's ``HandoverMachine`` with its defaults is fed them as the node feeds it, so the
-    rule (threshold, streak, provisional estimates ignored) is the behaviour's own.
-    """
+    """Whether the handover node's own release rule (``HandoverMachine``) opens on these."""
     from ext_sense_behaviours.handover import HandoverAction, HandoverMachine
 
     machine = HandoverMachine()
@@ -275,25 +241,18 @@ def reaches_release(ests: Sequence[Estimate]) -> bool:
     return False
 
 
-def grasp_spans(truths: Sequence[GroundTruth], grasps: Sequence[Sequence[int]]) -> list[int]:
-    """Start of each grasp's span on the truths' clock: half a trial before its first onset."""
-    onset = {t.trial: t.onset_ns for t in truths}
-    return [min(onset.get(k, 2**62) for k in g) - TRIAL_PERIOD_NS // 2 for g in grasps]
-
-
 def release_fraction(
     score: Score,
     truths: Sequence[GroundTruth],
     ests: Sequence[Estimate],
     grasps: Sequence[Sequence[int]],
 ) -> None:
-    """Fill ``score``'s release-rule figures: every final estimate within a stable grasp's span.
-
-    A grasp's span runs from half a trial before its first onset to the next grasp's start, so
-    a window no trial explains counts too (the behaviour sees it as well).
-    """
+    """Fill ``score``'s release-rule figures from the final estimates in each stable grasp's
+    span (half a trial before its first onset up to the next grasp's)."""
     label = {t.trial: t.class_label for t in truths}
-    starts = [*grasp_spans(truths, grasps), 2**62]
+    onset = {t.trial: t.onset_ns for t in truths}
+    starts = [min(onset.get(k, 2**62) for k in g) - TRIAL_PERIOD_NS // 2 for g in grasps]
+    starts.append(2**62)
     released = stable = 0
     for k, grasp in enumerate(grasps):
         if label.get(grasp[0]) != "stable":
@@ -327,17 +286,8 @@ def read_bag(bag: Path) -> dict[str, Any]:
     seqs: list[int] = []
     packets = SENSOR_PACKETS[SENSOR]
     with BagReader(bag) as reader:
-        wanted = [
-            t
-            for t in (
-                TOPIC_GROUND_TRUTH,
-                TOPIC_ESTIMATE,
-                TOPIC_HANDOVER_OFFER,
-                DECISION_TOPIC,
-                packets,
-            )
-            if t in reader.topics
-        ]
+        topics = (TOPIC_GROUND_TRUTH, TOPIC_ESTIMATE, TOPIC_HANDOVER_OFFER, DECISION_TOPIC, packets)
+        wanted = [t for t in topics if t in reader.topics]
         for rec, msg in reader.messages(wanted):
             if rec.topic == TOPIC_GROUND_TRUTH:
                 out["truths"].append(truth_of(msg))
@@ -378,11 +328,8 @@ def bag_estimates(bag: Path, model_dir: Path) -> list[Estimate]:
 
 # ------------------------------------------------------------------------------ the plan
 def planned(scene_name: str, seed: int, numbers: Sequence[int]) -> tuple[list, list[GroundTruth]]:
-    """The trials ``numbers`` as ``sim_device`` simulates them for ``seed``, laid 1 s apart.
-
-    Returns the writes ``(t_ns, bytes)`` and each trial's truth, stamped (as the device
-    stamps it live) at the write holding its first bytes at or after the true onset.
-    """
+    """The writes ``(t_ns, bytes)`` of trials ``numbers`` as ``sim_device`` simulates them for
+    ``seed``, laid 1 s apart, and their truths stamped as the device stamps them live."""
     from ext_sense_sim.scene import load_scene
     from ext_sense_sim.trial_plan import plan_trials
 
@@ -459,9 +406,9 @@ def live_run(
     args: dict[str, str],
     env: dict[str, str],
     tmp: Path,
-) -> tuple[Path, str, float, str, str, str]:
-    """One recorded live run under ``condition``: its bag, monitor summary, wall, loads and the
-    emulator's lateness."""
+) -> tuple[Path, dict[str, Any]]:
+    """One recorded live run under ``condition``: its bag, and the :class:`RunResult` fields
+    it gives (monitor summary, wall time, loads, the emulator's lateness)."""
     tag = f"{task.graph}_{condition.replace('+', '_')}"
     bag = tmp / f"{tag}_bag"
     topics = [SENSOR_PACKETS[SENSOR], TOPIC_GROUND_TRUTH, TOPIC_ESTIMATE]
@@ -485,8 +432,13 @@ def live_run(
         after = loadavg()
     finally:
         stop_hog(hog)
-    late = emulator_lateness(tmp / f"{tag}.log")
-    return bag, summary, time.monotonic() - t0, before, after, late
+    return bag, {
+        "monitor_summary": summary,
+        "wall_s": time.monotonic() - t0,
+        "load_before": before,
+        "load_after": after,
+        "emulator": emulator_lateness(tmp / f"{tag}.log"),
+    }
 
 
 def score_run(
@@ -495,10 +447,11 @@ def score_run(
     seed: int,
     trials: int,
     bag: Path,
+    run: dict[str, Any],
     model_dir: Path,
     plan_cache: dict[tuple, tuple[list, list[Estimate]]],
 ) -> RunResult:
-    """The three scores of one recorded run, on the trials its bag holds."""
+    """The three scores of one recorded run (``live_run``'s), on the trials its bag holds."""
     from ext_sense.graphs import DEFAULT_SCENES
 
     got = read_bag(bag)
@@ -529,9 +482,6 @@ def score_run(
     return RunResult(
         task=task.task,
         condition=condition,
-        load_before="",
-        load_after="",
-        wall_s=0.0,
         seed=seed,
         trials_requested=trials,
         trial_numbers=numbers,
@@ -541,6 +491,7 @@ def score_run(
         live_releases=releases,
         packets=got["packets"],
         packet_seq_gaps=got["seq_gaps"],
+        **run,
     )
 
 
@@ -672,20 +623,15 @@ def main() -> int:
                 if "+one_process" in condition:
                     a["hot_path"] = "one_process"
                 print(f"[live-offline] {task.graph} {condition}: load {loadavg()}", flush=True)
-                bag, summary, wall, before, after, late = live_run(task, condition, a, env, tmp)
-                r = score_run(task, condition, args.seed, n, bag, models[task.task], plan_cache)
-                r.monitor_summary, r.wall_s, r.load_before, r.load_after, r.emulator = (
-                    summary,
-                    wall,
-                    before,
-                    after,
-                    late,
+                bag, run = live_run(task, condition, a, env, tmp)
+                r = score_run(
+                    task, condition, args.seed, n, bag, run, models[task.task], plan_cache
                 )
                 results.append(r)
                 for row in rows(r):
                     print(
                         f"[live-offline]   {row['figure']}: live {row['live']:.3f}, bag "
-                        f"{row['bag']:.3f}, plan {row['plan']:.3f} ({wall:.0f} s)",
+                        f"{row['bag']:.3f}, plan {row['plan']:.3f} ({r.wall_s:.0f} s)",
                         flush=True,
                     )
     finally:
