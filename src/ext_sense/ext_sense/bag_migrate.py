@@ -1,23 +1,12 @@
 """``ext-sense bag migrate``: a bag of decoded arrays from before packets, as a packet bag.
 
-Bags recorded before the drivers published raw packets hold their decoded arrays
-(``TaxelEventBatch`` on ``/extsense/nuskin/events``, ``BioTacFrame`` on
-``/extsense/biotac/frames``). The graphs, the view and the offline replay read packets only, so
-such a bag is rewritten once: every other topic is copied as recorded (its CDR in the current
-definition), and the decoded arrays become the packets the drivers publish now.
-
-The sensor's bytes are not in an old bag and cannot be rebuilt exactly: what the decoder
-dropped (bad words, resync bytes) is gone, and when each read returned was not kept. So the
-events are encoded again with the drivers' encoders (receiver words with
-:func:`~ext_sense_drivers.nuskin.wire.encode_words`, BioTac frames with
-:func:`~ext_sense_drivers.biotac.encoder.encode_standard_frame`): NUSkin events as one read per
-distinct event time, returning at that time (the library decoder stamps each word within its
-transmission time, 10 us a word at 4 Mbaud, of its recorded time), one packet per recorded
-batch; a BioTac frame as one read arriving its clock's lead after its stamp. While the
-recording is silent, the NUSkin stream gets the driver's "nothing read" packets on its cadence
-(:data:`~ext_sense_drivers.packets.QUIET_PACKETS_PERIOD_S`), and the stream ends with the
-recording, as the driver's does when its link goes: the windows of a replay then close as the
-current graphs close them.
+The graphs, the view and the offline replay read packets only, so a bag of ``TaxelEventBatch``
+or ``BioTacFrame`` is rewritten once: other topics are copied (in the current definitions), the
+decoded arrays encoded again with the drivers' encoders. The sensor's own bytes cannot be
+rebuilt (dropped words and read times are gone): NUSkin events become one read per distinct
+event time and one packet per batch, with the driver's "nothing read" packets while the
+recording is silent and the stream's end at its end; a BioTac frame becomes one read arriving
+its clock's lead after its stamp. A replay's windows then close as the current graphs close them.
 """
 
 from __future__ import annotations

@@ -1,10 +1,7 @@
 """The shape of a node-graph description, shared by the launch files and ``ext-sense run``.
 
-A :class:`GraphSpec` lists its launch arguments and a function that, given the arguments'
-values as strings (as ``ros2 launch`` resolves them), returns the nodes to start. Both the
-launch files (through :mod:`ext_sense.launch_support`) and the runner (:mod:`ext_sense.runner`)
-call that same function, so the two can never drift apart. Nothing here imports ``launch``
-or ``rclpy``.
+A :class:`GraphSpec` lists its launch arguments and a function from their string values to the
+nodes to start; both front ends call it, so they cannot drift apart. No ``launch``, no rclpy.
 """
 
 from __future__ import annotations
@@ -26,10 +23,7 @@ class GraphError(ValueError):
 class ArgumentSpec:
     """One launch argument: ``name:=value`` on the command line of both front ends.
 
-    Values arrive as strings (``ros2 launch`` resolves every argument to one); ``kind`` and the
-    bounds are checked by :meth:`check` when the graph resolves its arguments, so a value that
-    is not a number, or out of range, is one line naming the argument before any node starts,
-    not a traceback in some node (or a graph that starts and fails later).
+    Values arrive as strings, checked by :meth:`check` before any node starts.
 
     Attributes:
         kind: ``str``, ``int`` or ``float``: what the value must parse as.
@@ -126,12 +120,7 @@ class NodeSpec:
             raise GraphError(f"Node '{self.name}': cannot import plugin '{self.plugin}'") from err
 
     def ros_args(self) -> list[str]:
-        """Node name and remappings as ``--ros-args -r __node:=NAME -r from:=to ...``.
-
-        This is what ``launch_ros`` passes to a node's process too; naming the node through
-        ``__node`` means a Node subclass keeps its own default name in code and still gets the
-        graph's name, whichever front end started it.
-        """
+        """Node name and remappings as ``--ros-args -r __node:=NAME -r from:=to ...``."""
         args = ["-r", f"__node:={self.name}"]
         for src, dst in self.remappings:
             args += ["-r", f"{src}:={dst}"]
@@ -170,10 +159,7 @@ class GraphSpec:
         return values
 
     def check_files(self, values: Mapping[str, str]) -> None:
-        """Refuse, before any node starts, values naming files the graph needs but cannot use.
-
-        Args:
-            values: Resolved argument values (:meth:`resolve`).
+        """Refuse, before any node starts, resolved values naming files the graph cannot use.
 
         Raises:
             GraphError: One line naming the argument and what is wrong with its file.

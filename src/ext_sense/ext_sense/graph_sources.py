@@ -37,11 +37,11 @@ a food trial's motion start is put at the probe's)."""
 PACKET_ARGUMENTS: tuple[ArgumentSpec, ...] = (
     ArgumentSpec(
         "reader_priority",
-        "0",
+        "50",
         "SCHED_FIFO priority of the sensor driver's reader thread (its drain thread 10 below), "
         "1-99; 0 leaves the scheduling as is. Needs CAP_SYS_NICE or an rtprio limit "
-        "(docs/runtime.md, 'Real-time priority for the reader'); refused, the driver says so "
-        "and runs at normal priority.",
+        "(docs/runtime.md, 'Real-time priority for the reader'); refused, the driver falls "
+        "back to nice -10 or normal priority and says so.",
         kind=int,
         low=0,
         high=99,

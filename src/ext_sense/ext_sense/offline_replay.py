@@ -1,9 +1,7 @@
 """The graph's core on a bag, without ROS: what ``ext-sense replay BAG --offline`` runs.
 
-Kept apart from the command (:mod:`ext_sense.commands.bags`) so that tests and tools drive the
-same function: a bag's sensor stream goes through the window stage and the model the nodes run,
-in log-time order, so two runs on one bag give identical estimates, and a bag of raw packets
-gives the estimates of the live run that recorded it.
+The bag's packets go through the window stage and the model the nodes run, in log-time order:
+two runs give identical estimates, and a packet bag gives those of the live run that recorded it.
 """
 
 from __future__ import annotations
@@ -18,10 +16,7 @@ if TYPE_CHECKING:  # heavy: imported by the functions, so ``ext-sense --help`` s
 
 
 def bag_task_sensor(path: Path) -> tuple[str, str]:
-    """Task and sensor of a bag: its ``custom_data`` (``task``, ``sensor``), else guessed.
-
-    The guess takes the sensor from the stream topic present and the task from the first
-    ground-truth message.
+    """Task and sensor of a bag: its ``custom_data``, else its stream topics and first truth.
 
     Raises:
         BagError: Neither can be told.
@@ -49,20 +44,12 @@ def bag_task_sensor(path: Path) -> tuple[str, str]:
 def offline_estimates(
     bag_path: Path, config: WindowConfig, model: ModelBundle, from_seq: int = 0
 ) -> Iterator[tuple[str, Any]]:
-    """Run the graph's core on a bag: yields ``("estimate", Estimate)`` and ``("truth", msg)``.
+    """Run the graph's core on a bag: yields ``(kind, item)``, kind estimate, truth or rejected.
 
-    Sensor messages feed :class:`~ext_sense_perception.online.stage.WindowStage` in log-time
-    order, cutting the windows of ``config`` (the model card's task profile, as the window node
-    does); each window goes through ``model.predict``, as in the inference node. Compute
-    latency is measured per window (feature + model time, no transport) and is the only field
-    that differs between runs. For food the ground-truth stamps mark the motion start, as
-    ``motion_start`` does in the graph.
-
-    The driver's raw packets are decoded with the library decoder, as the live window node
-    does (:meth:`WindowStage.on_packet`), and windows close by its one time rule: the same
-    packets give the same windows as the live run that recorded them. ``from_seq`` replays as a
-    consumer that joined the stream at that packet (the window node logs the first ``seq`` it
-    saw). After the last packet, windows still pending are closed as the stream ending would.
+    Packets feed :class:`~ext_sense_perception.online.stage.WindowStage` (windows of
+    ``config``), each window ``model.predict``; only the compute latency differs between runs.
+    For food the truth stamps are the motion starts. ``from_seq`` replays as a consumer that
+    joined at that packet; after the last one, pending windows close as at a stream's end.
 
     Raises:
         BagError: The bag holds no packets of the sensor (a bag of decoded arrays from before

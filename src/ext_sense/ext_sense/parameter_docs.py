@@ -1,12 +1,9 @@
 """Render ``docs/parameters.md`` from the nodes' parameter schemas, starting no process.
 
-Every node class names its schema (``PARAMETERS``, a frozen dataclass of
-:func:`ext_sense_runtime.parameters.param` fields), which is also what the node declares with
-:func:`~ext_sense_runtime.parameters.declare_all`; so the table shows what the nodes declare,
-and ``test/test_parameter_docs.py`` fails when the document is stale. Beside each default, the
-values the graphs (``ext_sense.graphs``) give the parameter, for every sensor and source.
-
-Usage: ``python -m ext_sense.parameter_docs [--out docs/parameters.md]``.
+Each node class names its schema (``PARAMETERS``), the one it declares, so the tables show what
+the nodes declare (``test/test_parameter_docs.py`` fails when the document is stale), beside
+the values the graphs give each parameter. Usage: ``python -m ext_sense.parameter_docs [--out
+docs/parameters.md]``.
 """
 
 from __future__ import annotations
@@ -23,10 +20,7 @@ from ext_sense_runtime.parameters import ParamSpec, specs
 
 
 def graph_nodes() -> list[tuple[NodeSpec, dict[str, list[object]]]]:
-    """Every distinct node (by executable) of every graph, and the values the graphs give it.
-
-    Graphs are built (not started) for both sensors, both sources, with behaviours and view.
-    """
+    """Every distinct node of every graph (both sensors and sources), and the values given."""
     seen: dict[str, NodeSpec] = {}
     given: dict[str, dict[str, list[object]]] = {}
     for graph in GRAPHS.values():

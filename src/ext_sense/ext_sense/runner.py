@@ -1,36 +1,11 @@
-"""Running a node graph without ``ros2 launch``: one process per node, like launch does.
+"""Running a node graph without ``ros2 launch``: the node specs the launch files use.
 
-``ext-sense run GRAPH name:=value ...`` resolves the graph's arguments, builds its node specs
-with the same function the launch files use, and starts each node in its own Python process
-(``python -m ext_sense.runner NODE_JSON``), so the graph uses every core and a crash stays in one
-node. The runner supervises the children: Ctrl-C or SIGTERM is forwarded as SIGINT, and when a
-node marked ``required`` exits the others are stopped (launch's ``Shutdown``). A child not gone
-``STOP_GRACE_S`` after the SIGINT is killed. When the graph has stopped the runner prints every
-child's exit code (``[run] exit codes: sim_device=0 nuskin_driver=0 ...``) and exits non-zero if
-any of them did (see :func:`run_graph`).
-
-Every stop signal (:data:`ext_sense_runtime.stop.STOP_SIGNALS`: SIGINT, SIGTERM, SIGHUP,
-SIGQUIT) sent to the runner alone stops the whole graph as a Ctrl-C does: the runner forwards a
-SIGINT to each child and waits for them, so no node is left running without its supervisor.
-Should the runner die anyway (SIGKILL), each child is sent SIGTERM by the kernel
-(``PR_SET_PDEATHSIG``) and stops as on any stop signal.
-
-Repeated signals are one request: a Ctrl-C in a terminal reaches the runner and every child at
-once, then the runner forwards its own SIGINT; each child treats both as one stop
-(:mod:`ext_sense_runtime.node_main`), and so does the runner. Once the graph is down the runner
-ignores the stop signals for the little that is left of its process.
-
-Nodes the graph puts in one process (:attr:`~ext_sense.graph.NodeSpec.process`, e.g. the hot
-path with ``hot_path:=one_process``, :mod:`ext_sense.graph_process`) are one child,
-``python -m ext_sense.runner GROUP_JSON``, spinning them on one executor; the exit codes then
-name the process (``hot_path=0``). The launch files start the same group through the
-``node_group`` console script, which is :func:`main`.
-
-``--in-process`` instead adds every node to one executor in this process, which is handy for
-debugging with a single interpreter.
-
-A node that has finished its job (e.g. the estimate monitor after N taps) ends its process by
-shutting down its context: ``rclpy.try_shutdown(context=node.context)``.
+Each node, or each group of nodes sharing a process (:mod:`ext_sense.graph_process`), runs in a
+child ``python -m ext_sense.runner JSON`` (also the ``node_group`` console script). The runner
+forwards any stop signal as one SIGINT, stops the graph when a ``required`` node exits, kills a
+child not gone ``STOP_GRACE_S`` after the SIGINT, and prints every child's exit code. Children
+get SIGTERM from the kernel should the runner die (``PR_SET_PDEATHSIG``). ``--in-process`` runs
+every node on one executor here, for debugging.
 """
 
 from __future__ import annotations
@@ -83,12 +58,7 @@ def _node_kwargs(spec: NodeSpec, use_sim_time: bool, context: Any = None) -> dic
 def _make_node(spec: NodeSpec, node_class: type, use_sim_time: bool, context: Any = None) -> Any:
     """Construct the node; a managed lifecycle node is then configured and activated.
 
-    ``ext-sense run`` is the lifecycle manager of its graph, as the launch files' events are of
-    theirs: each lifecycle node (``spec.lifecycle``) is driven through ``configure`` and
-    ``activate`` in its own process right after construction, unless the graph leaves it to an
-    external manager (``manage_drivers:=false``, ``spec.manage`` false). A failed transition
-    is logged by rclpy and leaves the node where it is (unconfigured or inactive), still
-    reachable on ``<node>/change_state``.
+    A failed transition leaves the node where it is, reachable on ``<node>/change_state``.
     """
     node = node_class(**_node_kwargs(spec, use_sim_time, context))
     if spec.lifecycle and spec.manage:
@@ -114,10 +84,6 @@ def run_one(spec: NodeSpec, use_sim_time: bool) -> int:
 def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence[str] = ()) -> int:
     """Every node on one executor in this process, stopped as a node process is.
 
-    Stops on Ctrl-C or SIGTERM, or when any node shuts the context down
-    (:func:`ext_sense_runtime.node_main.run_nodes`). A managed lifecycle node is configured
-    and activated right after it is built, as in a process of its own.
-
     Args:
         nodes: The nodes, built in this order.
         use_sim_time: Every node's ``use_sim_time``.
@@ -140,12 +106,7 @@ def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence
 
 
 def _child_stop() -> StopRequest:
-    """The stop handlers of a node process; one whose supervisor dies is stopped too.
-
-    A child started by :func:`spawn_node` asks the kernel for SIGTERM when the thread that
-    started it ends (``PR_SET_PDEATHSIG``: the runner killed with SIGKILL, where no handler
-    runs), and counts a supervisor already gone as a stop.
-    """
+    """The stop handlers of a node process; one whose supervisor dies is stopped too."""
     stop = install_stop_handlers()
     supervisor = os.environ.pop(SUPERVISOR_ENV, "")  # not for processes this one starts
     if supervisor.isdigit():
@@ -157,14 +118,9 @@ def _child_stop() -> StopRequest:
 
 
 def spawn_node(spec: NodeSpec, use_sim_time: bool) -> subprocess.Popen[bytes]:
-    """Start a node process with the stop signals blocked (the mask survives ``exec``).
+    """Start a node process with the stop signals blocked until it installs its handlers.
 
-    Public for front ends that supervise a graph themselves (``ext-sense collect``); pair it
-    with :func:`stop_nodes`.
-
-    A stop signal that comes while the child's interpreter starts and imports (a second or more
-    on a loaded machine) stays pending until ``node_main`` installs its handlers and unblocks
-    them, instead of raising ``KeyboardInterrupt`` in some import.
+    Pair it with :func:`stop_nodes`.
     """
     return _spawn(json.dumps({"spec": asdict(spec), "use_sim_time": use_sim_time}))
 
@@ -265,9 +221,7 @@ def run_graph(
                 break
     finally:
         codes = stop_nodes(procs, log)
-        # A second Ctrl-C must not turn a clean stop into a KeyboardInterrupt (or, during the
-        # interpreter's finalisation, death by SIGINT): the graph is down, this process is done.
-        stop.ignore_further()
+        stop.ignore_further()  # the graph is down: a second Ctrl-C must not kill this process
     if codes:
         listed = " ".join(f"{name}={code}" for name, code in codes.items())
         print(f"[run] exit codes: {listed}", file=log)
@@ -285,8 +239,7 @@ def _spec_from_json(raw: dict[str, Any]) -> NodeSpec:
 def main(argv: Sequence[str] | None = None) -> int:
     """Child entry point: ``python -m ext_sense.runner NODE_JSON|GROUP_JSON [--ros-args ...]``.
 
-    Also the ``node_group`` console script the launch files start for a process group
-    (``launch_ros`` appends ``--ros-args`` and what follows: passed to rclpy for every node).
+    Also the ``node_group`` console script (``launch_ros`` appends ``--ros-args ...``).
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     payload = json.loads(argv[0])

@@ -14,18 +14,19 @@ from __future__ import annotations
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 
-def _keep_last(depth: int, reliability: ReliabilityPolicy) -> QoSProfile:
+def keep_last(depth: int, reliable: bool) -> QoSProfile:
+    """A volatile keep-last profile of ``depth``, reliable or best effort."""
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
         depth=depth,
-        reliability=reliability,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.VOLATILE,
     )
 
 
-SENSOR_STREAM_QOS = _keep_last(1000, ReliabilityPolicy.BEST_EFFORT)
-WINDOW_QOS = _keep_last(20, ReliabilityPolicy.RELIABLE)
-ESTIMATE_QOS = _keep_last(50, ReliabilityPolicy.RELIABLE)
-COMMAND_QOS = _keep_last(10, ReliabilityPolicy.RELIABLE)
-GROUND_TRUTH_QOS = _keep_last(1000, ReliabilityPolicy.RELIABLE)
-DIAGNOSTICS_QOS = _keep_last(10, ReliabilityPolicy.RELIABLE)
+SENSOR_STREAM_QOS = keep_last(1000, reliable=False)
+WINDOW_QOS = keep_last(20, reliable=True)
+ESTIMATE_QOS = keep_last(50, reliable=True)
+COMMAND_QOS = keep_last(10, reliable=True)
+GROUND_TRUTH_QOS = keep_last(1000, reliable=True)
+DIAGNOSTICS_QOS = keep_last(10, reliable=True)

@@ -1,14 +1,8 @@
 """``bag_player`` node: publishes a recorded bag's messages, at recorded pace or flat out.
 
-Messages go out as the bag stores them (serialized CDR bytes, ``publish(bytes)``), under their
-recorded topic names, so nothing is decoded on the way; only a topic recorded with an older
-definition of its type (a bag older than a ``.msg`` change) is converted to the current one,
-the fields added since at their defaults (``BagReader.current_cdr``), so subscribers can read
-it. A reader thread paces the publishing (device-like input never blocks the executor). By
-default only the inputs of a graph are played (sensor streams and ground truth), so a graph fed
-by a bag recomputes its own windows and estimates instead of seeing the recorded ones.
-
-``rate`` 1.0 plays at recorded pace (log time), 2.0 twice as fast, 0 flat out.
+Messages go out as the bag stores them (CDR bytes), converted only when recorded with an older
+definition of their type (``BagReader.current_cdr``). A reader thread paces them. By default
+only a graph's inputs are played, so the graph recomputes its own windows and estimates.
 """
 
 from __future__ import annotations
@@ -21,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from ext_sense.topics import TOPIC_BIOTAC_PACKETS, TOPIC_GROUND_TRUTH, TOPIC_NUSKIN_PACKETS
 from ext_sense_bags import STANDARD_TOPICS, BagError, BagReader
@@ -30,11 +24,11 @@ from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare_all, param
+from ext_sense_runtime.qos import keep_last
 
 _ro = functools.partial(param, read_only=True)
 DEFAULT_TOPICS = [TOPIC_NUSKIN_PACKETS, TOPIC_BIOTAC_PACKETS, TOPIC_GROUND_TRUTH]
-"""The graph inputs: the drivers' raw packets and the ground truth (a bag of decoded arrays from
-before packets: ``ext-sense bag migrate``)."""
+"""The graph inputs: the drivers' raw packets and the ground truth."""
 
 
 def message_class(msgtype: str) -> type:
@@ -54,13 +48,7 @@ def message_class(msgtype: str) -> type:
 def publisher_qos(topic: str) -> QoSProfile:
     """The QoS a topic is published with: the standard table's, else reliable depth 100."""
     spec = STANDARD_TOPICS.get(topic)
-    reliable = spec.reliable if spec else True
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=spec.depth if spec else 100,
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.VOLATILE,
-    )
+    return keep_last(spec.depth if spec else 100, reliable=spec.reliable if spec else True)
 
 
 @dataclass(frozen=True)

@@ -1,16 +1,9 @@
 """``estimate_monitor`` node: prints each estimate beside the simulator's ground truth.
 
-Subscribes ``contact_estimate`` (final estimates) and ``ground_truth``, and with
-``show_provisional`` ``contact_estimate/provisional``; every final estimate matched to a trial
-prints one line on stdout. After ``expected`` scored estimates (or, once ``expected`` trials
-were seen, after ``idle_timeout_s`` without news) it prints the summary as its last line and
-ends its process by shutting down its context (the runner then stops the graph)::
-
-    summary: taps=N mae_cm=X compute_p50_ms=Y compute_p99_ms=Z
-
-With ``ground_truth`` false (a sensor on a serial port or CAN: no simulator knows the truth)
-every final estimate prints its line as it comes, and the monitor ends after ``expected`` of
-them, the summary counting them (:class:`~ext_sense.nodes.scoreboard.Scoreboard`).
+Every final estimate matched to a trial prints a line; after ``expected`` scored estimates (or,
+once ``expected`` trials were seen, ``idle_timeout_s`` without news) it prints the summary and
+shuts its context down, which ends the graph. With ``ground_truth`` false every final estimate
+is printed unscored (:class:`~ext_sense.nodes.scoreboard.Scoreboard`).
 """
 
 from __future__ import annotations

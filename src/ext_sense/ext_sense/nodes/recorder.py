@@ -1,21 +1,10 @@
 """``recorder`` node: writes topics to a rosbag2 (mcap) bag without the ``ros2`` CLI.
 
-Subscriptions are raw (``raw=True``): the CDR bytes go into the bag untouched, through
-:class:`ext_sense_bags.BagWriter`, with the receive time (host epoch ns) as log time. Sensor
-streams are subscribed best effort (their publishers are), the rest reliable, with a deep
-history so a burst is not lost. When a publisher appears, the type hash it reports is compared
-with the hash written into the bag; a mismatch (message definitions changed since the build) is
-logged and shown on ``/diagnostics``.
-
-Durability: the writer closes its mcap chunk (or commits its sqlite3 transaction) at least every
-``flush_period_s`` (1 s), on a message or on a timer when the topics are quiet, so a recorder
-killed at any moment loses at most that last period; ``ext-sense bag recover BAG`` rewrites the
-rest as a complete bag. A target that cannot be created, or a write that fails (disk full, file
-too large, I/O error), stops the recording, not the node: the error is logged once and shown
-as ERROR on ``/diagnostics`` (``recording stopped: ...``), later messages are counted as
-``not_recorded``, and the node keeps running so the graph is unaffected. ``ext-sense record``,
-whose only job is recording, exits instead with that message (exit code 1; 2 when the bag
-cannot be created).
+Raw subscriptions: the CDR bytes go into the bag untouched, with the receive time as log time.
+A publisher's type hash that differs from the bag's is an ERROR on ``/diagnostics``. The
+writer flushes at least every ``flush_period_s``, so a killed recorder loses at most that
+(``ext-sense bag recover``). A bag that cannot be created or written stops the recording, not
+the node: logged once, an ERROR on ``/diagnostics``, later messages counted ``not_recorded``.
 """
 
 from __future__ import annotations
@@ -25,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 
 from ext_sense.nodes.bag_player import message_class
 from ext_sense_bags import STANDARD_TOPICS, BagError, BagWriter, type_hash
@@ -34,18 +23,13 @@ from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare_all, param
+from ext_sense_runtime.qos import keep_last
 
 
 def subscription_qos(topic: str) -> QoSProfile:
     """Best effort for sensor streams (and unknown topics), reliable for the rest; depth 1000."""
     spec = STANDARD_TOPICS.get(topic)
-    reliable = bool(spec and spec.reliable)
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=1000,
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.VOLATILE,
-    )
+    return keep_last(1000, reliable=bool(spec and spec.reliable))
 
 
 @dataclass(frozen=True)

@@ -1,20 +1,10 @@
 """Scoring estimates against ground truth as they arrive (no rclpy).
 
-The estimate monitor and the offline replay share it (estimates and trials as
-:class:`ext_sense_runtime.records.Estimate` and ``GroundTruth``, read from the messages with
-``estimate_of`` and ``truth_of`` there): each final estimate is matched to the
-unmatched ground-truth trial whose onset is nearest (within ``match_tolerance_ns``), a line is
-printed for it, and :meth:`Scoreboard.summary` gives the last line of the main job::
-
-    summary: taps=N mae_cm=X compute_p50_ms=Y compute_p99_ms=Z          (tap localization)
-    summary: trials=N accuracy=X compute_p50_ms=Y compute_p99_ms=Z      (classification)
-
-Without ground truth (a sensor on a serial port: nothing knows the true tap) every final
-estimate is printed and counted as it comes, and the summary counts them::
-
-    summary: estimates=N degraded=D compute_p50_ms=Y compute_p99_ms=Z (no ground truth)
-
-``compute_*`` are percentiles of the estimates' ``compute_latency`` (see docs/runtime.md).
+Shared by the estimate monitor and the offline replay: each final estimate is matched to the
+unmatched trial whose onset is nearest, one line is printed for it, and :meth:`Scoreboard.
+summary` gives the main job's last line (``summary: taps=N mae_cm=X compute_p50_ms=Y
+compute_p99_ms=Z``; ``trials=N accuracy=X`` for classes; ``estimates=N degraded=D`` without
+ground truth, where every final estimate is counted unscored).
 """
 
 from __future__ import annotations
@@ -102,9 +92,7 @@ class Scoreboard:
                 f"true {truth.tap_position_m * 100:6.2f} cm | error {err * 100:5.2f} cm | "
                 f"{lag} | {latency}"
             ]
-        label = est.class_label
-        if not label and not math.isnan(est.stability_probability):
-            label = "stable" if est.stability_probability >= 0.5 else "unstable"
+        label = _label(est)
         ok = label == truth.class_label
         self.correct.append(ok)
         return [
@@ -124,10 +112,7 @@ class Scoreboard:
         if self.is_regression:
             what = f"{est.tap_position_m * 100:6.2f} cm ± {est.tap_position_std_m * 100:4.2f}"
             return f"tap {self.unscored:3d}: estimate {what} | {latency}"
-        label = est.class_label
-        if not label and not math.isnan(est.stability_probability):
-            label = "stable" if est.stability_probability >= 0.5 else "unstable"
-        return f"trial {self.unscored:3d}: estimate {label or '?':<12} | {latency}"
+        return f"trial {self.unscored:3d}: estimate {_label(est) or '?':<12} | {latency}"
 
     def _match(self, onset_ns: int) -> GroundTruth | None:
         best, best_dt = None, self.match_tolerance_ns + 1
@@ -165,3 +150,10 @@ class Scoreboard:
             f"summary: trials={self.scored} accuracy={acc:.3f} "
             f"compute_p50_ms={p50:.2f} compute_p99_ms={p99:.2f}"
         )
+
+
+def _label(est: Estimate) -> str:
+    """The estimate's class; a handover's from ``P(stable)``."""
+    if not est.class_label and not math.isnan(est.stability_probability):
+        return "stable" if est.stability_probability >= 0.5 else "unstable"
+    return est.class_label

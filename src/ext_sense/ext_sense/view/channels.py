@@ -1,13 +1,8 @@
 """The live view's channels: names, encodings and JSON schemas, one place for node and layout.
 
-Two kinds:
-
-- Pictures and summaries the view draws (under ``/extsense/view/``), at display rate.
-- The graph's own low-rate topics (estimates, ground truth, windows, ``/diagnostics``), passed
-  through as the CDR bytes the nodes sent, under their ROS names and ``ros2msg`` schemas: the
-  same channels a recorded mcap bag holds, so one layout's panels on them read a live graph and
-  a bag alike. The raw tactile streams are not passed through: 1000 batches a second is not a
-  display rate.
+Pictures and summaries the view draws live under ``/extsense/view/``; the graph's low-rate
+topics pass through as CDR under their ROS names, as a bag holds them, so one layout reads a
+live graph and a bag alike. The raw streams are not passed through (not a display rate).
 """
 
 from __future__ import annotations
@@ -47,8 +42,7 @@ PASSED_THROUGH: dict[str, str] = {
         TOPIC_DIAGNOSTICS,
     )
 }
-"""ROS topic -> message type of the topics the view sends on unchanged (CDR); names from
-:mod:`ext_sense.topics`, types from the bags' standard table, as the recorder writes them."""
+"""ROS topic -> message type of the topics the view sends on unchanged (CDR)."""
 
 
 def _number() -> dict[str, Any]:
@@ -131,8 +125,5 @@ def view_channels(sensor: str) -> tuple[str, ...]:
 
 
 def view_inputs(sensor: str) -> tuple[str, ...]:
-    """The graph topics the view draws a sensor from; what a replay plays for the view.
-
-    The driver's raw packets, then the topics passed through.
-    """
+    """The graph topics the view reads (packets, then those passed through): a replay's."""
     return (SENSOR_PACKETS[sensor], *PASSED_THROUGH)

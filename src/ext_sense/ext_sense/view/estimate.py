@@ -1,9 +1,7 @@
 """An estimate as a person reads it: the tap on the rod, class bars, stability; and in numbers.
 
-:func:`estimate_image` draws what the model said next to what really happened when a ground
-truth is known (the simulator, a labelled bag); :func:`estimate_message` carries the same in
-numbers and names (the picture has no text), with the latency; :func:`diagnostics_message`
-sums ``/diagnostics`` up to the worst level per node.
+The picture has no text: :func:`estimate_message` carries the numbers and names;
+:func:`diagnostics_message` sums ``/diagnostics`` up to the worst level.
 """
 
 from __future__ import annotations
@@ -41,13 +39,9 @@ def estimate_image(
 ) -> Image:
     """Draw one estimate (and its trial's truth when known).
 
-    - Band on top: yellow for a provisional (anytime) estimate, blue for a final one, red when
-      degraded.
-    - A tap: the rod (grey, held end on the left) with the estimate (orange) and its +-1 std
-      band, the true tap in green.
-    - Classes: one bar per class, as long as its probability; the chosen class orange, the
-      true class framed green.
-    - Stability: one bar as long as P(stable).
+    Top band yellow (provisional), blue (final) or red (degraded); a tap on the grey rod in
+    orange with its +-1 std band; one bar per class, the chosen orange; P(stable) as a bar.
+    The truth is green.
 
     Args:
         est: The estimate.

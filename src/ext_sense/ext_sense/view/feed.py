@@ -1,21 +1,9 @@
 """What the view draws the sensor from: the drivers' raw packets, decoded here.
 
-A graph's driver publishes raw packets (``SensorPacket``) and bags record them: the view decodes
-them itself, with the drivers' one decoder library (:func:`ext_sense_drivers.packets.make_decoder`),
-following the window node's conventions
-(:meth:`ext_sense_perception.online.stage.WindowStage.on_packet`): a decoder is made from a
-packet's ``encoding`` and ``encoding_options`` and made again when they change; a ``seq`` gap is
-counted and restarts the decoder's byte stream (the decoder does this: the bytes on either side
-of a gap do not join); a packet that cannot be read is counted and dropped with its reason,
-never raised.
-
-The view keeps one decoder per ``(encoding, options, connection)``: a connection is a byte
-stream of its own (the decoders restart at a new one anyway), and two publishers on one packet
-topic (a test's flood beside the driver) that differ in connection are then decoded apart
-instead of breaking each other's streams at every packet.
-
-No rclpy: messages are read duck-typed (rclpy, rosbags or plain records), so this is tested
-without ROS.
+With the drivers' decoder library, as the window node does: a ``seq`` gap is counted and
+restarts the byte stream; a packet that cannot be read is counted and dropped, never raised.
+One decoder per ``(encoding, options, connection)``, so two publishers on one topic do not
+break each other's streams. Messages are read duck-typed (rclpy, rosbags or plain records).
 """
 
 from __future__ import annotations
@@ -111,12 +99,7 @@ class SensorFeed:
         return FeedCounters(**{**self._counts, "decode_failures": self._retired_failures + live})
 
     def on_packet(self, msg: Any) -> None:
-        """Feed one ``SensorPacket`` (rclpy, rosbags or a :class:`Packet`).
-
-        A packet that cannot be read is counted in ``bad_packets`` and dropped, its reason in
-        :attr:`last_packet_error`; a ``seq`` gap is counted in ``lost_packets``
-        (:attr:`last_lost_packets` for this packet).
-        """
+        """Feed one ``SensorPacket`` (rclpy, rosbags or a :class:`Packet`); bad ones counted."""
         self._counts["packets"] += 1
         self.last_lost_packets = 0
         try:
@@ -173,11 +156,7 @@ class SensorFeed:
     # -- diagnostics -----------------------------------------------------------------------
 
     def status(self) -> tuple[Level, str, dict[str, object]]:
-        """The input's part of the view's ``/diagnostics`` status.
-
-        WARN once a packet was refused (with the last reason), else OK; the counters as
-        key-values.
-        """
+        """The input's part of the view's status: WARN once a packet was refused, else OK."""
         c = self.counters
         values: dict[str, object] = {
             "packets": c.packets,

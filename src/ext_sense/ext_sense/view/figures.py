@@ -1,7 +1,5 @@
 """``ext-sense plot``'s figures: a session overview and one figure per contact (matplotlib).
 
-Pictures a person reads without ROS or Foxglove: which taxels fired when, where the contacts
-were, and for each contact the events around it beside what the model said and what was true.
 matplotlib is imported inside the functions (``Agg``), so importing this module is cheap.
 """
 

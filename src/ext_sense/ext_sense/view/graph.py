@@ -1,9 +1,7 @@
 """The live view's part of every graph: the ``view`` arguments and the ``foxglove_view`` node.
 
-Kept out of :mod:`ext_sense.graphs` (its build functions call :func:`view_nodes`), so both front
-ends (``ext-sense run`` and the launch files, which read the same description) take
-``view:=true`` with no change of their own. ``ext-sense replay BAG view:=true`` starts the same
-node from the same arguments through :func:`replay_view_graph`.
+Both front ends take ``view:=true`` through :func:`view_nodes`; ``ext-sense replay BAG
+view:=true`` starts the same node through :func:`replay_view_graph`.
 """
 
 from __future__ import annotations
@@ -47,15 +45,7 @@ VIEW_ARGUMENTS: tuple[ArgumentSpec, ...] = (
 
 
 def view_nodes(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
-    """The ``foxglove_view`` node when ``view:=true``, else nothing.
-
-    The view reads the driver's raw packets and decodes them itself (:mod:`ext_sense.view.feed`),
-    so it asks nothing of the driver. It is a process of its own in every layout, apart from the
-    hot path's, and lowers its own CPU priority (its ``nice`` parameter).
-
-    Args:
-        args: The graph's resolved arguments.
-    """
+    """The ``foxglove_view`` node (a process of its own) when ``view:=true``, else nothing."""
     if not as_bool(args.get("view", "false")):
         return ()
     sensor = args["sensor"]
@@ -82,12 +72,7 @@ def view_nodes(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
 
 
 def replay_view_graph(sensor: str) -> GraphSpec:
-    """The view alone as a graph, for ``ext-sense replay BAG view:=true``.
-
-    Its arguments are :data:`VIEW_ARGUMENTS`, checked as every graph checks its own, and its one
-    node is the one :func:`view_nodes` builds for a graph of ``sensor``: the replayed bag's
-    topics reach it under the names a live graph's do.
-    """
+    """The view alone as a graph of ``sensor``, for ``ext-sense replay BAG view:=true``."""
     return GraphSpec(
         name="replay",
         description="The live Foxglove view of a replayed bag.",

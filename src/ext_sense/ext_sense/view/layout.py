@@ -1,15 +1,8 @@
 """The Foxglove layout shipped with the package, built here so that it names the view's channels.
 
-``foxglove_layout.json`` beside this module is this module's output (a test keeps the two
-equal; ``python -m ext_sense.view.layout`` rewrites it). Top row: the taxel grid, the latest
-window's raster, the latest estimate drawn. Bottom row: event rate per finger (NUSkin) and PAC
-(BioTac), the estimate against the truth over time, the estimate's numbers, the diagnostics.
-
-The bottom row's estimate plot, the estimate's raw message and the diagnostics panel read the
-graph's own topics (``/extsense/contact_estimate``, ``/extsense/ground_truth``,
-``/diagnostics``), which the view passes through and which recorded mcap bags hold: opening a
-bag with this layout fills them; the picture panels fill live, or from ``ext-sense replay``
-with the view running.
+``foxglove_layout.json`` is this module's output (a test keeps the two equal; ``python -m
+ext_sense.view.layout`` rewrites it). The panels on the graph's own topics fill from a recorded
+bag too; the picture panels fill live, or from ``ext-sense replay`` with the view.
 """
 
 from __future__ import annotations

@@ -1,28 +1,14 @@
 """``foxglove_view`` node: a live Foxglove view of the sensor, the windows and the estimates.
 
-Runs a Foxglove WebSocket server (``foxglove-sdk``) in this node's own process and sends, at
-``display_rate_hz``: the taxel grid (:mod:`ext_sense.view.taxels`), the event rate per finger or
-the BioTac PAC trace, the latest contact window as a raster, the latest estimate drawn and in
-numbers, and the diagnostics summary; the graph's estimates, ground truths, windows and
-``/diagnostics`` go through unchanged as CDR (:mod:`ext_sense.view.channels`), as a bag holds
-them. Connect the Foxglove app to ``ws://HOST:PORT`` and open the shipped layout
-(docs/view.md).
+Runs a Foxglove WebSocket server and sends, at ``display_rate_hz``, the taxel grid, the rates
+or PAC trace, the latest window raster and estimate, and a diagnostics summary; estimates,
+ground truths, windows and ``/diagnostics`` pass through as CDR (:mod:`.channels`). The sensor
+comes from the driver's raw packets, decoded here (:mod:`.feed`).
 
-The sensor comes from the driver's raw packets (``packets``, decoded here with the drivers'
-decoder library, :mod:`ext_sense.view.feed`); a packet that cannot be read is a counted drop on
-the view's ``/diagnostics``.
-
-What it costs, and what it cannot do to perception: with no Foxglove client subscribed to a
-sensor channel (the taxel grid, the rates, the PAC trace) the view does not even subscribe to
-the packets, so an unwatched view decodes nothing; it follows the clients' subscriptions at each
-display tick (foxglove-sdk's ``Channel.has_sinks``), and a tick with no client at all does
-nothing. The graphs run it in a process of its own, apart from the hot path's, at a lower CPU
-priority (``nice``), so on a busy machine the driver, window and inference nodes come first.
-The raw stream is subscribed best effort like every other reader of it, so a slow view loses
-packets of its own, never the publisher's; drawing happens at display rate.
-
-The server listens on ``host`` (default ``127.0.0.1``): the protocol has no authentication,
-so anyone who reaches the port sees every channel.
+It costs nothing unwatched: packets are subscribed only while a client watches a sensor
+channel, and a tick with no client does nothing. It runs in a process of its own at a lower
+priority (``nice``), best effort on the raw stream, so it never starves perception. The
+protocol has no authentication: anyone who reaches ``host:port`` sees every channel.
 """
 
 from __future__ import annotations
@@ -176,13 +162,8 @@ class FoxgloveViewNode(Node):
         self._diag_dirty = False
         self.feed = SensorFeed(self.sensor, self.taxels, self.electrodes, self.pac)
 
-        # Every channel is created before the server starts listening, never after: a channel
-        # added while a client is connected is advertised to it before foxglove-sdk (0.30) files
-        # it under that client, so a client that subscribes at once (the Foxglove app, the
-        # tests' client) can be refused with "Unknown channel ID" and never get that channel's
-        # messages. Channels already there when a client connects are filed before its first
-        # advertise is sent, so this order leaves no such window, however early the Foxglove
-        # app (which retries every few seconds) or a test connects.
+        # Every channel before the server listens: one added while a client is connected can
+        # be refused to it with "Unknown channel ID" (foxglove-sdk 0.30).
         self.context_fg = foxglove.Context()
         self.images = {t: RawImageChannel(t, context=self.context_fg) for t in ch.IMAGES}
         own = set(ch.view_channels(self.sensor))
@@ -389,10 +370,9 @@ class FoxgloveViewNode(Node):
 
 
 def _lower_priority(nice: int) -> None:
-    """Give every thread of this process at least niceness ``nice`` (Linux: it is per thread).
+    """Give every thread of this process at least niceness ``nice`` (later ones inherit it).
 
-    The threads started later (the WebSocket server's) inherit it from the thread that starts
-    them. Where the OS refuses, the view runs as it was.
+    Where the OS refuses, the view runs as it was.
     """
     try:
         threads = [int(t) for t in os.listdir("/proc/self/task")]

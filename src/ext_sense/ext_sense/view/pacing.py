@@ -1,8 +1,7 @@
 """The display-rate gate: pictures go out at most ``rate_hz`` times a second.
 
-A display needs 10-30 frames a second whatever the sensor does; the gate keeps the view's cost
-flat when 80 taxels fire at 4 kHz, and keeps the latest thing to show (a window or an estimate
-that arrived between frames is shown at the next frame, never dropped for a newer one unseen).
+The view's cost stays flat whatever the sensor does; the latest thing to show waits for the
+next frame, never dropped for a newer one unseen.
 """
 
 from __future__ import annotations
@@ -30,8 +29,7 @@ class DisplayPacer:
         """Whether a frame may go out now; if so, the next one is a period later."""
         if self._next_ns is not None and now_ns < self._next_ns:
             return False
-        # from now, not from the missed slot: a late tick earns no burst of catch-up frames;
-        # a fifth of a period early still passes, so a timer's jitter does not skip frames
+        # from now (no catch-up burst), a fifth early (a timer's jitter skips no frame)
         self._next_ns = now_ns + self.period_ns - self.period_ns // 5
         self.frames += 1
         return True

@@ -1,8 +1,7 @@
 """A contact window as a raster: one row per channel (taxel), time left to right, onset marked.
 
-The window node sends ``(n_channels, n_samples)`` binned counts (NUSkin) or samples (BioTac
-PAC); columns are summed down to at most ``max_columns`` so a 0.35 s window at 4 kHz (1400
-samples) fits a panel, and rows are stretched so even one PAC channel is a visible band.
+Columns are summed down to at most ``max_columns`` and rows stretched, so a 1400-sample window
+fits a panel and one PAC channel is a visible band.
 """
 
 from __future__ import annotations

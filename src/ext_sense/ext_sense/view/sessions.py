@@ -1,10 +1,8 @@
 """What ``ext-sense plot`` draws, read from a bag or a folder of real captures (no ROS).
 
-One record for both: the sensor events on one timeline and the contacts on it, each with its
-window span, estimate and ground truth where the source has them. A bag's contacts are its
-final windows (else its ground truths, else its estimates); a capture folder's are its trials,
-laid end to end in capture order (each recording has its own clock; gaps between them say
-nothing), at the arm's motion start where the trial has an arm bag, else at the capture start.
+The sensor events on one timeline and the contacts on it. A bag's contacts are its final
+windows (else its ground truths, else its estimates); a capture folder's trials are laid end to
+end in capture order, at the arm's motion start where there is one, else the capture start.
 """
 
 from __future__ import annotations

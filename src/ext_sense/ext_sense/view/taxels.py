@@ -1,14 +1,8 @@
 """The taxel grid: what each taxel feels now, in its real place, with broken ones marked.
 
-NUSkin: each finger's 40 taxels on their 8 x 5 lattice (:mod:`ext_sense_drivers.nuskin.layout`:
-ids 1..40 the left finger, 41..80 the right, row-major), coloured by the recent event rate on
-a log scale, so one light touch and a 4 kHz burst are both visible. A taxel silent for
-``dead_after_s`` while its finger fires elsewhere is crossed out (dead); one at the sensor's
-top rate is framed white (saturated): the two faults a person checks first.
-
-BioTac: each sensor's 19 electrodes in index order on a 4 x 5 grid (their places on the finger
-are not a lattice), coloured by the distance from their resting value, crossed out when they
-read 0 (open) and framed at the 12-bit top (saturated).
+NUSkin: each finger's 8 x 5 lattice coloured by event rate on a log scale; a taxel silent while
+its finger fires is crossed out (dead), one at the top rate framed (saturated). BioTac: the 19
+electrodes on a 4 x 5 grid by distance from rest, crossed out at 0, framed at the 12-bit top.
 """
 
 from __future__ import annotations
@@ -32,9 +26,7 @@ ELECTRODE_TOP = 4095
 class TaxelActivity:
     """Recent event rate of each NUSkin taxel, smoothed over ``tau_s``.
 
-    :meth:`add` is called per event batch (a ``bincount``, cheap at 4 kHz x 80 taxels);
-    :meth:`update` at display rate turns the counts into rates. Times are integer ns from the
-    caller's clock, so tests never sleep.
+    :meth:`add` counts each batch; :meth:`update`, at display rate, turns counts into rates.
 
     Args:
         tau_s: Time constant of the rate's exponential smoothing, s.
@@ -142,10 +134,9 @@ def nuskin_grid(
 
 
 class ElectrodeActivity:
-    """The latest BioTac electrode values of each sensor, against their resting values.
+    """The latest BioTac electrode values of each sensor and their resting values.
 
-    The resting value is the mean of a sensor's first ``baseline_frames`` frames (the graph
-    starts before contact, as the driver's own tare does).
+    The resting value is the mean of a sensor's first ``baseline_frames`` frames.
     """
 
     def __init__(self, baseline_frames: int = 20) -> None:

@@ -1,7 +1,7 @@
 """Traces for the view's plots: the BioTac PAC signal and the event rate per finger.
 
-A plot panel redraws whatever arrives, so the view sends each trace at display rate as a short
-JSON message: the last second of PAC per sensor (2200 samples, halved), and one rate per finger.
+Sent at display rate as short JSON messages: the last second of PAC per sensor, decimated, and
+one rate per finger.
 """
 
 from __future__ import annotations
