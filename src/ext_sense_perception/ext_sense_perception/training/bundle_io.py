@@ -1,15 +1,10 @@
 # ruff: noqa: N806  (X for the window matrix, as in scikit-learn)
 """Writing model bundles: the ONNX graph, the joblib pipeline and the model card (no ROS).
 
-Bundles are read back by :func:`ext_sense_perception.online.predictor.load_model`. A bundle
-also keeps the windows it was trained on (``training_windows.npz``, compressed; NUSkin counts
-as int16), so ``ext-sense calibrate`` can refit it with a new session's trials through the same
-recipe without the original data at hand.
-
-A place that bundles are trained into is checked first (:func:`check_place`: writable, with
-room), locked while they are made (:func:`place_lock`), and each bundle is written beside its
-final directory and renamed into it (:func:`staged_bundle`), so a failed or concurrent write
-never leaves a bundle that mixes files.
+A bundle also keeps its training windows (``training_windows.npz``) for ``ext-sense
+calibrate``. A place is checked first (:func:`check_place`), locked while bundles are made
+(:func:`place_lock`), and each bundle is written beside its directory and renamed into it
+(:func:`staged_bundle`), so no write leaves a bundle of mixed files.
 """
 
 from __future__ import annotations
@@ -40,10 +35,7 @@ LOCK_FILE = ".ext_sense_models.lock"
 
 
 def check_place(place: Path, need_bytes: int) -> None:
-    """Make sure bundles can be written into ``place`` before anything is trained for them.
-
-    The directory is created if missing, a probe file is written and removed, and its file
-    system must have ``need_bytes`` free.
+    """Make sure ``place`` is writable, with ``need_bytes`` free, before anything is trained for it.
 
     Raises:
         PerceptionError: One line naming the place and what is wrong.
@@ -64,9 +56,7 @@ def check_place(place: Path, need_bytes: int) -> None:
 
 @contextlib.contextmanager
 def place_lock(place: Path, log: Callable[[str], None] | None = None) -> Iterator[None]:
-    """Hold the exclusive lock of ``place`` (``fcntl.flock`` on its :data:`LOCK_FILE`).
-
-    Another holder (another process writing bundles there) is waited for; ``log`` is told so.
+    """Hold the exclusive ``flock`` of ``place``, waiting (and telling ``log``) for another holder.
 
     Raises:
         PerceptionError: The lock file cannot be opened.
@@ -93,14 +83,11 @@ def place_lock(place: Path, log: Callable[[str], None] | None = None) -> Iterato
 def staged_bundle(target: Path) -> Iterator[Path]:
     """A fresh directory beside ``target`` to write a bundle into, renamed to ``target`` at the end.
 
-    A bundle already at ``target`` is replaced only once the new one is complete; if the
-    block fails, the staged directory is removed and ``target`` is left as it was. What a
-    killed writer left beside ``target`` is cleared first (its former bundle put back if the
-    kill came between the two renames), so writers of one place must hold its
-    :func:`place_lock`.
+    A bundle at ``target`` is replaced only once the new one is complete, and kept if the block
+    fails. What a killed writer left is cleared first, so writers must hold :func:`place_lock`.
 
     Raises:
-        PerceptionError: A file could not be written or renamed (disk full, read-only, ...).
+        PerceptionError: A file could not be written or renamed.
     """
     tag = f"{os.getpid()}_{secrets.token_hex(4)}"
     staged = target.parent / f".{target.name}.new_{tag}"
@@ -158,21 +145,12 @@ def save_bundle(
 ) -> Path:
     """Write ``model.onnx``, ``model.joblib`` and ``model_card.json`` into ``out_dir``.
 
-    Anytime models go to ``out_dir/anytime/post_<ms>ms/`` (bundles of their own) and the main
-    card lists their post-onset times in ``anytime_post_ms``.
-
-    Args:
-        trained: The fitted model and card.
-        out_dir: The bundle directory (created).
-        anytime: Models for shorter windows (:func:`~.fit.fit_anytime`).
-        windows: The training windows, kept in the bundle for ``ext-sense calibrate``.
-
-    Returns:
-        The directory.
+    Anytime models become bundles in ``out_dir/anytime/post_<ms>ms/``; ``windows`` are kept for
+    ``ext-sense calibrate``.
 
     Raises:
-        PerceptionError: when ONNX export fails (the joblib and card are still written, and the
-            card says ``"onnx": null``).
+        PerceptionError: when ONNX export fails (the rest is written, the card says ``"onnx":
+            null``).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

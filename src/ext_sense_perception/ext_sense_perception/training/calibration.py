@@ -1,14 +1,10 @@
 # ruff: noqa: N806  (X for the window matrix, as in scikit-learn)
 """Calibrating a bundle to a new session with a handful of its labelled trials (no ROS).
 
-Method, chosen by measurement on the three real food sessions (docs/perception.md, "Sessions and
-calibration"): the bundle's own training windows (kept in the bundle) plus the new session's
-calibration trials, each repeated ``weight`` times, are refitted through the one training recipe
-with the bundle's features and model; the new card restricts decisions to the session's label
-set (which the calibration trials also teach the model, new classes included) and records the
-calibration session, its trials and the base model. The day-to-day drift of the taxel readings
-shifts the event activity a model sees; a few weighted trials of the day move the decision
-boundaries to where that day's classes lie.
+The bundle's training windows plus the session's trials, each repeated ``weight`` times, are
+refitted through the recipe; the new card restricts decisions to the session's label set. A few
+weighted trials move the boundaries to where the day's drifted readings put the classes
+(docs/perception.md, "Sessions and calibration").
 """
 
 from __future__ import annotations
@@ -29,17 +25,17 @@ from ext_sense_perception.training.recipe import Recipe, fit_recipe
 from ext_sense_runtime.stamps import MS
 
 DEFAULT_WEIGHT = 2
-"""How often each calibration trial is repeated in the refit: 2, 5 and 10 measured alike on the
-real food sessions (docs/perception.md); 2 is the fewest that lets a class seen in one trial be
-calibrated (the probability calibration's folds need 2 windows of each class)."""
+"""Repeats of each calibration trial in the refit: the fewest that lets a class seen in one
+trial be calibrated (2 windows per class); 2, 5 and 10 measured alike.
+"""
 
 
 def training_windows(bundle: str | Path, card: ModelCard | None = None) -> WindowSet:
     """The windows a bundle was trained on, as a window set.
 
     Raises:
-        PerceptionError: a bundle without ``training_windows.npz`` (trained before they were
-            kept: retrain it) or one that does not match its card.
+        PerceptionError: a bundle without ``training_windows.npz`` or one that does not match its
+            card.
     """
     card = card or read_card(bundle)
     path = Path(bundle) / TRAINING_WINDOWS_FILE
@@ -138,21 +134,14 @@ def calibrate(
     weight: int = DEFAULT_WEIGHT,
     seed: int = 0,
 ) -> ModelCard:
-    """Adapt ``bundle`` to the session of ``calib`` and save the result as a new bundle.
-
-    Args:
-        bundle: The trained bundle.
-        calib: The calibration trials of the new session (cut with the bundle's anchor).
-        out: The new bundle's directory.
-        weight: Repeats of each calibration trial in the refit.
-        seed: Seed of the refit.
+    """Adapt ``bundle`` to the session of ``calib`` and save the result as a new bundle in ``out``.
 
     Returns:
         The new card (``calibration`` and ``label_set`` filled in).
 
     Raises:
-        PerceptionError: a bundle without its training windows, or calibration windows that
-            do not fit it.
+        PerceptionError: a bundle without its training windows, or calibration windows that do not
+            fit it.
     """
     card = read_card(bundle)
     if card.anchor and calib.windows.anchor and calib.windows.anchor != card.anchor:
@@ -203,15 +192,12 @@ def calibration_curve(
 ) -> dict[str, Any]:
     """Leave-one-session-out accuracy after calibrating with 0, 1, 2, 3 trials per class.
 
-    For each held-out session sharing a class with the others and each number of trials,
-    ``draws`` random draws of that many trials per class of the session are added (repeated
-    ``weight`` times) to the other sessions' windows; the model is fitted with the recipe and
-    scored on the session's other windows of the classes in common, restricted to its label
-    set. Zero trials is the zero-shot cross-session score.
+    Each held-out session gets ``draws`` random draws of that many trials per class added to the
+    other sessions' windows, and is scored on its other windows of the shared classes, restricted
+    to its label set. Zero trials is the zero-shot score.
 
     Returns:
-        ``{"trials": [...], "sessions": {name: [mean per trials]}, "mean": [...]}`` plus the
-        settings, JSON-ready.
+        ``{"trials", "sessions": {name: [mean per trials]}, "mean"}`` plus the settings, JSON-ready.
     """
     recipe = dataclasses.replace(recipe or Recipe(), anytime_post_ns=())
     rng = np.random.default_rng(seed)

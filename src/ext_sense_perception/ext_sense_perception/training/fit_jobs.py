@@ -1,16 +1,11 @@
 """Where protocol fits run, on joblib: here or on a Dask cluster, with a cache of finished fits.
 
-``ext-sense evaluate`` and ``ext-sense report`` take ``--workers N`` (a local Dask cluster
-started and stopped by the command, one single-threaded worker process per core) or
-``--scheduler tcp://HOST:PORT`` (an existing cluster whose workers run this project's
-environment); without either, or on a cluster of one worker (joblib runs one job in the
-calling process), fits run here, one after the other. :meth:`FitRunner.run_jobs`
-takes the fits of many points at once (a :class:`FitJob` each) and runs them with
-``joblib.Parallel``, on joblib's Dask backend when there is a cluster (which sends each array
-to the workers once per run). Finished fits are kept in a :class:`FitCache` (``joblib.Memory``)
-by this process as they arrive, so an interrupted run loses only the fits that were running and
-the workers need no shared file system. ``dask`` is imported only when a cluster is asked for.
-No ROS.
+``--workers N`` starts a local Dask cluster for the command, ``--scheduler tcp://HOST:PORT``
+uses an existing one; without either, fits run here one after the other.
+:meth:`FitRunner.run_jobs` runs the fits of many points with ``joblib.Parallel`` (its Dask
+backend on a cluster). Finished fits are cached by this process as they arrive
+(:class:`FitCache`), so an interrupted run loses only the running fits and workers need no
+shared file system. ``dask`` is imported only when a cluster is asked for. No ROS.
 """
 
 from __future__ import annotations
@@ -27,9 +22,7 @@ from tqdm import tqdm
 from ext_sense_perception.errors import PerceptionError
 
 LOST_FIT_ATTEMPTS = 3
-"""Times the fits still to do are sent again after the cluster lost one (a worker killed or
-restarted, the data it held gone with it; Dask itself reruns a fit whose worker died up to 3
-times before a ``KilledWorker``), their data scattered again, before they count as failed."""
+"""Times the remaining fits are sent again after the cluster lost a worker (and its data)."""
 
 WORKER_WAIT_S = 300.0
 """How long fits sent again wait for a worker to come back (a restart takes seconds)."""
@@ -44,12 +37,10 @@ def _kept(key: str, value: Any) -> Any:
 
 
 class FitCache:
-    """Finished fits on disk, by key: ``joblib.Memory`` under ``directory``.
+    """Finished fits on disk by key, in ``joblib.Memory`` stores under ``directory``.
 
-    A store name keeps a kind of fit in its own subdirectory. Joblib writes each entry
-    atomically, so a killed run leaves no half-written one, and files it under this module's
-    path and :func:`_kept`'s name (it empties the store when :func:`_kept`'s code changes).
-    The directory is made by the first :meth:`put`: a refused run leaves nothing.
+    Joblib writes entries atomically and empties a store when :func:`_kept`'s code changes. The
+    directory is made by the first :meth:`put`.
     """
 
     def __init__(self, directory: str | Path) -> None:
@@ -100,10 +91,9 @@ class FitFailure(NamedTuple):
 
 
 def _guarded(where: tuple[int, int], fn: Callable[..., Any], task: Any, **data: Any) -> Any:
-    """``(where, fn(task, **data))``, an error of the fit returned as a :class:`FitFailure`.
+    """``(where, fn(task, **data))``, a fit's error returned as a :class:`FitFailure`.
 
-    So an exception out of ``Parallel`` is the cluster's (a lost worker or lost data), never
-    a fit's, and one failed fit keeps the others.
+    So an exception out of ``Parallel`` is the cluster's, and one failed fit keeps the others.
     """
     try:
         return where, fn(task, **data)
@@ -112,11 +102,7 @@ def _guarded(where: tuple[int, int], fn: Callable[..., Any], task: Any, **data: 
 
 
 class _Lines:
-    """stderr for tqdm in a log: whole lines, not carriage-return rewrites of one line.
-
-    A log file cannot rewrite a line: thousands of rewrites would make one line of megabytes
-    that ``tail`` cannot show. A line equal to the last one is not written again.
-    """
+    """stderr for tqdm in a log: whole lines, each once, not carriage-return rewrites."""
 
     def __init__(self) -> None:
         self.last = ""
@@ -132,13 +118,12 @@ class _Lines:
 
 
 class FitRunner:
-    """Runs fit jobs with joblib: here, or on a Dask client; caches results by key.
+    """Runs fit jobs with joblib, here or on a Dask client; caches results by key.
 
     Args:
         client: A ``distributed.Client`` (None: run in this process).
         cache: Where finished fits are kept (None: nowhere).
-        progress: Show a progress line on stderr (tqdm: done of total, cached, failed, time
-            left); into a log, a whole line every :data:`LOG_EVERY_S`.
+        progress: Show a progress line on stderr (into a log: a line every :data:`LOG_EVERY_S`).
     """
 
     def __init__(
@@ -154,8 +139,7 @@ class FitRunner:
         """``fn(task, **data)`` for every task, in task order.
 
         Raises:
-            PerceptionError: when any fit failed (the others are cached all the same), naming
-                the first failure.
+            PerceptionError: when any fit failed (the others are cached), naming the first failure.
         """
         results = self.run_jobs([FitJob(fn, tasks, keys, data)])[0]
         check(results)
@@ -164,9 +148,9 @@ class FitRunner:
     def run_jobs(self, jobs: list[FitJob]) -> list[list[Any]]:
         """Every fit of every job, run together; results per job, in task order.
 
-        Each task carries its own seed, so results do not depend on the order fits finish in.
-        A fit that raised gives a :class:`FitFailure` in its place (see :func:`check`); the
-        others are kept and cached all the same.
+        Each task carries its own seed, so results do not depend on finishing order. A failed fit
+        gives
+        a :class:`FitFailure` in its place (see :func:`check`).
         """
         results: list[list[Any]] = [[None] * len(job.tasks) for job in jobs]
         todo = []
@@ -274,8 +258,7 @@ def fit_runner(
         progress: Show the progress line.
 
     Raises:
-        PerceptionError: both options, a bad worker count, or a scheduler that cannot be
-            reached.
+        PerceptionError: both options, a bad worker count, or an unreachable scheduler.
     """
     if scheduler and workers:
         raise PerceptionError("Give '--scheduler' or '--workers', not both.")

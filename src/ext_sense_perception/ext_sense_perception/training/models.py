@@ -1,20 +1,10 @@
 """The paper's models and their hyper-parameter grids (no ROS).
 
-A model is a scikit-learn ``Pipeline``: ``features`` (:class:`WindowFeatures`, from the raw
-window) -> ``scale`` (``StandardScaler``) -> ``model``. Grids follow the public code's C grid
-(1, 3, 10, 30, 100 on labels in cm; regression labels here are metres, so C and epsilon are
-divided by 100, which is the same problem).
-
-The GRU (16 cells) + MLP model needs torch for training, which is an optional extra: it is
-imported lazily and its absence gives a clear :class:`PerceptionError`. Its pipeline's scaler is
-the identity (the GRU scales its inputs per channel itself, see
-:class:`~ext_sense_perception.training.gru.GRUEstimator`); it exports to ONNX without torch, from
-the graph torch's exporter made of it at training time.
-
-``taxel_svr`` (tap localisation only) is
-:class:`~ext_sense_perception.training.taxel_stack.TaxelStackSVR`:
-one RBF SVR per selected channel on its block of the scaled features, combined by ridge
-regression trained on out-of-fold predictions.
+A model is a ``Pipeline``: ``features`` -> ``scale`` (``StandardScaler``) -> ``model``. Grids
+follow the public code's C grid on cm labels; labels here are metres, so C and epsilon are
+divided by 100. The GRU (torch, optional) scales its own inputs, so its scaler is the
+identity; ``taxel_svr`` (taps only) is
+:class:`~ext_sense_perception.training.taxel_stack.TaxelStackSVR`.
 """
 
 from __future__ import annotations
@@ -48,17 +38,9 @@ def make_estimator(
 ) -> tuple[BaseEstimator, dict[str, list[Any]]]:
     """The final estimator of a pipeline and its grid (keys without the ``model__`` prefix).
 
-    Args:
-        name: One of :data:`MODEL_NAMES`.
-        regression: Tap localisation (True) or classification.
-        seed: Random seed.
-
-    Returns:
-        ``(estimator, grid)``.
-
     Raises:
-        PerceptionError: on an unknown name, ``gru`` without torch, ``random_forest`` for
-            regression or ``taxel_svr`` for classification.
+        PerceptionError: on an unknown name, ``gru`` without torch, ``random_forest`` for regression
+            or ``taxel_svr`` for classification.
     """
     c_scale = 0.01 if regression else 1.0
     c_grid = [c * c_scale for c in C_GRID]
@@ -112,18 +94,9 @@ def make_pipeline(
 ) -> tuple[Pipeline, dict[str, list[Any]]]:
     """Features -> scaler -> model, and the grid with pipeline-prefixed keys.
 
-    Args:
-        features: The feature transformer (unfitted).
-        name: Model name.
-        regression: Regression or classification.
-        seed: Random seed.
-
-    Returns:
-        ``(pipeline, grid)``.
-
     Raises:
-        PerceptionError: as :func:`make_estimator`, or ``taxel_svr`` on features that are not
-            laid out in per-channel blocks.
+        PerceptionError: as :func:`make_estimator`, or ``taxel_svr`` on features that are not in
+            per-channel blocks.
     """
     est, grid = make_estimator(name, regression, seed)
     scaler = StandardScaler()
@@ -154,9 +127,8 @@ def head_of(pipeline: Pipeline) -> Pipeline:
 def default_choice(task: str, sensor: str) -> tuple[str, str]:
     """The project's default ``(features, model)`` for a task and sensor.
 
-    Food identification from NUSkin: activity features + SVM (kernel chosen in the grid), which
-    measured best on the real captures; tap localisation: FFT + SVR (RBF), as the paper
-    recommends; handover: FFT + SVM.
+    Activity + SVM for NUSkin food (best on the real captures), FFT + SVR (RBF) for taps as the
+    paper recommends, FFT + SVM otherwise.
     """
     if task == "food_identification" and sensor == "nuskin":
         return "activity", "svm"
@@ -166,11 +138,7 @@ def default_choice(task: str, sensor: str) -> tuple[str, str]:
 
 
 def default_feature_grid(task: str, sensor: str, features: str) -> dict[str, list[Any]]:
-    """Feature parameters searched inside the training folds by default.
-
-    Food activity features: whether (and from when) each taxel's late activity is added; the
-    choice is made by the inner cross-validation, never on the test split.
-    """
+    """Feature parameters searched inside the training folds by default (food: late activity)."""
     if features == "activity" and sensor == "nuskin":
         return {"features__activity_late_ns": [1_000_000_000, 1_500_000_000, 2_000_000_000]}
     return {}

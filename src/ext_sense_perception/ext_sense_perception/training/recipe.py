@@ -1,23 +1,10 @@
 """The one training recipe: a window set in, a saved bundle (with its anytime models) out.
 
-``ext-sense train``, the demo (on the device stream or a simulated dataset), training from bags
-and the tests all call :func:`train_bundle`, so a bundle differs from another only in its
-windows and the :class:`Recipe` choices, never in how it was trained. What the recipe fixes:
-
-- features and model: the task's default (:func:`~.models.default_choice`) unless named;
-- feature parameters: the task profile's feature bin (see :func:`~.protocol.features_for`), a
-  channel selection, a BioTac decimation rate, and the default grid of feature parameters
-  searched inside the folds (:func:`~.models.default_feature_grid`);
-- anytime models for the task profile's anytime post-contact times;
-- the grid search with K-fold CV (4 folds for classes, :data:`REGRESSION_FOLDS` for tap
-  positions) and refit of :func:`~.fit.fit_model`;
-- NUSkin feature bins: the task's kernel (:data:`DEFAULT_BIN_KERNEL`) unless named: tap
-  localisation bins with Gaussian weights, so a window whose onset the arrival clock moves by a
-  millisecond or two gives nearly the same estimate (``bench/bench_window_shift.py``);
-- optionally, arrival-jitter augmentation (``arrival_jitter``): a fraction of the NUSkin windows
-  re-stamped as a late reader stamps them (:mod:`.arrival_jitter`, the read delays measured by
-  ``bench/bench_arrival.py``), and copies of each window at onsets moved by up to 2 ms
-  (``onset_shifts``), before the fit and the anytime fits.
+``ext-sense train``, the demo, training from bags and the tests all call :func:`train_bundle`,
+so bundles differ only in their windows and :class:`Recipe` choices. The recipe fixes the
+task's default features and model, the profile's feature bin and bin kernel, the default
+feature grid, the anytime models, the grid search and refit of :func:`~.fit.fit_model`, and
+optional arrival-jitter augmentation (:mod:`.arrival_jitter`).
 """
 
 from __future__ import annotations
@@ -38,17 +25,15 @@ from ext_sense_perception.training.models import default_choice, default_feature
 from ext_sense_runtime.enums import Task
 
 REGRESSION_FOLDS = 10
-"""Grid-search folds of a tap model the recipe trains, whose card's CV MAE is its promise: a
-fold's model learns from (k - 1) / k of the taps and a tap model's error still falls with more
-taps, so with 4 folds (the paper's protocol) the CV MAE was that of a model on three quarters
-of them, about a tenth worse than the model fitted on all did on fresh taps; with 10 folds a
-few percent (``bench/bench_window_shift.py``)."""
+"""Grid-search folds of a tap model the recipe trains: with the paper's 4, the card's CV MAE
+was that of a model on three quarters of the taps (docs/perception.md).
+"""
 
 DEFAULT_BIN_KERNEL: dict[Task, str] = {Task.TAP_LOCALIZATION: "gauss"}
-"""The NUSkin feature-bin kernel when the recipe names none, by task (others: ``box``, the
-paper's). Taps: on box bins an onset moved by 2 ms (a serial link's arrival clock) moved the
-FFT + SVR estimate by more than half a centimetre, on Gaussian bins by a fifth of that, at the
-same accuracy on fresh taps (``bench/bench_window_shift.py``)."""
+"""The NUSkin feature-bin kernel when the recipe names none, by task (others: the paper's
+``box``). Gaussian bins move a tap estimate far less when the arrival clock moves the onset
+(docs/perception.md, ``bench/bench_window_shift.py``).
+"""
 
 
 @dataclass(frozen=True)
@@ -60,21 +45,17 @@ class Recipe:
         model: Model name (None: the task's default).
         channels: Channel selection (``all``, ``left``, ``right``, ``taxel:N``, ``ids:a,b``).
         feature_bin_ns: NUSkin feature bin, ns (None: the task profile's).
-        rate_hz: Rate the windows were reduced to: BioTac decimates in the features; NUSkin
-            windows were thinned by the data source, the card records the rate.
-        anytime_post_ns: Post-contact times of the anytime models, ns (None: the task
-            profile's; ``()``: none).
-        seed: Seed of folds and models (and of the augmentation).
+        rate_hz: Rate the windows were reduced to (BioTac decimates in the features; for NUSkin the
+            card only records it).
+        anytime_post_ns: Post-contact times of the anytime models, ns (None: the profile's; ``()``:
+            none).
+        seed: Seed of folds, models and augmentation.
         n_jobs: Grid-search jobs.
-        arrival_jitter: Fraction of NUSkin training windows re-stamped in place with the
-            measured arrival jitter (0: none; BioTac windows are never touched; None: the
-            task's :data:`~.arrival_jitter.DEFAULT_FRACTION`, 0.5 for handover, where it
-            lifts accuracy on jittered windows at no cost on clean ones, 0 for taps and food,
-            where it does not help; docs/perception.md, "Arrival jitter").
-        bin_kernel: NUSkin feature-bin kernel, ``box`` or ``gauss`` (None: the task's
-            :data:`DEFAULT_BIN_KERNEL`); families without bins ignore it.
-        onset_shifts: Copies of each NUSkin window (signal onsets only) added with the onset
-            moved by up to 2 ms (:func:`~.arrival_jitter.onset_shifted`; 0: none).
+        arrival_jitter: Fraction of NUSkin training windows re-stamped with the measured arrival
+            jitter (None: the task's :data:`~.arrival_jitter.DEFAULT_FRACTION`).
+        bin_kernel: NUSkin feature-bin kernel, ``box`` or ``gauss`` (None:
+            :data:`DEFAULT_BIN_KERNEL`).
+        onset_shifts: Copies of each NUSkin window added with the onset moved by up to 2 ms.
     """
 
     features: str | None = None
@@ -152,19 +133,11 @@ def train_bundle(
     out: str | Path,
     recipe: Recipe = Recipe(),
 ) -> ModelCard:
-    """Train the recipe's model and anytime models on ``ws`` and save them as a bundle.
-
-    Args:
-        ws: Labelled windows.
-        out: Bundle directory.
-        recipe: The choices (default: everything the task's own).
-
-    Returns:
-        The card of the saved bundle.
+    """Train the recipe's model and anytime models on ``ws`` and save them as a bundle in ``out``.
 
     Raises:
-        PerceptionError: Too few windows or classes, an unknown feature set or model, or a
-            failed ONNX export.
+        PerceptionError: Too few windows or classes, an unknown feature set or model, or a failed
+            ONNX export.
     """
     trained, anytime = fit_recipe(ws, recipe)
     save_bundle(trained, out, anytime, windows=ws)

@@ -1,17 +1,10 @@
 # ruff: noqa: N803  (X for sample matrices, as in scikit-learn)
 """A taxel-wise stacked SVR for tap localisation (no ROS).
 
-One RBF SVR over all 80 taxels' features is diluted by the taxels that see little of a tap: on
-simulated rod taps 80 taxels scored worse than one finger. :class:`TaxelStackSVR` lets the data
-weigh the taxels instead: one RBF SVR per channel on that channel's block of the feature vector,
-and a ridge regression that combines the per-channel predictions. The ridge is trained on
-out-of-fold predictions (inner K-fold on the training windows) so it weighs each channel by how
-well it generalises, not by how well it fits; then every channel's SVR is refitted on all
-training windows.
-
-Input scaling is left to the pipeline's ``StandardScaler``: it scales every feature on its own,
-which is exactly per-block standardisation, and keeps the pipeline shape (features -> scale ->
-model) and its ONNX converter. ``gamma="scale"`` is then resolved per block by each SVR.
+One RBF SVR over all 80 taxels is diluted by the taxels that see little of a tap.
+:class:`TaxelStackSVR` fits one RBF SVR per channel block of the features and a ridge that
+combines them, trained on out-of-fold predictions so it weighs channels by how well they
+generalise. Scaling is the pipeline's ``StandardScaler`` (per feature, so per block).
 """
 
 from __future__ import annotations
@@ -38,14 +31,13 @@ _CHUNK = 64  # windows per native kernel block: 80 channels x 64 x ~1000 SVs x 8
 class TaxelStackSVR(RegressorMixin, BaseEstimator):
     """Per-channel RBF SVRs combined by ridge regression trained on out-of-fold predictions.
 
-    Input ``X``: ``(n_windows, n_channels * n_per_channel)``, channel-major (each channel's
-    features contiguous, as :class:`~ext_sense_perception.features.WindowFeatures` lays out
-    ``fft``, ``baseline`` and ``est`` features), usually already standardised by the pipeline.
+    ``X`` is ``(n_windows, n_channels * n_per_channel)``, channel-major, as the ``fft``,
+    ``baseline`` and ``est`` features lay it out.
 
     Args:
         n_channels: Channels (equal contiguous blocks of the feature vector).
         C: SVR penalty, in the label units (1.0 on metres = the paper's 100 on cm).
-        gamma: RBF gamma of every SVR (``"scale"``: per block, ``1 / (n_per_channel * var)``).
+        gamma: RBF gamma of every SVR (``"scale"``: per block).
         epsilon: SVR epsilon-tube half-width, label units (0.001 m = 0.1 cm).
         inner_folds: Folds of the out-of-fold predictions the ridge is trained on (>= 2).
         alphas: Ridge penalties tried (generalised cross-validation), label units squared.
@@ -85,13 +77,6 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
 
     def fit(self, X: np.ndarray, y: np.ndarray) -> TaxelStackSVR:
         """Fit the combiner on out-of-fold channel predictions, then every channel on all of X.
-
-        Args:
-            X: ``(n_windows, n_channels * n_per_channel)`` features.
-            y: ``(n_windows,)`` targets.
-
-        Returns:
-            self
 
         Raises:
             PerceptionError: on bad shapes, NaN/inf, or fewer windows than inner folds.
@@ -145,9 +130,8 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
     def channel_predictions(self, X: np.ndarray) -> np.ndarray:
         """Every channel's SVR prediction, ``(n_windows, n_channels)``.
 
-        All channels at once on the packed support vectors (float64; one call per channel to
-        ``SVR.predict`` measured 21 ms per window for 80 channels): the same kernel sums as the
-        fitted SVRs, with the squared distances taken on inputs centred per block.
+        All channels at once on the packed support vectors (one ``SVR.predict`` per channel took
+        21 ms a window), the same kernel sums on inputs centred per block.
 
         Raises:
             NotFittedError: when not fitted.
@@ -178,16 +162,13 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
         return self.channel_predictions(X) @ self.coef_ + self.intercept_
 
     def onnx_arrays(self) -> dict[str, Any]:
-        """The fitted model as padded float64 arrays for a batched ONNX graph.
+        """The fitted model as padded float64 arrays for one batched ONNX ``MatMul``.
 
-        The ridge weights are folded into the dual coefficients and intercepts (the combination
-        is linear), and every block's support vectors are padded to the largest count with zero
-        coefficients, so all blocks run in one batched ``MatMul``.
+        The ridge weights are folded into the dual coefficients and intercepts.
 
         Returns:
-            ``centre`` ``(n_channels, d)`` (support vectors' mean per block), ``sv``
-            ``(n_channels, n_sv, d)`` (centred), ``coef`` ``(n_channels, n_sv)``, ``gamma``
-            ``(n_channels,)`` and the scalar ``intercept``.
+            ``centre`` ``(n_channels, d)``, centred ``sv`` ``(n_channels, n_sv, d)``, ``coef``
+                ``(n_channels, n_sv)``, ``gamma`` ``(n_channels,)`` and the scalar ``intercept``.
 
         Raises:
             PerceptionError: when not fitted.
