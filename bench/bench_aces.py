@@ -1,22 +1,13 @@
 """ACES line decoding: recall, precision, timing error and speed at 10%, 30% and 60% occupancy,
 at tap bursts and on a saturated line.
 
-Occupancy is the fraction of time the line carries at least one signature (measured on the
-encoded line and printed beside the target). Events arrive as a Poisson process at the rate
-that gives that occupancy, on uniformly random taxels and polarities, at most one per taxel per
-signature length (as the NUSkin sends them). The line gets white noise (``--noise``, chip
-amplitude 1), goes through the int16 wire format, and is fed to the decoder in 1 ms chunks.
-
-Speed is line time divided by the decoder's CPU time (``time.process_time``: one core's work,
-undisturbed by other processes sharing the machine); wall-clock speed is printed beside it.
-The default onset decoder is measured side by side with the full matched filter on every
-window (``DecodeMode.MATCHED_FILTER``) on the same lines.
-
-Two cases from simulated traffic follow (onset mode): tap bursts (``N`` distinct taxels starting
-within 0.1 ms, one burst every 5 ms, on a 10 % background, as the tap scenes produce at contact
-onset) and a saturated line (Poisson events with 12 signatures on the line on average, the
-simulator's hard taps). There the decoder is expected to withhold what it cannot separate
-(``rejected``, ``unresolved`` counters) rather than invent events: precision must stay high.
+Events arrive as a Poisson process at the rate giving the occupancy (the busy fraction of the
+line, measured and printed beside the target), at most one per taxel per signature; the line
+gets white noise (``--noise``), goes through the int16 wire format and is decoded in 1 ms
+chunks. Speed is line time over the decoder's CPU time (one core's work), wall speed beside it;
+the onset decoder side by side with the full matched filter. Tap bursts and a saturated line
+(12 signatures deep) follow: there the decoder must withhold what it cannot separate
+(precision stays high) rather than invent events.
 
     python bench/bench_aces.py            # 10 s of line per occupancy
     python bench/bench_aces.py --quick    # 1 s per occupancy, a few seconds in all
@@ -52,6 +43,17 @@ SPEED_TARGET = 10.0
 CHUNK_S = 1e-3
 
 
+def one_per_signature(t, taxel, signature_ns):
+    """Which of the (time-sorted) events to keep: one per taxel per signature, as the NUSkin."""
+    keep = np.ones(t.size, bool)
+    last: dict[int, int] = {}
+    for i, (ti, k) in enumerate(zip(t.tolist(), taxel.tolist(), strict=True)):
+        keep[i] = ti - last.get(k, -(10**18)) >= signature_ns
+        if keep[i]:
+            last[k] = ti
+    return keep
+
+
 def make_events(rng, bank, occupancy, seconds):
     """Poisson events for a target busy fraction, one per taxel per signature at most."""
     rate = -np.log(1.0 - occupancy) / (bank.signature_ns * 1e-9)
@@ -59,13 +61,7 @@ def make_events(rng, bank, occupancy, seconds):
     t = np.sort(rng.integers(0, int(seconds * 1e9), n))
     taxel = rng.integers(1, bank.n_taxels + 1, n)
     pol = rng.choice(np.array([-1, 1]), n)
-    keep = np.ones(n, bool)
-    last: dict[int, int] = {}
-    for i, (ti, k) in enumerate(zip(t.tolist(), taxel.tolist(), strict=True)):
-        if ti - last.get(k, -(10**18)) < bank.signature_ns:
-            keep[i] = False
-        else:
-            last[k] = ti
+    keep = one_per_signature(t, taxel, bank.signature_ns)
     return t[keep], taxel[keep], pol[keep]
 
 
@@ -79,12 +75,7 @@ def make_bursts(rng, bank, size, seconds):
     t, taxel = np.concatenate(parts_t), np.concatenate(parts_k)
     order = np.argsort(t, kind="stable")
     t, taxel = t[order], taxel[order]
-    keep = np.ones(t.size, bool)  # one event per taxel per signature, as the NUSkin sends them
-    last: dict[int, int] = {}
-    for i, (ti, k) in enumerate(zip(t.tolist(), taxel.tolist(), strict=True)):
-        keep[i] = ti - last.get(k, -(10**18)) >= bank.signature_ns
-        if keep[i]:
-            last[k] = ti
+    keep = one_per_signature(t, taxel, bank.signature_ns)
     return t[keep], taxel[keep], rng.choice(np.array([-1, 1]), int(keep.sum()))
 
 

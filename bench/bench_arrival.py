@@ -1,34 +1,14 @@
 """The NUSkin arrival clock under load: stamp error of the real reader, quiet and with a CPU hog.
 
-The receiver's words carry no time: the driver's reader thread stamps each read when it
-returns and the arrival clock spreads the read's words over the time since the previous read
-(``ext_sense_drivers.nuskin.clock``). A reader that runs late stamps a whole chunk at once
-(issue #16). This measures it on the real path: an emitter process plays a stream on a pty at
-the times the simulator gives each word (it runs at SCHED_FIFO when the machine allows, as a
-receiver is not slowed by the host's load), and this process reads the slave with the driver's
-``StreamReader`` + ``SerialTransport`` (4 Mbit/s, as the graphs) while its main thread drains
-every 1 ms and decodes with the driver's ``WordStream`` (``ArrivalClock``), like the node. Each
-word's stamp is compared with the time it was due (known exactly: the schedule the emitter
-plays), on the one monotonic clock.
-
-Streams: ``4k`` (80 taxels x 4 kHz, 320 000 words/s: the worst case) and ``taps`` (the
-``tap_rod30_nuskin`` scene's trials 1 s apart at their real rates: bursts of a tap, then quiet).
-Each is run quiet and with both cores busy (``hog``: one busy-looping process per core, started
-and stopped here), each with three schedulings: ``default`` (the OS's), ``reader`` (the reader
-thread alone at SCHED_FIFO 50) and ``best`` (``reader_priority`` 50 as the driver takes it: the
-reader at SCHED_FIFO 50 and the thread that drains it at 40, since both need Python's GIL; else
-nice -10); what was granted is printed.
-
-Per run, printed side by side:
-
-- read interval p50 / p99 / max (time between the reader's reads);
-- stamp error (stamp - due): p50, and p99 / max of its absolute value;
-- wrong 1 ms bin: the fraction of words whose stamp falls in another 1 ms bin than their due
-  time, after removing the run's median error (a constant offset moves the whole window with
-  the detected onset; it is not jitter);
-- late reads: reads that returned more than 2 ms after their oldest word was due;
-- emitter lag p99: how late the emitter itself wrote (the share of the error that is not the
-  reader's).
+The receiver's words carry no time: the driver's reader stamps each read when it returns, so a
+reader running late stamps a whole chunk at once (issue #16). An emitter process plays a stream
+on a pty at the times the simulator gives each word (SCHED_FIFO when allowed); this process
+reads it with the driver's ``StreamReader`` and ``WordStream`` drained every 1 ms, and compares
+each word's stamp with its due time. Streams ``4k`` (80 taxels x 4 kHz) and ``taps`` (the tap
+scene's trials), quiet and ``hog`` (a busy loop per core), each with the scheduling ``default``,
+``reader`` (the reader at SCHED_FIFO 50) and ``best`` (``reader_priority`` 50 as the driver
+takes it: drainer at 40 too). Printed per run: read intervals, stamp error, words in the wrong
+1 ms bin (after the median offset), reads more than 2 ms late, and the emitter's own lag.
 
     python bench/bench_arrival.py              # 8 s per run, both streams (about 3 min)
     python bench/bench_arrival.py --quick      # 2 s per run (about 1 min)

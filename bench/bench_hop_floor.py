@@ -3,29 +3,13 @@
     python bench/bench_hop_floor.py            # 2000 drains, 1 ms apart
     python bench/bench_hop_floor.py --quick    # 300
 
-Issue #16 asks for window end -> estimate received at most the model's own compute + 1 ms
-(p50). Two parts of that path do not depend on the nodes' work, and this bench measures them
-with the work taken out:
-
-- **The wait for the stream to pass the window's end.** The driver publishes what it read once
-  per ``batch_period_s`` (1 ms), so the first packet past a window's end comes a uniformly
-  distributed 0 to 1 ms after it: 0.5 ms on average, plus how late the drain runs.
-- **The hops.** Each drain here publishes at once what the hot path would publish last, with
-  no decoding, cutting, features or model in between, and this process receives it on an
-  executor thread of its own, as ``bench_runtime.py --only latency`` receives estimates:
-
-  - ``processes``: this process is the driver and publishes a "nothing read" ``SensorPacket``
-    (``nuskin_driver``'s packer and message code) at each drain; an echo node in a process of
-    its own (spun as a graph's nodes are, ``ext_sense_runtime.executor``) publishes a
-    ``ContactEstimate`` carrying its stamp as it takes it: two middleware hops, as from the
-    driver to the window node and from the inference node to the receiver with a process per
-    node (which has a third, the window's, besides);
-  - ``one_process``: the echo process itself drains every 1 ms and publishes the estimate, as
-    the one-process hot path does after in-process hand-overs: one hop, to the receiver.
-
-``arrival`` is drain time -> estimate received (both on the host's clock), so it holds how late
-the drain ran. ``floor p50`` = 0.5 ms + arrival p50: a hot path of zero work takes about that
-past a window's end, so "compute + 1 ms" can be met only if it is at most 1 ms.
+Issue #16 asks for window end -> estimate received at most the model's compute + 1 ms (p50).
+Two parts of it do not depend on the nodes' work: the wait for the first 1 ms drain past a
+window's end (0.5 ms on average) and the middleware hops. Here each drain publishes at once
+what the hot path would publish last: ``processes``: this process is the driver and an echo
+process answers each packet with an estimate (two hops); ``one_process``: the echo process
+drains and publishes the estimate itself (one hop). ``floor p50`` = 0.5 ms + drain -> estimate
+received p50; "compute + 1 ms" can be met only if it is at most 1 ms.
 """
 
 from __future__ import annotations

@@ -1,21 +1,11 @@
 """Arrival-jitter augmentation, decided by measurement: models with and without it, side by side.
 
-The one training recipe (``training.recipe``) trains each model twice on the same windows:
-without augmentation and with ``arrival_jitter=F`` (that fraction of the training windows
-re-stamped as a late reader stamps them, ``training.arrival_jitter``, read delays measured by
-``bench/bench_arrival.py``). Both are scored on the same test trials cut three ways:
-
-- ``clean``: the simulator's writes read every 1 ms, as the demo trains (no late reads);
-- ``jittered``: the same writes regrouped into the reads of a late reader with the measured
-  read delays (``rechunk_writes``), then decoded by the driver's word path (``ArrivalClock``)
-  and cut by the window node's core (``data.device_stream``): the onset is detected on the
-  jittered stamps, as live;
-- ``jittered x2``: the same with every delay doubled (a machine worse than the one measured).
-
-Simulator scenes: ``tap_rod30_nuskin`` (tap MAE, cm) and ``handover_rod_nuskin`` (stable-grasp
-accuracy). Real captures (``--captures``: the food poking folders, 10 ms bins, external onset):
-leave-one-day-out, the held-out day's windows re-stamped at bin level (``jitter_window``: the
-augmentation's own model, so this one is the less independent check).
+The training recipe trains each model twice on the same windows, without augmentation and with
+``arrival_jitter=F`` (that fraction re-stamped as a late reader stamps them, with the read
+delays ``bench_arrival.py`` measured). Both are scored on the same test trials cut ``clean``
+(ideal reads), ``jittered`` (the measured delays, decoded and cut as live) and ``jittered x2``.
+Scenes: ``tap_rod30_nuskin`` (MAE, cm) and ``handover_rod_nuskin`` (accuracy); ``--captures``:
+the real food captures, leave-one-day-out with the held-out day re-stamped at bin level.
 
     python bench/bench_jitter_models.py            # 300 train / 100 test taps, 120/60 handovers
     python bench/bench_jitter_models.py --quick    # 100/40 taps, no handover (about 1 min)

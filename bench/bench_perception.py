@@ -1,15 +1,9 @@
 """Perception benchmark: training time and single-window inference latency, both backends.
 
-Prints, side by side in one run:
-- FFT + SVR (RBF) trained on N synthetic NUSkin taps (grid search with 4-fold CV, refit,
-  residual CV): seconds (target <= 30 s for N = 1000);
-- features + model for one window, p50/p99 over many windows, ONNX Runtime against the
-  scikit-learn pipeline (target ONNX p99 <= 2 ms), from a 0.25 ms online window (rebinned) and
-  from a model-geometry row;
-- the GRU (16) + MLP on binned counts (the paper's RNN): one window through ONNX Runtime
-  against the native torch path (trained on the first 200 taps when torch is installed, else
-  ONNX only, with random weights: latency does not depend on the weights);
-- the online windower's throughput on a dense event stream.
+Prints side by side: FFT + SVR (RBF) training on N synthetic taps (target <= 30 s for 1000);
+features + model for one window, p50/p99, ONNX Runtime against scikit-learn (target ONNX p99
+<= 2 ms); the GRU + MLP through ONNX Runtime against torch (random weights without torch:
+latency does not depend on them); the online windower's throughput on a dense stream.
 
     python bench/bench_perception.py            # 1000 taps
     python bench/bench_perception.py --quick    # 200 taps, a few seconds

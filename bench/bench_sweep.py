@@ -1,14 +1,10 @@
 """Sweep benchmark: the same small grid of protocol fits in one process and on local Dask clusters.
 
-Prints, side by side in one run, the wall time of one grid (feature sets x models x K splits on
-synthetic NUSkin taps, every fit a task) run in this process and with ``--workers 2`` (the
-cluster started and stopped inside the timing, as ``ext-sense report --workers N`` does; a
-cluster of one worker is not timed: joblib runs one job in the calling process), the speed-up,
-and that every run gives identical scores. The clusters get
-the grid as ``ext-sense report`` now sends it, every point's fits submitted together; ``--workers
-2`` also runs it point by point (each point's K fits awaited before the next point: the former
-way), to show what submitting together gains. No cache: every fit is computed each time. The
-load average before and after is printed: on a shared machine, rerun it when the machine is quiet.
+Prints the wall time of one grid (feature sets x models x K splits on synthetic taps) in this
+process and with ``--workers 2`` (the cluster's start and stop timed, as ``ext-sense report
+--workers N``), the speed-up, that every run gives identical scores, and with 2 workers also
+point by point (each point's fits awaited before the next) to show what submitting together
+gains. No cache. The load average is printed: rerun on a quiet machine.
 
     python bench/bench_sweep.py          # 300 taps, fft, baseline, est x svm_linear, svm_rbf, K 4
     python bench/bench_sweep.py --quick  # 120 taps, fft x svm_rbf + svm_linear, K 2

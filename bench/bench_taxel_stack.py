@@ -1,11 +1,8 @@
 """Taxel-wise stacked SVR against the default FFT + SVR (RBF): training time and latency.
 
-Prints, side by side in one run, for ``fft + svm_rbf`` (the tap default) and
-``fft + taxel_svr`` trained with ``training.fit.fit_model`` on the same windows:
-- training seconds (grid search with 4-fold CV + refit; the stack's grid has one point);
-- support vectors (per-window cost is channels x support vectors x bins) and bundle file sizes;
-- one window through the saved bundle, p50/p99 over many windows, ONNX Runtime (target p99
-  <= 2 ms) and scikit-learn, with the two models' windows interleaved so load hits both alike.
+Both trained on the same windows: training seconds, support vectors, bundle sizes, and one
+window through the saved bundle (p50/p99, ONNX Runtime and scikit-learn, the two models'
+windows interleaved so load hits both alike; target ONNX p99 <= 2 ms).
 
     python bench/bench_taxel_stack.py                      # 1000 synthetic taps
     python bench/bench_taxel_stack.py --quick              # 100 synthetic taps, about 10 s

@@ -3,18 +3,10 @@
     python bench/bench_view.py            # 15 s warm-up, 30 s measured per configuration
     python bench/bench_view.py --quick    # 8 s and 10 s
 
-The ``tap_localization`` graph on the emulated NUSkin (``trials:=0``: taps until stopped) is
-started by ``ext-sense run`` three times: without the view; with ``view:=true`` and no client
-(the view draws only for subscribed channels); with ``view:=true`` and a Foxglove protocol
-client subscribed to every channel (``test/foxglove_client.py``, what the Foxglove app does).
-For each, the CPU time (user + system) of every process of the graph over the measured span,
-as % of one core, the view node's own share beside the rest of the graph's, the frames the
-client received per second, and what the view must never cost perception: the bytes the
-emulated device dropped because the driver did not read them in time (``sim_device``'s count)
-and the contacts the window node counted lost (input lost with no window covering it). The
-graph is the default layout (the hot path in one process, the view in its own at lower
-priority). The model is ``--model``, else the demo's (trained into a temporary directory when
-missing, as bench_runtime does).
+The emulated NUSkin's tap graph (``trials:=0``) without the view, with it and no client, and with
+a Foxglove protocol client on every channel (``test/foxglove_client.py``): CPU of the view node
+and of the rest of the graph (% of one core), frames/s received, and what the view must never
+cost perception: bytes the emulated device dropped and contacts the window node lost.
 """
 
 from __future__ import annotations

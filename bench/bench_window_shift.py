@@ -1,24 +1,13 @@
 """Window shift: how far the default tap model's estimate moves when a window's onset moves.
 
-A real serial link's arrival clock moves a tap window's detected onset by up to about 2 ms.
-The default NUSkin tap model (``ext_sense_sim.default_models``: the scene's taps as the emulated
-device streams them, cut by the live graph's own code, trained by the one recipe) is trained
-here, or loaded (``--model DIR``), and scored on fresh taps of another seed, cut as the live
-graph cuts them:
-
-- ``fresh``: the bytes read every millisecond (the ideal reader, as the model is trained);
-- ``late reads``: the same bytes read as a late reader reads them (the read delays measured by
-  ``bench/bench_arrival.py`` on a loaded machine, ``training.arrival_jitter``), the onset
-  detected on those stamps: the live graph on a busy machine.
-
-Each fresh window is then cut again from the driver-stamped events with its onset moved by
-+-0.5, +-1 and +-2 ms (``data.device_stream.recut``): the move of the estimate, median and 90th
-percentile over the windows and both signs (issue 30: at most 0.3 cm median and 1 cm p90 up to
-2 ms), beside the model's CV MAE (its card's) and its fresh-tap MAE with its standard error
-(a set of 200 fresh taps is itself a sample: other seeds' sets score a tenth better or worse).
-Without ``--quick`` or ``--model`` a model on the paper's box feature bins is trained on the
-same windows beside the default (Gaussian bins, ``training.recipe.DEFAULT_BIN_KERNEL``), for
-the choice.
+A real serial link's arrival clock moves a tap window's detected onset by up to about 2 ms. The
+default NUSkin tap model (trained here, or ``--model DIR``) is scored on fresh taps of another
+seed, cut as the live graph cuts them from ideal reads (``fresh``) and from a late reader's
+reads with the delays ``bench_arrival.py`` measured (``late reads``). Each fresh window is cut
+again with its onset moved by +-0.5, +-1 and +-2 ms: the estimate's move, median and p90
+(issue 30: at most 0.3 cm and 1 cm up to 2 ms), beside the CV MAE and the fresh-tap MAE with
+its standard error. Without ``--quick`` or ``--model`` a model on the paper's box bins is
+trained beside the default (Gaussian bins), for the choice.
 
     python bench/bench_window_shift.py            # 300 training taps, 200 fresh taps
     python bench/bench_window_shift.py --quick    # 100 / 60
