@@ -1,8 +1,4 @@
-"""The ACES line: a versioned signature bank, an encoder and a streaming decoder.
-
-Every taxel owns a 127-chip code; an event sends it (negated for a negative spike) on the one
-shared line, overlapping others. See ``docs/aces.md`` for the bank, the wire format and figures.
-"""
+"""The ACES line: every taxel's event sends its 127-chip code on one shared line (docs/aces.md)."""
 
 from ext_sense_drivers.aces.bank import (
     BANK_SPECS,

@@ -1,18 +1,14 @@
-"""Chip amplitude tracking of the ACES line decoder: how the amplitude it cancels with moves.
+"""Chip amplitude tracking of the ACES line decoder.
 
-The decoder cancels every signature with one chip amplitude (never each detection's own
-measured correlation); with tracking on, that amplitude follows the mean correlation per chip
-of the detections, pass by pass, within :data:`AMPLITUDE_RANGE` of the nominal one. A pass
-whose residual test withheld detections may be decoded again with the amplitude it measured
-(:data:`REDO_GAIN`, :data:`REDO_SETTLED`).
+The amplitude follows the detections' mean correlation per chip, pass by pass, within
+:data:`AMPLITUDE_RANGE` of the nominal one.
 """
 
 from __future__ import annotations
 
 AMPLITUDE_MEMORY = 16
-"""Detections of weight the amplitude estimate carries from the past: each pass moves it by
-``n / (n + m)`` of the way to the mean of its ``n`` detections, where ``m`` is the number of
-detections so far, at most this (a running mean at first, then an exponential one)."""
+"""Past detections' weight: a pass moves the estimate ``n / (n + min(seen, this))`` of the way
+to its ``n`` detections' mean (a running mean, then an exponential one)."""
 
 AMPLITUDE_RANGE = (0.25, 4.0)
 """The tracked amplitude stays within these multiples of the nominal one."""
@@ -24,9 +20,8 @@ REDO_GAIN = 0.1
 """Relative amplitude error above which a pass with rejected detections is decoded again."""
 
 REDO_SETTLED = 64
-"""Passes are decoded again only until this many detections have measured the amplitude: later
-on, a pass with residue is a burst far more often than a gain change (which the tracking
-follows), and decoding bursts twice halved the speed."""
+"""Passes are decoded again only until this many detections measured the amplitude: later,
+residue is a burst far more often than a gain change."""
 
 
 def clamp_amplitude(amplitude: float, nominal: float) -> float:
@@ -45,7 +40,7 @@ def tracked_amplitude(
         nominal: The decoder's nominal amplitude.
         strength: Summed correlation per chip of the pass's detections.
         n: Their number.
-        seen: Detections that measured the amplitude before this pass.
+        seen: Detections that measured the amplitude before.
     """
     memory = min(seen, AMPLITUDE_MEMORY)
     step = n / (n + memory)

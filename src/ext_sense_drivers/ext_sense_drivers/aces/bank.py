@@ -1,21 +1,10 @@
 """The versioned ACES signature bank: one code per taxel, the sign carries the polarity.
 
-Version 1 (the only one so far):
-
-- Gold family of the preferred pair ``x^7 + x^3 + 1`` / ``x^7 + x^3 + x^2 + x + 1``: 129 codes of
-  127 chips whose periodic cross-correlations take only the values -1, -17 and +15.
-- Taxel ``k`` (1..80) gets family row ``k - 1`` (``u``, ``v``, then ``u XOR shift(v, j)``). What
-  matters on an asynchronous line is the *aperiodic* correlation (signatures overlap at any
-  offset and only partly); its worst value, 27/127, is reached by about 150 pairs in any 80 of
-  the 129 codes (measured), so no subset is better than the first 80.
-- 127 chips in the NUSkin's 0.25 ms signature gives a chip rate of 508 kHz; the line is sampled
-  once per chip, so one sample lasts 250000/127 ns (about 1968.5 ns).
-- A taxel's positive event is ``+code``, its negative event ``-code`` (antipodal signatures): the
-  160 signatures of 80 taxels x 2 polarities cost 80 matched filters, and the two polarities of
-  one taxel are as far apart as two signatures can be (correlation -1).
-
-Everything follows from :data:`BANK_SPECS` with no randomness; :attr:`SignatureBank.sha256`
-hashes the content so a changed generator shows up as a hash mismatch in the tests.
+Version 1: taxel ``k`` gets row ``k - 1`` of the Gold family of ``x^7 + x^3 + 1`` /
+``x^7 + x^3 + x^2 + x + 1`` (127 chips; no 80 of the 129 codes have a better worst aperiodic
+correlation than 27/127). 127 chips per 0.25 ms signature make a 508 kHz line, one sample per
+chip. A negative event sends ``-code``: 80 matched filters serve 160 signatures. Everything
+follows from :data:`BANK_SPECS`; :attr:`SignatureBank.sha256` catches a changed generator.
 """
 
 from __future__ import annotations
@@ -116,9 +105,9 @@ class CorrelationStats(NamedTuple):
 
     Attributes:
         periodic_cross: Max ``|periodic cross-correlation|`` over pairs of distinct codes.
-        aperiodic_cross: Max ``|aperiodic cross-correlation|`` (partial overlaps at any offset).
-        aperiodic_auto: Max aperiodic autocorrelation sidelobe (nonzero offsets).
-        rms_cross: RMS of the aperiodic cross-correlation over all pairs and offsets.
+        aperiodic_cross: Max ``|aperiodic cross-correlation|`` at any offset.
+        aperiodic_auto: Max aperiodic autocorrelation sidelobe.
+        rms_cross: RMS aperiodic cross-correlation over all pairs and offsets.
     """
 
     periodic_cross: float
@@ -128,16 +117,10 @@ class CorrelationStats(NamedTuple):
 
 
 def aperiodic_xcorr(chips: npt.NDArray[np.integer]) -> npt.NDArray[np.float32]:
-    """Aperiodic correlations of every pair of codes at every offset.
+    """``R[a, b, d + L - 1] = sum_i c_a[i] * c_b[i + d]`` of codes ``(K, L)``: ``(K, K, 2 L - 1)``.
 
-    ``R[a, b, d + L - 1] = sum_i c_a[i] * c_b[i + d]``: the matched filter of code ``a``
-    evaluated ``d`` samples after the start of code ``b`` (zero outside ``|d| < L``).
-
-    Args:
-        chips: Codes, shape ``(K, L)``.
-
-    Returns:
-        Shape ``(K, K, 2 L - 1)`` float32 (exact integers).
+    The matched filter of code ``a`` evaluated ``d`` samples after code ``b`` starts (float32,
+    exact integers).
     """
     k, length = chips.shape
     nfft = 1 << int(np.ceil(np.log2(2 * length - 1)))
@@ -159,14 +142,7 @@ def xcorr_table(bank: SignatureBank) -> npt.NDArray[np.float32]:
 
 
 def correlation_stats(chips: npt.NDArray[np.integer]) -> CorrelationStats:
-    """Measure the worst periodic and aperiodic correlations of a set of codes.
-
-    Args:
-        chips: Antipodal codes, shape ``(K, L)``.
-
-    Returns:
-        The figures normalised by ``L``.
-    """
+    """The worst periodic and aperiodic correlations of antipodal codes ``(K, L)``."""
     k, length = chips.shape
     spec = np.fft.fft(chips.astype(np.float64), axis=1)
     periodic = np.rint(np.fft.ifft(spec[:, None, :] * np.conj(spec[None, :, :]), axis=2).real)
@@ -185,13 +161,7 @@ def correlation_stats(chips: npt.NDArray[np.integer]) -> CorrelationStats:
 
 @lru_cache(maxsize=4)
 def load_bank(version: int = DEFAULT_VERSION) -> SignatureBank:
-    """Build (once per process) the signature bank of a version.
-
-    Args:
-        version: A key of :data:`BANK_SPECS`.
-
-    Returns:
-        The bank; its arrays are read-only.
+    """The (cached, read-only) signature bank of a :data:`BANK_SPECS` version.
 
     Raises:
         AcesError: Unknown version.

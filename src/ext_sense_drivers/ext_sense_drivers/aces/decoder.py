@@ -1,30 +1,12 @@
 """Streaming ACES line decoder: onset-driven successive cancellation, matched-filter cleanup.
 
-The line is cut into passes at fixed sample positions (so chunking never changes the output).
-Each pass looks at a window of ``window`` residual samples and decides the signatures that
-start in its first ``window - 2 L + 2`` samples, where every signature that could overlap
-them lies inside the window:
-
-1. :class:`~ext_sense_drivers.aces.onset.OnsetDecoder` walks the window in time order,
-   correlating with the 80 codes only where a new signature can start, and cancels what it
-   accepts (cost grows with events, not samples).
-2. If the decided stretch still holds a signature's worth of residual energy, the window goes
-   through :class:`~ext_sense_drivers.aces.matched_filter.MatchedFilterSic` (all codes at all
-   starts, strongest first); what it finds is added, and a signature it finds that exactly
-   negates an onset decision (same taxel and start, other sign) undoes that decision.
-3. Decided signatures stay subtracted from the residual; the window slides on.
-
-Cancellation uses one chip amplitude for all signatures (the nominal one, or, by default, an
-estimate tracked from the detections and updated between passes), never each detection's own
-measured correlation, so the interference in a correlation does not leak into the residual.
-
-This module holds the stream and its passes (buffering, the repeat of a pass with the measured
-amplitude, detections held for the next pass's residual test, emission); the stages live beside
-it: :mod:`~ext_sense_drivers.aces.overload` (the overload gate),
-:mod:`~ext_sense_drivers.aces.residual` (the residual tests),
-:mod:`~ext_sense_drivers.aces.amplitude` (amplitude tracking),
-:mod:`~ext_sense_drivers.aces.detections` (combining the detectors' decisions) and
-:mod:`~ext_sense_drivers.aces.line_counters` (the counters record).
+The line is cut into passes at fixed sample positions (chunking never changes the output).
+Each pass decides the signatures starting in the first ``window - 2 L + 2`` samples of its
+window: the onset decoder cancels them in time order; where a signature's worth of residual
+energy is left, the matched filter runs too (and undoes onset decisions it negates).
+Cancellation uses one chip amplitude (nominal or tracked), never a detection's own
+correlation, so interference does not leak into the residual. The stages live beside this
+module: overload gate, residual tests, amplitude tracking, detections, counters.
 """
 
 from __future__ import annotations
@@ -52,12 +34,10 @@ from ext_sense_drivers.aces.wire import chunk_samples
 from ext_sense_runtime.records import EventBlock
 
 DEFAULT_WINDOW = 2048
-"""Samples per pass; with 127 chips, 1796 samples (3.5 ms) are decided per pass and no event
-waits more than 2048 samples (4.0 ms) after its signature started."""
+"""Samples per pass (4.0 ms); 1796 of them are decided per pass with 127 chips."""
 
 _FEED_SLICE = 1 << 20
-"""A chunk larger than this many bytes (or half as many samples) is decoded in slices of it, so
-that the decoder's own buffers stay bounded however much arrives at once."""
+"""Larger chunks (bytes, or half as many samples) are decoded in slices: bounded buffers."""
 
 
 class LineDecoder:
@@ -68,12 +48,11 @@ class LineDecoder:
         threshold: Detection threshold as a fraction of a full match (amplitude x chips), in
             (0, 1); default 0.5.
         amplitude: Nominal chip amplitude of one signature on the line, line units (> 0).
-        window: Samples per pass, at least ``4 * chips``: an event is emitted at most this many
-            samples after its signature started; larger windows cost less per sample.
+        window: Samples per pass, at least ``4 * chips``; larger windows cost less per sample
+            and delay events more.
         t0_ns: Time of sample 0, added to every event time.
         mode: :attr:`DecodeMode.ONSET` (default) or :attr:`DecodeMode.MATCHED_FILTER`.
-        track_amplitude: Follow the chip amplitude measured on the line (starting from
-            ``amplitude``, updated after every pass) instead of trusting the nominal one.
+        track_amplitude: Follow the chip amplitude measured on the line after every pass.
 
     Raises:
         AcesError: A parameter out of range.
@@ -171,28 +150,21 @@ class LineDecoder:
 
     @property
     def latency_samples(self) -> int:
-        """Most samples a signature waits between arriving and being emitted.
-
-        One window, plus one pass more for a signature whose tail runs into the next pass (its
-        residual is checked there before it is emitted).
-        """
+        """Most samples a signature waits before it is emitted (one window plus one pass)."""
         return self.window + self._commit
 
     def feed(self, chunk: bytes | bytearray | memoryview | npt.NDArray[np.floating]) -> EventBlock:
         """Take the next piece of the line and return the events decided so far.
 
         Args:
-            chunk: Wire bytes (int16 little-endian, split anywhere, even mid-sample) or a 1-D
-                float array of samples in line units. Do not mix the two in one stream while
-                a half sample is pending.
+            chunk: Wire bytes (split anywhere) or a 1-D float array in line units.
 
         Returns:
-            Newly decided events in time order; times are ``t0_ns`` plus the line's sample
-            clock since stream start.
+            Newly decided events in time order, at ``t0_ns`` plus the sample clock.
 
         Raises:
-            AcesError: Wrong type or shape, integer arrays (send wire counts as bytes), an
-                array while half a wire sample is pending, or a stream already flushed.
+            AcesError: Wrong type or shape, an array while half a wire sample is pending, or a
+                stream already flushed.
         """
         if self._ended:
             raise AcesError("This stream was flushed; call reset() before feeding a new one.")
@@ -221,8 +193,8 @@ class LineDecoder:
     def flush(self) -> EventBlock:
         """End the stream: decide everything left (zero-padded) and return it.
 
-        A signature cut off by the end of the stream is found if more than ``threshold`` of it
-        arrived. A trailing odd byte is counted in ``bytes_dropped``.
+        A cut-off signature is found if more than ``threshold`` of it arrived; a trailing odd
+        byte is counted in ``bytes_dropped``.
         """
         if self._ended:
             return EventBlock.empty()
@@ -252,14 +224,10 @@ class LineDecoder:
     def _pass(self, limit: int | None) -> EventBlock:
         """Decode one window, commit its first part, slide on (``limit``: end of real samples).
 
-        A pass whose residual test withheld detections while they measured an amplitude more
-        than :data:`~ext_sense_drivers.aces.amplitude.REDO_GAIN` away from the one in use (before
-        the estimate has settled, :data:`~ext_sense_drivers.aces.amplitude.REDO_SETTLED`) is
-        decoded once more with the measured
-        amplitude (a gain error leaves residue at every cancellation until it is tracked); the
-        second result and its amplitude are kept only if it explains the window clearly better
-        (at most half as many withheld, nothing overloaded, something detected): a burst's
-        residue must not pull the estimate.
+        A pass with withheld detections whose measured amplitude is off by more than
+        ``REDO_GAIN`` (before ``REDO_SETTLED``) is decoded again with that amplitude; the redo
+        is kept only if it withholds at most half as many and detects something, so a burst's
+        residue does not pull the estimate.
         """
         buf = self._buf
         commit = self._commit if limit is None else min(self._commit, limit - self._base)
@@ -269,9 +237,8 @@ class LineDecoder:
         found, strength, n = self._decode_window(buf, commit)
         rejected = self._c["rejected"] - before[1]["rejected"]
         if rejected and n and not self._noisy:
-            # Residue left: either a gain error (decoding again with the measured amplitude
-            # explains the window) or more than the line can separate (it does not; then the
-            # first result stands and the pass does not move the estimate).
+            # Residue left: a gain error (a redo explains it) or a burst (the first result
+            # stands and the pass does not move the estimate).
             measured = clamp_amplitude(strength / n, self.amplitude)
             redo = may_redo and abs(measured - self._amp) > REDO_GAIN * self._amp
             if redo:
@@ -289,13 +256,11 @@ class LineDecoder:
             if not redo:
                 strength, n = 0.0, 0
         elif self.mode is DecodeMode.ONSET and self._onset.exhausted:
-            # A window so full of onsets that the test budget ran out is residue or noise more
-            # often than a gain error: it may trigger the repeat above, not move the estimate.
+            # An exhausted test budget means residue or noise: do not move the estimate.
             strength, n = 0.0, 0
         decided = buf[: max(commit, 0)]
         self._c["residual_energy"] += float(np.dot(decided, decided))
-        # Detections whose signature runs past the decided samples wait for the next pass's
-        # residual test over their tail; the ones held by the previous pass that passed it go.
+        # Signatures running past the decided samples wait for the next pass's residual test.
         hold = found.start + self._length > commit
         held = self._pending_kept
         emit = Detections(
@@ -329,11 +294,11 @@ class LineDecoder:
     def _decode_window(
         self, buf: npt.NDArray[np.float64], commit: int
     ) -> tuple[Detections, float, int]:
-        """Gate, detect, cancel and check one window (see :meth:`_pass`).
+        """Gate, detect, cancel and check one window.
 
         Returns:
-            The committed detections that passed the residual test, and the summed strength
-            and number of detections for the amplitude estimate (0 on an overloaded pass).
+            The committed detections that passed the residual test, and their summed strength
+            and number for the amplitude estimate (0 on an overloaded or noisy pass).
         """
         blanked = self._overload(buf, commit)
         trusted = blanked is None
@@ -348,9 +313,7 @@ class LineDecoder:
         self._c["undone"] += undone
         found = self._reject(buf, found, commit, blanked)
         if not trusted or self._noisy:
-            # Detections around overloaded stretches, or in a window whose residual floor is
-            # noise beyond specification, measure residue rather than the line's amplitude:
-            # such a pass does not move the estimate.
+            # such detections measure residue, not the line's amplitude
             return found, 0.0, 0
         return found, strength, n
 
@@ -359,17 +322,13 @@ class LineDecoder:
     ) -> tuple[Detections, float, int]:
         """Onset decoder, then the matched filter if the residual says something was missed.
 
-        The onset decoder also runs (tentatively) up to one signature past ``commit``, so that
-        every sample a committed signature touches can be checked for left-over energy; the
-        tentative detections are put back afterwards and decided in the next pass. With
-        ``refresh`` off (a pass the overload gate blanked) the onset decoder stops at
-        ``commit`` and the matched filter does not run: on a saturated line it would cost ten
-        times the onset decoder and find residue. The residual test then withholds what the
-        window could not explain.
+        The onset decoder runs tentatively one signature past ``commit`` so every committed
+        signature's samples can be checked; the tentative detections are put back. With
+        ``refresh`` off (a blanked pass) it stops at ``commit`` and the matched filter, costly
+        and useless on a saturated line, does not run.
 
         Returns:
-            The committed detections, and their summed strength and number for the amplitude
-            estimate.
+            The committed detections, and their summed strength and number.
         """
         length = self._length
         scan = min(commit + length - 2, self.window - length + 1) if refresh else commit
@@ -407,12 +366,7 @@ class LineDecoder:
             buf[t : t + self._length] -= s * self._chips[k]
 
     def _overload(self, buf: npt.NDArray[np.float64], commit: int) -> npt.NDArray[np.int64] | None:
-        """Blank and count the samples before ``commit`` the line cannot separate.
-
-        Returns:
-            The blanked samples (see :func:`~ext_sense_drivers.aces.overload.blank_overload`),
-            or None.
-        """
+        """Blank and count the samples before ``commit`` the line cannot separate, or None."""
         blanked = blank_overload(buf, commit, self._amp, self._length)
         if blanked is None:
             return None
@@ -427,11 +381,7 @@ class LineDecoder:
         commit: int,
         blanked: npt.NDArray[np.int64] | None,
     ) -> Detections:
-        """Withhold committed detections in stretches the decoding left unexplained.
-
-        A detection is withheld when its signature overlaps a sample
-        :func:`~ext_sense_drivers.aces.residual.unexplained` marks (blanked samples
-        included); so is a held detection of the previous pass whose tail does.
+        """Withhold detections (and held ones of the previous pass) overlapping unexplained samples.
 
         Returns:
             ``found`` itself when nothing is withheld, else the kept detections.
@@ -466,15 +416,6 @@ class LineDecoder:
 def decode_line(
     line: bytes | npt.NDArray[np.floating], bank: SignatureBank | None = None, **kwargs: object
 ) -> EventBlock:
-    """Decode a whole line at once (feed plus flush of a fresh :class:`LineDecoder`).
-
-    Args:
-        line: Wire bytes or float samples in line units.
-        bank: Signature bank (default version if omitted).
-        **kwargs: Passed to :class:`LineDecoder`.
-
-    Returns:
-        All events in time order.
-    """
+    """All events of a whole line (wire bytes or samples): feed and flush a :class:`LineDecoder`."""
     dec = LineDecoder(bank, **kwargs)  # type: ignore[arg-type]
     return EventBlock.concat([dec.feed(line), dec.flush()])

@@ -17,8 +17,8 @@ class Detections(NamedTuple):
         sign: Polarity, +1 or -1, ``(n,)`` int64.
         tested: Correlations examined (candidates or onset tests) to find them.
         cancellations: Cancellation steps taken, including look-ahead ones not returned.
-        strength: Sum over the returned detections of ``|correlation| / chips`` at acceptance,
-            line units: divided by their number, an estimate of the chip amplitude on the line.
+        strength: Sum of ``|correlation| / chips`` at acceptance, line units (per detection,
+            an estimate of the chip amplitude).
     """
 
     code: npt.NDArray[np.int64]
@@ -69,9 +69,6 @@ def merge(first: Detections, extra: Detections) -> tuple[Detections, int]:
 
 def annihilate(found: Detections) -> tuple[Detections, int]:
     """Collapse detections of one taxel at one start into one (or none, if signs cancel).
-
-    One taxel cannot overlap itself, so a ``+`` and a ``-`` of the same code at the same
-    start are a wrong decision and its correction: both go.
 
     Returns:
         ``found`` itself when nothing collapses, else the collapsed detections; and the number

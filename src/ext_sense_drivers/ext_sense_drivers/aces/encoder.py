@@ -1,7 +1,4 @@
-"""Encoder: taxel events -> ACES line samples, signatures summing where they overlap.
-
-What the simulator calls to produce a line, and what the tests and the benchmark decode.
-"""
+"""Encoder: taxel events -> ACES line samples, signatures summing where they overlap."""
 
 from __future__ import annotations
 
@@ -23,13 +20,10 @@ class EncodedLine(NamedTuple):
 
     Attributes:
         samples: Line samples in line units, shape ``(n_samples,)`` float64.
-        start: Sample index at which each event's signature starts, ``(n_events,)`` int64
-            (the event time rounded to the sample clock, so within half a sample of it).
-        n_truncated: Events whose signature runs past ``n_samples`` (cut short) or starts
-            at or after it (not sent).
-        n_self_overlaps: Events that start less than one signature after the previous event
-            of the same taxel; the line cannot tell those apart, and a real NUSkin (one
-            event per taxel per 0.25 ms) never sends them.
+        start: Start sample of each event's signature, ``(n_events,)`` int64 (rounded).
+        n_truncated: Events whose signature runs past ``n_samples``.
+        n_self_overlaps: Events less than one signature after the previous one of their
+            taxel (indistinguishable on the line; a real NUSkin never sends them).
     """
 
     samples: npt.NDArray[np.float64]
@@ -94,13 +88,8 @@ def encode_line(
         noise_std: Standard deviation of white Gaussian noise added to every sample, line units.
         rng: Random generator for the noise (default: a fresh unseeded one).
 
-    Returns:
-        The line, the start sample of every event, and the counts of truncated and
-        self-overlapping events.
-
     Raises:
-        AcesError: Arrays of unequal length or wrong type, taxel outside 1..80, polarity not
-            +/-1, negative time, negative ``n_samples`` or ``noise_std``, non-finite amplitude.
+        AcesError: An argument of the wrong shape, type or range.
     """
     bank = bank if bank is not None else load_bank()
     t, k, p = _check_events(t_ns, taxel, polarity, bank.n_taxels)

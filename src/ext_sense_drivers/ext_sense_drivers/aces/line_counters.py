@@ -11,37 +11,25 @@ class LineCounters:
 
     Attributes:
         samples: Line samples taken in (including replaced non-finite ones).
-        nonfinite_samples: NaN/inf samples replaced by 0 (counted drop; the clock stays right).
-        bytes_dropped: Trailing odd byte discarded at
-            :meth:`~ext_sense_drivers.aces.decoder.LineDecoder.flush`.
+        nonfinite_samples: NaN/inf samples replaced by 0.
+        bytes_dropped: Trailing odd byte discarded at ``flush``.
         detections: Events emitted.
-        cancellations: Signatures cancelled, including the matched filter's look-ahead ones
-            that are found again in the next pass.
-        tested: Code correlations evaluated at single starts (onset tests, matched-filter
-            candidates).
+        cancellations: Signatures cancelled, including look-ahead ones found again later.
+        tested: Code correlations evaluated at single starts.
         passes: Decoding passes run.
-        refreshes: Passes whose residual still held a signature's energy after the onset
-            decoder, so that the matched filter ran on them.
-        undone: Detections reversed: onset decisions the matched filter found wrong, and
-            decisions cancelled by a later one of the other sign at the same taxel and start.
+        refreshes: Passes on which the matched filter ran after the onset decoder.
+        undone: Detections reversed by a later one of the other sign (same taxel and start).
         input_energy: Sum of squared samples taken in, line units squared.
-        residual_energy: Sum of squared residual of the decided samples after cancellation;
-            near zero on a clean line, so a high ratio to ``input_energy`` means missed events,
-            a wrong bank, a gain error, noise or a lost byte (wire samples out of step).
-        overload_samples: Samples not decoded because the line carried more than
-            :data:`~ext_sense_drivers.aces.overload.MAX_DEPTH` signatures per sample around
-            them (saturation, bursts beyond separation, garbage input).
-        rejected: Detections withheld because the residual around them showed the decoding
-            there was wrong (see :data:`~ext_sense_drivers.aces.residual.REJECT_RATIO`).
-        unresolved: Estimated signatures the decoder could not resolve: the energy of the
-            overloaded samples in units of one signature's energy (overlapping signatures add
-            incoherently), plus the rejected detections (the decoder's own count of what it
-            could not explain), rounded.
-        mean_amplitude: Mean correlation per chip of all detections at acceptance, line
-            units (0 before the first): the chip amplitude actually on the line, to compare
-            with the decoder's nominal ``amplitude``.
-        amplitude_in_use: The chip amplitude the decoder cancels with now (the nominal one, or
-            the tracked estimate when ``track_amplitude`` is on).
+        residual_energy: Sum of squared residual of the decided samples; a high ratio to
+            ``input_energy`` means missed events, a wrong bank, a gain error, noise or a lost
+            byte.
+        overload_samples: Samples the overload gate blanked.
+        rejected: Detections withheld by the residual test.
+        unresolved: Estimated signatures not resolved: the overloaded energy in signatures,
+            plus the rejected detections, rounded.
+        mean_amplitude: Mean correlation per chip of all detections, line units (0 before
+            the first): the chip amplitude actually on the line.
+        amplitude_in_use: The chip amplitude cancelled with now (nominal or tracked).
     """
 
     samples: int = 0

@@ -1,15 +1,9 @@
 """Window detector: FFT matched filter against every code plus successive cancellation.
 
-Robust to heavy overlap because it sees every code at every start offset before deciding
-anything; it costs 80 inverse FFTs per window, so the line decoder runs it only on windows whose
-residual shows that the fast onset decoder left something behind.
-
-1. One real FFT of the window and 80 inverse FFTs give every code's correlation at every start.
-2. Correlations above ``candidate_ratio`` of the threshold become candidates.
-3. Rounds of cancellation: every candidate above the threshold that is the strongest within
-   one signature length on either side (or above ``sure_ratio`` of a full match) is accepted,
-   sign = polarity, and its precomputed aperiodic cross-correlation with every code is removed
-   from the candidates near it, until no candidate is above the threshold.
+Sees every code at every start before deciding, so it is robust to heavy overlap, at 80
+inverse FFTs per window. In rounds, every candidate above the threshold that is the strongest
+within one signature length (or above :data:`SURE_RATIO`) is accepted and its precomputed
+cross-correlation removed from the candidates near it.
 """
 
 from __future__ import annotations
@@ -23,23 +17,19 @@ from ext_sense_drivers.aces.bank import SignatureBank, xcorr_table
 from ext_sense_drivers.aces.detections import Detections
 
 CANDIDATE_RATIO = 0.7
-"""Candidates are correlations above this fraction of the detection threshold. On simulated
-lines at 60% occupancy no true peak started below 0.58 of a full match before cancellation."""
+"""Candidates are correlations above this fraction of the detection threshold."""
 
 SURE_RATIO = 0.8
 """Candidates above this fraction of a full match are accepted in one round even when close."""
 
 MAX_CANDIDATES = 8192
-"""At most this many candidates (the strongest) enter cancellation: bounds memory and work on a
-window the line could not carry anyway (a line at 60 % occupancy gives a few hundred)."""
+"""The strongest candidates that enter cancellation (bounds memory and work)."""
 
 MAX_WINNERS = 32
-"""At most this many candidates (the strongest) are accepted per round, so that one round's
-candidate pairs stay below ``MAX_WINNERS x 2 L x codes`` (650 000)."""
+"""The strongest candidates accepted per round (bounds one round's candidate pairs)."""
 
 MAX_ACCEPTED = 128
-"""At most this many signatures are accepted per window: 8 signatures per sample on average
-over the default window, more than the decoder's overload gate lets through for long."""
+"""Signatures accepted per window: more than the overload gate lets through for long."""
 
 
 class MatchedFilterSic:
@@ -70,15 +60,7 @@ class MatchedFilterSic:
         self._sure = SURE_RATIO * full
 
     def detect(self, window: npt.NDArray[np.float64], commit: int) -> Detections:
-        """Find signatures in ``window`` (length ``size``); return those starting before ``commit``.
-
-        Args:
-            window: Residual line samples, ``(size,)``.
-            commit: Detections starting at or after this sample are look-ahead only.
-
-        Returns:
-            The committed detections, sorted by start.
-        """
+        """The signatures in ``window`` ``(size,)`` starting before ``commit``, by start."""
         n, length = self.size, self._length
         spec = scipy.fft.rfft(window.astype(np.float32), n)
         corr = scipy.fft.irfft(spec[None, :] * self._spec, n, axis=1)[:, : n - length + 1]
@@ -117,8 +99,7 @@ class MatchedFilterSic:
         """Rounds of cancellation over candidates sorted by start.
 
         Returns:
-            Code, start, sign and ``|correlation|`` at acceptance of every accepted candidate,
-            and the number of cancellation steps.
+            Code, start, sign and ``|correlation|`` of every accepted candidate, and the steps.
         """
         length = self._length
         active = np.ones(ck.size, dtype=bool)

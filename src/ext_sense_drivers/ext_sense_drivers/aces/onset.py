@@ -1,15 +1,9 @@
 """Fast detector: successive cancellation in time order, matched filters only at onsets.
 
-Once every signature that started before sample ``s`` has been cancelled, the residual at
-``s`` is the first chip of whatever starts there (+/- one chip amplitude, plus noise) and zero
-otherwise. So the detector walks the residual to the next sample above 0.6 chip that is followed
-by enough energy, correlates the next ``L`` samples with the 80 codes at that start (and, if
-that fails, at the ``back`` starts before it, in case noise hid the first chip), accepts the best
-if it passes the threshold, subtracts it, and looks at the same sample again (two signatures may
-start together). Work grows with the
-number of events, not with the sample rate, which is what makes the decoder fast; the matched
-filter in :mod:`ext_sense_drivers.aces.matched_filter` cleans up after it when the residual
-says it missed something.
+Once everything that started before sample ``s`` is cancelled, the residual at ``s`` is the
+first chip of whatever starts there. So the detector walks to the next onset, correlates the
+next ``L`` samples with every code there (and at ``back`` earlier starts), cancels the best
+above threshold and looks at the same sample again. Work grows with events, not samples.
 """
 
 from __future__ import annotations
@@ -23,32 +17,26 @@ from ext_sense_drivers.aces.bank import SignatureBank
 from ext_sense_drivers.aces.detections import Detections
 
 ONSET_RATIO = 0.6
-"""A residual sample above this fraction of the chip amplitude is a candidate onset: high
-enough that noise of 0.2 chip amplitude (RMS) rarely makes one, low enough that it rarely hides
-a first chip; ``back`` covers the first chips it does hide."""
+"""Candidate onset level, fraction of the chip amplitude: above 0.2-RMS noise, below a first
+chip (``back`` covers the first chips noise hides)."""
 
 GATE_SPAN = 16
 """Samples from a candidate onset whose energy is checked before the codes are tested."""
 
 GATE_RATIO = 0.5
-"""A real onset brings at least about one chip amplitude squared per sample (more where
-signatures overlap); noise of RMS ``sigma`` brings ``sigma**2``. Onsets whose next
-:data:`GATE_SPAN` samples hold less than this fraction of a chip's energy per sample are noise."""
+"""Onsets whose next :data:`GATE_SPAN` samples hold less than this fraction of a chip's energy
+per sample are noise (a real onset brings about one)."""
 
 ACCEPT_MARGIN = 0.15
-"""The onset decoder accepts at ``threshold + ACCEPT_MARGIN`` of a full match. At 0.5 a
-cancellation leaves the residual energy unchanged, so a false acceptance at a noise onset in a
-dense cluster costs nothing to make and then cascades; the stricter level stops that, and what
-it leaves the matched filter (threshold 0.5, strongest first) picks up."""
+"""Accept at ``threshold + ACCEPT_MARGIN``: at 0.5 a false acceptance in a dense cluster costs
+no residual energy and cascades; the matched filter picks up what this leaves."""
 
 MAX_REPEATS = 4
 """Most signatures accepted at one start before moving on (guards against a loop)."""
 
 MAX_TESTS = 64
-"""Most onsets tested per call (each one or two mat-vecs against the codes, about 25 us). A pass
-of the default window at 60 % occupancy tests about 30, at 95 % busy about 100; a line of noise
-or garbage that passes every gate stops here (:attr:`OnsetDecoder.exhausted`), so the work per
-pass stays bounded (about 4 ms per 3.5 ms pass, plus the matched filter)."""
+"""Most onsets tested per call (:attr:`OnsetDecoder.exhausted`), bounding the work per pass on
+noise or garbage; a 95 % busy line tests about 100."""
 
 
 class OnsetDecoder:
@@ -93,14 +81,13 @@ class OnsetDecoder:
         """Detect and cancel, in place, every signature with an onset before ``commit``.
 
         Args:
-            r: Residual line, at least ``commit + L - 1`` samples; accepted signatures are
-                subtracted from it.
+            r: Residual line, at least ``commit + L - 1`` samples (changed in place).
             commit: Onsets are looked for in ``[0, commit)``.
-            settle: Only detections starting before this sample (default ``commit``) add to
-                the returned ``strength``: later ones are tentative, often cut short.
+            settle: Only detections starting before this (default ``commit``) add to
+                ``strength``; later ones are tentative.
 
         Returns:
-            The detections in the order found (by start, up to ``back`` samples).
+            The detections in the order found.
         """
         length, k_codes, back = self._length, self._chips.shape[0], self._back
         chips, det = self._chips, self._det

@@ -1,9 +1,4 @@
-"""Overload gate of the ACES line decoder: blank what the line cannot separate before decoding.
-
-A window's decided samples that sit in a stretch carrying more signatures per sample than the
-line can separate (a burst beyond separation, a saturated line, garbage input) are set to 0,
-so that neither detector works on them; the decoder counts them and their energy.
-"""
+"""Overload gate of the ACES line decoder: blank what the line cannot separate before decoding."""
 
 from __future__ import annotations
 
@@ -13,22 +8,15 @@ import numpy as np
 import numpy.typing as npt
 
 MAX_DEPTH = 16.0
-"""Overload gate: a stretch of one signature length whose energy says it carries more than this
-many signatures per sample on average (energy per sample / amplitude squared; signatures add
-incoherently) is beyond what the line can separate. Its samples are not decoded (set to 0) and
-counted. Bursts of 12 signatures started within 0.1 ms (about 9.6 per sample over the stretch,
-more where they happen to add up) still decode; 16 did not. Also stops a constant or random
-full-scale input (64 and 21)."""
+"""Signatures per sample (energy per sample / amplitude squared) over one signature length
+beyond which the line cannot separate them: a burst of 12 decodes, 16 does not."""
 
 SUSTAINED_SPAN = 4
 """Signature lengths of the overload gate's second, longer stretch."""
 
 MAX_SUSTAINED_DEPTH = 7.0
-"""Overload gate on stretches of :data:`SUSTAINED_SPAN` signature lengths: a line that carries
-more than this many signatures per sample on average for that long is saturated (a random line
-at 95 % busy carries 3, and reaching 7 over four signature lengths is a 1e-4 event there;
-a burst of 12 signatures is 3 over such a stretch). Decoding a saturated line only costs time
-(the onset decoder's test budget and a matched filter per pass) and produces residue."""
+"""Signatures per sample over :data:`SUSTAINED_SPAN` lengths beyond which the line is saturated
+(a 95 % busy line carries 3); decoding it would only cost time and make residue."""
 
 
 class Blanked(NamedTuple):
@@ -46,13 +34,7 @@ class Blanked(NamedTuple):
 def blank_overload(
     buf: npt.NDArray[np.float64], commit: int, amplitude: float, length: int
 ) -> Blanked | None:
-    """Blank the samples before ``commit`` the line cannot separate (in place).
-
-    Every stretch of one signature length that starts before ``commit`` and carries more
-    than :data:`MAX_DEPTH` signatures' energy per sample, and every stretch of
-    :data:`SUSTAINED_SPAN` lengths above :data:`MAX_SUSTAINED_DEPTH`, marks its samples
-    before ``commit``; those are set to 0 so that neither detector works on them. Later samples
-    are judged again by the next pass.
+    """Set to 0 the samples before ``commit`` in stretches above either depth limit.
 
     Args:
         buf: The window's residual samples (changed in place).

@@ -1,12 +1,7 @@
-"""Residual tests of the ACES line decoder: what the residual says after cancellation.
+"""Residual tests of the ACES line decoder after cancellation.
 
-Both compare the energy of every stretch of one signature length in a window's decided
-residual with the quietest tenth of those stretches (the noise floor):
-
-- :func:`missed_energy` (after the onset decoder): a signature's worth left somewhere sends
-  the window through the matched filter;
-- :func:`unexplained` (after decoding): stretches the detections did not explain, whose
-  detections the decoder withholds.
+Both compare the energy of each signature-long stretch of the decided residual with the
+quietest tenth of them (the noise floor).
 """
 
 from __future__ import annotations
@@ -19,19 +14,16 @@ REFRESH_RATIO = 0.25
 fraction of one signature's energy sends the window through the matched filter."""
 
 REFRESH_LIMIT = 8.0
-"""Above this many signatures' energy in one decided stretch the matched filter is not run."""
+"""Above this many signatures' energy in one decided stretch the matched filter is not run
+(a burst it cannot resolve either)."""
 
 MAX_NOISE = 0.6
-"""Residual test, absolute part: when even the quietest tenth of a window's decided stretches
-keeps more residual than noise of this RMS (chip amplitudes) would leave, the window is noise
-or interference beyond what the line is specified for (exact decoding was measured up to 0.4
-chip RMS), its correlations are not evidence, and all its detections are withheld."""
+"""Noise floor (RMS, chip amplitudes) above which a window is beyond specification and all its
+detections are withheld."""
 
 REJECT_RATIO = 0.25
-"""Residual test after decoding: a decided stretch one signature long whose residual energy
-still exceeds the noise floor by this fraction of one signature's energy was not explained by
-the detections around it (a burst too dense to separate: the cancellations left residue that
-made more false detections). Committed detections overlapping it are withheld and counted."""
+"""A decided stretch whose residual exceeds the floor by this fraction of a signature's energy
+was not explained; detections overlapping it are withheld."""
 
 
 def stretch_energy(r: npt.NDArray[np.float64], span: int) -> npt.NDArray[np.float64]:
@@ -41,21 +33,7 @@ def stretch_energy(r: npt.NDArray[np.float64], span: int) -> npt.NDArray[np.floa
 
 
 def missed_energy(decided: npt.NDArray[np.float64], amplitude: float, length: int) -> bool:
-    """Whether the decided residual still holds a signature's worth of energy somewhere.
-
-    Not when it holds more than :data:`REFRESH_LIMIT` signatures' worth in one stretch:
-    that is a burst the matched filter does not resolve either (the residual test
-    withholds it), and running it there cost most of the time on bursty lines.
-
-    Compares the most energetic stretch of one signature length with the quietest tenth
-    of the stretches (the noise floor: missed signatures raise it far less than the mean,
-    so even a window full of weak missed signatures stands out).
-
-    Args:
-        decided: The decided residual samples.
-        amplitude: Chip amplitude the energies are measured in (the nominal one).
-        length: Chips per signature.
-    """
+    """Whether a decided stretch holds a missed signature (see :data:`REFRESH_LIMIT`)."""
     if decided.size < length:
         return False
     if float(np.dot(decided, decided)) <= REFRESH_RATIO * amplitude**2 * length:
@@ -75,24 +53,11 @@ def unexplained(
     length: int,
     blanked: npt.NDArray[np.int64] | None,
 ) -> tuple[bool, npt.NDArray[np.int64] | None]:
-    """The decided samples the decoding left unexplained.
-
-    A stretch is unexplained when its residual energy exceeds the noise floor by
-    :data:`REJECT_RATIO` of a signature's energy, and every stretch is when the floor
-    itself is above :data:`MAX_NOISE`. Samples the overload gate blanked count as
-    unexplained too: a correlation over them was measured on part of a signature, or on the
-    residue of erased ones.
-
-    Args:
-        decided: The decided residual samples.
-        amplitude: Chip amplitude in use.
-        length: Chips per signature.
-        blanked: Samples the overload gate blanked, or None.
+    """The decided samples the decoding left unexplained (``blanked`` ones included).
 
     Returns:
-        Whether the noise floor is above :data:`MAX_NOISE`, and the running count of
-        unexplained samples (``(decided.size + 1,)``, ``cum[i]`` the number before sample
-        ``i``), or None when there are none.
+        Whether the noise floor is above :data:`MAX_NOISE` (then all are), and the running
+        count of unexplained samples (``(decided.size + 1,)``), or None when there are none.
     """
     unit = amplitude**2 * length
     if decided.size < length or (

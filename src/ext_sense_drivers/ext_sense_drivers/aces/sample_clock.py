@@ -1,8 +1,4 @@
-"""The line's own sample clock: sample index <-> integer nanoseconds, exactly, with no drift.
-
-At 508 kHz a sample lasts 250000/127 ns, not an integer, so times are computed from the index
-with integer arithmetic every time instead of accumulating a rounded period.
-"""
+"""The line's sample clock: sample index <-> integer ns, computed from the index (no drift)."""
 
 from __future__ import annotations
 
@@ -13,31 +9,16 @@ from ext_sense_runtime.stamps import S
 
 
 def sample_to_ns(index: npt.ArrayLike, rate_hz: int) -> npt.NDArray[np.int64]:
-    """Start time of samples, ``floor(index * 1e9 / rate)`` in integer ns.
-
-    Args:
-        index: Sample indices since stream start (>= 0), any integer shape.
-        rate_hz: Line sample rate, integer Hz.
-
-    Returns:
-        int64 ns, same shape as ``index``.
-    """
+    """Start times ``floor(index * 1e9 / rate_hz)``, int64 ns, of sample indices (>= 0)."""
     n = np.asarray(index, dtype=np.int64)
     whole, part = np.divmod(n, rate_hz)
     return whole * S + (part * S) // rate_hz
 
 
 def ns_to_sample(t_ns: npt.ArrayLike, rate_hz: int) -> npt.NDArray[np.int64]:
-    """Nearest sample index of times, ``round(t_ns * rate / 1e9)`` without int64 overflow.
+    """Nearest sample indices ``round(t_ns * rate_hz / 1e9)`` (int64, no overflow).
 
     ``ns_to_sample(sample_to_ns(n)) == n`` for every ``n >= 0``.
-
-    Args:
-        t_ns: Times in integer ns since stream start, any integer shape.
-        rate_hz: Line sample rate, integer Hz.
-
-    Returns:
-        int64 sample indices, same shape as ``t_ns``.
     """
     t = np.asarray(t_ns, dtype=np.int64)
     whole, part = np.divmod(t, S)

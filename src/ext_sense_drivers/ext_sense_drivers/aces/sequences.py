@@ -1,7 +1,6 @@
 """Binary code families for the ACES signature bank: m-sequences and Gold families.
 
-Pure NumPy, no randomness: a family follows from its LFSR polynomials alone, so a bank version
-that names the polynomials is reproducible bit for bit anywhere.
+No randomness: a family follows from its LFSR polynomials alone.
 """
 
 from __future__ import annotations
@@ -13,22 +12,17 @@ from ext_sense_drivers.aces.errors import AcesError
 
 
 def m_sequence(poly: int, degree: int) -> npt.NDArray[np.uint8]:
-    """One period of the maximal-length sequence of a primitive polynomial.
+    """One period ``(2**degree - 1,)`` uint8 of the m-sequence of a primitive polynomial.
 
-    The polynomial is a bit mask (bit ``i`` is the coefficient of ``x**i``, bits 0 and
-    ``degree`` set), and the recurrence is ``a[k + degree] = XOR of a[k + i]`` over the set
-    bits ``i < degree``, started from all ones.
+    The recurrence ``a[k + degree] = XOR of a[k + i]`` over the set bits ``i < degree`` starts
+    from all ones.
 
     Args:
         poly: Feedback polynomial as a bit mask, e.g. ``0b10001001`` for ``x^7 + x^3 + 1``.
-        degree: Its degree ``n``; the period is ``2**n - 1``.
-
-    Returns:
-        Bits 0/1, shape ``(2**degree - 1,)`` uint8.
+        degree: Its degree.
 
     Raises:
-        AcesError: The mask does not have degree ``degree`` and a constant term, or the
-            polynomial is not primitive (the sequence repeats early).
+        AcesError: Not a degree-``degree`` mask with a constant term, or not primitive.
     """
     if degree < 2 or poly >> degree != 1 or not poly & 1:
         raise AcesError(
@@ -53,16 +47,11 @@ def m_sequence(poly: int, degree: int) -> npt.NDArray[np.uint8]:
 
 
 def gold_family(poly_u: int, poly_v: int, degree: int) -> npt.NDArray[np.uint8]:
-    """The Gold family of a preferred pair: ``u``, ``v`` and ``u XOR shift(v, k)`` for every ``k``.
-
-    Args:
-        poly_u: First primitive polynomial (bit mask).
-        poly_v: Second primitive polynomial of a preferred pair with ``poly_u``.
-        degree: Degree of both.
+    """The Gold family of a preferred pair of polynomials of one degree.
 
     Returns:
-        Bits 0/1, shape ``(2**degree + 1, 2**degree - 1)`` uint8; row 0 is ``u``, row 1 ``v``,
-        row ``2 + k`` is ``u XOR roll(v, -k)``.
+        ``(2**degree + 1, 2**degree - 1)`` uint8 bits: ``u``, ``v``, then
+        ``u XOR roll(v, -k)`` for every ``k``.
 
     Raises:
         AcesError: A polynomial is not primitive of that degree.

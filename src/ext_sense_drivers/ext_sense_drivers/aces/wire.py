@@ -1,9 +1,7 @@
-"""Byte format of a receiver that streams raw ACES line samples.
+"""Byte format of raw ACES line samples: int16 little-endian, one per chip, no framing.
 
-One sample per chip (508 kHz for bank version 1), each a signed 16-bit little-endian integer,
-no header and no framing: the sample clock is the byte count. :data:`COUNTS_PER_UNIT` counts
-make one chip of one signature (line unit 1.0), so the +/-32767 range holds up to 7
-fully coinciding signatures plus noise before it clips; clipping is counted, never silent.
+The sample clock is the byte count; the int16 range holds 7 coinciding signatures before it
+clips (counted, never silent).
 """
 
 from __future__ import annotations
@@ -37,13 +35,7 @@ class Quantised(NamedTuple):
 
 
 def samples_to_bytes(line: npt.ArrayLike) -> Quantised:
-    """Quantise line samples (line units) to the wire format.
-
-    Args:
-        line: Finite real samples, shape ``(n,)``.
-
-    Returns:
-        The bytes and the number of clipped samples.
+    """Quantise line samples ``(n,)`` (line units) to the wire format.
 
     Raises:
         AcesError: Not one-dimensional, not real, or holds NaN/inf.
@@ -68,17 +60,10 @@ def samples_to_bytes(line: npt.ArrayLike) -> Quantised:
 
 
 def bytes_to_samples(data: bytes | bytearray | memoryview) -> npt.NDArray[np.float64]:
-    """Line samples (line units) of whole wire samples.
-
-    Args:
-        data: An even number of bytes.
-
-    Returns:
-        float64 samples, shape ``(len(data) // 2,)``.
+    """Line samples (line units, float64) of whole wire samples.
 
     Raises:
-        AcesError: Odd byte count (a streaming reader carries the odd byte instead; see
-            :class:`~ext_sense_drivers.aces.decoder.LineDecoder`).
+        AcesError: Odd byte count (streams carry the odd byte: :func:`chunk_samples`).
     """
     if len(data) % BYTES_PER_SAMPLE:
         raise AcesError(
@@ -93,16 +78,15 @@ def chunk_samples(
     """Line samples of the next chunk of a stream, carrying a trailing half wire sample.
 
     Args:
-        chunk: Wire bytes (split anywhere, even mid-sample) or a 1-D float array of samples in
-            line units.
+        chunk: Wire bytes (split anywhere) or a 1-D float array in line units.
         odd: The half sample the previous chunk left (``b""`` if none).
 
     Returns:
         float64 samples, and the half sample this chunk leaves for the next.
 
     Raises:
-        AcesError: Neither bytes nor a 1-D float array (wire counts go in as bytes), or an
-            array while half a wire sample is pending.
+        AcesError: Neither bytes nor a 1-D float array, or an array while half a wire sample
+            is pending.
     """
     if isinstance(chunk, bytes | bytearray | memoryview):
         data = odd + bytes(chunk)

@@ -1,11 +1,8 @@
-"""Raw sensor packets: the bytes a driver read, batched by time, and the one decoder library.
+"""Raw sensor packets (``ext_sense_msgs/SensorPacket``) and the one decoder library.
 
-As the event-camera stacks do (``event_camera_msgs/EventPacket`` and its codecs), a driver
-publishes what it read (``ext_sense_msgs/SensorPacket``: stamp, ``seq``, ``encoding``, the reads
-and their arrival times) and never needs to decode; every consumer (the window node, the offline
-replay, training from bags, the driver itself when asked for decoded arrays) decodes with
-:func:`make_decoder`, so they all see the same events, and a bag of packets can be decoded
-again by a fixed decoder. No rclpy here: messages are read duck-typed (rclpy or rosbags).
+As with ``event_camera_msgs``, drivers publish what they read and every consumer decodes with
+:func:`make_decoder`, so all see the same events and old bags decode with fixed decoders.
+No rclpy: messages are read duck-typed (rclpy or rosbags).
 """
 
 from ext_sense_drivers.packets.decoders import (
@@ -13,7 +10,6 @@ from ext_sense_drivers.packets.decoders import (
     DecodedFrame,
     DecodedFrames,
     NuskinPacketDecoder,
-    PacketDecoder,
     make_decoder,
 )
 from ext_sense_drivers.packets.errors import PacketError
@@ -42,7 +38,6 @@ __all__ = [
     "DecodedFrames",
     "NuskinPacketDecoder",
     "Packet",
-    "PacketDecoder",
     "PacketError",
     "PacketPacker",
     "QuietSchedule",

@@ -1,20 +1,14 @@
-"""Packet decoders: ``SensorPacket`` in, the drivers' decoded arrays out (no rclpy).
+"""Packet decoders: ``SensorPacket`` in, events or BioTac frames out (no rclpy).
 
-One decoder per stream, fed every packet in order: the byte decoders keep state across packets
-(a word split between two reads, the ACES matched filter, the BioTac frame clock), exactly as
-in the driver, so a consumer that decodes a driver's packets from the first gets the very
-events (or frames) the driver would have decoded. :func:`make_decoder` is the factory keyed by
-the encoding string, as the event-camera codecs are.
-
-Loss and damage are counted, never raised past the decoder for bad bytes: a ``seq`` gap is
-``lost_packets`` (and the byte stream restarts: the bytes on either side do not join), a packet
-whose arrays disagree is refused with :class:`PacketError` (counted in ``bad_packets``), a
-decoder failure costs the read it happened in (``decode_failures``, ``last_error``).
+One decoder per stream, fed every packet in order; it keeps the byte decoders' state across
+packets as the driver would. Loss is counted: a ``seq`` gap is ``lost_packets`` (the byte
+stream restarts), a malformed packet raises :class:`PacketError` (``bad_packets``), a decoder
+failure costs its read (``decode_failures``, ``last_error``).
 """
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple, Protocol
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -31,7 +25,7 @@ from ext_sense_drivers.packets.packet import (
 from ext_sense_runtime.records import EventBlock
 
 NUSKIN_DEFAULT_BAUD = 4_000_000
-"""The NUSkin driver's default line rate (caps the arrival clock's spread)."""
+"""The NUSkin driver's default baud (caps the arrival clock's spread)."""
 
 
 class PacketCounters(NamedTuple):
@@ -50,9 +44,8 @@ class DecodedEvents(NamedTuple):
     Attributes:
         events: Events stamped in ROS time, ns.
         flag: ``(n,)`` uint8 flag bit per event (receiver words), ``None`` for the ACES line.
-        complete_ns: Stream time up to which every event of the stream has been decoded (the
-            last read's return: the words of later reads are stamped after it); ``None`` when
-            events come out later than their time (the ACES decoder's latency).
+        complete_ns: Stream time up to which every event has been decoded (the last read's
+            return); ``None`` for the ACES line, whose events come out late.
         lost_packets: Packets missing just before this one (its ``seq`` gap).
     """
 
@@ -86,26 +79,6 @@ class DecodedFrames(NamedTuple):
 
     frames: list[DecodedFrame]
     lost_packets: int
-
-
-class PacketDecoder(Protocol):
-    """What a consumer needs from a decoder."""
-
-    encoding: str
-    options: str
-
-    def decode(self, packet: Any) -> DecodedEvents | DecodedFrames:
-        """Decode one packet (a :class:`Packet` or a ``SensorPacket`` message)."""
-        ...
-
-    @property
-    def counters(self) -> PacketCounters:
-        """Packets, losses and failures so far."""
-        ...
-
-    def diagnostics(self) -> dict[str, object]:
-        """Counters for ``/diagnostics`` (keys carry units)."""
-        ...
 
 
 class _SeqDecoder:
@@ -276,8 +249,7 @@ class BioTacPacketDecoder(_SeqDecoder):
     def decode(self, packet: Any) -> DecodedFrames:
         """Decode one packet; each frame keeps the arrival of the read that completed it.
 
-        A reconnection needs no flush (a cut-off frame fails its CRC against the new bytes);
-        at ``end_of_stream`` the bytes held back are flushed.
+        No flush at a reconnection (a cut-off frame fails its CRC), only at ``end_of_stream``.
 
         Raises:
             PacketError: The packet is malformed or of another encoding (counted, dropped).

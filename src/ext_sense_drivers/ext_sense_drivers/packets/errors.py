@@ -4,7 +4,4 @@ from __future__ import annotations
 
 
 class PacketError(Exception):
-    """A malformed packet (its arrays disagree), an unknown encoding or bad encoding options.
-
-    A consumer counts the packet as dropped and says why; it never stops on one.
-    """
+    """A malformed packet, an unknown encoding or bad options (consumers count and go on)."""

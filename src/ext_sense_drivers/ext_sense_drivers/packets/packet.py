@@ -1,9 +1,7 @@
 """The packet record, reading one from a message, and packing a driver's reads into packets.
 
-A packet holds whole reads of the link (the bytes of each read and when it returned), because
-the NUSkin words carry no time: the arrival of each read is what stamps them
-(:class:`~ext_sense_drivers.nuskin.clock.ArrivalClock`). Keeping the reads keeps a packet
-lossless: decoding it later gives exactly the events the driver would have stamped.
+A packet keeps whole reads with their return times: the NUSkin words carry no time, so the
+reads' arrival stamps them, and decoding a packet later gives exactly the driver's events.
 """
 
 from __future__ import annotations
@@ -27,21 +25,14 @@ BIOTAC_BRIDGE_V1 = "biotac-bridge-v1"
 ENCODINGS = (NUSKIN_WORDS_V1, ACES_LINE_V1, BIOTAC_BRIDGE_V1)
 
 QUIET_PACKETS_PERIOD_S = 0.002
-"""Default time between the NUSkin driver's "nothing read" packets (``quiet_packets_period_s``,
-:meth:`PacketPacker.nothing_read`) while its stream goes and no bytes come: the driver's own
-cadence, as a real receiver's idle stream (about 540 words/s) makes a packet every 2 ms or so.
-A consumer learns from them where stream time is when the sensor is silent."""
+"""Default ``quiet_packets_period_s``: about the packet cadence of a real receiver's idle stream."""
 
 
 class QuietSchedule:
     """When a NUSkin words driver says it read nothing (:meth:`PacketPacker.nothing_read`).
 
-    After bytes drained at ``t``, one "nothing read" packet is due every ``period_s`` while no
-    bytes come, for as long as the stream goes: a fixed cadence of the driver's own, which
-    knows nothing of its consumers' windows. Clock-free, so that the driver (whose periodic
-    timer, reset by bytes, is this schedule) and the latency bench (which drives the driver's
-    packer on simulated drains, ``bench/latency_figures.py``, asking :meth:`due` at each drain)
-    follow one rule.
+    One packet every ``period_s`` after the last bytes while none come. Clock-free, so the
+    driver's timer and ``bench/latency_figures.py`` follow one rule.
 
     Args:
         period_s: ``quiet_packets_period_s``; 0 or less: never.
@@ -105,10 +96,7 @@ class Packet(NamedTuple):
 
     @property
     def end_ns(self) -> int:
-        """Host time the last read returned: every byte of the packet had arrived by then.
-
-        A packet of no reads (a stream's end, or "nothing read") ends at its stamp.
-        """
+        """Host time the last read returned (the stamp for a packet of no reads)."""
         last = int(self.read_offset_ns[-1]) if len(self.read_offset_ns) else 0
         return self.stamp_ns + last
 
@@ -215,9 +203,8 @@ def parse_options(text: str, known: Iterable[str]) -> dict[str, str]:
 class PacketPacker:
     """A driver's reads in, packets out: one per drain and connection, numbered by ``seq``.
 
-    Plain Python so that the driver node only fills messages. The packer keeps the connection
-    the last packet came on, so a lost link ends that stream exactly once, and counts the
-    bytes of each connection for the ACES line's ``time_base``.
+    Keeps the current connection, so a lost link ends its stream exactly once, and counts its
+    bytes for the ACES line's ``time_base``.
 
     Args:
         encoding: One of :data:`ENCODINGS`.
@@ -267,7 +254,7 @@ class PacketPacker:
             if out and out[-1].connection == self._connection:
                 out[-1] = out[-1]._replace(end_of_stream=True)
             else:
-                out.append(self._empty_end())
+                out.append(self._no_bytes(end_of_stream=True))
             self._finished = True
         return out
 
@@ -300,27 +287,17 @@ class PacketPacker:
     def nothing_read(self, t_ns: int, to_ros_ns: int = 0) -> Packet | None:
         """A packet saying the link read nothing up to ``t_ns``: no reads, no bytes.
 
-        A NUSkin receiver's words carry no time, so a consumer learns that its stream time
-        passed a window's end only from the next read; when the sensor falls silent there is
-        none, and a window would close on the consumer's clock, which a replay of the packets
-        cannot repeat. This packet, recorded like any other, says where stream time is: its
-        ``complete_ns`` is ``t_ns``, live and in a replay alike. It holds no read, so the
-        decoder's arrival clock does not move: the words of the next read are still spread
-        over the time since the previous read (bytes may wait in the kernel while the reader
-        thread is not running; a floor at ``t_ns`` moved the stamps of a quarter of a handover
-        run's events, by up to 10 ms). A word of that next read stamped before ``t_ns`` is then
-        late for a window this packet closed (the window node counts it), the same live and
-        replayed.
+        The words carry no time, so without it a silent sensor's windows would close on the
+        consumer's clock, which a replay cannot repeat; recorded, it closes them the same way
+        live and replayed. It holds no read, so the arrival clock does not move.
 
         Args:
             t_ns: When the driver found nothing queued (the chunks' clock, monotonic).
             to_ros_ns: Offset from that clock to ROS time, ns.
 
         Returns:
-            The packet; ``None`` with no stream going (no bytes yet, or its end was sent), or
-            for another encoding than the receiver's words (the ACES line and the BioTac
-            bridge send samples and frames all the time, and their decoders do not stamp by
-            arrival).
+            The packet; ``None`` with no stream going, or for an encoding other than the
+            receiver's words (the others send all the time and are not stamped by arrival).
         """
         if self._finished or self.encoding != NUSKIN_WORDS_V1:
             return None
@@ -330,12 +307,8 @@ class PacketPacker:
     def opened(self, connection: int, t_ns: int, to_ros_ns: int = 0) -> Packet | None:
         """A packet saying the link opened ``connection`` at ``t_ns`` and read nothing yet.
 
-        A consumer knows a stream from its first packet on: a window reaching back before it
-        lacks its head (the consumer joined mid-stream). A receiver's words come from the open
-        on, so the words' stream is known from the open, not from the first word: with a
-        receiver that sends nothing until touched (the emulated one), the first contact's
-        window began before the first word and was judged incomplete. Like
-        :meth:`nothing_read`, it holds no read and leaves the arrival clock alone.
+        A consumer then knows the stream from the open, so the first contact of a receiver
+        silent until touched is not judged "joined mid-stream". Holds no read.
 
         Args:
             connection: The link's connection number (1, 2, ...).
@@ -343,8 +316,7 @@ class PacketPacker:
             to_ros_ns: Offset from that clock to ROS time, ns.
 
         Returns:
-            The packet; ``None`` for a connection this packer already has bytes of, or for
-            another encoding than the receiver's words (see :meth:`nothing_read`).
+            The packet; ``None`` for the current connection or an encoding other than words.
         """
         if self.encoding != NUSKIN_WORDS_V1 or connection == self._connection:
             return None
@@ -352,15 +324,8 @@ class PacketPacker:
         self._last_ns = int(t_ns) + to_ros_ns
         return self._no_bytes(end_of_stream=False)
 
-    def _empty_end(self) -> Packet:
-        """A packet with no bytes that ends the stream, stamped at its last read."""
-        return self._no_bytes(end_of_stream=True)
-
     def _no_bytes(self, end_of_stream: bool) -> Packet:
-        """The next packet of no reads on the current connection.
-
-        Stamped at the last read's return, or at the "nothing read" time.
-        """
+        """The next packet of no reads, stamped at the last read or "nothing read" time."""
         packet = Packet(
             self._last_ns,
             self.seq,
