@@ -3,10 +3,8 @@
 :func:`plan_trials` simulates a scene's trials one at a time, each with its wire chunks and its
 ground truth, for :mod:`~ext_sense_sim.streaming` to send in real time; :func:`lay_out_stream`
 lays a run of trials on one stream clock without waiting (the bytes a model is trained on).
-
-The simulator (and SciPy with it) is imported where trials are simulated, not with this module:
-``sim_device``'s own process only paces bytes while a child simulates
-(:mod:`~ext_sense_sim.trials_ahead`), and the import took about 1.7 s of every device start.
+The simulator (and SciPy) is imported only where trials are simulated: ``sim_device``'s own
+process only paces bytes while a child simulates.
 """
 
 from __future__ import annotations
@@ -78,8 +76,7 @@ class LaidOutStream(NamedTuple):
     Attributes:
         writes: ``(t_ns, bytes)`` per write, time from the stream's start, in order.
         truths: The ground truth of every trial, ``onset_ns`` on the same clock: the time of the
-            write holding the trial's first bytes at or after its true onset (as
-            :func:`~ext_sense_sim.streaming.stream`
+            write holding the trial's first bytes at or after its true onset (as ``stream``
             stamps it live).
     """
 
@@ -90,10 +87,8 @@ class LaidOutStream(NamedTuple):
 def lay_out_stream(scene: Scene, seed: int, trials: int, period_s: float = 1.0) -> LaidOutStream:
     """The device bytes of ``trials`` trials, ``period_s`` apart, without real-time waiting.
 
-    The same wire effect and the same trial spacing as
-    :func:`~ext_sense_sim.streaming.stream` (what ``sim_device``
-    sends live), simulated in the scene's batches (much faster than one trial at a time), so
-    a model can be trained on exactly what the driver decodes live.
+    The same wire effect and trial spacing as :func:`~ext_sense_sim.streaming.stream`, simulated
+    in the scene's batches, so a model can be trained on exactly what the driver decodes live.
 
     Args:
         scene: A scene listing its sensor's wire effect.

@@ -1,31 +1,16 @@
 """Trials simulated ahead in a child process at low priority: the emulated world off the hot path.
 
-A real sensor costs the robot's computer nothing to make its signal. The emulated one simulated
-each next trial in the device's own process, right after writing the last one's bytes, which is
-when the windows of that trial close: its burst of CPU (and of the GIL, holding back its own
-writes) fell on the driver, window and inference nodes of a 2-core machine. Measured with the
-live tap graph (``ext-sense run tap_localization trials:=30``, two runs each, alternating):
-compute p50 / p99 9.90 / 23.07 and 11.15 / 73.97 ms with the simulator as it was, 6.79 / 14.14
-and 6.34 / 21.33 ms with the whole simulator process reniced to +15.
-
+A real sensor costs the robot's computer nothing to make its signal; simulated in the device's
+own process, each trial's burst of CPU fell on the driver, window and inference nodes.
 :class:`TrialsAhead` runs :func:`~ext_sense_sim.trial_plan.plan_trials` in a child process at
-``nice`` +10 and hands its trials over a pipe: the same trials in the same order (one seed, one
-generator), up to :data:`AHEAD_TRIALS` simulated before the device asks for them. The device's
-process only paces bytes.
+``nice`` +10 and hands the same trials, in the same order, over a pipe, up to
+:data:`AHEAD_TRIALS` ahead: a graph that asks for one class (a handover's grasps) skips the
+others, so one trigger can need many draws at once (docs/benchmarks.md, "The emulator's
+look-ahead").
 
-Why that many: a graph that asks for trials of one class (a handover's grasps, ``labels``)
-skips the others, so a grasp can need ten or more draws at once. With one trial simulated
-ahead, those draws were made only when the device asked, in the 0.7 s before the trial was
-due; when they took longer the trial went out late in a burst that the driver stamps
-compressed, a distortion no real receiver makes: in a live 40-grasp handover run while two
-other jobs kept both cores busy, 28 of the 119 later trials of a grasp started 5 to 280 ms late
-(docs/benchmarks.md, "The emulator's look-ahead"). Kept pickled, a handover trial is 130-250
-kB, so the look-ahead holds about 10-16 MB.
-
-The child runs in a session of its own (``python -m ext_sense_sim.trials_ahead``): a
-Ctrl-C to the graph's process group is for the device node, which ends the child, and a
-multiprocessing child in the group printed ``KeyboardInterrupt`` tracebacks on it. It ends by
-itself when the device's end of the pipe closes, so a killed device leaves no orphan.
+The child runs in a session of its own (``python -m ext_sense_sim.trials_ahead``), so a Ctrl-C
+to the graph's process group reaches only the device node, which ends the child; the child also
+ends when the device's end of the pipe closes, so a killed device leaves no orphan.
 """
 
 from __future__ import annotations
@@ -63,9 +48,8 @@ class _Failed:
 def simulate(scene: Scene, seed: int, out: BinaryIO, ahead: int = AHEAD_TRIALS) -> None:
     """The child's work: simulate trial after trial, keeping up to ``ahead`` ready for ``out``.
 
-    A writer thread pickles them to ``out`` in order; its writes block while the device does
-    not read. Simulation stops while ``ahead`` trials wait, and ends once the device's end of
-    the pipe closed (it stopped, or it died). An error is sent after the trials before it.
+    A writer thread pickles them to ``out`` in order; simulation pauses while ``ahead`` wait
+    and ends once the device's end of the pipe closed. An error is sent in place of a trial.
     """
     ready: queue.Queue[bytes | None] = queue.Queue(maxsize=max(1, int(ahead)))
     writer = threading.Thread(target=_write_all, args=(ready, out), daemon=True)

@@ -95,30 +95,29 @@ def _sigma(bl: np.ndarray) -> np.ndarray:
     return (1.0 + decay**2 + 2.0 * np.cos(bl) * decay) / (1.0 - decay**2 + 2.0 * np.sin(bl) * decay)
 
 
-def zoh_filters(omega: np.ndarray, zeta: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
+def zoh_filters(
+    omega: np.ndarray, zeta: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact zero-order-hold discretisation of ``q'' + 2 zeta w q' + w^2 q = f``.
 
     Returns:
-        ``(b_q, b_v, a, ad, bd)``: per mode, numerator coefficients (3) giving displacement
-        and velocity from the force, the shared denominator (3), and the state matrices
-        ``ad (n, 2, 2)``, ``bd (n, 2)`` for state-space use.
+        ``(b_q, b_v, a)``, each ``(n_modes, 3)``: the numerators giving displacement and
+        velocity from the force, and their shared denominator.
     """
     n = len(omega)
     b_q, b_v, a = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
-    ad, bd = np.zeros((n, 2, 2)), np.zeros((n, 2))
     for i, (w, z) in enumerate(zip(omega, zeta, strict=True)):
         big = np.zeros((3, 3))
         big[0, 1] = 1.0
         big[1, 0], big[1, 1], big[1, 2] = -(w**2), -2.0 * z * w, 1.0
         e = scipy.linalg.expm(big * dt)
-        ad[i], bd[i] = e[:2, :2], e[:2, 2]
+        ad, (b1, b2) = e[:2, :2].copy(), e[:2, 2]
         # transfer functions of the 2x2 state space: (C adj(zI - A) B) / det(zI - A)
-        a[i] = [1.0, -np.trace(ad[i]), np.linalg.det(ad[i])]
-        (a11, a12), (a21, a22) = ad[i]
-        b1, b2 = bd[i]
+        a[i] = [1.0, -np.trace(ad), np.linalg.det(ad)]
+        (a11, a12), (a21, a22) = ad
         b_q[i] = [0.0, b1, a12 * b2 - a22 * b1]
         b_v[i] = [0.0, b2, a21 * b1 - a11 * b2]
-    return b_q, b_v, a, ad, bd
+    return b_q, b_v, a
 
 
 class BeamModel:
@@ -187,7 +186,7 @@ class BeamModel:
         Returns:
             ``(shear, moment)``, each ``(n_trials, n_samples)``, newtons and newton-metres.
         """
-        b_q, _, a, _, _ = zoh_filters(self.omega, self.zeta, dt)
+        b_q, _, a = zoh_filters(self.omega, self.zeta, dt)
         phi = self.shapes_at(position_m)  # (n_trials, n_modes)
         shear = np.zeros_like(force)
         moment = np.zeros_like(force)
@@ -204,7 +203,7 @@ class BeamModel:
         self, force: np.ndarray, position_m: np.ndarray, dt: float
     ) -> tuple[np.ndarray, np.ndarray]:
         """Modal displacements and velocities, each ``(n_trials, n_modes, n_samples)``."""
-        b_q, b_v, a, _, _ = zoh_filters(self.omega, self.zeta, dt)
+        b_q, b_v, a = zoh_filters(self.omega, self.zeta, dt)
         phi = self.shapes_at(position_m)
         q = np.empty((force.shape[0], len(self.omega), force.shape[1]))
         v = np.empty_like(q)
@@ -220,21 +219,11 @@ class BeamModel:
 
 
 class TorsionModel:
-    """Torsion modes of a clamped-free uniform shaft of circular section.
+    """Torsion modes of a clamped-free uniform shaft of circular section (SI arguments).
 
-    ``theta_n(x) = sin((2n - 1) pi x / (2 L))``, ``omega_n = (2n - 1) pi / (2 L) sqrt(G / rho)``
-    (``G J / (rho J)`` with equal polar and torsion constants), mass-normalised with
-    ``rho J``. A torque ``T(t)`` at ``a`` drives mode n by ``theta_n(a)``; the root torque is
-    ``G J theta'(0)``, with the truncated modes added back quasi-statically, so a slow torque
-    reaches the grasp exactly.
-
-    Args:
-        length_m: Free span, metres.
-        shear_modulus_pa: ``G``, Pa.
-        polar_m4: Polar second moment ``J``, m^4.
-        density: kg/m^3.
-        zeta: Modal damping ratio.
-        max_freq_hz: Keep the modes below this frequency (at least one).
+    ``theta_n(x) = sin((2n - 1) pi x / (2 L))``, ``omega_n = (2n - 1) pi / (2 L) sqrt(G / rho)``,
+    mass-normalised with ``rho J``. A torque at ``a`` drives mode n by ``theta_n(a)``; the root
+    torque is ``G J theta'(0)``, with the truncated modes added back quasi-statically.
     """
 
     def __init__(
@@ -263,7 +252,7 @@ class TorsionModel:
 
     def root_torque(self, torque: np.ndarray, position_m: np.ndarray, dt: float) -> np.ndarray:
         """Root torque ``(n_trials, n_samples)`` N m for torques applied at positions."""
-        b_q, _, a, _, _ = zoh_filters(self.omega, self.zeta, dt)
+        b_q, _, a = zoh_filters(self.omega, self.zeta, dt)
         shape = np.sin(np.asarray(position_m)[:, None] * self.k) * self.norm  # (n, modes)
         out = np.zeros_like(torque)
         for i in range(len(self.omega)):

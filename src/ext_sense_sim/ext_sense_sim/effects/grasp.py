@@ -6,33 +6,22 @@ the left finger, 41-80 the right, and within a finger ``id - 1 (mod 40)`` is row
 across it. The pads press on opposite sides of the object (left pad normal +n, right pad -n).
 
 Model (a rigid object on a thin elastic pad, the Winkler foundation): the object touches each
-pad along a strip whose lateral profile is ``w(c) = exp(-(c - c0)^2 / (2 s^2))`` with ``c0``
-the object's lateral offset on that pad (randomised per trial, independently per pad: the
-object is never seated twice at the same place across the pads). ``s`` (1.5 mm) is the
-half-width scale of a line contact: Hertz's half-width ``b = sqrt(4 F R / (pi L E*))`` of a
-10 mm rod on a 24 mm pad of about 1 MPa at 20 N is about 2.3 mm, a Gaussian of ``s = 1.5 mm``
-has a half width at half maximum of 1.8 mm.
-With ``A = sum w a`` and ``I = sum w u^2 a`` (``a`` the taxel area, ``u`` the axial position
-from the pad centre), a finger of side ``s = +1`` (left) / ``-1`` (right) feels
+pad along a strip ``w(c) = exp(-(c - c0)^2 / (2 s^2))``, ``c0`` the object's lateral offset on
+that pad (drawn per trial and pad). With ``A = sum w a`` and ``I = sum w u^2 a`` (``a`` the
+taxel area, ``u`` the axial position from the pad centre), a finger of side ``s = +1`` (left) /
+``-1`` (right) feels
 
 ``p = w * (F_grip / A + s (V_n / A + M_n u / I)
        + k_t (c - c0) / s_w (V_t / A + M_t u / I) + k_a (u / u_max) F_ax / A)``
 
-times a fixed per-taxel gain (manufacturing spread), and never below zero: where the
-dynamic load would pull, that part of the pad loses contact (unilateral contact). Loads
-toward the pads (``V_n``, ``M_n``) load one pad and unload the other; loads along the pads
-shear the pad and reach the piezoresistive layer only through the coupling ``k_t``; the axial
-force likewise with ``k_a``. A torque ``T`` about the object's axis (``clamp_load`` channel 5,
-when the beam effect computes torsion) is held by friction on the two pads, ``T / (2 r)`` on
-each in opposite directions; it reaches the taxels through the same coupling ``k_t``, with
-opposite sign on the two pads: the one load that the two fingers see differently.
+times a fixed per-taxel gain, and never below zero (unilateral contact). Loads along the pads
+and the axial force reach the piezoresistive layer only through the couplings ``k_t`` and
+``k_a``. A torque ``T`` about the object's axis (``clamp_load`` channel 5) is held by friction,
+``T / (2 r)`` on each pad in opposite directions, through ``k_t``.
 
-Load share between the fingers. The two pads are never seated alike: one takes a larger share
-of the dynamic load (its pad is stiffer there, or the object sits closer to it). Each trial
-draws ``s`` from ``finger_load_share`` (a ``[low, high]`` range of ``|s|``) with a random sign;
-the left pad's dynamic loads are scaled by ``1 + s`` and the right pad's by ``1 - s``. In the
-real rod-tap captures one finger carries 19-25% more events than the other (docs/simulator.md,
-"Calibration against the real sensor"); with the default 0 both pads share equally.
+``finger_load_share``: each trial draws ``s`` from this ``[low, high]`` range of ``|s|`` with a
+random sign; the left pad's dynamic loads are scaled by ``1 + s``, the right pad's by ``1 - s``
+(the pads are never seated alike; docs/simulator.md).
 """
 
 from __future__ import annotations

@@ -1,27 +1,16 @@
 """Sensor noise on the taxel pressures and spurious events on the NUSkin event stream.
 
-Models. ``sensor_noise``: white Gaussian pressure noise of standard deviation ``white_pa`` at
-the simulation rate, independent per taxel (thermal and readout noise of the piezoresistive
-layer, plus the ambient vibration the gripper picks up), added before the sensor's front end.
-A few taxels of a real patch are chatty: in the quiet stretch before a tap, the real rod
-captures hold 200-350 events/s from 4-8 taxels, half of them from one taxel (a reading that
-sits on a count boundary). ``chatty_taxels`` taxels, chosen once per sensor (fixed by the
-scene's seed), get noise of ``chatty_pa`` instead, unequally: the ``i``-th of them
-``chatty_pa * 0.9**i`` (an event rate rises steeply with the noise near one count, so the first
-one dominates, as in the real captures).
-Taxels are not equally noisy either: with nothing touched, the 3 April food capture's taxels
-fire from 0 to 13 events/s (5th to 95th percentile) at one report per 40 ms. ``white_spread``
-(default 0) scales each taxel's white noise by a log-normal factor of that standard deviation,
-fixed per sensor.
-A slow drift beside it (``drift_pa``, default 0): noise low-passed at ``drift_hz`` (a
-first-order filter, standard deviation ``drift_pa`` after it), independent per taxel. It moves
-a resting reading across its count boundaries a few times a second: the 3 April capture with
-nothing touched reads each taxel with a spread of about 0.6 count and 7 events/s (median), a
-rate that white noise of any level gives only on a knife's edge (below it hardly any events,
-above it every taxel at its refractory limit).
+Models. ``sensor_noise``: white Gaussian pressure noise of standard deviation ``white_pa`` at the
+simulation rate, independent per taxel, added before the sensor's front end; ``white_spread``
+scales each taxel's by a log-normal factor fixed per sensor. ``chatty_taxels`` taxels, chosen
+once per sensor (the scene's seed), get noise of ``chatty_pa * 0.9**i`` instead (the ``i``-th of
+them), as a real patch's few taxels whose readings sit on a count boundary. ``drift_pa``: noise
+low-passed at ``drift_hz`` (first order, standard deviation ``drift_pa`` after it) that moves a
+resting reading across its count boundaries a few times a second.
+
 ``spurious_events``: a Poisson process of rate ``rate_hz`` per taxel of events with random
-polarity (line glitches the receiver still decodes as valid words); their value field is the
-value of the taxel's last real event, or ``value_counts`` when it had none.
+polarity (line glitches the receiver still decodes); their value field is the value of the
+taxel's last real event, or ``value_counts`` when it had none.
 """
 
 from __future__ import annotations

@@ -1,41 +1,21 @@
 """NUSkin transduction: taxel pressure to positive and negative events.
 
-Model. The graphene piezoresistive layer and its amplifier pass pressure up to about
-``bandwidth_hz`` (1500 Hz, a second-order Butterworth low-pass). The taxel's reading is
+Model. The graphene piezoresistive layer and its amplifier pass pressure up to
+``bandwidth_hz`` (a second-order Butterworth low-pass). The taxel's reading is
 ``offset_counts + p / pa_per_count`` (10 bits); each taxel is a level-crossing (send-on-delta)
 encoder on that reading: it emits a positive event when the reading has risen by
-``threshold_pa`` (one count by default) since its reference, a negative one when it has fallen
-by as much. With ``reference: reset`` (default) the reference then jumps to the reading, so one
-event reports one detected change whatever its size, and the value field carries the size;
-with ``reference: step`` it moves one threshold toward the reading (a change of ``n``
-thresholds gives ``n`` events). After an event the taxel is refractory for ``refractory_s``
-(0.25 ms: the ACES pulse signature length, hence at most 4 kHz per taxel). The value field is
-the reading at the event, clipped to 0..1023. Event times fall uniformly inside their
-simulation sample, never closer than the refractory period.
+``threshold_pa`` since its reference, a negative one when it has fallen by as much. With
+``reference: reset`` (default) the reference then jumps to the reading, so one event reports one
+detected change whatever its size; with ``reference: step`` it moves one threshold toward the
+reading (a change of ``n`` thresholds gives ``n`` events). After an event the taxel is
+refractory for ``refractory_s`` (the ACES signature length, hence at most 4 kHz per taxel). The
+value field is the reading at the event, clipped to 0..1023. Event times fall uniformly inside
+their simulation sample, never closer than the refractory period.
 
-Why ``reset`` and one count: in the real captures (``../shared/data/nuskin_food_poking``) two
-consecutive events of a taxel differ by exactly one count of the value field in most cases
-(median and 75th percentile 1, never 0), by several counts only when the load changes fast,
-which is what a send-on-change encoder with a one-count threshold does; a stepping reference
-would give equal steps. With this coding a large fast change saturates the taxel's event rate
-(one event per refractory period) instead of multiplying events, so the *rate* of events codes
-how much the pressure moves, and a per-taxel rate limit (the paper's refractory drop) removes
-that information. ``pa_per_count`` (1000 Pa) is calibrated so that the food scene's value-field
-spans per taxel match the real captures within a factor of about 2 (apple about 20 counts
-simulated, 40-49 real; water 1-2 both).
-
-Taxel offsets. A real patch's taxels rest at different readings: the 3 April capture with
-nothing touched (``../shared/data/nuskin_food_poking_2021-04-03/zero.tact``) has per-taxel
-median values from 58 to 570 counts (quartiles 76, 88, 121). ``offset_spread`` (default 0)
-multiplies each taxel's ``offset_counts`` by a log-normal factor of that standard deviation,
-fixed per sensor (the scene's seed).
-
-Bounded reading. With ``clip_reading: true`` the filtered reading is clipped to the ADC's
-0..1023 counts before the encoder, so a taxel pressed past full scale stops firing instead of
-reporting pressure the 10-bit reading cannot hold (the real captures do reach 1022 on heavily
-pressed taxels). The tap scenes set it; the default (off) keeps the food and handover scenes
-exactly as calibrated (at 1000 Pa per count the bound is about 950 kPa above the offset, which
-the grasp reaches only on the hardest fork contacts).
+``offset_spread`` multiplies each taxel's resting reading by a log-normal factor, fixed per
+sensor. With ``clip_reading: true`` the encoder sees the reading clipped to 0..1023, so a taxel
+pressed past full scale stops firing. Why these choices and the calibrated values:
+docs/simulator.md.
 """
 
 from __future__ import annotations
@@ -53,15 +33,9 @@ from ext_sense_sim.trial_events import by_trial
 
 
 def front_end(pressure: np.ndarray, bandwidth_hz: float, rate_hz: float) -> np.ndarray:
-    """Second-order Butterworth low-pass along the last axis, started at steady state.
+    """Second-order Butterworth low-pass of ``(..., n_samples)`` pressure, from steady state.
 
-    Args:
-        pressure: ``(..., n_samples)`` pascals.
-        bandwidth_hz: Cut-off, Hz (clipped below Nyquist).
-        rate_hz: Sample rate, Hz.
-
-    Returns:
-        Filtered pressure, same shape and dtype.
+    The cut-off is clipped below Nyquist; the result has the input's shape and dtype.
     """
     wn = min(bandwidth_hz / (rate_hz / 2), 0.99)
     b, a = butter(2, wn)
@@ -154,11 +128,7 @@ def refractory_safe_jitter(
 
 
 class NuskinTransduction(Effect):
-    """Pressure to NUSkin events (see module docstring). Gives ``events``.
-
-    ``reference`` must be ``"reset"`` or ``"step"``; ``threshold_pa`` is usually equal to
-    ``pa_per_count`` (one count of the reading).
-    """
+    """Pressure to NUSkin events (see module docstring). Gives ``events``."""
 
     name = "nuskin_transduction"
     needs = ("taxel_pressure",)

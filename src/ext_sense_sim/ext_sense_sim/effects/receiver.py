@@ -1,22 +1,12 @@
 """The NUSkin receiver's link to the host: a first-in first-out queue drained at its word rate.
 
-Model. The receiver sends every decoded event to the host as one 4-byte word over a serial
-link of finite speed: at most ``words_per_s`` words a second (a 2 Mbaud UART with 8N1 framing
-carries 200 kB/s: 50,000 words). Events come out in the order they were detected, each as soon
-as both it has happened and the word before it has gone: word ``k`` leaves at
-``d_k = max(t_k, d_{k-1} + 1 / words_per_s)``. A burst faster than the link piles up and drains
-at the link's rate after the contact has quietened, so the host sees a flat ceiling and a tail.
-
-Why. The real rod taps (``../shared/data/nuskin_rod_taps_*``, host times to 10 ms) hold
-400-500 events in most of their busiest 10 ms bins whatever the rod and the tap (a ceiling of
-about 45-50k events/s), their event counts barely depend on where the rod was tapped (events
-per window p75 / p25 about 1.2), and on the 20 cm rod the rate stays at the ceiling for about
-100 ms and then stops within a bin, as a drained queue does, not as a ringing rod fades.
-
-Event times become the times the words leave the receiver (what a host stamps, and what the
-lab's captures hold); ``words_per_s: 0`` (default) is an unlimited link. Words still queued at
-the trial's end are left out (counted in ``dropped``): a trial is the span the scene simulates,
-and its words must not run into the next trial's when trials are laid back to back.
+Model. The receiver sends every decoded event to the host as one 4-byte word over a serial link
+of at most ``words_per_s`` words a second. Word ``k`` leaves at ``d_k = max(t_k, d_{k-1} + 1 /
+words_per_s)``: a burst faster than the link piles up and drains at the link's rate after the
+contact has quietened, so the host sees a flat ceiling and a tail, as in the real rod taps
+(docs/simulator.md). Event times become the departure times (what a host stamps);
+``words_per_s: 0`` (default) is an unlimited link. Words still queued at the trial's end are
+left out (counted in ``dropped``), so trials laid back to back never overlap.
 """
 
 from __future__ import annotations

@@ -1,24 +1,12 @@
 """Contact impulse: a tap on the held rod.
 
-Model: a Hertz-like impact is approximated by a half-sine force pulse of peak ``force_n`` and
-length ``duration_s``, acting across the rod at ``position_m`` (from the held end; the label) in
-a direction ``angle_deg`` from the pad normal. Its impulse is ``2 F tau / pi``.
-
-The contact time is set by the tapper. Hertz's impact time ``t = 2.87 (m^2 / (R E*^2 v))^(1/5)``
-gives about 0.1 ms for a rigid plastic stick on acrylic (20 g, R 5 mm, E* ~ 3 GPa, 0.3 m/s) and
-5-15 ms for a fingertip (10-30 g effective, R 8 mm, pulp E* 0.2-1 MPa, 0.2-0.5 m/s). The
-defaults (1-5 N, 0.5-3 ms) are a hand-held tapper with a compliant tip. The NUSkin rod scenes
-declare a light fingertip tap, 0.05-0.25 N for 4-12 ms (impulse 0.13-1.9 mN s); the BioTac rod
-scene a firmer one, 0.3-1.5 N for 4-12 ms. The contact time decides how hard the rod's upper
-modes ring (a pulse of length ``tau`` drives little above ``1 / tau``) and the force how many
-counts the pads see; together they set how often the in-contact taxels fire at their 4 kHz
-refractory limit, which is what the paper's rate finding constrains: docs/simulator.md ("Tap
-calibration") measures what each choice does to the paper's findings.
-
-Impact. A fingertip tap starts with the nail and bone striking through thin pulp: a short,
-stiff impact before the pulp's longer push. ``impact_force_n`` (peak, default 0: none) adds a
-second half-sine of ``impact_duration_s`` at the same onset; it drives the rod's upper modes,
-which ring for a few tens of milliseconds, while the push swings the low modes.
+Model: a half-sine force pulse of peak ``force_n`` and length ``duration_s`` (impulse
+``2 F tau / pi``), acting across the rod at ``position_m`` (from the held end; the label) in a
+direction ``angle_deg`` from the pad normal. The contact time decides how hard the rod's upper
+modes ring (a pulse of length ``tau`` drives little above ``1 / tau``), the force how many counts
+the pads see. ``impact_force_n`` (default 0: none) adds a second, short half-sine of
+``impact_duration_s`` at the same onset: a fingertip's nail and bone striking before the pulp's
+longer push. The scenes' values and their fit: docs/simulator.md.
 """
 
 from __future__ import annotations

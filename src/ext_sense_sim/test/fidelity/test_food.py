@@ -38,3 +38,31 @@ def test_a_trial_ending_early_is_rated_over_what_it_covers():
     t = food_trials([_capture("apple_zero_2", [60, 70], [5, 6], [90, 110], span=150)])
     assert t.cut_short == ["apple_zero_2"]
     assert t.stats["events_per_s"][0] == pytest.approx(2 / 1.0)  # 100 bins after the start
+
+
+def _per_class(trials) -> dict[str, tuple[float, float]]:
+    """Mean events/s and active taxels of each class."""
+    rows: dict[str, list[tuple[float, float]]] = {}
+    for label, rate, active in zip(
+        trials.labels, trials.stats["events_per_s"], trials.stats["active_taxels"], strict=True
+    ):
+        rows.setdefault(label, []).append((rate, active))
+    return {label: tuple(np.mean(r, axis=0)) for label, r in rows.items()}
+
+
+@pytest.mark.real_data
+def test_simulated_food_event_statistics_are_near_the_real_captures(food_poking_dir):
+    # Calibration check of the shipped food scene (docs/simulator.md): events per second
+    # within a factor of two of the real captures per class, hard foods above soft ones, and
+    # not every taxel active in every trial.
+    from ext_sense_sim.fidelity.captures import read_food_session, simulate
+    from ext_sense_sim.scene import load_scene
+
+    scene = load_scene("food_fork_nuskin")
+    sim = _per_class(food_trials(simulate(scene, 7, scene.seed).captures))
+    real = _per_class(food_trials(read_food_session(food_poking_dir).captures))
+    assert set(real) == {"apple", "empty", "tofu", "water", "watermelon"}
+    for label in real:
+        assert 0.5 < sim[label][0] / real[label][0] < 2.0, (label, sim[label], real[label])
+    assert min(sim["apple"][0], sim["watermelon"][0]) > max(sim["water"][0], sim["empty"][0])
+    assert np.mean([active for _, active in sim.values()]) < 80
