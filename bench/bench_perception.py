@@ -17,9 +17,9 @@ import tempfile
 import time
 
 import numpy as np
+from common import pct, synthetic_taps
 
 from ext_sense_perception.data.window_set import WindowSet
-from ext_sense_perception.online.model_input import Geometry
 from ext_sense_perception.online.predictor import ModelBundle, load_model
 from ext_sense_perception.online.window import ContactWindow
 from ext_sense_perception.online.windowers import EventWindower
@@ -29,40 +29,6 @@ from ext_sense_runtime.records import EventBlock
 from ext_sense_runtime.stamps import MS
 
 
-def synthetic_taps(n: int, seed: int = 0) -> WindowSet:
-    """Windows (n, 80, 300) at 1 ms: each finger rings at a frequency set by the tap position."""
-    rng = np.random.default_rng(seed)
-    y = rng.uniform(0.02, 0.28, n)
-    t = np.arange(300)
-    x = np.zeros((n, 80, 300), np.float32)
-    for i in range(n):
-        f = 40 + 400 * y[i]
-        ring = (
-            np.sin(2 * np.pi * f * (t - 50) / 1000.0)
-            * np.exp(-np.maximum(t - 50, 0) / 60.0)
-            * (t >= 50)
-        )
-        gain = rng.uniform(0.5, 3.0, (80, 1))
-        x[i] = np.round(gain * ring + rng.normal(0, 0.3, (80, 300)))
-    g = Geometry(80, 300, MS, 50 * MS, "nuskin")
-    return WindowSet(
-        "tap_localization",
-        "nuskin",
-        x,
-        y,
-        g,
-        (),
-        np.arange(n),
-        np.full(n, 0.3),
-        "synthetic",
-        "none",
-    )
-
-
-def percentiles(times_ms: list[float]) -> tuple[float, float]:
-    return float(np.percentile(times_ms, 50)), float(np.percentile(times_ms, 99))
-
-
 def time_predict(model: ModelBundle, windows: list, repeat: int) -> tuple[float, float]:
     model.predict(windows[0])
     out = []
@@ -70,7 +36,7 @@ def time_predict(model: ModelBundle, windows: list, repeat: int) -> tuple[float,
         t0 = time.perf_counter_ns()
         model.predict(windows[i % len(windows)])
         out.append((time.perf_counter_ns() - t0) / 1e6)
-    return percentiles(out)
+    return pct(out)
 
 
 def gru_model(ws: WindowSet, quick: bool) -> tuple[TrainedModel, str]:

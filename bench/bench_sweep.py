@@ -17,7 +17,7 @@ import os
 import time
 
 import numpy as np
-from bench_perception import synthetic_taps
+from common import synthetic_taps
 
 from ext_sense_perception.data.window_set import WindowSet
 from ext_sense_perception.training.fit_jobs import fit_runner

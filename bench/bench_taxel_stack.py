@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 # a sibling script: ``python bench/bench_taxel_stack.py`` puts bench/ first on sys.path
-from bench_perception import synthetic_taps
+from common import synthetic_taps
 
 from ext_sense_perception.data.sources import from_sim_dataset
 from ext_sense_perception.online.model_card import ONNX_FILE, SKLEARN_FILE

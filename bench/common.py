@@ -39,6 +39,40 @@ def pct(values: list[float]) -> tuple[float, float]:
     return float(np.percentile(a, 50)), float(np.percentile(a, 99))
 
 
+def synthetic_taps(n: int, seed: int = 0) -> Any:
+    """Windows (n, 80, 300) at 1 ms: each finger rings at a frequency set by the tap position."""
+    from ext_sense_perception.data.window_set import WindowSet
+    from ext_sense_perception.online.model_input import Geometry
+    from ext_sense_runtime.stamps import MS
+
+    rng = np.random.default_rng(seed)
+    y = rng.uniform(0.02, 0.28, n)
+    t = np.arange(300)
+    x = np.zeros((n, 80, 300), np.float32)
+    for i in range(n):
+        f = 40 + 400 * y[i]
+        ring = (
+            np.sin(2 * np.pi * f * (t - 50) / 1000.0)
+            * np.exp(-np.maximum(t - 50, 0) / 60.0)
+            * (t >= 50)
+        )
+        gain = rng.uniform(0.5, 3.0, (80, 1))
+        x[i] = np.round(gain * ring + rng.normal(0, 0.3, (80, 300)))
+    g = Geometry(80, 300, MS, 50 * MS, "nuskin")
+    return WindowSet(
+        "tap_localization",
+        "nuskin",
+        x,
+        y,
+        g,
+        (),
+        np.arange(n),
+        np.full(n, 0.3),
+        "synthetic",
+        "none",
+    )
+
+
 # ------------------------------------------------------------------------------ processes
 def start_hog(n: int) -> list[subprocess.Popen[bytes]]:
     """``n`` busy-looping processes (one per core keeps both cores busy)."""
