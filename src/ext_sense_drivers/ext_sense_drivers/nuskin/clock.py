@@ -1,24 +1,12 @@
 """Stamping receiver words with host time: the words carry none.
 
-The reader takes a host timestamp right after every read returns (:class:`Chunk.t_ns`). All
-bytes of one read arrived at the host after the previous read returned and before this one did,
-so :class:`ArrivalClock` spreads the words a read completed evenly over that interval, the last
-word at the read's own time::
+The bytes of a read arrived between the previous read's return and its own, so
+:class:`ArrivalClock` spreads its words evenly over that interval, the last at the read::
 
     t_k = t_prev + (k + 1) * (t_read - t_prev) // n        k = 0..n-1
 
-Error bound: with a receiver that sends each word as it happens, a word's stamp and its true
-arrival at the host lie in the same interval ``(t_prev, t_read]``, so the stamp error is less
-than the read interval ``t_read - t_prev``. While events flow, a read returns as soon as a byte is
-waiting, so the interval is the reader loop's period (tens of microseconds to about a
-millisecond; docs/nuskin.md); after an idle line the interval can be
-as long as the read timeout, so the spread is capped at ``max_spread_ns`` (default: the time the
-serial link needs to carry the read's bytes, but at least 1 ms): bursts after silence are then
-stamped within the cap before the read. The constant latency from the taxel to the host (receiver
-buffering, USB) is not modelled; it is an offset, not a spread.
-
-Stamps are integer nanoseconds, never decrease, and a read stamped earlier than the previous one
-(a clock that stepped back) is clamped to the previous read.
+The stamp error is below the read interval. After silence the spread is capped (the link time
+of the read's bytes, at least 1 ms). Stamps are integer ns and never decrease.
 """
 
 from __future__ import annotations
@@ -36,8 +24,7 @@ class ArrivalClock:
     """Spreads the words of each read over the interval since the previous read.
 
     Args:
-        byte_time_ns: Time one byte takes on the link, ns (``1e10 / baud`` for 8N1), > 0; sets
-            the cap on the spread (see the module docstring).
+        byte_time_ns: Time one byte takes on the link, ns (> 0): sets the cap on the spread.
         min_spread_ns: The cap is never below this, ns.
     """
 
@@ -65,15 +52,9 @@ class ArrivalClock:
     def stamp(
         self, n_words: int, read_ns: int, n_bytes: int | None = None
     ) -> npt.NDArray[np.int64]:
-        """Stamps for the ``n_words`` words completed by a read that returned at ``read_ns``.
+        """Stamps ``(n_words,)`` int64 for the words a read returning at ``read_ns`` completed.
 
-        Args:
-            n_words: Words the read completed (may be 0: the read still moves the clock).
-            read_ns: Host time the read returned, integer ns.
-            n_bytes: Bytes the read carried (sets the cap); ``4 * n_words`` when omitted.
-
-        Returns:
-            ``(n_words,)`` int64 stamps, non-decreasing, the last one at the read time.
+        ``n_bytes`` (default ``4 * n_words``) sets the cap; a read of no words moves the clock.
         """
         read_ns = int(read_ns)
         n = int(n_words)

@@ -1,8 +1,4 @@
-"""The NUSkin driver's settings, checked and turned into a transport and a decoding path.
-
-Kept out of the node so the choices are validated and testable without rclpy; the node only
-reads its parameters into a :class:`DriverConfig`.
-"""
+"""The NUSkin driver's settings, checked and turned into a transport and a decoding path."""
 
 from __future__ import annotations
 
@@ -13,7 +9,7 @@ from typing import ClassVar
 
 from ext_sense_drivers.nuskin.clock import ArrivalClock
 from ext_sense_drivers.nuskin.errors import NuskinError
-from ext_sense_drivers.nuskin.streams import AcesLineStream, EventStream, WordStream
+from ext_sense_drivers.nuskin.streams import AcesLineStream, WordStream
 from ext_sense_drivers.nuskin.wire import FlagPolarity
 from ext_sense_drivers.transports.link_config import LinkConfig, TransportKind
 
@@ -38,13 +34,7 @@ def _choice(name: str, value: str, enum: type[IntEnum]) -> IntEnum:
 
 @dataclass(frozen=True)
 class DriverConfig(LinkConfig):
-    """Driver settings (units in the names; see ``config/nuskin_driver.yaml``).
-
-    The link settings (``transport`` ... ``file_loop``), :attr:`transport_kind`,
-    :attr:`hardware_id` and :meth:`make_transport` come from
-    :class:`~ext_sense_drivers.transports.link_config.LinkConfig`; errors are
-    :class:`NuskinError`.
-    """
+    """The NUSkin driver's settings beyond :class:`LinkConfig`'s (errors: :class:`NuskinError`)."""
 
     error: ClassVar[type[Exception]] = NuskinError
 
@@ -57,19 +47,14 @@ class DriverConfig(LinkConfig):
 
     @property
     def mode_kind(self) -> Mode:
-        """The mode as an enum.
-
-        Raises:
-            NuskinError: Not words or aces_line.
-        """
+        """The mode as an enum (raises :class:`NuskinError` if not words or aces_line)."""
         return _choice("mode", self.mode, Mode)  # type: ignore[return-value]
 
     def file_rate(self) -> float | None:
         """Replay rate of a file in bytes/s, or ``None`` for flat out.
 
-        ``file_bytes_per_s > 0`` wins; else ``file_pace`` ``flat`` is flat out, ``recorded``
-        takes the rate of a lab capture from its ``.tact`` markers, ``serial`` the 8N1 line
-        rate at ``baud``.
+        ``file_bytes_per_s > 0`` wins; else ``file_pace``: ``flat``, ``recorded`` (from the
+        lab capture's ``.tact`` markers) or ``serial`` (8N1 at ``baud``).
 
         Raises:
             NuskinError: Unknown pace, or no ``.tact`` beside the capture for ``recorded``.
@@ -90,7 +75,7 @@ class DriverConfig(LinkConfig):
             f"Got {self.file_pace!r} instead."
         )
 
-    def make_stream(self) -> EventStream:
+    def make_stream(self) -> WordStream | AcesLineStream:
         """The configured decoding path.
 
         Raises:

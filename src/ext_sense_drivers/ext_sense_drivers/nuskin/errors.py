@@ -4,4 +4,4 @@ from __future__ import annotations
 
 
 class NuskinError(Exception):
-    """Bad arguments to the NUSkin codec, clock model or file readers (bad bytes never raise)."""
+    """Bad arguments to the NUSkin codec, clock or file readers (bad bytes never raise)."""

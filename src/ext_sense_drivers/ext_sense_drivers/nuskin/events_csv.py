@@ -1,10 +1,7 @@
-"""The NUSkin event CSV of ``ext-sense nuskin decode``: one row per word, the flag as received.
+"""The NUSkin event CSV of ``ext-sense nuskin decode``: one row per word.
 
-Header ``word,polarity,taxel,value,flag``. ``flag`` is bit 0 of byte 1 of the receiver word,
-written exactly as it arrived (the lab's own decoding writes it as its first column); ``polarity``
-is the decoder's interpretation of it (``--flag-polarity``, docs/nuskin.md), kept in its own
-column so that a wire bit is never lost to a choice of meaning. ``flag`` is last so that the
-columns before it keep the positions they had before it existed.
+``flag`` is the word's flag bit as received, ``polarity`` its interpretation
+(``--flag-polarity``), so the wire bit is never lost to a choice of meaning.
 """
 
 from __future__ import annotations
@@ -27,19 +24,11 @@ def write_rows(
 ) -> int:
     """Append one CSV row per event (no header), words numbered from ``first_word``.
 
-    Args:
-        out: Text stream to write to.
-        first_word: Number of the first row's word (valid words counted from 0).
-        polarity: ``(n,)`` int.
-        taxel: ``(n,)`` int.
-        value: ``(n,)`` int.
-        flag: ``(n,)`` 0/1, as received.
-
     Returns:
         Rows written.
 
     Raises:
-        ValueError: The arrays differ in length.
+        ValueError: The ``(n,)`` arrays differ in length.
     """
     import numpy as np  # here: ``ext-sense --help`` imports this module for CSV_HEADER
 

@@ -1,10 +1,4 @@
-"""Where NUSkin taxels sit: two fingers of 40 taxels each on an 8 x 5 lattice.
-
-Taxel ids 1..40 are the left finger, 41..80 the right (clear-nus/ext-sense
-``misc/visualize_neutouch_singletool.py``). Within a finger, ``(id - 1) mod 40`` runs row-major
-over the lattice: row ``(id - 1) mod 40 // 5`` (0..7), column ``(id - 1) mod 40 % 5`` (0..4),
-as ``ext_sense_msgs/TaxelEventBatch`` documents.
-"""
+"""Where NUSkin taxels sit: ids 1..40 left finger, 41..80 right, row-major on an 8 x 5 lattice."""
 
 from __future__ import annotations
 

@@ -1,9 +1,4 @@
-"""A plain per-byte Python decoder of the receiver words, kept as the reference.
-
-Written as the obvious state machine, independent of the vectorised
-:class:`~ext_sense_drivers.nuskin.wire.WordDecoder`: tests check the two agree word for word and
-counter for counter, and ``bench/bench_nuskin_words.py`` measures one against the other.
-"""
+"""A plain per-byte decoder of the receiver words: the oracle for the tests and the benchmark."""
 
 from __future__ import annotations
 

@@ -1,13 +1,12 @@
 """From transport chunks to stamped :class:`EventBlock`: the two NUSkin decoding paths.
 
-:class:`WordStream` decodes receiver words and stamps them with the arrival clock;
-:class:`AcesLineStream` decodes raw ACES line samples, whose own sample clock times the events.
-The driver node holds one of them and never looks inside; both are plain Python (no rclpy).
+:class:`WordStream` stamps receiver words with the arrival clock; :class:`AcesLineStream`
+times ACES line events by the line's sample clock.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple, Protocol
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -28,16 +27,9 @@ class BatchCounters(NamedTuple):
 
 
 class FlaggedEvents(NamedTuple):
-    """Decoded events and the receiver's flag bit of each, as received.
+    """Decoded events and each one's flag bit as received (``None`` for the ACES line).
 
-    The flag travels beside the :class:`EventBlock` rather than in it: the block is the one
-    event record of every package (simulator, importers, windows), none of which has the bit;
-    only the driver's message carries it on.
-
-    Attributes:
-        events: The events.
-        flag: ``(n,)`` uint8, bit 0 of byte 1 of each event's word; ``None`` when the source
-            has no such bit (the ACES line).
+    The bit travels beside the :class:`EventBlock`, the event record of every package.
     """
 
     events: EventBlock
@@ -45,41 +37,12 @@ class FlaggedEvents(NamedTuple):
 
     @classmethod
     def concat(cls, parts: list[FlaggedEvents]) -> FlaggedEvents:
-        """Join parts end to end; the flag is ``None`` unless some part has one.
-
-        A part without a flag among flagged ones gets zeros: in a word stream only
-        ``restart()`` gives such parts, and they are empty.
-        """
+        """Join parts; the flag is ``None`` unless some part has one (the others get zeros)."""
         events = EventBlock.concat([p.events for p in parts])
         if all(p.flag is None for p in parts):
             return cls(events, None)
         flags = [p.flag if p.flag is not None else np.zeros(p.events.size, np.uint8) for p in parts]
         return cls(events, np.concatenate(flags).astype(np.uint8, copy=False))
-
-
-class EventStream(Protocol):
-    """What the driver node needs from a decoding path."""
-
-    def feed(self, chunk: Chunk) -> EventBlock:
-        """Decode one chunk into stamped events (monotonic host ns)."""
-        ...
-
-    def feed_flagged(self, chunk: Chunk) -> FlaggedEvents:
-        """Same as :meth:`feed`, with each event's flag bit when the source has one."""
-        ...
-
-    def restart(self) -> EventBlock:
-        """The link dropped: finish what can be finished; the next chunk starts a new stream."""
-        ...
-
-    @property
-    def batch_counters(self) -> BatchCounters:
-        """Counters for the message."""
-        ...
-
-    def diagnostics(self) -> dict[str, object]:
-        """Counters and figures for ``/diagnostics`` (keys carry units)."""
-        ...
 
 
 class WordStream:
@@ -134,9 +97,8 @@ class WordStream:
 class AcesLineStream:
     """Raw ACES line samples -> events timed by the line's sample clock.
 
-    The first chunk of each connection fixes the origin: sample 0 is placed at the chunk's
-    arrival time minus the duration of the samples it carried. From there the line's own clock
-    times every event (no drift correction against the host clock yet).
+    The first chunk of each connection fixes sample 0 at its arrival minus the duration of
+    the samples before it (no drift correction against the host clock).
 
     Args:
         **decoder_kwargs: Passed to ``ext_sense_drivers.aces.LineDecoder`` (``threshold``,
@@ -151,11 +113,8 @@ class AcesLineStream:
         self._decoder = None
         self._probe = LineDecoder(**decoder_kwargs)  # validates the arguments now
         self.samples_before = 0
-        """Line samples sent on this connection before the next chunk fed, when the stream is
-        joined late (a packet's ``time_base``): the origin is put that much earlier. Used and
-        reset by the first chunk of each connection."""
-        # Totals over every connection; the last three say what the decoder withheld or could
-        # not separate (overloaded stretches, detections the residual test rejected, bursts).
+        """Samples sent before the next chunk on a stream joined late (a packet's
+        ``time_base``); used and reset by the first chunk of each connection."""
         self._done = dict.fromkeys(
             (
                 "detections",

@@ -1,10 +1,7 @@
-"""The lab's NUSkin capture files: decoded ``<name>.tact`` text and ``<name>_raw.tact`` bytes.
+"""The lab's NUSkin captures: decoded ``<name>.tact`` text and ``<name>_raw.tact`` bytes.
 
-``<name>.tact`` holds one line per word, ``col0 taxel value t`` separated by spaces, where
-``col0`` is the flag bit (0 in every real capture), ``t`` host epoch seconds written with two
-decimals; the first line ``1 1 1 <t>`` and the last ``2 2 2 <t>`` mark start and stop and are not
-words. ``<name>_raw.tact`` is the receiver's byte stream of the same trial
-(:mod:`ext_sense_drivers.nuskin.wire`).
+``<name>.tact`` has one line ``flag taxel value t`` per word (``t`` epoch seconds, two
+decimals) between the markers ``1 1 1 <t>`` and ``2 2 2 <t>``.
 """
 
 from __future__ import annotations
@@ -87,9 +84,7 @@ def decoded_path(raw_path: str | Path) -> Path:
 
 
 def recorded_rate(raw_path: str | Path) -> float:
-    """The capture's average byte rate in bytes/s, from its size and the markers of its ``.tact``.
-
-    Used to replay a raw capture at its recorded pace (the raw bytes carry no time).
+    """The capture's average byte rate in bytes/s, from its size and its ``.tact`` markers.
 
     Raises:
         NuskinError: The ``.tact`` is missing or its markers span no time.

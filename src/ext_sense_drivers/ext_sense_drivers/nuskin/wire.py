@@ -1,28 +1,17 @@
 """The NUSkin receiver's event words: a vectorised streaming decoder and an encoder.
 
-Wire format (REFERENCE.md section 2, checked against the real captures): each event is a 4-byte
-word and the top 3 bits of every byte tag its place in the word, ``001`` byte 0, ``010`` byte 1,
-``100`` byte 2, ``111`` byte 3::
+Each event is a 4-byte word; the top 3 bits of every byte tag its place (docs/nuskin.md)::
 
     byte 0  001x xTTT    T: taxel bits 6..4 (x: unused, 0)
     byte 1  010T TTTF    T: taxel bits 3..0, F: flag bit
     byte 2  100V VVVV    V: value bits 9..5
     byte 3  111V VVVV    V: value bits 4..0
 
-Taxel ids 1..80 are valid (:mod:`ext_sense_drivers.nuskin.layout`); a word with another id is
-counted in ``bad_taxel_words`` and dropped. The tags let the decoder find word boundaries in a
-stream that starts mid-word, loses, gains or corrupts bytes: a word is any four consecutive
-bytes tagged 1, 2, 4, 7. The four tags differ, so two such runs can never overlap and the
-decision for each word depends on its own four bytes only; every word whose bytes arrive intact
-and in order is therefore recovered, whatever happens around it and however the stream is cut
-into chunks. Bytes outside words are counted in ``skipped_bytes``; each maximal run of them is
-one resynchronisation (``resyncs``), including a stream that starts mid-word.
-
-Polarity: the flag bit is 0 in every word of the real captures (and so is the first column of
-the lab's ``.tact``), so by default it is not trusted and events get polarity 0 ("unknown",
-counted +1 by the window node). With :attr:`FlagPolarity.IS_POSITIVE` (the public code names
-that ``.tact`` column ``isPos``) flag 1 means +1 and flag 0 means -1; the simulator encodes
-that way.
+A word is any four consecutive bytes tagged 1, 2, 4, 7; runs cannot overlap, so every intact
+word is recovered however the stream is cut or damaged. Bytes outside words are
+``skipped_bytes``, each run of them one ``resyncs``; taxel ids outside 1..80 are
+``bad_taxel_words``. The real receivers leave the flag bit 0, so by default polarity is 0
+(unknown); :attr:`FlagPolarity.IS_POSITIVE` reads flag 1 as +1, 0 as -1.
 """
 
 from __future__ import annotations
@@ -65,8 +54,7 @@ class DecodedWords(NamedTuple):
         value: 10-bit value field, ``(n,)`` uint16.
         flag: The flag bit, ``(n,)`` uint8.
         polarity: The flag mapped by the decoder's :class:`FlagPolarity`, ``(n,)`` int8.
-        end: Stream offset just past each word's last byte (bytes fed since the decoder was
-            created), ``(n,)`` int64; lets a clock model place words within a read.
+        end: Stream offset just past each word's last byte, ``(n,)`` int64.
     """
 
     taxel: npt.NDArray[np.uint16]
@@ -102,10 +90,7 @@ def _polarity(flag: npt.NDArray[np.uint8], mode: FlagPolarity) -> npt.NDArray[np
 class WordDecoder:
     """Streaming decoder: feed chunks split anywhere, get the words completed so far.
 
-    Args:
-        flag_polarity: How the flag bit maps to polarity (see the module docstring).
-
-    At most 3 bytes (a word's valid beginning) are held back between calls (:attr:`pending`).
+    Holds back at most 3 bytes (a word's valid beginning) between calls.
     """
 
     def __init__(self, flag_polarity: FlagPolarity = FlagPolarity.IGNORE) -> None:
@@ -131,14 +116,7 @@ class WordDecoder:
         return int(self._carry.shape[0])
 
     def feed(self, chunk: bytes | bytearray | memoryview | npt.NDArray[np.uint8]) -> DecodedWords:
-        """Decode the words that ``chunk`` completes.
-
-        Args:
-            chunk: The next bytes of the stream, any length (may be empty).
-
-        Returns:
-            The words, in order; never raises on bad bytes (they are counted).
-        """
+        """The words ``chunk`` (any length) completes, in order; bad bytes are counted."""
         data = np.frombuffer(chunk, np.uint8) if not isinstance(chunk, np.ndarray) else chunk
         data = data.astype(np.uint8, copy=False).ravel()
         base = self._bytes_in - self._carry.shape[0]  # stream offset of buf[0]
@@ -245,11 +223,9 @@ def _gather_words(
 def _aligned_words(
     buf: npt.NDArray[np.uint8],
 ) -> tuple[int, npt.NDArray[np.uint32]] | None:
-    """Fast path for the usual case, a clean stream: every 4 bytes from the first are a word.
+    """Fast path for a clean stream: the first word's offset and the words from it (LE uint32).
 
-    The bytes before the first byte tagged 1 cannot start a word. Returns the offset of the
-    first word and the words as little-endian uint32, or ``None`` when the rest is not all
-    words (or there is none) and the general search is needed.
+    ``None`` when not every 4 bytes from the first byte tagged 1 are a word.
     """
     n = int(buf.shape[0])
     first = 0
@@ -277,17 +253,12 @@ def _prefix_suffix_len(buf: npt.NDArray[np.uint8], tail: int) -> int:
 def encode_words(
     taxel: npt.ArrayLike, value: npt.ArrayLike, flag: npt.ArrayLike | None = None
 ) -> bytes:
-    """Encode events as receiver words (the simulator's emulated receiver uses this).
+    """Encode events as ``4 * n`` bytes of receiver words.
 
     Args:
-        taxel: Taxel ids, ``(n,)`` ints; valid ids are 1..80, but the whole 7-bit field
-            0..127 is accepted so tests and fault injection can send out-of-range words.
-        value: 10-bit values, ``(n,)`` ints in 0..1023.
-        flag: Flag bits ``(n,)`` in {0, 1}, or ``None`` for all 0 (as the real receivers send).
-            To carry polarity use ``flag = polarity > 0`` with :attr:`FlagPolarity.IS_POSITIVE`.
-
-    Returns:
-        ``4 * n`` bytes.
+        taxel: Taxel ids ``(n,)``; the whole 7-bit field 0..127 is accepted (fault injection).
+        value: 10-bit values ``(n,)``.
+        flag: Flag bits ``(n,)``, or ``None`` for all 0 as the real receivers send.
 
     Raises:
         NuskinError: Lengths differ, or a field is out of range.
