@@ -10,16 +10,7 @@ import numpy as np
 def est_kernel(
     t_s: np.ndarray, weights: list[tuple[np.ndarray, np.ndarray]], slope: float = 0.1
 ) -> np.ndarray:
-    """Evaluate the EST kernel MLP (1 -> 30 -> 30 -> 1, Leaky ReLU) at lags ``t_s`` seconds.
-
-    Args:
-        t_s: Lags in seconds, shape (n,).
-        weights: Three ``(W, b)`` layers.
-        slope: Leaky ReLU negative slope.
-
-    Returns:
-        Kernel values, shape (n,).
-    """
+    """The EST kernel MLP (1 -> 30 -> 30 -> 1, Leaky ReLU) at lags ``t_s`` seconds, ``(n,)``."""
     h = np.asarray(t_s, dtype=np.float64)[:, None]
     for i, (w, b) in enumerate(weights):
         h = h @ w + b
@@ -31,19 +22,11 @@ def est_kernel(
 def fit_est_kernel(
     tau_s: float = 0.005, span_s: float = 0.05, seed: int = 0
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Weights of the EST kernel MLP, fitted to a decaying exponential ``exp(-t / tau)``.
+    """Weights (three ``(W, b)`` layers) of the EST kernel MLP, fitted to ``exp(-t / tau)``.
 
-    The paper learns this kernel end to end with the classifier (torch). Without torch the
-    kernel is fitted to the exponential that EST's authors start from, which keeps the
-    parameterisation (2 hidden layers of 30 Leaky ReLU units) but not the task-specific learning.
-
-    Args:
-        tau_s: Decay time constant, s.
-        span_s: Lags fitted, 0..span_s seconds.
-        seed: Initialisation seed.
-
-    Returns:
-        Three ``(W, b)`` layers.
+    The paper learns the kernel end to end with torch; here it is fitted to the exponential EST's
+    authors start from, keeping the parameterisation but not the task-specific learning. Lags
+    0..``span_s`` seconds are fitted.
     """
     rng = np.random.default_rng(seed)
     sizes = [1, 30, 30, 1]

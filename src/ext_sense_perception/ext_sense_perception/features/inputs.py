@@ -1,10 +1,8 @@
 # ruff: noqa: N803  (X for sample matrices, as in scikit-learn)
 """Input checks of the project's estimators: scikit-learn's own, raised as PerceptionError (no ROS).
 
-So every estimator refuses sparse, complex, non-numeric, empty and (by default) NaN/inf input
-with scikit-learn's messages, which name what arrived. Bad values are a PerceptionError (a
-``ValueError``), as elsewhere in the package; input of a wrong type (sparse matrices, objects
-that are not numbers) stays scikit-learn's ``TypeError``.
+Bad values are a PerceptionError (a ``ValueError``) with scikit-learn's message; input of a
+wrong type (sparse, non-numeric) stays scikit-learn's ``TypeError``.
 """
 
 from __future__ import annotations
@@ -33,15 +31,10 @@ def dense_array(X: Any, **kwargs: Any) -> np.ndarray:
 def validated(estimator: Any, X: Any, y: Any = "no_validation", *, reset: bool, **kwargs: Any):
     """``sklearn.utils.validation.validate_data``: ``X`` (and ``y``) as in :func:`dense_array`.
 
-    ``reset=True`` (``fit``) records ``n_features_in_``; ``reset=False`` checks ``X`` has that
-    many columns. ``y=None`` in a fit is refused for an estimator that needs a target.
-
-    Returns:
-        ``X``, or ``(X, y)`` when ``y`` is given.
+    ``reset=True`` (``fit``) records ``n_features_in_``; ``reset=False`` checks it.
 
     Raises:
-        PerceptionError: scikit-learn's message (as :func:`dense_array`'s; or a wrong number of
-            columns, or a missing or malformed target).
+        PerceptionError: scikit-learn's message (bad values, columns or target).
         TypeError: sparse input, or objects that are not numbers.
     """
     try:

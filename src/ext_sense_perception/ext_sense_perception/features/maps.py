@@ -1,8 +1,7 @@
-"""The fixed maps every feature family is built from (no ROS).
+"""The fixed maps every feature family is built from, as matrices (no ROS).
 
-Channel selections, BioTac decimation indices and the time maps along a window's sample axis
-(rebinning, sample selection, the real DFT), plus the family names. Each map is a matrix, so the
-NumPy path stays vectorised and ONNX export writes the same matrices.
+Channel selections, BioTac decimation indices and the time maps (rebinning, sample selection,
+the real DFT); ONNX export writes the same matrices.
 """
 
 from __future__ import annotations
@@ -53,13 +52,8 @@ class FeatureKind(IntEnum):
 def select_channels(selection: str | None, n_channels: int) -> np.ndarray:
     """Row indices of a channel selection.
 
-    Args:
-        selection: ``None``/``"all"``, ``"left"`` (taxels 1..40), ``"right"`` (41..80),
-            ``"taxel:N"`` (one taxel id, 1-based) or ``"ids:1,2,5"``.
-        n_channels: Channels in the window.
-
-    Returns:
-        Indices into the channel axis.
+    ``selection``: ``None``/``"all"``, ``"left"`` (taxels 1..40), ``"right"`` (41..80),
+    ``"taxel:N"`` (1-based) or ``"ids:1,2,5"``.
 
     Raises:
         PerceptionError: on an unknown selection or ids out of range.
@@ -92,18 +86,7 @@ def select_channels(selection: str | None, n_channels: int) -> np.ndarray:
 
 
 def decimation_indices(n_samples: int, rate_hz: float, base_rate_hz: float) -> np.ndarray:
-    """Samples kept when a series at ``base_rate_hz`` is decimated to ``rate_hz``.
-
-    Equally spaced rounded indices over the whole window, as in the paper's preprocessing.
-
-    Args:
-        n_samples: Samples in the window.
-        rate_hz: Target rate, Hz (<= base).
-        base_rate_hz: Rate of the series, Hz.
-
-    Returns:
-        Sorted indices.
-    """
+    """Sorted samples kept when decimating ``base_rate_hz`` to ``rate_hz`` (the paper's spacing)."""
     if not 0 < rate_hz <= base_rate_hz:
         raise PerceptionError(
             f"The 'rate_hz' parameter must be in (0, {base_rate_hz}]. Got {rate_hz!r} instead."
@@ -129,19 +112,15 @@ def rebin_matrix(n_in: int, factor: int, kernel: str = "box") -> np.ndarray:
 
 
 BIN_KERNELS = ("box", "gauss")
-"""How samples are summed into feature bins: ``box`` (each bin its own samples, the paper's) or
-``gauss`` (every sample, weighted by a Gaussian around the bin's centre; see
-:func:`gauss_rebin_matrix`)."""
+"""How samples are summed into feature bins: ``box`` (the paper's) or ``gauss``."""
 
 
 def gauss_rebin_matrix(n_in: int, factor: int) -> np.ndarray:
     """Gaussian-weighted bins: ``(n_in, n_in // factor)``, one bin's width the Gaussian's sigma.
 
-    A box bin counts an event in one bin or the next by the side of a bin edge it falls on,
-    so a window whose onset moves by a fraction of a bin moves whole events between bins, and
-    the spectrum of the binned series with them (the high frequencies the bins alias). Weights
-    that fall off smoothly move the bins a little instead. Each column sums to about ``factor``
-    (as a box bin's), so a constant series gives the box's values away from the window's ends.
+    A box bin moves whole events between bins when the onset moves by part of a bin, and the
+    spectrum with them; smooth weights move the bins a little instead. Each column sums to about
+    ``factor``, as a box bin's.
     """
     n_out = n_in // factor
     centres = (np.arange(n_out) + 0.5) * factor

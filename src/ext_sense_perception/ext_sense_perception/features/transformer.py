@@ -1,24 +1,12 @@
 # ruff: noqa: N803  (X / F for sample matrices, as in scikit-learn)
 """Feature families of contact windows, one scikit-learn transformer each (no ROS).
 
-Every family here is a fixed linear map along the time axis of the window (rebinning,
-decimation, a DFT, an EST kernel convolution, window sums), followed by at most a few
-element-wise steps (magnitude, ``log1p``, ReLU layers of the autoencoder's encoder). That keeps
-the NumPy path vectorised and lets :mod:`ext_sense_perception.training.onnx_export` express the
-same pipeline in ONNX, so the deployed model starts from the raw window.
-
-:class:`WindowFeatures` holds what every family shares: the window geometry, the channel
-selection, the post-contact crop, input checks, the fitted-state contract
-(``check_is_fitted``; an unfitted transformer raises ``NotFittedError``). The families add
-their own parameters: :class:`BaselineFeatures`, :class:`FFTFeatures`, :class:`ESTFeatures`,
-:class:`ActivityFeatures`, :class:`AutoencoderFeatures`; :func:`make_features` builds one by
-name. Input ``X``: ``(n_windows, n_channels * n_samples)`` (windows flattened row-major, as in
-``ContactWindow.data.ravel()``), so a family can head a ``Pipeline`` and be tuned inside
-cross-validation folds (no leakage of the autoencoder's training). Output: float64.
-
-Sampling-rate reduction: BioTac decimation is part of the map (``rate_hz``); the NUSkin
-per-taxel refractory drop works on events, before binning
-(:func:`ext_sense_perception.data.refractory.refractory_mask`).
+Every family is a fixed linear map along the window's time axis followed by at most a few
+element-wise steps, so the NumPy path is vectorised and
+:mod:`ext_sense_perception.training.onnx_export` writes the same pipeline in ONNX. Input ``X``
+is ``(n_windows, n_channels * n_samples)`` (``ContactWindow.data.ravel()`` per row), so a
+family can head a ``Pipeline`` tuned inside CV folds; output float64. BioTac decimation is part
+of the map (``rate_hz``); the NUSkin refractory drop works on events, before binning.
 """
 
 from __future__ import annotations
@@ -62,8 +50,8 @@ def _positive_int(owner: object, *names: str) -> None:
 class WindowFeatures(TransformerMixin, BaseEstimator):
     """What every feature family shares: geometry, channels, crop, checks, the fitted state.
 
-    Subclasses set :attr:`kind`, add their parameters to ``__init__`` and implement
-    :meth:`_time_maps` (and :meth:`_features` when they are not one time map).
+    Subclasses set :attr:`kind`, add their parameters and implement :meth:`_time_maps` (and
+    :meth:`_features` when they are not one time map).
 
     Args:
         n_channels: Channels of the input windows.
@@ -71,7 +59,7 @@ class WindowFeatures(TransformerMixin, BaseEstimator):
         period_ns: Sample period of the input windows, ns.
         pre_ns: Pre-onset signal in the input windows, ns.
         sensor: ``"nuskin"`` or ``"biotac"``.
-        post_ns: Post-onset signal used, ns (None: all of it); earlier samples only.
+        post_ns: Post-onset signal used, ns (None: all of it).
         channels: Channel selection (see :func:`~.maps.select_channels`).
     """
 
@@ -123,13 +111,6 @@ class WindowFeatures(TransformerMixin, BaseEstimator):
     def fit(self, X: np.ndarray, y: np.ndarray | None = None) -> WindowFeatures:
         """Build the maps for the geometry (and learn what the family learns from ``X``).
 
-        Args:
-            X: Flattened windows ``(n_windows, n_channels * n_samples)``.
-            y: Ignored.
-
-        Returns:
-            self
-
         Raises:
             PerceptionError: A parameter out of range, or windows of another shape or not finite.
         """
@@ -179,13 +160,7 @@ class WindowFeatures(TransformerMixin, BaseEstimator):
         return (x3 @ self.time_maps_[0]).reshape(x3.shape[0], -1)
 
     def transform(self, X: np.ndarray) -> np.ndarray:
-        """Features of flattened windows.
-
-        Args:
-            X: ``(n_windows, n_channels * n_samples)`` (or ``(n, n_channels, n_samples)``).
-
-        Returns:
-            ``(n_windows, n_features)`` float64.
+        """Features ``(n_windows, n_features)`` float64 of flattened (or 3-D) windows.
 
         Raises:
             NotFittedError: :meth:`fit` was not called.
@@ -207,8 +182,8 @@ class _Reduced(WindowFeatures):
             :class:`WindowFeatures`.
         bin_ns: NUSkin feature bin, ns (a multiple of ``period_ns``).
         rate_hz: BioTac decimation target, Hz (None: full rate).
-        bin_kernel: NUSkin bins: ``box`` (the paper's sums) or ``gauss`` (Gaussian-weighted,
-            tolerant of an onset moved by part of a bin; :func:`~.maps.gauss_rebin_matrix`).
+        bin_kernel: NUSkin bins: ``box`` (the paper's sums) or ``gauss``
+            (:func:`~.maps.gauss_rebin_matrix`).
     """
 
     def __init__(
@@ -259,10 +234,7 @@ class _Reduced(WindowFeatures):
 
 
 class BaselineFeatures(_Reduced):
-    """The paper's baseline: NUSkin signed counts in ``bin_ns`` bins; BioTac raw (decimated) PAC.
-
-    Parameters as :class:`_Reduced`.
-    """
+    """The paper's baseline: NUSkin signed counts in ``bin_ns`` bins; BioTac raw (decimated) PAC."""
 
     kind = "baseline"
 
@@ -271,10 +243,7 @@ class BaselineFeatures(_Reduced):
 
 
 class FFTFeatures(_Reduced):
-    """|FFT| of each channel's binned (NUSkin) or decimated (BioTac) series, the paper's scaling.
-
-    Parameters as :class:`_Reduced`.
-    """
+    """|FFT| of each channel's binned (NUSkin) or decimated (BioTac) series, the paper's scaling."""
 
     kind = "fft"
 
@@ -372,14 +341,11 @@ class AutoencoderFeatures(FFTFeatures):
 class ESTFeatures(WindowFeatures):
     """Event Spike Tensor style: each channel convolved with a learned-shape decaying kernel.
 
-    Sampled at ``est_samples`` equally spaced times; the kernel is an MLP of the lag fitted to
-    ``exp(-t / est_tau_s)`` (:mod:`.est_kernel`).
-
     Args:
         n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels: As
             :class:`WindowFeatures`.
         est_samples: Equally spaced output samples per channel.
-        est_tau_s: Kernel decay time constant the kernel MLP is fitted to, s.
+        est_tau_s: Decay time constant the kernel MLP is fitted to, s (:mod:`.est_kernel`).
         random_state: Seed of the kernel fit.
     """
 
@@ -426,8 +392,8 @@ class ActivityFeatures(WindowFeatures):
         n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels: As
             :class:`WindowFeatures`.
         activity_bin_ns: Bin of the all-taxel activity series, ns.
-        activity_late_ns: Also sum each taxel's activity from this time after the window's
-            start to its end, ns (None: only over the whole window).
+        activity_late_ns: Also sum each taxel's activity from this time after the window's start, ns
+            (None: not).
     """
 
     kind = "activity"

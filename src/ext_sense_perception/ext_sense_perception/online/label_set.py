@@ -1,9 +1,6 @@
 """A session's label set: the classes a model's decisions are restricted to (no ROS).
 
-An operator knows which foods are on today's plate; a model trained on several days knows more
-classes than one session holds. Restricting the decision to the session's classes (probability
-0 outside them, the rest renormalised) is what ``ext-sense score``, the cross-session protocol
-and a calibrated bundle's live estimates (its card's ``label_set``) do.
+A model trained on several days knows more classes than one session (today's plate) holds.
 """
 
 from __future__ import annotations
@@ -14,15 +11,7 @@ from ext_sense_perception.errors import PerceptionError
 
 
 def restrict(proba: np.ndarray, classes: tuple[str, ...], allowed: tuple[str, ...]) -> np.ndarray:
-    """Class probabilities with the classes outside ``allowed`` set to 0, renormalised.
-
-    Args:
-        proba: ``(n, n_classes)`` probabilities, columns in ``classes`` order.
-        classes: The model's classes.
-        allowed: The classes the session may hold (empty: all).
-
-    Returns:
-        The restricted probabilities (a copy).
+    """A copy of ``proba`` with the classes outside ``allowed`` (empty: all) at 0, renormalised.
 
     Raises:
         PerceptionError: when no allowed class is one of the model's.

@@ -25,22 +25,14 @@ class Geometry(NamedTuple):
 
 
 def as_model_input(window: object, geometry: Geometry) -> np.ndarray:
-    """One window as a flat float32 row for a model of ``geometry``.
+    """One window (or ``(n_channels, n_samples)`` array) as a flat float32 row for a model.
 
-    A window whose pre-onset part or total length is longer than the model's is cropped to it
-    (same onset). A NUSkin window at a finer bin whose period divides the model's is rebinned by
-    summing (counts add exactly), so finer online windows feed models trained on coarser bins.
-
-    Args:
-        window: A ``ContactWindow`` or an array ``(n_channels, n_samples)``.
-        geometry: The model's geometry.
-
-    Returns:
-        Flat ``(n_channels * n_samples,)`` float32.
+    A longer window is cropped to the model's (same onset); a NUSkin window at a finer bin dividing
+    the model's is rebinned by summing (counts add exactly).
 
     Raises:
-        PerceptionError: on a window too short, with other channels or an incompatible
-            sample period, or holding NaN/inf.
+        PerceptionError: on a window too short, with other channels or an incompatible sample
+            period, or holding NaN/inf.
     """
     data = getattr(window, "data", window)
     x = np.asarray(data)
