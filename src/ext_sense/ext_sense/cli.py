@@ -1,12 +1,9 @@
 """The ``ext-sense`` command: one entry point, subcommands contributed by each package.
 
-Each module in :data:`COMMAND_MODULES` has ``register(subparsers)`` that adds its
-subcommand(s); every subcommand sets ``func(args) -> int`` as its handler. Modules import their
-heavy dependencies (rclpy, onnxruntime, scikit-learn) inside the handlers, so ``--help`` is fast.
-
-This module itself imports only ``os`` and ``sys`` before :func:`main` runs: a Ctrl-C during
-the imports above ``main``'s ``try`` is a ``KeyboardInterrupt`` traceback (``from typing import
-NoReturn`` up here turned 16 of 25 Ctrl-Cs 40 ms after the start into tracebacks).
+Each module in :data:`COMMAND_MODULES` has ``register(subparsers)``; every subcommand sets
+``func(args) -> int``. Heavy imports happen inside the handlers, so ``--help`` is fast, and this
+module imports only ``os`` and ``sys`` before :func:`main` runs: a Ctrl-C during an import above
+``main``'s ``try`` would be a traceback.
 """
 
 from __future__ import annotations
@@ -62,13 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``ext-sense``; returns the process exit code.
 
-    Ctrl-C ends a command with 130, except ``run``: stopping a graph with Ctrl-C is its normal
-    end, also when it lands before any node started (while this process still imports), so it
-    ends with 0 and one line instead of a ``KeyboardInterrupt`` traceback.
-
-    Args:
-        argv: The arguments; ``None`` (the console script) reads ``sys.argv``, and a Ctrl-C
-            then ends the process itself (:func:`_end_interrupted`).
+    Ctrl-C ends a command with 130, except ``run``, whose normal end it is (0, one line), also
+    before any node started. With ``argv`` ``None`` (the console script) a Ctrl-C ends the
+    process itself (:func:`_end_interrupted`).
     """
     as_process = argv is None
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -93,13 +86,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 def hear_interrupts() -> None:
     """Let Ctrl-C stop ``run`` from here on, also when it was started with SIGINT ignored.
 
-    A shell without job control starts background commands (``ext-sense run ... &`` in a
-    script, a CI runner) with SIGINT ignored, and Python then installs no
-    ``KeyboardInterrupt`` handler: a SIGINT before the runner installed its own handlers was
-    lost and the graph started anyway, to run until killed (``test_shutdown.py``, under a
-    backgrounded ``make test``). The runner's handlers take SIGINT whatever was inherited, so
-    this makes the command take it the same way from its first line on. The test suite calls
-    it too, so the graphs its tests start inherit a terminal's disposition.
+    A shell without job control starts background commands with SIGINT ignored; the runner's
+    handlers take SIGINT anyway, so the command takes it from its first line on too.
     """
     import signal
 
@@ -110,14 +98,9 @@ def hear_interrupts() -> None:
 def _end_interrupted(code: int) -> NoReturn:
     """End this process with ``code`` now, after a caught Ctrl-C.
 
-    A ``KeyboardInterrupt`` raised inside a builtin ``eval()`` of a string (as
-    ``collections.namedtuple`` runs while modules import) sets a flag in CPython
-    (``_Py_UnhandledKeyboardInterrupt``) that no ``except`` clears. When the process was started
-    as ``python -m ext_sense.cli`` (the system tests' way; the ``ext-sense`` script exits
-    through another path), CPython then kills it with SIGINT at exit, whatever exit code it was
-    given: Ctrl-C 35-55 ms after the start of ``ext-sense run`` ended it with -2 in 9 of 150
-    runs (issue #15, docs/runtime.md). Nothing has started here and nothing is left to
-    finalise, so the process ends at once, the same way however it was started.
+    A ``KeyboardInterrupt`` inside a builtin ``eval()`` (``collections.namedtuple`` while
+    importing) sets a CPython flag no ``except`` clears, and CPython then kills the process
+    with SIGINT at exit (issue #15, docs/runtime.md). Nothing is left to finalise here.
     """
     sys.stdout.flush()
     sys.stderr.flush()
@@ -126,9 +109,8 @@ def _end_interrupted(code: int) -> NoReturn:
 
 def _dispatch(argv: list[str]) -> int:
     parser = build_parser()
-    # `name:=value` launch arguments may stand anywhere, as with `ros2 launch`, which argparse
-    # cannot express next to options; they are taken out here and handed to the subcommands
-    # that declare `accepts_assignments`.
+    # `name:=value` arguments may stand anywhere (argparse cannot say so): taken out here for
+    # the subcommands that declare `accepts_assignments`
     assignments = [a for a in argv if ":=" in a and not a.startswith("-")]
     args = parser.parse_args([a for a in argv if a not in assignments])
     if assignments and not getattr(args, "accepts_assignments", False):

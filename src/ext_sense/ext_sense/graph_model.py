@@ -1,15 +1,10 @@
 """The model a graph will load, found before any of its nodes starts (both front ends).
 
-``ext-sense run`` and the launch files call :func:`with_model` on the graph's arguments: the
-``model`` argument (a bundle directory, a model name, or empty for the task's default) is looked
-up along the model search path
-(:mod:`ext_sense_perception.online.model_store`), its card is read and checked against the
-graph's task and sensor, and against the object the graph holds (its ``held_object`` argument,
-else on the simulator the scene's object: a model trained on a 20 cm rod serving the 30 cm scene
-places every tap wrong), and the bundle's absolute directory is handed to both perception
-nodes, so the window node and the inference node read the same bundle. A graph with no usable
-model refuses to start with one line that lists every place searched and names the command that
-creates the default models. Nothing here imports ``launch`` or ``rclpy``.
+:func:`with_model` looks the ``model`` argument up along the model search path, checks its card
+against the graph's task, sensor and held object (a model of a 20 cm rod places every tap on
+the 30 cm scene wrong), and hands the absolute bundle directory to both perception nodes. With
+no usable model the graph refuses to start with one line naming the places searched and the
+command that creates the default models. No ``launch``, no rclpy.
 """
 
 from __future__ import annotations
@@ -33,10 +28,8 @@ class ModelMissingError(GraphError):
 def with_model(graph: GraphSpec, overrides: Mapping[str, str]) -> dict[str, str]:
     """``overrides`` with ``model`` set to the absolute bundle directory the graph will load.
 
-    ``held_object`` is set too when the graph's object is known (:func:`held_object_of_graph`)
-    and worth checking: named by the user, recorded by the card, or a tap's rod (a tap card
-    without it is then accepted with the node's warning); the inference node checks a model it
-    loads later against it.
+    ``held_object`` is set too when known and worth checking: named, recorded by the card, or a
+    tap's rod; the inference node checks a model it loads later against it.
 
     Raises:
         GraphError: Bad arguments.
@@ -76,10 +69,6 @@ def with_model(graph: GraphSpec, overrides: Mapping[str, str]) -> dict[str, str]
 
 def held_object_of_graph(values: Mapping[str, str], task: str, sensor: str) -> HeldObject | None:
     """The object a graph holds: its ``held_object`` argument, else the simulator scene's.
-
-    Cards record the object their windows were felt through (a simulator dataset's scene
-    object, else a rod told from the windows' rod lengths); a card that records none is
-    checked against nothing.
 
     Raises:
         GraphError: A malformed ``held_object``, or a scene that cannot be read.

@@ -1,10 +1,7 @@
 """Where a graph's sensor data comes from: the simulated device or bag player, and the driver.
 
-Part of the graph descriptions of :mod:`ext_sense.graphs` (its build functions call
-:func:`source_nodes`), kept apart so that each module stays one idea: this one knows the four
-sources (``sim``, ``serial``, ``can``, ``bag``) and the files they need. Every source feeds
-the sensor's raw packets (``SensorPacket``); a bag of decoded arrays from before packets is
-turned into a packet bag first (``ext-sense bag migrate``).
+Called by :mod:`ext_sense.graphs`' build functions: the four sources (``sim``, ``serial``,
+``can``, ``bag``) and the files they need. Every source feeds the sensor's raw packets.
 """
 
 from __future__ import annotations
@@ -31,8 +28,7 @@ SIM_TRIGGERS = {
     "food_identification": (TOPIC_MOTION_START, "onset"),
 }
 """behaviours:=true with source sim: the topic on which each task's behaviour drives the
-simulated device, and how a trial is aligned to it (a grasp starts when the object is offered;
-a food trial's motion start is put at the probe's)."""
+simulated device, and how a trial is aligned to it."""
 
 PACKET_ARGUMENTS: tuple[ArgumentSpec, ...] = (
     ArgumentSpec(
@@ -50,12 +46,10 @@ PACKET_ARGUMENTS: tuple[ArgumentSpec, ...] = (
 
 
 def _check_packets(bag: Path, sensor: str) -> None:
-    """Refuse a bag with no packets of ``sensor``: nothing would feed the window node.
+    """Refuse a bag with no packets of ``sensor`` (one of decoded arrays: ``bag migrate``).
 
     Raises:
-        GraphError: The bag cannot be read, or holds no ``SensorPacket`` of the sensor (one
-            recorded before packets holds decoded arrays: ``ext-sense bag migrate`` turns it
-            into a packet bag).
+        GraphError: The bag cannot be read, or holds no ``SensorPacket`` of the sensor.
     """
     from ext_sense_bags import BagError, BagReader
 
@@ -86,11 +80,7 @@ def port_path(task: str, args: Mapping[str, str]) -> str:
 
 
 def needed_files(task: str) -> Callable[[Mapping[str, str]], None]:
-    """The graph's check of the files its source needs (:meth:`GraphSpec.check_files`).
-
-    A serial device is not checked: one plugged in after the start must work (the driver
-    retries); the model is checked by :mod:`ext_sense.graph_model`.
-    """
+    """The graph's check of the files its source needs (a serial device is not: it may come)."""
 
     def check(args: Mapping[str, str]) -> None:
         source, bag, scene = args["source"], args["bag"], args["scene"]
@@ -132,8 +122,7 @@ def source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                 executable="bag_player",
                 name="bag_player",
                 plugin="ext_sense.nodes.bag_player:BagPlayerNode",
-                # start_delay_s: after its own subscribers appear, let the nodes downstream
-                # (inference loading its model) come up before the first trial
+                # start_delay_s: let inference load its model before the first trial
                 parameters={"bag": args["bag"], "rate": 1.0, "start_delay_s": 4.0},
                 remappings=(packets, ("ground_truth", TOPIC_GROUND_TRUTH)),
             ),
@@ -141,14 +130,12 @@ def source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     over_can = source == "can" or (source == "sim" and bool(args["can_channel"]))
     if source == "sim":
         trials = int(args["trials"])
-        # the device streams from start-up, like a real one: trials sent before the driver has
-        # the port are lost, so spare ones keep N scored trials
+        # trials streamed before the driver has the port are lost: spare ones keep N scored
         stream: dict[str, ParameterValue] = {
             "trials": trials + STARTUP_SPARE_TRIALS if trials > 0 else 0
         }
         remaps: tuple[tuple[str, str], ...] = (("ground_truth", TOPIC_GROUND_TRUTH),)
         if as_bool(args["behaviours"]) and task in SIM_TRIGGERS:
-            # the behaviour drives the scene: nothing streams before it asks, nothing is lost
             trigger_topic, align = SIM_TRIGGERS[task]
             stream = {
                 "trials": trials,
@@ -193,10 +180,8 @@ def source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                 **(
                     {"frame_id": "nuskin"} if sensor == "nuskin" else {"frame_id_prefix": "biotac_"}
                 ),
-                # a lifecycle node: the front end (or an external manager) drives it
                 "autostart": False,
-                # the emulated devices send nothing between trials (a real NUSkin receiver
-                # sends its idle stream, a BioTac bridge 100 frames/s): no stall check on them
+                # the emulated devices are silent between trials: no stall check on them
                 **({"expected_rate_hz": 0.0} if source == "sim" else {}),
                 "reader_priority": int(args["reader_priority"]),
             },

@@ -1,16 +1,8 @@
 """The node graphs of ext_sense: one description each, for launch files and ``ext-sense run``.
 
-Every graph runs the same chain, fed by one of four sources::
-
-    source ──> driver ──packets──> contact_window ──window──> contact_inference
-      (sim device on a pty or CAN,                                   │
-       serial, CAN, or a bag)         /extsense/contact_estimate (final, one per contact)
-                                      /extsense/contact_estimate/provisional (anytime)
-                                                                     │
-                                                 behaviours, estimate_monitor
-
-The functions here only describe; :mod:`ext_sense.launch_support` turns a description into
-``launch_ros`` actions and :mod:`ext_sense.runner` starts the same nodes without ``launch``.
+Every graph runs source -> driver -(packets)-> contact_window -(window)-> contact_inference
+-> ``/extsense/contact_estimate`` (final) and ``.../provisional``, read by the behaviours and
+the estimate monitor. :mod:`ext_sense.launch_support` and :mod:`ext_sense.runner` start them.
 """
 
 from __future__ import annotations
@@ -133,10 +125,8 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
 def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     sensor = args["sensor"]
     packets = ("packets", SENSOR_PACKETS[sensor])
-    # Food windows start at the arm's motion start (contact_window's ``motion_start``): the
-    # simulator and bags carry it as the ground truth's stamp; on the robot the food behaviour
-    # publishes it on /extsense/motion_start.
-    # With behaviours:=true the probe's own motion start cuts the window, whatever the source.
+    # Food windows start at the arm's motion start: the ground truth's stamp from the simulator
+    # or a bag, else (and with behaviours:=true) the probe's own on /extsense/motion_start.
     motion = (
         TOPIC_GROUND_TRUTH
         if args["source"] in ("sim", "bag") and not as_bool(args["behaviours"])
@@ -148,8 +138,6 @@ def _perception_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...
             executable="contact_window",
             name="contact_window",
             plugin="ext_sense_perception.nodes.contact_window:ContactWindowNode",
-            # the window node cuts the windows of the model card's task profile
-            # and reads the driver's raw packets (live and offline decode the same bytes)
             parameters={
                 "task": task,
                 "sensor": sensor,
@@ -184,9 +172,7 @@ MONITOR_IDLE_TIMEOUT_S = {
     "food_identification": 15.0,
 }
 """How long the monitor waits without news, once it has seen every trial, before it ends the
-graph. A trial's estimate lags its ground truth by the post-contact window (0.25 s for taps and
-handovers, 3 s for food) plus processing; under load on two cores the food estimate outlasted a
-5 s wait, so food waits longer."""
+graph: food's estimates lag their truth by a 3 s window plus processing."""
 
 
 def _monitor_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
@@ -203,8 +189,7 @@ def _monitor_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
                 "task": task,
                 "expected": trials,
                 "idle_timeout_s": MONITOR_IDLE_TIMEOUT_S[task],
-                # a sensor or a recording of one has no simulator behind it: estimates are
-                # counted and printed without a truth to score them against
+                # a sensor has no truth behind it: estimates are counted unscored
                 "ground_truth": args["source"] in ("sim", "bag"),
             },
             remappings=(*ESTIMATE_REMAPS, ("ground_truth", TOPIC_GROUND_TRUTH)),
@@ -241,38 +226,25 @@ def _tap_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
 
 
 SIM_FOOD_ARM = {"start_z_m": 0.16, "surface_z_m": 0.152, "stiffness_n_per_m": 500.0}
-"""The simulated arm (``sim_arm``, franka_ros2's interfaces) against the food scene
-(``food_fork_nuskin``): the tines touch the food 8 mm below the start (the scene draws 4..12 mm);
-its force is a 500 N/m spring, not the scene's per-food profile. At 1 cm/s the spring takes 2 s
-from the probe's 10 N contact to the robot's 20 N reflex, and at the preset stop height
-(``SIM_FOOD_STOP_HEIGHT_M``) it pushes 13.5 N. With 1000 N/m that was 1 s, and on a 2-core machine
-running the whole suite the graph fell 1.3 s behind the simulated arm once (the simulator
-computes each trial's stream at its onset): the arm's states reached the probe late, its cancel
-came at 20 N, in reflex (the test's recorder got 194 states of the 100 Hz arm in 12 s). On a
-robot the controller runs in real time, and no simulator shares its CPU."""
+"""The simulated arm (``sim_arm``) against the food scene: the tines touch 8 mm below the start;
+a 500 N/m spring takes 2 s at 1 cm/s from the probe's 10 N contact to the 20 N reflex, slack
+for a loaded machine (docs/decisions.md, "The simulated food arm")."""
 
 SIM_FOOD_STOP_HEIGHT_M = 0.125
 """The probe's preset stop over the simulated arm: the scene's 35 mm travel from the start."""
 
 SIM_ARM_STATE_TIMEOUT_S = 2.0
-"""The probe's arm-state timeout over the simulated arm (0.5 s on a robot). franka_ros2 sends
-states at 1 kHz from a real-time process; ``sim_arm`` sends 100 Hz from a Python process that
-shares the CPU with the whole graph, and on a slow 2-core machine running the full test suite
-its states paused 0.62 s once, which faulted the probe."""
+"""The probe's arm-state timeout over the simulated arm (0.5 s on a robot): ``sim_arm``'s 100 Hz
+Python states share the CPU with the graph (a 0.62 s pause was seen)."""
 
 SIM_ARM_ACCEPT_TIMEOUT_S = 5.0
-"""The probe's deadline for a trajectory goal's acceptance over the simulated arm
-(``franka.accept_timeout_s``, 2 s on a robot), for the same reason: on a slow 2-core machine
-running the full test suite a resumed collect session's first goal went unanswered for 2 s
-once, as the graph started."""
+"""The probe's goal-acceptance deadline over the simulated arm (2 s on a robot), as above."""
 
 
 def _handover_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
     handover: dict[str, ParameterValue] = {"timeout_s": float(args["handover_timeout_s"])}
     if args["source"] == "sim":
-        # the next simulated person's grasp after each handover, offered once the simulated
-        # device listens, and not before the inference node has had time to load its model (as
-        # the bag player's start delay)
+        # offer the next simulated grasp once the device listens and the model has loaded
         handover |= {"regrasp_s": 1.0, "start_subscribers": 1, "start_delay_s": 4.0}
     # a lifecycle node, as the drivers: the front end (or an external manager) drives it
     gripper = _behaviour(
@@ -293,8 +265,7 @@ def _handover_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
 
 
 def _food_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
-    # the behaviour always drives the arm through the franka_ros2 adapter; with arm:=sim the
-    # sim_arm node serves the same interfaces a franka_ros2 robot does
+    # the franka_ros2 adapter always; with arm:=sim the sim_arm node serves its interfaces
     food: dict[str, ParameterValue] = {"arm": "franka"}
     arm: tuple[NodeSpec, ...] = ()
     if args["arm"] == "sim":

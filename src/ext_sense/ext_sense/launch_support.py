@@ -1,8 +1,7 @@
 """Turning a :class:`~ext_sense.graph.GraphSpec` into a ``launch`` description.
 
-The launch files under ``launch/`` are one line each: they call
-:func:`generate_launch_description_for` with their graph's name. ``launch`` and ``launch_ros``
-are imported here only, lazily, because they exist on a ROS 2 install but not on PyPI.
+The launch files call :func:`generate_launch_description_for` with their graph's name;
+``launch`` and ``launch_ros`` (on a ROS 2 install, not on PyPI) are imported lazily here.
 """
 
 from __future__ import annotations
@@ -19,27 +18,12 @@ from ext_sense.runner import group_payload
 def generate_launch_description_for(graph_name: str) -> Any:
     """The ``LaunchDescription`` of one graph: its arguments, then its nodes.
 
-    Nodes are built in an ``OpaqueFunction`` once the launch arguments are resolved, by the same
-    ``GraphSpec.build`` that ``ext-sense run`` calls; a node marked ``required`` shuts the whole
-    launch down when it exits. Before any node is built, the graph's model is looked up as
-    ``ext-sense run`` does (:func:`ext_sense.graph_model.with_model`): with no usable model the
-    function raises, so the launch fails before any process starts and ``ros2 launch`` prints
-    the message (which places were searched, which command creates the models) and exits 1.
-    Arguments are checked the same way first (:meth:`~ext_sense.graph.GraphSpec.resolve`: kind
-    and range; :meth:`~ext_sense.graph.GraphSpec.check_files`: bag, pty directory, scene file):
-    ``trials:=abc`` fails the launch with the line ``ext-sense run`` prints.
-
-    A lifecycle node (the drivers) starts as ``launch_ros``'s ``LifecycleNode``; unless
-    ``manage_drivers:=false`` the launch emits its ``configure`` transition at once and its
-    ``activate`` when it reaches ``inactive`` from ``configuring`` (so a later deactivate by
-    hand is not undone), as a lifecycle manager would.
-
-    Nodes the graph puts in one process (``hot_path:=one_process``,
-    :mod:`ext_sense.graph_process`) are one ``Node`` action of the ``node_group`` executable
-    (:func:`group_node_kwargs`), as ``ext-sense run`` starts them; a lifecycle node among them
-    is configured and activated by that process, as ``ext-sense run`` does (or left
-    unconfigured with ``manage_drivers:=false``), since launch's lifecycle events need a
-    ``LifecycleNode`` action of its own.
+    Nodes are built in an ``OpaqueFunction`` by the same ``GraphSpec.build`` as ``ext-sense
+    run``, after the same argument, file and model checks: a failing one fails the launch
+    before any process starts, with the line ``ext-sense run`` prints. A ``required`` node
+    shuts the launch down when it exits. A lifecycle node of its own process is configured at
+    once and activated once inactive (unless ``manage_drivers:=false``); one in a process
+    group (:func:`group_node_kwargs`) is managed by that process, as ``ext-sense run`` does.
     """
     from launch import LaunchDescription
     from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
@@ -83,10 +67,8 @@ def generate_launch_description_for(graph_name: str) -> Any:
 def group_node_kwargs(name: str, specs: tuple[NodeSpec, ...], use_sim_time: bool) -> dict[str, Any]:
     """Keyword arguments of ``launch_ros.actions.Node`` for a process group.
 
-    No ``name``, ``parameters`` or ``remappings`` at the action: launch_ros would pass them as
-    process-wide ROS arguments, renaming and remapping every node of the process alike. Each
-    node's own come in the JSON argument, as its node arguments (what ``ext-sense run`` gives).
-    A group holding a ``required`` node shuts the launch down when it exits.
+    Names, parameters and remappings go in the JSON argument (at the action they would apply
+    to every node of the process alike).
     """
     from launch.actions import Shutdown
 

@@ -1,18 +1,8 @@
 """The task graph as ``ext-sense collect`` runs it: the same nodes, a few wires changed.
 
-Plain data over :class:`ext_sense.graph.NodeSpec` (no ROS), so the changes are testable:
-
-- the simulator's ground truth goes to ``/extsense/sim/ground_truth`` (and the window node's
-  ``motion_start``, where it listened there, follows it): the session's labels on
-  ``/extsense/ground_truth`` are the operator's, and the simulator's are kept apart to check
-  them against;
-- the behaviours start nothing by themselves: collect asks for each food probe after the
-  operator has named the food (``auto_start`` and ``repeat_s`` off); the handover behaviour
-  still offers the next grasp itself (``regrasp_s``), the operator judging each one after it;
-- a scripted handover against the simulator (``sim_trigger``): the simulated person grasps when
-  collect says so on :data:`SIM_TRIGGER_TOPIC`, not on the offer itself, so that collect can
-  name the class each grasp is played as once it knows which answer is pending (a grasp that
-  gave no contact window is played again as the same class).
+The simulator's truth moves to ``/extsense/sim/ground_truth`` (the session's labels are the
+operator's); the food behaviour starts probes only when asked; a scripted handover on the
+simulator plays each grasp when collect triggers it, as the pending answer's class.
 """
 
 from __future__ import annotations
@@ -28,8 +18,7 @@ GROUND_TRUTH = "/extsense/ground_truth"
 
 
 SIM_FOOD_WINDOW_END_S = 4.0
-"""Against the simulator the probe retracts 4 s after its motion start (the food window is 3 s;
-the behaviour's 8 s default is for a real arm), so a scripted session takes seconds a trial."""
+"""Against the simulator the probe retracts 4 s after its motion start (8 s: a real arm's)."""
 
 
 def collect_nodes(
@@ -37,12 +26,7 @@ def collect_nodes(
 ) -> list[NodeSpec]:
     """``nodes`` rewired for collecting (see the module docstring); the monitor is dropped.
 
-    Args:
-        task: Task name.
-        nodes: The task graph's nodes.
-        sim: The source is the simulator (shorter food probes: :data:`SIM_FOOD_WINDOW_END_S`).
-        sim_trigger: Handover: the simulated device's grasps are triggered on
-            :data:`SIM_TRIGGER_TOPIC` (by collect) instead of by the behaviour's offer.
+    ``sim`` shortens food probes; ``sim_trigger`` has collect trigger the simulated grasps.
     """
     out = []
     for spec in nodes:

@@ -1,16 +1,9 @@
 """The operator's loop of ``ext-sense collect``: wait for the graph's events, ask, keep or redo.
 
-No rclpy here: the loop sees the collector node only through its event queue and a few calls
-(:class:`Collector`), so the shell (:mod:`ext_sense.commands.collect`) spins the node in a
-thread of its own and the recording never pauses while the operator thinks. What an answer
-means and what is kept is :mod:`ext_sense.collect.session`'s.
-
-A handover grasp is bounded by the handover behaviour's own decisions: it starts at the offer
-(``/extsense/handover/offer``) and ends at the decision that lets go or gives up
-(:data:`~ext_sense.collect.session.HANDOVER_END_STATES` on ``/handover/decision``); its windows
-are those whose onset lies between the two, whenever they arrive. Offers are taken in order,
-one per grasp, so a grasp is never skipped; a grasp without a window is not asked about and
-consumes no answer.
+No rclpy: the loop sees the collector node through its event queue (:class:`Collector`), which
+is spun in another thread, so recording never pauses while the operator thinks. A handover grasp
+runs from its offer to the behaviour's decision that ends it; its windows are those whose onset
+lies between the two. A grasp without a window is not asked about.
 """
 
 from __future__ import annotations
@@ -50,8 +43,7 @@ START_TRIES = 10
 MATCH_SETTLE_S = 1.0
 """After a publisher shows in the graph, how long its connection to our subscription may take."""
 GRASP_SETTLE_S = 1.5
-"""After a grasp's end decision, how long its last windows may still be in flight (the 0.25 s
-post-contact window, inference, two cores under load) before the grasp is judged."""
+"""After a grasp's end decision, how long its last windows may still be in flight."""
 
 
 class Collector(Protocol):

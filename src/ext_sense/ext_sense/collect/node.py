@@ -1,20 +1,9 @@
 """``collector``: the ROS side of ``ext-sense collect``: records a session and hands events on.
 
-Raw subscriptions write the sensor stream and the arm and gripper state topics into the
-session's bag (receive time as log time, as the recorder node does); the contact windows,
-estimates, motion starts, handover offers and any independent truth (the simulator's ground
-truth, renamed so it cannot be taken for the session's labels, or a motion-capture
-``geometry_msgs/PoseStamped``) are also decoded and put on :attr:`events` for the command's
-main loop, which decides with :mod:`ext_sense.collect.session` what becomes a label. Labels are
-written by :meth:`write_label` as ``ContactGroundTruth`` on ``/extsense/ground_truth``, stamped
-with the trial's onset. Against the simulator in scripted mode it also triggers each simulated
-grasp (:meth:`trigger_sim`) with the class the pending answer names.
-
-Not a graph node and so not a console script (unlike ``bag_player`` and ``estimate_monitor``,
-which ``ext-sense run`` and the launch files start as processes): like the recorder of
-``ext-sense bag record``, it lives in the command's process, because it hands its bag writer
-and its event queue to the operator's loop there; a process of its own would need a protocol
-between the two for nothing.
+Raw subscriptions write the sensor stream and the arm and gripper state into the session's bag;
+windows, estimates, motion starts, offers, decisions and any independent truth are also queued
+on :attr:`events` for the operator's loop. Labels go in as ``ContactGroundTruth``. It lives in
+the command's process (not a graph node), which shares its bag writer and event queue.
 """
 
 from __future__ import annotations

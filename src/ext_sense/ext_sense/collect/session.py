@@ -1,15 +1,8 @@
 """The functional core of ``ext-sense collect``: prompts, trial sequences and session state.
 
-Plain Python, no ROS: what to ask next, what an answer means, which trials are kept, what the
-terminal shows, and the state file that lets an interrupted session continue. The shell
-(:mod:`ext_sense.commands.collect`) only moves messages between the graph and this core, so a
-whole session can be replayed here from a list of answers (the scripted mode, ``--answers``)
-and tested without a graph.
-
-A session directory is the bag directory itself (``metadata.yaml``, the ``.mcap``), with
-``session.json`` (:class:`ext_sense_perception.data.sessions.SessionInfo`) and
-``collect.json`` (this module's :class:`CollectState`) beside the bag's files, where
-``load_session`` and ``ext-sense train --data DIR`` find them.
+Plain Python: what to ask next, what an answer means, which trials are kept, and the state file
+(``collect.json``, beside the bag's files and ``session.json``) that lets a session resume; a
+whole session can be replayed from a list of answers (``--answers``).
 """
 
 from __future__ import annotations
@@ -42,10 +35,9 @@ class CollectError(ValueError):
 
 
 def tap_sequence(n: int, low_m: float, high_m: float, seed: int) -> list[float]:
-    """``n`` tap positions evenly over the rod's marked range ``[low_m, high_m]``, shuffled.
+    """``n`` tap positions evenly over ``[low_m, high_m]``, rounded to 1 mm, shuffled.
 
-    Evenly spread so a short session still covers the rod; shuffled so the operator's drift
-    over a session does not line up with position. Positions are rounded to 1 mm (the marks).
+    Shuffled so the operator's drift over a session does not line up with position.
     """
     if n < 1 or not 0.0 <= low_m < high_m:
         raise CollectError(
@@ -72,11 +64,10 @@ class Trial:
     """One kept trial: its label and the onset its ground truth is stamped with.
 
     Attributes:
-        index: Trial number within the session (the ground truth's ``trial``: groups in
-            training keep a trial's windows together).
+        index: Trial number within the session (the ground truth's ``trial``).
         label: Class name, or tap position in metres as text (``"0.125"``).
-        onsets_ns: Ground-truth stamps, one per window of the trial (contact onsets; food:
-            the motion start; a handover grasp has several), host epoch ns.
+        onsets_ns: Ground-truth stamps, one per window of the trial (food: the motion start),
+            host epoch ns.
         truth: What an independent source said (mocap/simulator), ``""`` when none.
     """
 
@@ -143,7 +134,7 @@ class CollectState:
         return f"{line} | estimate {estimate}" if estimate else line
 
     def save(self, directory: Path) -> Path:
-        """Write ``collect.json`` in ``directory`` (atomically: a kill leaves the old one)."""
+        """Write ``collect.json`` in ``directory`` atomically."""
         path = directory / STATE_FILE
         tmp = path.with_suffix(".tmp")
         tmp.write_text(json.dumps(asdict(self), indent=1) + "\n")
@@ -212,10 +203,7 @@ class Answers:
         return self._script is not None
 
     def peek(self) -> str | None:
-        """The next scripted answer without taking it; None from the terminal or past the end.
-
-        Against the simulator it says which class the next grasp must be played as.
-        """
+        """The next scripted answer without taking it; None from the terminal or past the end."""
         if self._script is None or self._next >= len(self._script):
             return None
         return self._script[self._next]
@@ -234,14 +222,10 @@ class Answers:
 
 
 def sim_schedule(task: str, answers: Sequence[str], classes: Sequence[str]) -> list[str]:
-    """The class of each simulated food probe a scripted session plays, in order.
+    """The simulator's ``labels`` for a scripted food session: each named food, in order.
 
-    It is the simulator's ``labels``, so the simulated scene plays the food the operator is
-    made to name: each probe is preceded by the food's name; commands (``discard``) play
-    nothing. Other tasks are not scheduled ahead: a handover grasp is played as
-    :func:`grasp_class` says when it is offered (a grasp without a contact window is played
-    again, so a list fixed ahead would fall out of step); the tap simulator draws its own
-    positions (see docs/collect.md).
+    Other tasks are not scheduled ahead (a handover grasp is played as :func:`grasp_class`
+    says when offered; see docs/collect.md).
     """
     if task != "food_identification":
         return []
@@ -256,11 +240,7 @@ def sim_schedule(task: str, answers: Sequence[str], classes: Sequence[str]) -> l
 
 
 def grasp_class(answer: str | None, classes: Sequence[str]) -> str:
-    """The class a grasp must be played as so that the pending ``answer`` is true of it.
-
-    ``""`` (the scene's own draw) when the answer is a command (redo, discard: no label is
-    kept), absent (the terminal) or not a class.
-    """
+    """The class a grasp must be played as for the pending ``answer``; ``""``: the scene's draw."""
     if answer is None or parse_command(answer):
         return ""
     try:
@@ -283,11 +263,7 @@ def parse_decision(text: str) -> tuple[int, str]:
 
 
 def grasp_end(offer_ns: int, decisions: Sequence[tuple[int, str]]) -> int | None:
-    """When the grasp offered at ``offer_ns`` ended (:data:`HANDOVER_END_STATES`); None: not yet.
-
-    The behaviour's own decision bounds the grasp, not a count or a lull of windows: it is the
-    same whether the grasp gave no window or many.
-    """
+    """When the grasp offered at ``offer_ns`` ended (:data:`HANDOVER_END_STATES`); None: not yet."""
     ends = [t for t, state in decisions if t >= offer_ns and state in HANDOVER_END_STATES]
     return min(ends, default=None)
 
@@ -298,12 +274,7 @@ def grasp_windows(offer_ns: int, end_ns: int, onsets: Iterable[int]) -> list[int
 
 
 def window_note(model_end_ns: int, probe_end_ns: int) -> str:
-    """Why a food probe can have no live estimate: the model's window outlasts the probe.
-
-    ``""`` when the model's window (ending ``model_end_ns`` after the motion start) fits in
-    the probe (``probe_end_ns``, the behaviour's ``window_end_s``); otherwise the reason, shown
-    beside each trial, so a missing or truncated-window estimate is not taken for a fault.
-    """
+    """Why a food probe can have no live estimate (the model's window outlasts it), or ``""``."""
     if model_end_ns <= probe_end_ns:
         return ""
     return (
@@ -313,11 +284,7 @@ def window_note(model_end_ns: int, probe_end_ns: int) -> str:
 
 
 def match_truth(onset_ns: int, truths: Sequence[tuple[int, str]], tolerance_ns: int) -> str:
-    """The independent truth (mocap/simulator) stamped nearest ``onset_ns``.
-
-    Each detected contact is paired with what really happened; ``""`` when no truth is within
-    ``tolerance_ns``.
-    """
+    """The independent truth stamped nearest ``onset_ns``; ``""`` when none within tolerance."""
     best = min(truths, key=lambda t: abs(t[0] - onset_ns), default=None)
     if best is None or abs(best[0] - onset_ns) > tolerance_ns:
         return ""

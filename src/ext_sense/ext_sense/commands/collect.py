@@ -1,12 +1,8 @@
 """``ext-sense collect TASK OUT``: guided recording of one labelled session on a live graph.
 
-The shell around :mod:`ext_sense.collect.session`: it starts the task's graph (as
-``ext-sense run`` does, one process per node) with the simulator's own ground truth moved to
-``/extsense/sim/ground_truth``, records the session with :class:`ext_sense.collect.node.
-CollectorNode` into one mcap bag at ``OUT``, asks the operator (or ``--answers FILE``) about
-each trial, and writes the kept labels as ``ContactGroundTruth`` on ``/extsense/ground_truth``
-when the session ends, with ``session.json`` and ``collect.json`` in the bag directory. See
-docs/collect.md.
+Starts the task's graph rewired (:mod:`ext_sense.collect.graph`), records into one mcap bag at
+``OUT`` with :class:`~ext_sense.collect.node.CollectorNode`, asks the operator (or ``--answers``)
+about each trial, and writes the kept labels when the session ends. See docs/collect.md.
 """
 
 from __future__ import annotations
@@ -89,10 +85,7 @@ class _Graph(NamedTuple):
 
 
 def _graph_nodes(args: argparse.Namespace, schedule: list[str], scripted: bool) -> _Graph:
-    """The graph's nodes, changed for collecting.
-
-    The simulator's truth is renamed, behaviours are driven by collect, there is no monitor.
-    """
+    """The graph's nodes, changed for collecting (:func:`ext_sense.collect.graph.collect_nodes`)."""
     from ext_sense.collect.graph import collect_nodes
     from ext_sense.graph import parse_assignments
     from ext_sense.graph_model import with_model
@@ -173,8 +166,6 @@ def _run(args: argparse.Namespace) -> int:
     truth_mode = truth_mode or "prompt"
     args.source_is_sim = source == "sim"
     sensor = next(s.parameters.get("sensor") for s in nodes if "sensor" in s.parameters)
-    # the driver's raw packets, as `ext-sense record` keeps them: lossless and re-decodable,
-    # what the window node reads and `train --data BAG` decodes
     stream = SENSOR_PACKETS[str(sensor)]
     try:
         writer = _open_bag(out, args.resume)
@@ -184,9 +175,7 @@ def _run(args: argparse.Namespace) -> int:
     writer.set_custom_data("sensor", str(sensor))
     writer.set_custom_data("recorded_by", "ext-sense collect")
     _write_info(args, out, str(sensor), classes)
-    # Callbacks run in a thread of their own, so the stream goes on into the bag while the
-    # operator thinks; a stop signal (Ctrl-C, SIGTERM, SIGHUP) interrupts the main thread's
-    # prompt or wait, and the session is saved on the way out.
+    # callbacks in a thread of their own; a stop signal interrupts the prompt, the session is saved
     ros = RosSession(args=[], interrupt=True)
     node = ros.add(CollectorNode(writer, stream, args.mocap_topic if truth_mode == "mocap" else ""))
     procs: dict[str, Any] = {}
@@ -231,16 +220,11 @@ def _run(args: argparse.Namespace) -> int:
 
 
 EMULATED_OBJECT_POSITION = 128
-"""Where the emulated Robotiq's fingers meet the simulated object (0..255), as the handover
-scenario tests grasp it."""
+"""Where the emulated Robotiq's fingers meet the simulated object (0..255)."""
 
 
 def _sim_gripper(nodes: list[Any]) -> Any:
-    """Against the simulator with no ``gripper_port``: a Robotiq emulated in this process.
-
-    It serves Modbus RTU on a pty (as ``ext-sense sim serve robotiq``), wired to the gripper
-    node, so the handover behaviour can grasp and offer; None when there is none to emulate.
-    """
+    """A Robotiq emulated on a pty for a gripper node with no ``port``; None when none."""
     from ext_sense_sim.devices.robotiq_emulator import GripperModel, PtyGripper, RobotiqEmulator
 
     spec = next((s for s in nodes if s.executable == "robotiq_gripper"), None)
@@ -255,11 +239,7 @@ def _sim_gripper(nodes: list[Any]) -> Any:
 
 
 def _open_bag(out: Path, resume: bool) -> Any:
-    """A new bag at ``out``; on resume the old one's messages are copied into it first.
-
-    Labels are left out (they are written from ``collect.json`` at the end), so the session
-    stays one bag with each label once.
-    """
+    """A new bag at ``out``; on resume the old one's messages but labels are copied first."""
     from ext_sense_bags import BagReader, BagWriter
 
     if not resume:
@@ -275,7 +255,6 @@ def _open_bag(out: Path, resume: bool) -> Any:
                 continue
             if not writer.msgtype(rec.topic):
                 writer.add_topic(rec.topic, rec.msgtype)
-            # a session begun before a message definition changed: rewritten in the current one
             writer.write_raw(rec.topic, rec.log_time_ns, bag.current_cdr(rec))
     for name in ("collect.json", "session.json"):
         if (old / name).is_file():
