@@ -1,13 +1,10 @@
 # ruff: noqa: N806  (X for the window matrix, as in scikit-learn)
 """Cross-session validation: leave one session out, score it on the classes the others know.
 
-The paper's protocol draws its test windows from the same day as its training windows, which
-says little about the next day (taxel readings sit at other levels from day to day). Here each
-session in turn is held out; the training recipe (:mod:`.recipe`) fits on the others, and the
-held-out session is scored on its windows whose class the training sessions know, with the
-model's decisions restricted to the held-out session's label set (:func:`.scoring.restrict`).
-The unrestricted figure is reported beside it. Sessions sharing no class with the others are
-listed as skipped. No ROS.
+The paper's protocol tests on the training days, which says little about the next day. Each
+session in turn is held out, the recipe fits on the others, and the held-out session is scored
+on its known classes with decisions restricted to its label set (the unrestricted figure
+beside it). No ROS.
 """
 
 from __future__ import annotations
@@ -26,15 +23,11 @@ from ext_sense_perception.training.scoring import score_classes, score_positions
 def fit_and_score(train: Any, test: Any, labels: tuple[str, ...], recipe: Recipe) -> dict:
     """Fit the recipe (no anytime models) on ``train`` and score ``test``.
 
-    Args:
-        train: Training windows.
-        test: Windows to score.
-        labels: The test session's label set (empty: no restriction).
-        recipe: The training choices.
+    ``labels`` is the test session's label set (empty: no restriction).
 
     Returns:
-        ``{"restricted": score, "unrestricted": score}`` (:mod:`.scoring` records); for
-        positions both are the same MAE record.
+        ``{"restricted": score, "unrestricted": score}`` (:mod:`.scoring` records; the same MAE
+            record for positions).
     """
     trained, _ = fit_recipe(train, dataclasses.replace(recipe, anytime_post_ns=()))
     X = test.X.reshape(len(test.X), -1)
@@ -68,16 +61,11 @@ def without_single_windows(ws: Any) -> tuple[Any, list[str]]:
 
 
 def cross_session(sessions: list[Session], recipe: Recipe | None = None) -> dict[str, Any]:
-    """Leave-one-session-out scores of the recipe.
-
-    Args:
-        sessions: At least two sessions cut alike.
-        recipe: The training choices (default: everything the task's own).
+    """Leave-one-session-out scores of the recipe (default: everything the task's own).
 
     Returns:
-        A JSON-ready record: ``protocol``, ``task``, ``metric``, ``sessions`` (one row each:
-        name, date, classes, windows scored, restricted and unrestricted scores, or why it was
-        skipped), ``mean`` and ``mean_unrestricted`` over the scored sessions.
+        A JSON-ready record: a row per session (its scores, or why it was skipped), ``mean`` and
+            ``mean_unrestricted`` over the scored ones.
 
     Raises:
         PerceptionError: fewer than two sessions, or sessions that cannot be pooled.

@@ -28,10 +28,7 @@ def evaluation_record(
     timing: bool = True,
     executor: FitRunner | None = None,
 ) -> dict[str, Any]:
-    """Run the protocol and (optionally) time a model trained on everything; JSON-ready dict.
-
-    ``executor`` runs the split fits (:mod:`.fit_jobs`: here, or on a Dask cluster).
-    """
+    """Run the protocol and (optionally) time a model trained on everything; JSON-ready dict."""
     tf = features_for(ws, features, **params)
     res = evaluate(
         ws, tf, model, k=k, seed=seed, progress=progress, feature_grid=grid, executor=executor

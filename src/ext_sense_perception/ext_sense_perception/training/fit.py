@@ -1,8 +1,7 @@
 # ruff: noqa: N806  (X / F for sample matrices, as in scikit-learn)
-"""Fitting a deployable model on a window set: grid search, refit, calibration, its card (no ROS).
+"""Fitting a deployable model on a window set: grid search, refit, calibration, card (no ROS).
 
-:func:`fit_model` is the mechanics (one feature set, one model); the choices of what to fit
-live in :mod:`.recipe`, the one training recipe.
+:func:`fit_model` is the mechanics; what to fit is chosen by :mod:`.recipe`.
 """
 
 from __future__ import annotations
@@ -27,8 +26,7 @@ from ext_sense_perception.features.maps import FeatureKind
 from ext_sense_perception.online.model_card import ModelCard, jsonable
 from ext_sense_perception.training.models import head_of, make_pipeline
 from ext_sense_perception.training.protocol import features_for, inner_cv, whole_trial_folds
-
-PI_Z = 1.959963984540054  # two-sided 95% normal quantile
+from ext_sense_perception.training.scoring import PI_Z
 
 
 def nominal_rate_hz(sensor: str) -> float:
@@ -66,11 +64,9 @@ def fit_model(
 ) -> TrainedModel:
     """Fit a deployable model on all windows (grid search with K-fold CV, then refit).
 
-    K is 4 for classes (the paper's protocol); for tap positions ``cv_folds``, fewer when the
-    set has under 20 trials a fold (at least 4).
-
-    BLAS/OpenMP is pinned to one thread: small matrices on a shared 2-core machine run up to 20x
-    slower with threaded BLAS (threads spin against each other).
+    K is 4 for classes (the paper's); for tap positions ``cv_folds``, fewer (at least 4) when the
+    set has under 20 trials a fold. BLAS is pinned to one thread: small matrices on a shared 2-core
+    machine run up to 20x slower threaded.
 
     Args:
         ws: Labelled windows.
@@ -83,9 +79,6 @@ def fit_model(
         rate_hz: Sampling rate the windows were reduced to (for the card), Hz.
         model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
         cv_folds: Grid-search folds of a regression set (the card's CV MAE comes from them).
-
-    Returns:
-        The fitted pipeline and its model card.
     """
     with threadpool_limits(limits=1):
         t0 = time.perf_counter()
@@ -138,11 +131,7 @@ def fit_model(
                 best = clone(pipe).set_params(**search.best_params_)
                 best.steps[0] = ("features", clone(best.steps[0][1]).fit(X))
                 head = clone(head_of(best))
-                head_input = (
-                    best.steps[0][1].transform(X)
-                    if FeatureKind.parse(features) is not FeatureKind.AUTOENCODER
-                    else None
-                )
+                head_input = best.steps[0][1].transform(X)
             folds = len(cv) if isinstance(cv, list) else cv.get_n_splits()
             metrics: dict[str, Any] = {"cv_folds": folds}
             if ws.is_regression:
@@ -152,16 +141,12 @@ def fit_model(
                 metrics["cv_mae_m"] = mae
                 metrics["residual_std_m"] = mae * float(np.sqrt(np.pi / 2))
                 metrics["pi95_halfwidth_m"] = PI_Z * metrics["residual_std_m"]
-                fitted_head = head.fit(
-                    head_input if head_input is not None else best.steps[0][1].transform(X), ws.y
-                )
+                fitted_head = head.fit(head_input, ws.y)
             else:
                 metrics["cv_accuracy"] = float(search.best_score_)
                 scaler, est = head.steps[0][1], head.steps[1][1]
                 final = Pipeline([("scale", scaler), ("model", _final_classifier(est, ws, seed))])
-                fitted_head = final.fit(
-                    head_input if head_input is not None else best.steps[0][1].transform(X), ws.y
-                )
+                fitted_head = final.fit(head_input, ws.y)
         pipeline = Pipeline([best.steps[0], *fitted_head.steps])
         g = ws.geometry
         fp = best.steps[0][1].get_params()
@@ -203,18 +188,8 @@ def fit_anytime(
 ) -> list[TrainedModel]:
     """Models for shortened post-contact windows (anytime estimates), shortest first.
 
-    Each is fitted on the same windows cut at ``post`` after the onset and carries its own
-    calibration (residual spread or calibrated probabilities) for that decision latency.
-
-    Args:
-        ws: Labelled (full-length) windows.
-        features: Feature set name.
-        model: Model name.
-        posts_ns: Post-onset times, ns (those not shorter than the windows' are skipped).
-        **kwargs: Passed to :func:`fit_model`.
-
-    Returns:
-        One trained model per post time.
+    Each is fitted on the windows cropped at its post time (those not shorter than the windows'
+    skipped) and carries its own calibration; ``kwargs`` go to :func:`fit_model`.
     """
     full = ws.geometry.post_ns
     return [

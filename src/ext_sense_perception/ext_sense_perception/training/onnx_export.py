@@ -1,14 +1,10 @@
 """ONNX export of whole models: feature pipeline plus estimator, from the raw window.
 
-:class:`~ext_sense_perception.features.WindowFeatures` gets its own skl2onnx converter: its
-maps are constant matrices along the time axis, so the ONNX graph is ``Reshape`` ->
-``Gather`` (channel selection) -> ``MatMul`` (rebin / decimate / DFT / EST kernel) ->
-element-wise ops (magnitude, ``log1p``, encoder layers). The scaler and the estimator use
-skl2onnx's own converters, except the SVR (MatMul/Exp, faster), the taxel-wise stacked SVR
-(:mod:`ext_sense_perception.taxel_stack`, all channels' kernels in one batched MatMul) and the
-GRU (the graph torch's exporter made of it at training time, spliced in, no torch). The
-exported graph takes ``window``: ``(n, n_channels * n_samples)`` float32, exactly what
-:func:`~ext_sense_perception.features.as_model_input` produces.
+The feature families' converter is ``Reshape`` -> ``Gather`` (channels) -> ``MatMul`` (their
+constant time maps) -> element-wise ops. The scaler and estimators use skl2onnx's converters,
+except the SVR and the taxel stack (plain MatMul/Exp, faster) and the GRU (torch's export,
+spliced in). The graph takes ``window`` ``(n, n_channels * n_samples)`` float32, as
+:func:`~ext_sense_perception.features.as_model_input` makes it.
 """
 
 from __future__ import annotations
@@ -130,9 +126,8 @@ def _svr_shape_calculator(operator) -> None:
 def _svr_converter(scope, operator, container) -> None:
     """SVR with plain MatMul/Exp ops (ONNX Runtime's SVMRegressor measured 25x slower).
 
-    Linear: ``x @ w + b``. RBF: ``exp(-gamma * |x - sv|^2) @ dual_coef + b`` with the squared
-    distance expanded as ``|x'|^2 - 2 x'.sv' + |sv'|^2`` on inputs centred on the support
-    vectors' mean (less float32 cancellation), clipped at 0.
+    RBF distances are expanded on inputs centred on the support vectors' mean (less float32
+    cancellation) and clipped at 0.
     """
     from skl2onnx.algebra.onnx_ops import (
         OnnxAdd,
@@ -176,13 +171,9 @@ def _svr_converter(scope, operator, container) -> None:
 
 
 def _taxel_stack_converter(scope, operator, container) -> None:
-    """Per-channel RBF SVRs and their ridge combination as one batched graph.
+    """Per-channel RBF SVRs and their ridge combination as one batched ``MatMul`` graph.
 
-    Every block's support vectors are padded to one count (zero coefficients) and the ridge
-    weights folded into the dual coefficients (:meth:`TaxelStackSVR.onnx_arrays`), so all
-    channels run in one ``MatMul``: ``(n_channels, n, d) @ (n_channels, d, n_sv)``, with the
-    squared distance expanded on inputs centred per block, as in :func:`_svr_converter`; the
-    weighted kernel rows are summed over channels.
+    Uses :meth:`TaxelStackSVR.onnx_arrays`; distances as in :func:`_svr_converter`.
     """
     from skl2onnx.algebra.onnx_ops import (
         OnnxAdd,
@@ -249,8 +240,7 @@ def _gru_shape_calculator(operator) -> None:
 def _gru_converter(scope, operator, container) -> None:
     """The GRU's graph as torch exported it at training (``GRUEstimator.onnx_``), spliced in.
 
-    Its names are made unique in the model; a classifier's label is the class of the highest
-    probability (``ArgMax``, ``Gather``).
+    Names are made unique; a classifier's label is ``Gather`` of the ``ArgMax`` probability.
     """
     from onnx import TensorProto, helper, load_from_string, numpy_helper
 
@@ -306,10 +296,7 @@ def _gru_converter(scope, operator, container) -> None:
 
 
 def register_converters() -> None:
-    """Teach skl2onnx the feature families, a faster SVR, the taxel stack and the GRU.
-
-    Idempotent.
-    """
+    """Teach skl2onnx (once) the feature families, a faster SVR, the taxel stack and the GRU."""
     global _registered
     if _registered:
         return
@@ -338,13 +325,7 @@ def register_converters() -> None:
 def to_onnx_bytes(pipeline: Pipeline, n_inputs: int) -> bytes:
     """Serialized ONNX model of a fitted pipeline that starts with :class:`WindowFeatures`.
 
-    Args:
-        pipeline: Fitted ``features -> scale -> model`` pipeline.
-        n_inputs: ``n_channels * n_samples`` of the windows.
-
-    Returns:
-        The ONNX model bytes. Classifiers output ``label`` and ``probabilities`` (no ZipMap);
-        regressors output ``variable``.
+    Classifiers output ``label`` and ``probabilities`` (no ZipMap); regressors ``variable``.
 
     Raises:
         PerceptionError: when skl2onnx cannot convert the model.

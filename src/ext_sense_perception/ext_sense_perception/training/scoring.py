@@ -1,14 +1,9 @@
 """Scoring predictions on labelled windows: the figures ``ext-sense score`` prints (no ROS).
 
-Classification: accuracy, the confusion matrix, per-class recall and precision, and the
-expected calibration error of the top-class probability (10 equal-width bins). A session's
-label set (the classes it may hold, :mod:`ext_sense_perception.data.sessions`) restricts the
-decision (:func:`~ext_sense_perception.online.label_set.restrict`), so a model trained on
-several days does not answer with a food that is not on today's plate. Windows whose class
-the model does not know are scored apart (listed, never counted as errors or hits).
-
-Regression: mean absolute error and the coverage of the model's 95% interval
-(``1.96 * residual_std_m``) against its nominal 0.95.
+Classes: accuracy, confusion, per-class recall and precision, and the expected calibration
+error of the top-class probability; decisions are restricted to the session's label set, and
+windows of classes the model does not know are listed apart. Positions: MAE and the coverage
+of the model's 95% interval.
 """
 
 from __future__ import annotations
@@ -54,9 +49,8 @@ def score_classes(
         names: A name per window for the list of unknown-class windows (default: its index).
 
     Returns:
-        ``metric`` (``accuracy``), ``value``, ``n_windows`` (scored), ``class_names``,
-        ``confusion`` (rows true, columns predicted, over ``class_names``), ``per_class``,
-        ``calibration`` and ``unknown`` (windows of classes the model does not know).
+        ``metric``, ``value``, ``n_windows`` (scored), ``class_names``, ``confusion`` (rows true),
+            ``per_class``, ``calibration`` and ``unknown``.
     """
     y_true = np.asarray([str(v) for v in y_true])
     names = np.asarray(names if names is not None else np.arange(len(y_true))).astype(str)

@@ -1,12 +1,10 @@
 # ruff: noqa: N803  (X for sample matrices, as in scikit-learn)
 """One split of the paper's protocol as a self-contained task (no ROS).
 
-:func:`~.protocol.evaluate` cuts its K random splits into :class:`SplitTask` records and hands
-them to a :class:`~.fit_executor.FitExecutor`, which runs :func:`run_split` in this process or on
-the workers of a Dask cluster, and caches each finished split under :func:`split_key` (its
-configuration, its data's hash and the hash of the code it runs, :func:`code_digest`), so a
-rerun computes only what changed or failed. A task holds everything the fit needs but the data,
-which the executor sends to the workers once.
+:func:`~.protocol.evaluate` cuts its splits into :class:`SplitTask` records (everything but the
+data) for a :class:`~.fit_jobs.FitRunner`, which runs :func:`run_split` here or on Dask and
+caches each under :func:`split_key` (configuration, data hash and :func:`code_digest`), so a
+rerun computes only what changed or failed.
 """
 
 from __future__ import annotations
@@ -64,11 +62,7 @@ class SplitResult(NamedTuple):
 
 
 def run_split(task: SplitTask, X: np.ndarray, y: np.ndarray) -> SplitResult:
-    """Grid search on the split's training part, refit, score its test part.
-
-    BLAS is pinned to one thread: small matrices on a shared machine (and one worker per core
-    on a cluster) run up to 20x slower with threaded BLAS.
-    """
+    """Grid search on the split's training part, refit, score its test part (BLAS on one thread)."""
     with (
         threadpool_limits(limits=1),
         tempfile.TemporaryDirectory(prefix="ext_sense_cv_") as cache,
@@ -117,10 +111,7 @@ def run_split(task: SplitTask, X: np.ndarray, y: np.ndarray) -> SplitResult:
 
 
 def _calibrated_proba(search, x_train, y_train, x_test, seed: int) -> np.ndarray:
-    """Test-set class probabilities: the model's own, or Platt-calibrated inside the training set.
-
-    Columns follow the sorted class names.
-    """
+    """Test-set class probabilities (sorted classes): the model's own, or Platt-calibrated."""
     best = search.best_estimator_
     if hasattr(best, "predict_proba"):
         try:
@@ -147,15 +138,10 @@ def code_modules(
 ) -> tuple[list[str], list[str]]:
     """The code a fit of ``estimator`` runs, beyond this module.
 
-    Args:
-        estimator: The searched pipeline (its steps and their nested estimators count).
-        packages: Top-level packages read as source; any other package counts by its version.
-
     Returns:
-        ``(modules, versions)``: the modules of ``packages`` that define the pipeline's classes
-        and every such module they import, transitively (sorted names); and ``name version``
-        of the other libraries the classes come from or those modules import (scikit-learn,
-        NumPy, torch, ...).
+        ``(modules, versions)``: the modules of ``packages`` behind the pipeline's classes and what
+            they import, transitively (sorted); and ``name version`` of the other libraries
+            involved.
     """
     objs = [estimator, *estimator.get_params(deep=True).values()]
     names = {type(o).__module__ for o in objs if hasattr(o, "get_params")}
@@ -210,11 +196,8 @@ def _version(top: str) -> str:
 def code_digest(estimator: Any, packages: tuple[str, ...] = PROJECT_PACKAGES) -> str:
     """Hash of the code a fit of ``estimator`` runs (see :func:`code_modules`).
 
-    This module's source, the source of the project modules behind the pipeline's classes
-    (with what they import) and the versions of the libraries the others come from. So a change
-    to one model's module recomputes only the fits of that model, and an edit elsewhere in the
-    project (a node, a driver, the report) keeps every cached fit. Features computed before the
-    search are not in the pipeline: their output is in the data's hash instead.
+    So a change to one model's module recomputes only that model's fits, and edits elsewhere keep
+    them. Features computed before the search are in the data's hash instead.
     """
     modules, versions = code_modules(estimator, packages)
     h = hashlib.blake2b(digest_size=8)

@@ -14,9 +14,7 @@ from ext_sense_perception.training.fit import TrainedModel
 
 
 def measure_inference(trained: TrainedModel, ws: WindowSet, n: int = 200) -> dict[str, float]:
-    """p50 and p99 of one window's prepare + features + model, per backend, ms.
-
-    The model is saved and loaded as the inference node loads it.
+    """p50 and p99 of one window's predict per backend, ms, loaded as the inference node loads it.
 
     Returns:
         ``infer_p50_ms_<backend>`` and ``infer_p99_ms_<backend>`` for ``sklearn`` and ``onnx``.

@@ -1,8 +1,6 @@
 """How far a model's estimates move when the arrival clock moves a window's onset (no ROS).
 
-The NUSkin words carry no time: the driver stamps them as they arrive, so a serial link's
-arrival clock moves a window's events against its detected onset by up to a few milliseconds.
-A model that reads position from where events fall in the onset's bin does not hold live;
+A model reading position from where events fall in the onset's bin does not hold live;
 ``bench/bench_window_shift.py`` prints these moves for the default tap model.
 """
 
@@ -24,11 +22,7 @@ def estimate_moves(
     config: WindowConfig,
     shifts_ns: Sequence[int],
 ) -> dict[int, np.ndarray]:
-    """How far each window's estimate moves when its onset moves by each shift.
-
-    Each window is cut again from the stamped events (``data.device_stream.recut``) at its onset
-    and at the onset moved by every shift, as an arrival clock that stamps the events later or
-    earlier moves them against the detected onset.
+    """Per shift, ``(n,)`` absolute moves of each window's estimate when its onset moves by it.
 
     Args:
         predict: Estimates of flattened windows ``(n, n_taxels * n_samples)``, shape ``(n,)``.
@@ -36,9 +30,6 @@ def estimate_moves(
         onsets_ns: ``(n,)`` the windows' onsets, ns.
         config: The window configuration (NUSkin).
         shifts_ns: Onset shifts, ns.
-
-    Returns:
-        Per shift, ``(n,)`` absolute moves of the estimate (the estimate's unit).
     """
     onsets = np.asarray(onsets_ns, dtype=np.int64)
 
