@@ -9,30 +9,13 @@ process, and bag bytes per minute beside the same stream as decoded ``TaxelEvent
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
-import subprocess
 import sys
 import tempfile
-import time
-import tty
 from pathlib import Path
 
 import numpy as np
-from common import (
-    children,
-    cpu_percent,
-    cpu_ticks,
-    process_name,
-    start_graph,
-    stop_graph,
-    stop_group,
-    watch_diagnostics,
-    worst_case_ms,
-    write_every_ms,
-)
-
-PACKETS = "/extsense/nuskin/packets"
+from common import PACKETS, worst_case_run
 
 
 def _dir_bytes(path: Path) -> int:
@@ -69,56 +52,10 @@ def decoded_bag(packet_bag: Path, out: Path) -> int:
 
 def run(seconds: float) -> dict:
     """Stream, record, measure; the figures as a dict."""
-    import rclpy
-    from rclpy.node import Node
-
     tmp = Path(tempfile.mkdtemp(prefix="bench_packets_"))
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    overrides = {
-        "sensor": "nuskin",
-        "source": "serial",
-        "port": os.ttyname(slave),
-        "monitor": "false",
-    }
-    graph = start_graph("tap_localization", overrides, ("nuskin_driver", "contact_window"))
     bag = tmp / "packets"
-    recorder = subprocess.Popen(
-        [sys.executable, "-m", "ext_sense.cli", "record", str(bag), "--topics", PACKETS],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        start_new_session=True,
-    )
-    rclpy.init(args=[])
-    node = Node("bench_packets")
-    diag = watch_diagnostics(node)
-    executor = rclpy.executors.SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        end = time.monotonic() + 60.0  # the window node and the recorder subscribed
-        while time.monotonic() < end and node.count_subscribers(PACKETS) < 2:
-            executor.spin_once(timeout_sec=0.05)
-        end = time.monotonic() + 2.0  # port open
-        while time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.05)
-        pids = {p: process_name(p) for p in children(graph.pid)}
-        pids[recorder.pid] = "recorder (ext-sense record)"
-        chunk, words = worst_case_ms()
-        start = {p: cpu_ticks(p) for p in pids}
-        wall = write_every_ms(master, chunk, seconds)
-        sent = words * int(seconds * 1000)
-        stop = {p: cpu_ticks(p) for p in pids}
-        end = time.monotonic() + 3.0  # drain, then two diagnostics periods
-        while time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.05)
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-        stop_group(recorder, 30)
-        stop_graph(graph)
-        os.close(master)
-        os.close(slave)
+    got = worst_case_run(seconds, bag=bag)
+    diag, sent, wall = got["diag"], got["words_sent"], got["write_wall_s"]
     from ext_sense_bags import BagReader
 
     with BagReader(bag) as reader:
@@ -129,7 +66,6 @@ def run(seconds: float) -> dict:
     packet_bytes, decoded_bytes = _dir_bytes(bag), _dir_bytes(tmp / "decoded")
     shutil.rmtree(tmp, ignore_errors=True)  # 340 MB at 60 s
     win = diag.get("contact_window: windows", {})
-    cpu = {pids[p]: v for p, v in cpu_percent(start, stop, wall).items() if v == v}
     return {
         "seconds": seconds,
         "write_wall_s": wall,
@@ -140,7 +76,7 @@ def run(seconds: float) -> dict:
         "lost_at_window_node": int(win.get("packet_lost_packets", -1)),
         "packets_in_bag": len(seqs),
         "lost_in_bag": bag_lost,
-        "cpu_percent": cpu,
+        "cpu_percent": got["cpu_percent"],
         "packet_bag_mb_per_min": packet_bytes * per_min / 1e6,
         "decoded_bag_mb_per_min": decoded_bytes * per_min / 1e6,
         "decoded_messages": n_decoded,

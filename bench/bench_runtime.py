@@ -43,9 +43,7 @@ from common import (
     stop_graph,
     stop_hog,
     tap_model,
-    watch_diagnostics,
-    worst_case_ms,
-    write_every_ms,
+    worst_case_run,
 )
 from latency_figures import Final, Source, hops, node_work, print_latency, print_table, tap_batches
 
@@ -202,40 +200,8 @@ def bench_latency(
 
 # ---------------------------------------------------------------- 2. worst case
 def bench_worst_case(seconds: float, hot_path: str) -> dict:
-    import tty
-
-    import rclpy
-    from rclpy.node import Node
-
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    port = os.ttyname(slave)
-    # the graph's serial driver on the pty, and its window node (no model: the task's profile)
-    overrides = {
-        "sensor": "nuskin",
-        "source": "serial",
-        "port": port,
-        "monitor": "false",
-        "hot_path": hot_path,
-    }
-    graph = start_graph(GRAPH, overrides, ("nuskin_driver", "contact_window"))
-    rclpy.init(args=[])
-    node = Node("bench_worst_case")
-    diag = watch_diagnostics(node)
-    halt = spin_in_background(node)
-    try:
-        time.sleep(4.0)  # nodes up, port open
-        chunk, words = worst_case_ms()
-        wall = write_every_ms(master, chunk, seconds)
-        sent = words * int(seconds * 1000)
-        time.sleep(3.0)  # drain, then two diagnostics periods
-    finally:
-        halt()
-        node.destroy_node()
-        rclpy.try_shutdown()
-        stop_graph(graph)
-        os.close(master)
-        os.close(slave)
+    got = worst_case_run(seconds, hot_path)
+    diag, sent, wall = got["diag"], got["words_sent"], got["write_wall_s"]
     win = diag.get("contact_window: windows", {})
     link = diag.get("nuskin_driver: link", {})
     drv = {k: v for k, v in diag.items() if k.startswith("nuskin_driver")}

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 CLK_TCK = os.sysconf("SC_CLK_TCK")
+PACKETS = "/extsense/nuskin/packets"
 
 
 def local_ros_domain() -> None:
@@ -267,15 +268,71 @@ def worst_case_ms() -> tuple[bytes, int]:
     return encode_words(taxels, values), taxels.size
 
 
-def write_every_ms(fd: int, chunk: bytes, seconds: float) -> float:
-    """Write ``chunk`` to ``fd`` once every ms for ``seconds``; the wall time it took."""
-    t0 = time.monotonic()
-    for i in range(int(seconds * 1000)):
-        delay = t0 + (i + 1) / 1000 - time.monotonic()
-        if delay > 0:
-            time.sleep(delay)
-        os.write(fd, chunk)
-    return time.monotonic() - t0
+def worst_case_run(seconds: float, hot_path: str = "", bag: Path | None = None) -> dict[str, Any]:
+    """80 taxels at 4 kHz for ``seconds`` as receiver words over a pty into the tap graph's
+    ``nuskin_driver`` and ``contact_window`` (``bag``: ``ext-sense record`` of the packets too).
+
+    Returns:
+        ``diag`` (the graph's diagnostics after the drain), ``words_sent``, ``write_wall_s`` and
+        ``cpu_percent`` per process (% of one core while streaming).
+    """
+    import tty
+
+    import rclpy
+    from rclpy.node import Node
+
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    overrides = {"sensor": "nuskin", "source": "serial", "port": os.ttyname(slave)}
+    overrides |= {"monitor": "false"} | ({"hot_path": hot_path} if hot_path else {})
+    graph = start_graph("tap_localization", overrides, ("nuskin_driver", "contact_window"))
+    recorder = None
+    if bag is not None:
+        recorder = subprocess.Popen(
+            [sys.executable, "-m", "ext_sense.cli", "record", str(bag), "--topics", PACKETS],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            start_new_session=True,
+        )
+    rclpy.init(args=[])
+    node = Node("bench_worst_case")
+    diag = watch_diagnostics(node)
+    halt = spin_in_background(node)
+    try:
+        subscribers = 1 if recorder is None else 2  # the window node and the recorder
+        end = time.monotonic() + 60.0
+        while time.monotonic() < end and node.count_subscribers(PACKETS) < subscribers:
+            time.sleep(0.05)
+        time.sleep(2.0)  # port open
+        pids = {p: process_name(p) for p in children(graph.pid)}
+        if recorder is not None:
+            pids[recorder.pid] = "recorder (ext-sense record)"
+        chunk, words = worst_case_ms()
+        start = {p: cpu_ticks(p) for p in pids}
+        t0 = time.monotonic()
+        for i in range(int(seconds * 1000)):
+            delay = t0 + (i + 1) / 1000 - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            os.write(master, chunk)
+        wall = time.monotonic() - t0
+        stop = {p: cpu_ticks(p) for p in pids}
+        time.sleep(3.0)  # drain, then two diagnostics periods
+    finally:
+        halt()
+        node.destroy_node()
+        rclpy.try_shutdown()
+        if recorder is not None:
+            stop_group(recorder, 30)
+        stop_graph(graph)
+        os.close(master)
+        os.close(slave)
+    return {
+        "diag": diag,
+        "words_sent": words * int(seconds * 1000),
+        "write_wall_s": wall,
+        "cpu_percent": {pids[p]: v for p, v in cpu_percent(start, stop, wall).items() if v == v},
+    }
 
 
 def main() -> int:
