@@ -1,7 +1,4 @@
-"""``ext-sense biotac decode|encode``: bridge streams to JSON lines and back.
-
-``ext_sense_drivers.cli`` calls :func:`register_biotac`; heavy imports stay in the handlers.
-"""
+"""``ext-sense biotac decode|encode``: bridge streams to JSON lines and back."""
 
 from __future__ import annotations
 
@@ -12,14 +9,7 @@ _CHUNK = 1 << 20
 
 
 def register_biotac(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Add the ``biotac`` subcommand with ``decode`` and ``encode``.
-
-    Args:
-        subparsers: The ``ext-sense`` subparsers.
-
-    Returns:
-        The ``biotac`` parser.
-    """
+    """Add the ``biotac`` subcommand with ``decode`` and ``encode``; return its parser."""
     parser = subparsers.add_parser(
         "biotac",
         help="BioTac bridge streams: decode to JSON lines, encode from them",

@@ -1,21 +1,9 @@
 """Sample times of BioTac frames in integer nanoseconds.
 
-The BioTac samples 4400 words/s; a standard frame is 44 words, so frames come at 100 Hz per
-sensor and PAC (every other word) at 2200 Hz. PAC sample ``i`` of a frame is taken
-``i / 2200`` s after the frame's first sample: :func:`pac_offset_ns` gives that offset in
-nanoseconds, rounded half up from the exact rational ``i * 1e9 / 2200`` (error <= 0.5 ns). Since
-22 samples span exactly 10 ms, sample ``j`` counted from any frame start is at
-``frame_start + round(j * 1e9 / 2200)`` with the same rounding, so offsets never accumulate
-error across frames. (The public ROS 1 driver computed these offsets in the wrong unit.)
-
-:class:`FrameClock` turns host arrival times of frames into first-sample times. The bridge
-clock paces frames every ``frame_period_ns``; the host sees each frame ``lead_ns`` (frame span +
-transmission) plus a variable latency after its first sample. Counting frames by sequence
-number, ``arrival - k * period`` is the latency plus a constant; its minimum over the last
-``window`` frames is the least-delayed frame's, which is the best estimate of the constant.
-Error bound (see ``docs/biotac_bridge.md``): the stamp is late by the smallest excess latency
-of any frame in the window, plus ``skew * window * period`` for a bridge clock off by ``skew``;
-it is never early by more than the clock skew term.
+Frames come at 100 Hz per sensor, PAC samples at 2200 Hz: PAC sample ``i`` is
+``round(i * 1e9 / 2200)`` ns after the frame's first sample, exactly, so offsets never
+accumulate across frames. :class:`FrameClock` turns arrival times into first-sample times:
+the least-delayed frame over a window fixes the offset (docs/biotac_bridge.md).
 """
 
 from __future__ import annotations
@@ -28,7 +16,6 @@ from numpy.typing import NDArray
 from ext_sense_drivers.biotac.errors import BioTacError
 from ext_sense_runtime.stamps import S
 
-WORD_RATE_HZ = 4400
 PAC_RATE_HZ = 2200
 FRAME_RATE_HZ = 100
 FRAME_PERIOD_NS = S // FRAME_RATE_HZ  # 10_000_000, exact
@@ -36,14 +23,7 @@ PAC_PERIOD_NS = S // PAC_RATE_HZ  # 454_545: the message field (floor, 0.45 ns s
 
 
 def pac_offset_ns(i: int, rate_hz: int = PAC_RATE_HZ) -> int:
-    """Offset of PAC sample ``i`` from the frame's first sample, integer ns (half up).
-
-    Args:
-        i: Sample index (any integer >= 0; indices past 21 run into the following frames).
-        rate_hz: PAC sampling rate in Hz (integer).
-
-    Returns:
-        ``round(i * 1e9 / rate_hz)`` computed exactly in integers.
+    """``round(i * 1e9 / rate_hz)`` (half up, exact): PAC sample ``i``'s offset from the frame.
 
     Raises:
         BioTacError: ``i`` is negative or ``rate_hz`` is not positive.
@@ -56,11 +36,7 @@ def pac_offset_ns(i: int, rate_hz: int = PAC_RATE_HZ) -> int:
 
 
 def pac_offsets_ns(n: int = 22, rate_hz: int = PAC_RATE_HZ) -> NDArray[np.int64]:
-    """Offsets of PAC samples ``0..n-1`` from the frame's first sample, integer ns.
-
-    Returns:
-        ``(n,)`` int64, e.g. ``[0, 454545, 909091, ..., 9545455]`` for one standard frame.
-    """
+    """Offsets ``(n,)`` int64 of PAC samples ``0..n-1`` from the frame's first sample."""
     if int(rate_hz) <= 0:
         raise BioTacError(f"The 'rate_hz' parameter must be > 0. Got {rate_hz} instead.")
     i = np.arange(int(n), dtype=np.int64)
@@ -68,14 +44,7 @@ def pac_offsets_ns(n: int = 22, rate_hz: int = PAC_RATE_HZ) -> NDArray[np.int64]
 
 
 def pac_times_ns(first_sample_ns: NDArray[np.int64] | int) -> NDArray[np.int64]:
-    """Absolute times of the 22 PAC samples of frames with the given first-sample times.
-
-    Args:
-        first_sample_ns: ``(n,)`` (or scalar) first-sample times, integer ns.
-
-    Returns:
-        ``(n, 22)`` (or ``(22,)``) int64 sample times.
-    """
+    """Times ``(n, 22)`` (or ``(22,)``) of the PAC samples of frames starting at ``(n,)`` times."""
     first = np.asarray(first_sample_ns, dtype=np.int64)
     return first[..., None] + pac_offsets_ns()
 
@@ -84,10 +53,10 @@ class FrameClock:
     """First-sample times of one sensor's frames from their host arrival times.
 
     Args:
-        frame_period_ns: Bridge frame period (10 ms at the standard 100 frames/s), > 0.
-        lead_ns: Time from a frame's first sample to its least-delayed arrival at the host:
-            the frame span (10 ms) plus its transmission time, plus any known fixed latency.
-        window: Frames over which the minimum latency is tracked (200 = 2 s), >= 1.
+        frame_period_ns: Bridge frame period, > 0.
+        lead_ns: A frame's first sample to its least-delayed arrival (frame span,
+            transmission and any known latency).
+        window: Frames over which the minimum latency is tracked, >= 1.
 
     Raises:
         BioTacError: A parameter is out of range.
@@ -124,15 +93,9 @@ class FrameClock:
         self._lows.clear()
 
     def update(self, arrival_ns: int, gap: int = 0, restart: bool = False) -> int:
-        """Account one frame and return its first-sample time.
+        """Account one frame arriving at ``arrival_ns``; return its first sample's host time.
 
-        Args:
-            arrival_ns: Host arrival time of the frame (its read), integer ns.
-            gap: Frames missing just before this one (from the sequence numbers), >= 0.
-            restart: The sequence restarted: begin a new model with this frame.
-
-        Returns:
-            Estimated host time of the frame's first sample (PAC sample 0), integer ns.
+        ``gap`` frames are missing before it; ``restart`` begins a new model with it.
         """
         if restart or self._k is None:
             self.restart()

@@ -1,9 +1,4 @@
-"""Counters of the BioTac bridge decoders: per-sensor sequence tracking and the snapshot record.
-
-Both :class:`~ext_sense_drivers.biotac.decoder.BridgeDecoder` and the per-byte
-:class:`~ext_sense_drivers.biotac.reference.ReferenceDecoder` keep their counts here, so that
-the tests can compare them field by field.
-"""
+"""Counters of both BioTac bridge decoders (vectorised and reference), compared by the tests."""
 
 from __future__ import annotations
 
@@ -22,9 +17,8 @@ class BridgeCounters:
     Attributes:
         bytes_total: Bytes fed.
         frames: Standard frames decoded (all sensors).
-        skipped_bytes: Bytes that were not part of any CRC-valid frame (garbage, broken frames).
-        crc_failures: Sync candidates whose CRC failed (a corrupted frame, or a chance
-            ``0xAA 0x55`` in garbage).
+        skipped_bytes: Bytes not part of any CRC-valid frame.
+        crc_failures: Sync candidates whose CRC failed.
         truncated: Sync candidates cut off by the end of the stream or a link reset.
         other_frames: CRC-valid frames with a word count other than 44 (skipped).
         bad_sensor_frames: CRC-valid standard frames naming a slot outside 0..4 (skipped).
@@ -121,12 +115,7 @@ class SequenceTracker:
 
 
 class CounterState:
-    """The counters every bridge decoder keeps, and their snapshot.
-
-    Shared by :class:`~ext_sense_drivers.biotac.decoder.BridgeDecoder` and the per-byte
-    ``ReferenceDecoder`` so both report through the same code, which the tests compare field
-    by field.
-    """
+    """The counters every bridge decoder keeps, and their snapshot."""
 
     _seq: SequenceTracker
     _bytes_total: int

@@ -27,15 +27,7 @@ _TABLE_LIST = [int(v) for v in TABLE]
 
 
 def crc16_ccitt_false(data: bytes | bytearray | memoryview, crc: int = INIT) -> int:
-    """CRC of one byte string (table driven, plain Python).
-
-    Args:
-        data: The bytes covered by the checksum.
-        crc: Running value to continue from (``INIT`` for a fresh checksum).
-
-    Returns:
-        The 16-bit CRC.
-    """
+    """CRC of one byte string, continuing from ``crc`` (plain Python)."""
     table = _TABLE_LIST
     for byte in bytes(data):
         crc = ((crc << 8) & 0xFFFF) ^ table[(crc >> 8) ^ byte]
@@ -43,15 +35,7 @@ def crc16_ccitt_false(data: bytes | bytearray | memoryview, crc: int = INIT) -> 
 
 
 def crc16_ccitt_false_columns(rows: NDArray[np.uint8], crc: int = INIT) -> NDArray[np.uint16]:
-    """CRC of every row of a 2-D byte array, one NumPy step per column (the plain vector form).
-
-    Args:
-        rows: ``(n_rows, n_bytes)`` uint8, each row one byte string.
-        crc: Initial register value.
-
-    Returns:
-        ``(n_rows,)`` uint16 CRCs.
-    """
+    """CRCs ``(n_rows,)`` of the rows of ``(n_rows, n_bytes)`` bytes, one step per column."""
     rows = np.asarray(rows, dtype=np.uint8)
     reg = np.full(rows.shape[0], crc, dtype=np.uint16)
     for col in range(rows.shape[1]):
@@ -63,10 +47,9 @@ _POSITION_TABLES: dict[int, tuple[NDArray[np.uint16], int]] = {}
 
 
 def _position_table(n_bytes: int) -> tuple[NDArray[np.uint16], int]:
-    """Per-position contribution tables for messages of ``n_bytes`` bytes.
+    """Per-position tables for ``n_bytes`` messages.
 
-    The CRC register is affine over GF(2), so the CRC of a message is the CRC of that many zero
-    bytes XOR, for every position j, the zero-init CRC of a message holding only byte j.
+    The CRC is affine over GF(2): the zero message's CRC XOR each byte's zero-init contribution.
     """
     if n_bytes not in _POSITION_TABLES:
         single = np.zeros((n_bytes * 256, n_bytes), dtype=np.uint8)
@@ -79,14 +62,7 @@ def _position_table(n_bytes: int) -> tuple[NDArray[np.uint16], int]:
 
 
 def crc16_ccitt_false_rows(rows: NDArray[np.uint8]) -> NDArray[np.uint16]:
-    """CRC of every row of a 2-D byte array at once (a table lookup per byte, one XOR reduce).
-
-    Args:
-        rows: ``(n_rows, n_bytes)`` uint8, each row one byte string.
-
-    Returns:
-        ``(n_rows,)`` uint16 CRCs, equal to :func:`crc16_ccitt_false` of each row.
-    """
+    """CRCs ``(n_rows,)`` of the rows of ``(n_rows, n_bytes)`` bytes: a lookup per byte."""
     rows = np.asarray(rows, dtype=np.uint8)
     if rows.shape[0] == 0 or rows.shape[1] == 0:
         return np.full(rows.shape[0], INIT, dtype=np.uint16)

@@ -1,14 +1,8 @@
 """The vectorised streaming decoder of the BioTac bridge protocol.
 
-The decoder searches for the sync pair, checks the CRC, and on a failure steps one byte past
-the failed sync and searches again, so no intact frame behind garbage is ever skipped. Frames
-with another word count that pass their CRC are skipped whole and counted (``other_frames``);
-they are reserved for later use of the protocol. The frame layout is in
-:mod:`~ext_sense_drivers.biotac.frame_layout` (and ``docs/biotac_bridge.md``).
-
-:class:`BridgeDecoder` finds all sync candidates of a chunk, checks all CRCs and decodes all
-words with NumPy in one pass; :class:`ext_sense_drivers.biotac.reference.ReferenceDecoder` is
-the plain per-byte decoder with the same results and counters.
+On a failed CRC it steps one byte past the sync and searches again, so no intact frame behind
+garbage is skipped. CRC-valid frames of another word count are skipped and counted
+(``other_frames``). Same results and counters as the per-byte ``ReferenceDecoder``.
 """
 
 from __future__ import annotations
@@ -44,18 +38,9 @@ _BIT = np.uint64(1) << np.arange(WORDS_PER_FRAME, dtype=np.uint64)
 
 
 class BridgeDecoder(CounterState):
-    """Streaming decoder of the bridge byte stream into standard frames (vectorised).
+    """Streaming decoder of the bridge bytes into standard frames; chunking never matters.
 
-    Feed it chunks as they arrive; each call returns the frames the chunk completed. Chunk
-    boundaries never change the result. Bad bytes never raise: they are counted.
-
-    Example::
-
-        dec = BridgeDecoder()
-        for chunk in chunks:
-            frames = dec.feed(chunk)  # BridgeFrames, frames.n rows
-        frames = dec.flush()  # end of stream
-        print(dec.counters.summary())
+    Bad bytes never raise: they are counted.
     """
 
     def __init__(self) -> None:
@@ -75,23 +60,15 @@ class BridgeDecoder(CounterState):
         return len(self._pending)
 
     def feed(self, chunk: bytes | bytearray | memoryview) -> BridgeFrames:
-        """Decode the frames completed by ``chunk``.
-
-        Args:
-            chunk: The next bytes of the stream (any length, may be empty).
-
-        Returns:
-            The standard frames completed by this chunk, in stream order.
-        """
+        """The standard frames ``chunk`` (any length) completes, in stream order."""
         chunk = bytes(chunk)
         self._bytes_total += len(chunk)
         return self._scan(self._pending + chunk, final=False)
 
     def flush(self) -> BridgeFrames:
-        """End of stream (or link reset): decide on every held-back byte.
+        """End of stream: decide on every held-back byte (cut-off candidates are ``truncated``).
 
-        Candidates cut off by the end are counted as ``truncated``; frames behind them are still
-        found. The sequence state is kept, so a gap across a reconnection counts as drops.
+        The sequence state is kept, so a gap across a reconnection counts as drops.
         """
         return self._scan(self._pending, final=True)
 

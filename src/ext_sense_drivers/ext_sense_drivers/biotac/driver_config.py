@@ -1,8 +1,4 @@
-"""The BioTac driver's settings, checked and turned into a transport and a clock model.
-
-Kept out of the node so the choices are validated and testable without rclpy; the node only
-reads its parameters into a :class:`BioTacDriverConfig`.
-"""
+"""The BioTac driver's settings, checked and turned into a transport and a clock model."""
 
 from __future__ import annotations
 
@@ -19,13 +15,7 @@ __all__ = ["BioTacDriverConfig", "TransportKind"]
 
 @dataclass(frozen=True)
 class BioTacDriverConfig(LinkConfig):
-    """Driver settings (units in the names; see ``config/biotac_driver.yaml``).
-
-    The link settings (``transport`` ... ``file_loop``), :attr:`transport_kind`,
-    :attr:`hardware_id` and :meth:`make_transport` (``file_bytes_per_s`` 0 replays flat out)
-    come from :class:`~ext_sense_drivers.transports.link_config.LinkConfig`; errors are
-    :class:`BioTacError`, raised on construction.
-    """
+    """The BioTac driver's settings beyond :class:`LinkConfig`'s (checked on construction)."""
 
     error: ClassVar[type[Exception]] = BioTacError
 

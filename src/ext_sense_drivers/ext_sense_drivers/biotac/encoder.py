@@ -1,8 +1,4 @@
-"""Encoders of the BioTac bridge protocol: reply words into frames, one or many at once.
-
-The frame layout is in :mod:`~ext_sense_drivers.biotac.frame_layout`; the streaming decoder is
-:class:`~ext_sense_drivers.biotac.decoder.BridgeDecoder`.
-"""
+"""Encoders of the BioTac bridge protocol: reply words into frames, one or many at once."""
 
 from __future__ import annotations
 
@@ -35,13 +31,10 @@ def encode_frame(seq: int, sensor_id: int, replies: ArrayLike | bytes) -> bytes:
     """One bridge frame around reply words as the BioTac sent them.
 
     Args:
-        seq: Frame sequence number, 0..65535 (the bridge wraps it).
-        sensor_id: Sensor slot, 0..255 on the wire (0..4 are valid slots).
-        replies: Reply words ``b0 << 8 | b1`` (up to 255 of them, any bits, so corrupt words
-            and error replies can be encoded), or their bytes in wire order.
-
-    Returns:
-        The frame bytes, CRC included.
+        seq: Frame sequence number, 0..65535.
+        sensor_id: Sensor slot, 0..255 on the wire (0..4 are valid).
+        replies: Up to 255 reply words (any bits: corrupt words can be encoded), or their
+            bytes in wire order.
 
     Raises:
         BioTacError: A field is out of range.
@@ -71,7 +64,7 @@ def encode_frame(seq: int, sensor_id: int, replies: ArrayLike | bytes) -> bytes:
 def standard_replies(
     pac: ArrayLike, electrodes: ArrayLike, pdc: int, tac: int, tdc: int
 ) -> NDArray[np.uint16]:
-    """The 44 reply words of a standard frame, with correct parity.
+    """The ``(44,)`` reply words of a standard frame, with correct parity.
 
     Args:
         pac: 22 PAC samples, 0..4095.
@@ -79,9 +72,6 @@ def standard_replies(
         pdc: Static pressure, 0..4095.
         tac: AC temperature, 0..4095.
         tdc: DC temperature, 0..4095.
-
-    Returns:
-        ``(44,)`` uint16 reply words in bridge order.
 
     Raises:
         BioTacError: A length or value is wrong.
@@ -111,15 +101,7 @@ def encode_standard_frame(
 
 
 def encode_frames(seq: ArrayLike, sensor_id: ArrayLike, replies: ArrayLike) -> bytes:
-    """Many standard frames at once (vectorised; for simulators and benchmarks).
-
-    Args:
-        seq: ``(n,)`` sequence numbers 0..65535.
-        sensor_id: ``(n,)`` sensor slots 0..255.
-        replies: ``(n, 44)`` reply words.
-
-    Returns:
-        The ``n`` frames back to back.
+    """``n`` standard frames back to back from ``(n,)`` seq, ``(n,)`` slots, ``(n, 44)`` replies.
 
     Raises:
         BioTacError: A shape or value is wrong.

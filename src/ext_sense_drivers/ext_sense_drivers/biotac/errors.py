@@ -4,7 +4,4 @@ from __future__ import annotations
 
 
 class BioTacError(ValueError):
-    """Raised for values that cannot be encoded or records that cannot be read.
-
-    Corrupt bytes on a link never raise: the decoder counts them and moves on.
-    """
+    """Values that cannot be encoded or records that cannot be read (bad bytes never raise)."""

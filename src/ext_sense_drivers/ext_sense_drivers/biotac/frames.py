@@ -11,13 +11,7 @@ from ext_sense_drivers.biotac.words import N_ELECTRODES, N_PAC, WORDS_PER_FRAME
 
 
 class Frame(NamedTuple):
-    """One decoded standard frame (plain Python values; used by tests and the JSON form).
-
-    ``pac``, ``electrodes``, ``pdc``, ``tac``, ``tdc`` hold 0 where the word is invalid (see
-    ``invalid_mask``, bit i = word position i). ``gap`` is the number of frames of this sensor
-    missing just before this one; ``seq_reset`` marks a backwards step of ``seq``.
-    ``offset`` is the stream position of the frame's first sync byte.
-    """
+    """One decoded standard frame in plain Python values (fields as :class:`BridgeFrames`)."""
 
     sensor_id: int
     seq: int

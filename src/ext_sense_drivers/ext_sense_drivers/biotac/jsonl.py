@@ -1,16 +1,9 @@
 """The JSON-lines form of BioTac frames used by ``ext-sense biotac decode`` and ``encode``.
 
-One object per frame with the keys ``sensor_id, seq, pac, electrodes, pdc, tac, tdc,
-parity_errors``. Values are raw 12-bit counts; a word that failed parity or was a BioTac error
-reply is ``null`` (never a made-up number). ``encode`` reads the same shape: ``seq`` may be left
-out (it then counts up per sensor from 0), ``parity_errors`` is ignored, and a ``null`` value is
-sent as a word with a parity error so the stream carries the same holes.
-
-Malformed input never raises anything but :class:`BioTacError`, with a one-line message that
-starts with where it is (``"values.jsonl, line 3: ..."``): bytes that are not UTF-8, text that
-is not JSON (or nested deeper than the parser goes, or a number too long to read), a line that
-is not an object, a missing key, a value of the wrong type or out of range
-(:func:`parse_line`, :func:`record_to_frame`).
+One object per frame (:data:`KEYS`), raw 12-bit counts, ``null`` for a bad word. ``encode``
+reads the same shape: ``seq`` may be left out (it counts per sensor), ``parity_errors`` is
+ignored, ``null`` is sent as a word failing parity. Malformed input raises only
+:class:`BioTacError`, one line starting with where it is (``"values.jsonl, line 3: ..."``).
 """
 
 from __future__ import annotations
@@ -52,11 +45,7 @@ def _show(value: Any) -> str:
 
 
 def parse_line(raw: bytes, where: str = "line") -> dict[str, Any]:
-    """The JSON object on one line of bytes.
-
-    Args:
-        raw: The line, as read in binary mode.
-        where: Prefix of error messages (e.g. ``"values.jsonl, line 3"``).
+    """The JSON object on one line of bytes (``where`` prefixes error messages).
 
     Raises:
         BioTacError: Not UTF-8, not JSON, nested too deeply, a number too long, not an object.
@@ -126,15 +115,12 @@ def _field(record: dict[str, Any], key: str, size: int | None, where: str) -> li
 def record_to_frame(
     record: dict[str, Any], next_seq: list[int] | None = None, where: str = "record"
 ) -> bytes:
-    """One bridge frame from a JSON object (see the module docstring).
+    """One bridge frame from a JSON object.
 
     Args:
         record: The object.
         next_seq: Per-sensor next sequence numbers, used and advanced when ``seq`` is absent.
         where: Prefix of error messages (e.g. ``"line 3"``).
-
-    Returns:
-        The frame bytes.
 
     Raises:
         BioTacError: A key is missing or a value is out of range.

@@ -1,8 +1,6 @@
-"""A plain per-byte Python decoder of the bridge stream: the reference for tests and benchmark.
+"""A plain per-byte decoder of the bridge stream: the oracle for the tests and the benchmark.
 
-It reads the stream the way the protocol is written down (find the sync pair, read the header,
-wait for the whole frame, check the CRC byte by byte, decode each word) and keeps the same
-counters as :class:`ext_sense_drivers.biotac.decoder.BridgeDecoder`, which must give identical
+It reads the stream as the protocol is written down; ``BridgeDecoder`` must give identical
 frames and counters for any stream cut into any chunks.
 """
 

@@ -1,10 +1,8 @@
 """BioTac SPI reply words and the standard 44-word sampling sequence.
 
-A reply is two bytes ``b0, b1``; each byte carries 7 data bits and an odd-parity bit in its LSB
-(the whole byte has an odd number of ones). The 12-bit value is ``(b0 >> 1) * 32 + (b1 >> 3)``;
-bits 1 and 2 of ``b1`` are unused and sent as 0. A reply word is written ``b0 << 8 | b1``, so
-the BioTac error replies are ``0xA545`` ("parity error") and ``0xA53F`` ("unknown command");
-both fail the parity check of ``b0`` and are recognised before it.
+A reply word ``b0 << 8 | b1`` carries 7 data bits and an odd-parity LSB per byte; the 12-bit
+value is ``(b0 >> 1) * 32 + (b1 >> 3)``. The error replies ``0xA545`` and ``0xA53F`` fail
+``b0``'s parity and are recognised before it.
 """
 
 from __future__ import annotations
@@ -50,13 +48,7 @@ def _parity_bit(data7: NDArray[np.int64]) -> NDArray[np.int64]:
 
 
 def encode_values(values: ArrayLike) -> NDArray[np.uint16]:
-    """Reply words (``b0 << 8 | b1``, correct parity) carrying 12-bit values.
-
-    Args:
-        values: Any shape of integers in 0..4095.
-
-    Returns:
-        uint16 reply words of the same shape.
+    """uint16 reply words (correct parity) carrying 12-bit values, any shape.
 
     Raises:
         BioTacError: A value is outside 0..4095 or not an integer.
@@ -102,35 +94,8 @@ WORD_VALUE, WORD_STATUS = _word_tables()
 :class:`WordStatus`."""
 
 
-def decode_words(
-    b0: NDArray[np.uint8], b1: NDArray[np.uint8]
-) -> tuple[NDArray[np.uint16], NDArray[np.bool_], NDArray[np.bool_]]:
-    """Values, parity failures and error replies of reply bytes (any matching shapes).
-
-    Args:
-        b0: First reply bytes.
-        b1: Second reply bytes.
-
-    Returns:
-        ``(values, parity_failed, error_reply)``: values are 0 wherever the word failed parity
-        or was an error reply; ``parity_failed`` is False for error replies (they are counted
-        apart).
-    """
-    word = (np.asarray(b0, dtype=np.uint16) << np.uint16(8)) | np.asarray(b1, dtype=np.uint16)
-    status = WORD_STATUS[word]
-    return (
-        WORD_VALUE[word],
-        status == WordStatus.PARITY_FAILED,
-        status == WordStatus.ERROR_REPLY,
-    )
-
-
 def decode_word(word: int) -> tuple[int, bool, bool]:
-    """Plain-Python decoding of one reply word ``b0 << 8 | b1``.
-
-    Returns:
-        ``(value, parity_failed, error_reply)`` with value 0 for a bad word.
-    """
+    """``(value, parity_failed, error_reply)`` of one reply word (value 0 for a bad word)."""
     b0, b1 = (word >> 8) & 0xFF, word & 0xFF
     if word in (ErrorReply.PARITY_ERROR, ErrorReply.UNKNOWN_COMMAND):
         return 0, False, True

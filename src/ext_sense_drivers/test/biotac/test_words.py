@@ -8,9 +8,11 @@ import pytest
 from ext_sense_drivers.biotac.errors import BioTacError
 from ext_sense_drivers.biotac.words import (
     ODD_PARITY,
+    WORD_STATUS,
+    WORD_VALUE,
     ErrorReply,
+    WordStatus,
     decode_word,
-    decode_words,
     encode_values,
 )
 
@@ -22,10 +24,15 @@ def test_value_formula_and_parity():
     assert ODD_PARITY[b1].all()
     assert ((b1 >> 1) & 0b11 == 0).all()  # unused data bits of b1 stay 0
     assert ((b0 >> 1).astype(int) * 32 + (b1 >> 3)).tolist() == list(range(4096))
-    values, parity_failed, error = decode_words(b0, b1)
-    assert values.tolist() == list(range(4096))
-    assert not parity_failed.any()
-    assert not error.any()
+    assert WORD_VALUE[words].tolist() == list(range(4096))
+    assert (WORD_STATUS[words] == WordStatus.OK).all()
+
+
+def test_word_tables_agree_with_the_plain_decoding():
+    for word in range(1 << 16):
+        value, parity_failed, error = decode_word(word)
+        status = WordStatus.ERROR_REPLY if error else WordStatus(int(parity_failed))
+        assert (WORD_VALUE[word], WORD_STATUS[word]) == (value, status)
 
 
 def test_known_words():
@@ -42,10 +49,7 @@ def test_error_replies_recognised_before_parity(reply):
     # Both error replies fail the parity check of b0; they must count as error replies.
     assert not ODD_PARITY[reply >> 8]
     assert decode_word(int(reply)) == (0, False, True)
-    values, parity_failed, error = decode_words(
-        np.array([reply >> 8], np.uint8), np.array([reply & 0xFF], np.uint8)
-    )
-    assert (values[0], parity_failed[0], error[0]) == (0, False, True)
+    assert (WORD_VALUE[reply], WORD_STATUS[reply]) == (0, WordStatus.ERROR_REPLY)
 
 
 @pytest.mark.parametrize("bad", [-1, 4096, 70000])
