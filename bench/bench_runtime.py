@@ -98,7 +98,7 @@ def bench_latency(
     spacing = 700.0
     onsets = [200.0 + i * spacing for i in range(taps)]
     batches = tap_batches(onsets, onsets[-1] + 600.0)
-    source = Source(run["input"], batches, quiet_s)
+    source = Source(batches, quiet_s)
     sent: list[Any] = []
     try:
         graph = start_graph(GRAPH, overrides, ("contact_window", "contact_inference"), pythonpath)

@@ -67,12 +67,8 @@ def tap_batches(
 
 
 def batch_reads(batch: Batch) -> list[tuple[int, bytes]]:
-    """A batch as the driver's reader would have read it: ``(return offset ns, words)`` each.
-
-    The ms is cut into :data:`READS_PER_MS` reads, each returning at the end of its part with
-    the receiver words (``encode_words``, flag 0 as real receivers send) of the events in it;
-    parts with no event give no read (the packer keeps empty reads out too).
-    """
+    """A batch as the driver's reader would have read it: ``(return offset ns, words)`` for
+    each of the ms's :data:`READS_PER_MS` parts holding events."""
     from ext_sense_drivers.nuskin.wire import encode_words
 
     ev, step = batch.events, MS // READS_PER_MS
@@ -85,22 +81,19 @@ def batch_reads(batch: Batch) -> list[tuple[int, bytes]]:
 
 
 class Source:
-    """The bench as the sensor driver: the stream's messages, built when each is due.
+    """The bench as the sensor driver: each 1 ms drain's ``SensorPacket``, built when due.
 
-    As ``nuskin_driver`` publishes (``SensorPacket``, its encoding and options, its packer and
-    message code; one packet per 1 ms drain with the reads of that ms, and when nothing was read
-    its quiet timer's "nothing read" packet on the driver's cadence,
-    :class:`~ext_sense_drivers.packets.QuietSchedule`, every ``quiet_packets_period_s``).
+    With ``nuskin_driver``'s packer and message code, and its "nothing read" packet every
+    ``quiet_s`` (``quiet_packets_period_s``) while nothing is read.
     """
 
-    def __init__(self, kind: str, batches: list[Batch], quiet_s: float | None = None) -> None:
+    def __init__(self, batches: list[Batch], quiet_s: float | None = None) -> None:
         from ext_sense.topics import SENSOR_PACKETS
         from ext_sense_drivers.nodes.nuskin_driver import packet_encoding
         from ext_sense_drivers.nuskin.driver_config import DriverConfig
         from ext_sense_drivers.packets import QUIET_PACKETS_PERIOD_S, PacketPacker, QuietSchedule
         from ext_sense_msgs.msg import SensorPacket
 
-        self.kind, self.batches = kind, batches
         self.quiet_s = QUIET_PACKETS_PERIOD_S if quiet_s is None else quiet_s
         self.type, self.topic = SensorPacket, SENSOR_PACKETS["nuskin"]
         self.packer = PacketPacker(*packet_encoding(DriverConfig(baud=BAUD)))
@@ -132,13 +125,8 @@ class NodeWork(NamedTuple):
 
 
 def node_work(model_dir: Path, inputs: list[Any]) -> NodeWork:
-    """The nodes' own work per final window, replayed here on the run's inputs.
-
-    The windows are cut by the window node's core
-    (:class:`~ext_sense_perception.online.stage.WindowStage`, the model card's profile) from
-    ``inputs``, ``SensorPacket`` messages (``on_packet``: decode and cut); three warm-up
-    predictions are not counted.
-    """
+    """The nodes' own work per final window, replayed here on the run's ``SensorPacket``s
+    through the window node's core (``WindowStage``) and the model (after three warm-ups)."""
     from ext_sense_perception.online.model_card import read_card
     from ext_sense_perception.online.predictor import load_model
     from ext_sense_perception.online.stage import WindowStage
@@ -182,18 +170,11 @@ class Final(NamedTuple):
 def hops(finals: list[Final], published: list[tuple[int, int]]) -> dict[str, object]:
     """Split window end -> estimate received into its hops (p50, p99 ms each).
 
-    Args:
-        finals: The final estimates matched with their windows.
-        published: ``(publish wall ns, stream time the input completes ns)`` of every input
-            message, in publish order.
-
-    Returns:
-        ``wait``: window end -> the first input past it published (windows closed on data);
-        ``window_node``: that input published -> window received (its hop, decode, cut,
-        publish, the window's hop); ``window``: window end -> window received (every window,
-        also those the deadline timer closed); ``inference``: window received -> estimate ready
-        (the window's hop to ``contact_inference``, features + ONNX); ``estimate``: ready ->
-        received; and the share of windows the deadline timer closed.
+    ``published``: ``(publish wall ns, stream time the input completes)`` of every input
+    message. Hops: ``wait`` (window end -> the first input past it published), ``window_node``
+    (-> window received), ``window`` (window end -> window received, every window),
+    ``inference`` (-> estimate ready) and ``estimate`` (-> received); and the share of windows
+    the deadline timer closed.
     """
     pub = np.asarray([p for p, _ in published], np.int64)
     done = np.maximum.accumulate(np.asarray([c for _, c in published], np.int64))
