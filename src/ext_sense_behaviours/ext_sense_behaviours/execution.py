@@ -40,11 +40,9 @@ class FoodProbe:
         on_state: Callable[[ArmState], None] | None = None,
     ) -> None:
         self.machine, self.arm = machine, arm
-        self.on_motion_start, self.on_request, self.on_publish = (
-            on_motion_start,
-            on_request,
-            on_publish,
-        )
+        self.on_motion_start = on_motion_start
+        self.on_request = on_request
+        self.on_publish = on_publish
         self.on_state = on_state
         self.samples = 0
 

@@ -67,6 +67,10 @@ class StopReason(IntEnum):
     """The arm's state stopped coming, or its motion failed (rejected, unanswered, aborted)."""
 
 
+_NO_STOP = (0, StopReason.TIMEOUT, math.nan, math.nan, -1)
+"""What a result records when the fork never stopped: (stop ns, reason, z, force, sample)."""
+
+
 @dataclass(frozen=True)
 class FoodConfig:
     """Parameters of the probing.
@@ -363,13 +367,7 @@ class FoodMachine:
         self._retract_due_ns = now_ns + planned_ns + cfg.max_retract_ns
 
     def _store(self, estimate: Estimate | None) -> None:
-        stop_ns, reason, z, force, index = self._stop or (
-            0,
-            StopReason.TIMEOUT,
-            math.nan,
-            math.nan,
-            -1,
-        )
+        stop_ns, reason, z, force, index = self._stop or _NO_STOP
         contact = index if reason == StopReason.CONTACT else -1
         self.result = FoodResult(self.motion_start_ns, stop_ns, reason, z, force, contact, estimate)
 

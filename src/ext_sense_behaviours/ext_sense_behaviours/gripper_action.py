@@ -90,6 +90,11 @@ class GoalOutcome(NamedTuple):
     reason: str
 
 
+def failed(position_m: float, reason: str) -> GoalOutcome:
+    """A goal that failed with the fingers at ``position_m``, for ``reason``."""
+    return GoalOutcome(False, position_m, 0.0, False, False, reason)
+
+
 def command_problem(
     scale: GripperScale,
     gap_m: float,
@@ -148,11 +153,9 @@ def goal_outcome(
     """
     position_m = scale.gap_m(status.position)
     if status.fault:
-        return GoalOutcome(
-            False, position_m, 0.0, False, False, f"gripper fault {fault_name(status.fault)}"
-        )
+        return failed(position_m, f"gripper fault {fault_name(status.fault)}")
     if not status.ready:
-        return GoalOutcome(False, position_m, 0.0, False, False, "gripper not activated")
+        return failed(position_m, "gripper not activated")
     if status.position_request != target or not status.go_to:
         return None
     if status.object == ObjectStatus.MOVING:

@@ -38,6 +38,7 @@ from ext_sense_behaviours.gripper import describe, status_level, status_to_value
 from ext_sense_behaviours.gripper_action import (
     GoalOutcome,
     GripperScale,
+    failed,
     goal_outcome,
     goal_problem,
 )
@@ -213,9 +214,7 @@ class RobotiqGripperNode(LifecycleNode):
         with self._lock:
             goal = self._goal
         if goal is not None:
-            goal.finish(
-                GoalOutcome(False, self._current_gap(), 0.0, False, False, "gripper deactivated")
-            )
+            goal.finish(failed(self._current_gap(), "gripper deactivated"))
         return TransitionCallbackReturn.SUCCESS
 
     def on_cleanup(self, state: State) -> TransitionCallbackReturn:
@@ -280,7 +279,7 @@ class RobotiqGripperNode(LifecycleNode):
         self.get_logger().error(f"gripper goal aborted: {why}")
         goal_handle.abort()
         self.goals["aborted"] += 1
-        return GoalOutcome(False, self._current_gap(), 0.0, False, False, why)
+        return failed(self._current_gap(), why)
 
     async def _carry_out(
         self,
@@ -308,11 +307,7 @@ class RobotiqGripperNode(LifecycleNode):
         with self._lock:
             previous, self._goal = self._goal, goal
         if previous is not None:
-            previous.finish(
-                GoalOutcome(
-                    False, self._current_gap(), 0.0, False, False, "preempted by a newer goal"
-                )
-            )
+            previous.finish(failed(self._current_gap(), "preempted by a newer goal"))
         if not goal.pending:
             self._submit(goal)
         outcome: GoalOutcome = await goal.future
@@ -349,7 +344,7 @@ class RobotiqGripperNode(LifecycleNode):
     def _submit(self, goal: _Goal) -> None:
         if self.worker is None or not self.worker.submit(goal.move):
             gap = self._current_gap()
-            goal.finish(GoalOutcome(False, gap, 0.0, False, False, "command queue full"))
+            goal.finish(failed(gap, "command queue full"))
 
     def _advance(
         self, goal: _Goal, status: GripperStatus | None, error: RobotiqError | None
@@ -361,19 +356,19 @@ class RobotiqGripperNode(LifecycleNode):
                 goal.pending = False
                 self._submit(goal)
             elif time.monotonic() > goal.deadline or goal.handle.is_cancel_requested:
-                goal.finish(GoalOutcome(False, gap, 0.0, False, False, describe(status)))
+                goal.finish(failed(gap, describe(status)))
         elif error is not None:
-            goal.finish(GoalOutcome(False, gap, 0.0, False, False, str(error)))
+            goal.finish(failed(gap, str(error)))
         elif status is not None:
             outcome = goal_outcome(status, goal.move.position, self.scale, goal.force_n)
             if outcome is not None:
                 goal.finish(outcome)
             elif time.monotonic() > goal.deadline:
-                goal.finish(GoalOutcome(False, gap, 0.0, False, False, "goal timed out"))
+                goal.finish(failed(gap, "goal timed out"))
             elif goal.handle.is_cancel_requested and self.worker is not None:
                 # stop where the fingers are: a go-to the current position ends the motion
                 self.worker.submit(GripperCommandRequest("move", status.position, 255, 0))
-                goal.finish(GoalOutcome(False, gap, 0.0, False, False, "canceled"))
+                goal.finish(failed(gap, "canceled"))
 
     def _publish_status(self, status: GripperStatus | None, error: RobotiqError | None) -> None:
         msg = DiagnosticStatus(name="robotiq_2f", hardware_id=self.port or "no port")
