@@ -1,18 +1,9 @@
 """Liveness of a driver's streams: silence where the device must be sending is a stall.
 
-A powered NUSkin receiver sends words all the time (its idle stream: about 540 words/s on the
-real captures of April 2021, never silent for more than 40 ms), a BioTac bridge sends every
-sensor's frame at 100 Hz whatever touches it. So while the link is up and the node streams,
-silence means the device, the cable or the receiver stopped: a stall. Nothing else reports it
-(the rate checks average over seconds, the link stays "connected" while a pty or USB device
-sends nothing), and the contacts inside it would vanish with no word. The window node cannot
-tell a stopped event sensor from an idle one; the driver can, because it knows the idle
-stream.
-
-:class:`StreamWatch` follows one stream (the NUSkin words or ACES line samples, one BioTac
-sensor's frames); :class:`DriverLiveness` reports all of a driver's watches as one status.
-Silence longer than ``warn_ns`` while streaming is WARN, longer than ``error_ns`` ERROR; the
-message names the silent stream; data returning clears it. No rclpy, injectable clock.
+A powered NUSkin receiver sends its idle stream all the time and a BioTac bridge every
+sensor's frames at 100 Hz, so silence while the link is up means the device stopped, which
+only the driver can tell. :class:`StreamWatch` follows one stream (WARN past ``warn_ns``,
+ERROR past ``error_ns``); :class:`DriverLiveness` reports a driver's watches as one status.
 """
 
 from __future__ import annotations
@@ -26,9 +17,7 @@ from ext_sense_runtime.stalls import StallCounts, StallTracker
 from ext_sense_runtime.stamps import MS, S
 
 NUSKIN_IDLE_WORDS_PER_S = 540.0
-"""The NUSkin receiver's idle stream: words/s in the first 0.5 s of the real food-poking
-captures (median 536 on 1 April 2021, 511 and 520 on 3 and 5 April), before the fork
-touches anything."""
+"""The NUSkin receiver's idle stream, words/s (real food-poking captures before contact)."""
 
 MIN_INTERVALS = 3
 """Silence shorter than this many expected intervals is never a stall (for low rates)."""
@@ -93,9 +82,8 @@ class StreamWatch(StallCounts):
     def set_streaming(self, streaming: bool) -> None:
         """Whether data must be arriving now (link connected, node active).
 
-        Silence is measured from the later of the last data and the start of streaming, so a
-        reconnect or an activation is not a stall before the device had time to send. Leaving
-        streaming ends a stall: a lost link is the ``link`` status's to report.
+        Silence counts from the later of the last data and the start of streaming; leaving
+        streaming ends a stall (a lost link is the ``link`` status's to report).
         """
         if not streaming:
             self.streaming_since_ns = None

@@ -1,17 +1,9 @@
 """``biotac_driver`` node: BioTac bridge bytes in, ``SensorPacket`` out.
 
-A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the link (serial, CAN
-or a capture file) and reconnects with exponential backoff; a timer drains what arrived and
-publishes it on ``packets`` as one ``SensorPacket`` (encoding ``biotac-bridge-v1``). The node
-decodes its own packets with the library decoder every consumer uses
-(:class:`~ext_sense_drivers.packets.BioTacPacketDecoder`, around
-:class:`~ext_sense_drivers.biotac.decoder.BridgeDecoder`): at 100 frames/s per sensor that is
-cheap, and it is how the driver watches each expected sensor's frame rate and liveness; the
-frames themselves are the consumers' to decode from the packets. Words failing parity or
-BioTac error replies are counted; corrupt bytes are counted, never fatal. ``/diagnostics``
-carries the link state, frames/s per expected sensor, the decode counters and the liveness of
-every expected sensor: a bridge sends each sensor's frames at 100 Hz whatever touches it, so a
-sensor silent while the link is up is a stall (WARN, then ERROR, naming the sensor).
+A reader thread owns the link (serial, CAN or a capture file); a timer publishes what arrived
+on ``packets`` (``biotac-bridge-v1``). The node decodes its own packets (cheap at 100 frames/s)
+only to watch each expected sensor: ``/diagnostics`` carries the link state, frames/s, the
+decode counters and liveness (a bridge sends every sensor's frames at 100 Hz).
 """
 
 from __future__ import annotations
@@ -198,10 +190,8 @@ class BioTacDriverNode(ManagedLink, LifecycleNode):
     def _tick(self) -> None:
         """Drain the reader, publish the packets, and decode them to watch every sensor.
 
-        A reconnection needs no flush: the old link's cut-off frame fails its CRC against the
-        new bytes and the decoder resynchronises, while a complete frame still queued from the
-        old link is kept. The state is read before draining: a packet after which the link is
-        down or the file exhausted ends the stream, and the bytes held back are flushed.
+        The state is read before draining: a packet after which the link is down ends the
+        stream and flushes the decoder (a reconnection alone needs no flush).
         """
         link_down = self.reader.state != LinkState.CONNECTED
         tagged = self.reader.drain_tagged()

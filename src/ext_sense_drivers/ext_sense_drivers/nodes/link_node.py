@@ -1,12 +1,4 @@
-"""The link half every driver node shares: reader thread, stream publisher, diagnostics.
-
-The NUSkin and BioTac driver nodes read a byte link (serial, CAN or file) through a
-:class:`~ext_sense_drivers.transports.reader.StreamReader` and differ only in what they decode.
-These helpers build the sensor stream publisher with its QoS event counters, report the link
-state on ``/diagnostics`` and stop the reader (the shared parameters are
-:class:`~ext_sense_drivers.nodes.link_parameters.LinkParameters`). What each sensor decodes,
-stamps and publishes stays in its own node.
-"""
+"""The link half every driver node shares: lifecycle, reader thread, publisher, diagnostics."""
 
 from __future__ import annotations
 
@@ -33,27 +25,18 @@ from ext_sense_runtime.qos_events import QosEventCounter
 from ext_sense_runtime.stamps import fill_stamp
 
 LIVENESS_PERIOD_S = 0.1
-"""How often the liveness of the stream is judged: a stall is on ``/diagnostics`` at most this
-long after it passed a threshold. Not shorter: with the drain timer idle, this timer and the
-link watch (0.5 s) are what an idle driver wakes for (``bench/bench_idle.py``)."""
+"""How often the stream's liveness is judged; not shorter, as an idle driver wakes for it."""
 
 
 def monotonic_to_ros_ns(node: Node) -> int:
-    """Offset from monotonic host ns (the transports' arrival times) to the node's ROS time ns.
-
-    Taken once at start, so stamps never step back when the wall clock is adjusted.
-    """
+    """Offset from monotonic ns (arrival times) to ROS time, taken once: stamps never step back."""
     return node.get_clock().now().nanoseconds - time.monotonic_ns()
 
 
 def create_stream_publisher(
     node: Node, msg_type: type, topic: str
 ) -> tuple[Publisher | intra_process.IntraProcessPublisher, QosEventCounter]:
-    """A raw sensor stream publisher (``SENSOR_STREAM_QOS``) whose QoS events are counted.
-
-    Returns:
-        The publisher and the counter that :func:`link_status` reports.
-    """
+    """A raw sensor stream publisher (``SENSOR_STREAM_QOS``) and its QoS event counter."""
     qos_events = QosEventCounter()
     pub = intra_process.create_publisher(
         node, msg_type, topic, SENSOR_STREAM_QOS, event_callbacks=qos_events.publisher()
@@ -62,11 +45,7 @@ def create_stream_publisher(
 
 
 def packet_message(packet: Packet, frame_id: str) -> SensorPacket:
-    """A ``SensorPacket`` from a :class:`~ext_sense_drivers.packets.Packet`.
-
-    The arrays are set as ``array.array`` from bytes: NumPy arrays make rclpy check every
-    element in Python.
-    """
+    """A ``SensorPacket`` (arrays as ``array.array``: rclpy checks NumPy ones element-wise)."""
     msg = SensorPacket()
     fill_stamp(msg.header.stamp, packet.stamp_ns)
     msg.header.frame_id = frame_id
@@ -85,13 +64,8 @@ def link_status(
 ) -> tuple[Level, str, dict[str, object]]:
     """The ``link`` diagnostics check: reader state and counters, then the node's ``values``.
 
-    OK while connected or when a capture file has been replayed to its end, ERROR while the
-    reader backs off after a failure, WARN otherwise (connecting, stopped).
-
-    Args:
-        reader: The node's reader.
-        lost: What is unavailable in the message (``"port"``, ``"link"``).
-        values: Further key-values (what the node published, its QoS event counts).
+    OK while connected or a capture file is replayed to its end, ERROR while backing off,
+    WARN otherwise; ``lost`` names what is unavailable (``"port"``, ``"link"``).
     """
     state = reader.state
     report: dict[str, object] = {
@@ -124,21 +98,11 @@ def stop_reader(node: Node) -> None:
 class ManagedLink:
     """The lifecycle of a driver's link, mixed into a ``rclpy.lifecycle.LifecycleNode``.
 
-    configure opens the device (starts the reader thread, which retries with backoff until the
-    device is there: a device plugged in late works), activate streams (the drain timer runs),
-    deactivate stops streaming, cleanup and shutdown release the device. A missing or lost
-    device is logged on the console at each failed attempt (throttled), not only on
-    ``/diagnostics``, and its return is logged too.
-
-    While active with the link connected the device must be sending: every
-    :data:`LIVENESS_PERIOD_S` the node's :class:`DriverLiveness` is told so, and when its level
-    changes (a stall turns WARN or ERROR, or data returns) ``/diagnostics`` is published at
-    once instead of at the next 1 Hz report. Every timer runs under the node's
-    :class:`CallbackGuard`: an exception is counted and reported, the node goes on.
-
-    The node provides ``reader`` (a :class:`StreamReader`), ``_tick`` (the drain),
-    ``_period_s`` (the drain period), ``guard``, ``liveness`` and ``_diagnostics``, and calls
-    :meth:`start_managed` at the end of ``__init__``.
+    configure starts the reader (retrying until the device is there), activate streams,
+    deactivate stops, cleanup and shutdown release the device; a missing or returning device
+    is logged. A liveness level change is published on ``/diagnostics`` at once. The node
+    provides ``reader``, ``_tick``, ``_period_s``, ``guard``, ``liveness`` and
+    ``_diagnostics``, and calls :meth:`start_managed` at the end of ``__init__``.
     """
 
     reader: StreamReader
@@ -176,9 +140,7 @@ class ManagedLink:
         from rclpy.lifecycle import TransitionCallbackReturn
 
         if self.config.transport != "file":
-            # a live device's bytes from before activation are stale: never published (a
-            # capture file's are the recording itself, read from its start, and kept)
-            self.reader.drain()
+            self.reader.drain()  # a live device's bytes from before activation are stale
         self._drain_timer = self.create_timer(self._period_s, self.guard(self._drain))
         self._drained_state = self.reader.state
         self.reader.on_data = self._wake_drain
@@ -216,11 +178,8 @@ class ManagedLink:
     def _drain(self: Any) -> None:
         """The drain timer: publish what arrived; with nothing more queued, stop ticking.
 
-        A drain timer ticking every ``batch_period_s`` with nothing to read would cost an idle
-        driver a good part of a core, so it runs only while bytes flow: when a tick leaves the
-        queue empty it is cancelled, and the reader thread restarts it with the next chunk
-        (:meth:`_wake_drain`), so a batch still covers one period from its first bytes. The
-        queue is looked at again after the cancel: a chunk queued in between restarts it.
+        Idle ticking would cost a good part of a core; the reader thread restarts the timer
+        with the next chunk (:meth:`_wake_drain`). The queue is checked again after the cancel.
         """
         self._drained_state = self.reader.state
         self._tick()
@@ -233,9 +192,8 @@ class ManagedLink:
     def _wake_drain(self: Any) -> None:
         """Restart a stopped drain timer (the reader thread, on each queued chunk).
 
-        The executor is woken too: a wait-set executor (Jazzy's SingleThreadedExecutor) computes
-        its wait from the timers it saw when the wait began, and would notice the restarted
-        timer only when its spin timeout (0.1 s) ran out. The EventsExecutor sees the reset.
+        The executor is woken too: a wait-set executor would only see the reset timer at its
+        next spin timeout.
         """
         timer = self._drain_timer
         try:

@@ -1,9 +1,6 @@
 """The parameters every driver node shares: link, reconnect backoff, stall check, autostart.
 
-A driver's schema (:mod:`ext_sense_runtime.parameters`) subclasses :class:`LinkParameters`
-with its sensor's defaults and wording (a field redefined there keeps its place) and adds its
-own fields; :meth:`LinkParameters.link` feeds the driver's
-:class:`~ext_sense_drivers.transports.link_config.LinkConfig`. Pure: no rclpy.
+A driver's schema subclasses :class:`LinkParameters` with its own defaults, wording and fields.
 """
 
 from __future__ import annotations

@@ -1,23 +1,10 @@
 """``nuskin_driver`` node: NUSkin receiver bytes in, ``SensorPacket`` out.
 
-A :class:`~ext_sense_drivers.transports.reader.StreamReader` thread owns the port (serial, CAN
-or a capture file) and reconnects with exponential backoff; a timer every ``batch_period_s``
-drains what arrived and publishes it on ``packets`` as one ``SensorPacket`` (encoding
-``nuskin-words-v1``, or ``aces-line-v1`` in ``aces_line`` mode): the bytes and when each read
-returned, numbered by ``seq``. The driver never decodes: every consumer decodes the packets
-with the library decoder (:mod:`ext_sense_drivers.packets`), so recordings stay lossless.
-
-While a words stream goes and no bytes come, a timer publishes every
-``quiet_packets_period_s`` an empty packet saying so (``PacketPacker.nothing_read``): the
-driver's own cadence, which knows nothing of its consumers' windows. A consumer learns from
-these packets where stream time is when the sensor is silent (the emulated receiver falls
-silent between trials), so it closes its windows on data, and a replay of the recorded packets
-closes the same ones. Each connection's first bytes go out after one more such packet, stamped
-at the link's open (``PacketPacker.opened``): the stream is known from there, so a silent
-receiver's first contact is not judged "joined mid-stream". Bad bytes are the consumers' to
-count. ``/diagnostics`` carries the link state, the rate of the receiver's words and the
-stream's liveness: a powered receiver sends words all the time (its idle stream), so silence
-while the link is up is a stall (WARN, then ERROR, naming the stream).
+A reader thread owns the port (serial, CAN or a capture file); every ``batch_period_s`` the
+bytes that arrived go out on ``packets`` (``nuskin-words-v1`` or ``aces-line-v1``) undecoded.
+In words mode a silent stream gets a "nothing read" packet every ``quiet_packets_period_s``
+and each connection an "opened" packet, so consumers and replays close the same windows.
+``/diagnostics``: link state, word rate and liveness (a powered receiver is never silent).
 """
 
 from __future__ import annotations
@@ -203,14 +190,10 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
         self.p, self.frame_id = new, new.frame_id
 
     def _tick(self) -> None:
-        """Drain the reader and publish the packets.
+        """Drain the reader and publish the packets (a packet never spans a reconnect).
 
-        Each chunk carries the connection it came on, so a packet never spans a reconnect and a
-        decoder restarts its stream exactly between the last old read and the first new one.
-        When the link is down the packet ends the stream (``end_of_stream``: the ACES decoder
-        then releases its last events); the state is read before draining, so every chunk of
-        the lost connection is in this drain. Bytes show the device alive (words, or the ACES
-        line's 2-byte samples): the driver does not decode to judge its link.
+        The link state is read before draining, so a lost connection's chunks all go in the
+        packet that ends its stream. Bytes, not decoded words, show the device alive.
         """
         link_down = self.reader.state != LinkState.CONNECTED
         tagged = self.reader.drain_tagged()
@@ -229,17 +212,10 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             self._quiet_timer.reset()  # its first tick one period after these bytes
 
     def _say_opened(self, tagged: list[tuple[int, Chunk]]) -> None:
-        """Before a connection's first bytes, a packet saying when it opened (words mode).
+        """Before a connection's first bytes, a packet stamped at its open (words mode).
 
-        Stamped at the open (``PacketPacker.opened``; no later than the first chunk drained with
-        it), so a window node knows the stream from the open, not from the first word: the
-        emulated receiver is silent until the first trial, whose tap window began before its
-        first word and was judged "joined mid-stream". Sent with the first bytes' drain, not
-        at the open: a recorder that starts with the sensor's first bytes then records it too,
-        and its replay judges the first window as the live run did. Off with
-        ``quiet_packets_period_s`` 0, as every "nothing read" packet; not when chunks of an older
-        connection are in the drain (their bytes come first; the new connection's then start
-        its stream).
+        Sent with the first bytes' drain, so a recorder starting with them records it too.
+        Off with ``quiet_packets_period_s`` 0, or when an older connection's chunks are queued.
         """
         connection, opened = self.reader.connects, self.reader.connected_ns
         if (
@@ -262,9 +238,7 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
     def _say_quiet(self) -> None:
         """The quiet timer: while no bytes come, say so every ``quiet_packets_period_s``.
 
-        Not while bytes wait for the drain (their packet says where the stream is); the timer
-        stops when the node stops streaming or the link went down (its stream ended), and the
-        next bytes start it again.
+        Not while bytes wait for the drain; stops with streaming or the link, restarted by bytes.
         """
         if self._drain_timer is None or self.reader.state != LinkState.CONNECTED:
             self._quiet_timer.cancel()
