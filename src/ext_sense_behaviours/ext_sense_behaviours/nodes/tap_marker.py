@@ -12,12 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from builtin_interfaces.msg import Duration
 from rclpy.node import Node
 from visualization_msgs.msg import Marker
 
 from ext_sense_behaviours.errors import BehaviourError
-from ext_sense_behaviours.nodes.conversions import marker_from_spec
-from ext_sense_behaviours.tap import TAP_TASK, rod_marker, tap_marker
+from ext_sense_behaviours.tap import TAP_TASK, MarkerSpec, rod_marker, tap_marker
 from ext_sense_msgs.msg import ContactEstimate
 from ext_sense_runtime.callback_guard import CallbackGuard
 from ext_sense_runtime.diagnostics import Level, Updater
@@ -75,10 +75,27 @@ class TapMarkerNode(Node):
     def _on_change(self, new: TapMarkerParameters) -> None:
         self.p = new
 
+    def _marker(
+        self, spec: MarkerSpec, stamp: Any, marker_id: int, kind: int, lifetime_s: float = 0.0
+    ) -> Marker:
+        """A ``visualization_msgs/Marker`` (ADD) drawing ``spec`` in ``frame_id``."""
+        m = Marker()
+        m.header.frame_id = self.p.frame_id
+        m.header.stamp = stamp
+        m.ns, m.id, m.type, m.action = NS, marker_id, kind, Marker.ADD
+        m.pose.position.x, m.pose.position.y, m.pose.position.z = spec.position
+        o = m.pose.orientation
+        o.x, o.y, o.z, o.w = spec.orientation
+        m.scale.x, m.scale.y, m.scale.z = spec.scale
+        m.color.r, m.color.g, m.color.b, m.color.a = spec.rgba
+        m.text = spec.text
+        sec = int(lifetime_s)
+        m.lifetime = Duration(sec=sec, nanosec=round((lifetime_s - sec) * 1e9))
+        return m
+
     def _publish_rod(self) -> None:
         spec = rod_marker(self.p.rod_length_m, self.p.rod_axis)
-        stamp = self.get_clock().now().to_msg()
-        self.pub.publish(marker_from_spec(spec, self.p.frame_id, stamp, NS, 0, Marker.CYLINDER))
+        self.pub.publish(self._marker(spec, self.get_clock().now().to_msg(), 0, Marker.CYLINDER))
 
     def _on_estimate(self, msg: ContactEstimate) -> None:
         estimate = estimate_of(msg)
@@ -91,27 +108,14 @@ class TapMarkerNode(Node):
             self.get_logger().warning(f"estimate dropped: {err}")
             return
         self._publish_rod()
-        self.pub.publish(
-            marker_from_spec(
-                spec, self.p.frame_id, msg.header.stamp, NS, 1, Marker.SPHERE, self.p.lifetime_s
-            )
-        )
+        stamp, lifetime = msg.header.stamp, self.p.lifetime_s
+        self.pub.publish(self._marker(spec, stamp, 1, Marker.SPHERE, lifetime))
         label = spec._replace(
             position=(spec.position[0], spec.position[1], spec.position[2] + 0.03),
             scale=(0.0, 0.0, 0.02),
             rgba=(1.0, 1.0, 1.0, 1.0),
         )
-        self.pub.publish(
-            marker_from_spec(
-                label,
-                self.p.frame_id,
-                msg.header.stamp,
-                NS,
-                2,
-                Marker.TEXT_VIEW_FACING,
-                self.p.lifetime_s,
-            )
-        )
+        self.pub.publish(self._marker(label, stamp, 2, Marker.TEXT_VIEW_FACING, lifetime))
         self.published += 1
         self.last_text = spec.text
 
