@@ -7,10 +7,10 @@ import math
 import pytest
 import yaml
 
-from ext_sense_sim.calibration import (
+from ext_sense_sim.calibration import calibrate_scene
+from ext_sense_sim.calibration.search import (
     FreeParameter,
     Target,
-    calibrate_scene,
     effect_lines,
     fit,
     start_values,

@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -211,6 +212,17 @@ def check_kind(scene: Scene) -> Task:
             "fidelity compares NUSkin tap and food scenes."
         )
     return scene.task
+
+
+def read_sessions(scene: Scene, paths: Sequence[str | Path]) -> list[Session]:
+    """The real sessions of ``--real`` folders, read for the scene's task (taps: its rod).
+
+    Raises:
+        FidelityError: A scene without real kin, or a missing or unreadable folder.
+    """
+    if check_kind(scene) is Task.FOOD_IDENTIFICATION:
+        return [read_food_session(path) for path in paths]
+    return [read_tap_session(path, rod_cm(scene)) for path in paths]
 
 
 def simulate(scene: Scene, trials: int, seed: int, extra_s: float = 0.0) -> Session:

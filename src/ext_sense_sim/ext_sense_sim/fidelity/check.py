@@ -21,8 +21,7 @@ from ext_sense_sim.fidelity.captures import (
     Capture,
     Session,
     check_kind,
-    read_food_session,
-    read_tap_session,
+    read_sessions,
     rod_cm,
     simulate,
 )
@@ -81,11 +80,7 @@ def run_fidelity(
         raise FidelityError("Give at least one --real folder of real captures.")
     trials = DEFAULT_TRIALS[task] if trials is None else int(trials)
     seed = scene.seed if seed is None else int(seed)
-    if task is Task.TAP_LOCALIZATION:
-        rod = rod_cm(scene)
-        sessions = [read_tap_session(p, rod) for p in real]
-    else:
-        sessions = [read_food_session(p) for p in real]
+    sessions = read_sessions(scene, real)
     names = [s.name for s in sessions]
     if len(set(names)) != len(names):
         raise FidelityError(f"The --real folders must be different sessions. Got {names}.")
