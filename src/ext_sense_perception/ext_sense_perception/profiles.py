@@ -1,16 +1,9 @@
 """Task profiles: how each task's contact windows are cut and read, defined once (no ROS).
 
-A :class:`TaskProfile` holds every timing choice of a task: the window around the onset, the
-window's sample bin, the anytime post-contact times, the NUSkin feature bin and where the onset
-comes from. The window node, the inference node, the CLI, the demo and the report all read it
-from :func:`profile_for`, and a trained bundle's model card records the profile its windows were
-cut with, so the live graph and the model cannot disagree on the window.
-
-Names of the time steps (each means one thing only):
-
-- ``sample_ns``: the sample period of a NUSkin window (its bin of signed event counts); BioTac
-  windows hold PAC samples at the sensor's own period instead.
-- ``feature_bin_ns``: the coarser NUSkin bin the FFT / baseline features rebin the window to.
+The window node, the inference node, the CLI, the demo and the report all read the profile a
+model was trained with, so the live graph and the model cannot disagree on the window.
+``sample_ns`` is a NUSkin window's bin of signed counts (BioTac windows hold PAC samples);
+``feature_bin_ns`` the coarser bin the FFT / baseline features rebin it to.
 """
 
 from __future__ import annotations
@@ -41,12 +34,11 @@ class TaskProfile:
     """How one task's windows are cut and read.
 
     Attributes:
-        task: The task.
         pre_ns: Signal kept before the onset, ns (negative: the window starts after it).
         post_ns: Signal after the onset in the final window, ns.
         sample_ns: NUSkin window sample period (bin of signed counts), ns.
-        anytime_post_ns: Shorter post-onset times at which provisional windows are cut and
-            anytime models are trained, ns, ascending; each in ``(-pre_ns, post_ns)``.
+        anytime_post_ns: Shorter post-onset times of provisional windows and anytime models, ns,
+            ascending, each in ``(-pre_ns, post_ns)``.
         feature_bin_ns: NUSkin FFT / baseline feature bin, ns (a multiple of ``sample_ns``).
         onset_source: Where the onset comes from.
         debounce_ns: Minimum time from one onset to the next, ns.
@@ -96,17 +88,14 @@ class TaskProfile:
     def with_window(self, pre_ns: int, post_ns: int) -> TaskProfile:
         """The same profile for another window; anytime times that no longer fit are dropped.
 
-        Used where a recording cannot hold the task's window (the real food captures end 3.1 s
-        after the arm starts moving); the model card then records the window actually used.
+        For recordings that cannot hold the task's window (the real food captures); the card records
+        the window used.
         """
         posts = tuple(p for p in self.anytime_post_ns if -pre_ns < p < post_ns)
         return replace(self, pre_ns=int(pre_ns), post_ns=int(post_ns), anytime_post_ns=posts)
 
     def study_post_ns(self) -> tuple[int, ...]:
-        """Post-contact times of a decision-latency study: the anytime times and the final one.
-
-        A profile without anytime times is studied at thirds of its post-onset span.
-        """
+        """Post-contact times of a latency study: the anytime ones (else thirds), then the final."""
         if self.anytime_post_ns:
             return (*self.anytime_post_ns, self.post_ns)
         start = max(-self.pre_ns, 0)
@@ -199,12 +188,10 @@ FOOD_CAPTURE_POST_NS = 3000 * MS
 
 
 class Anchor(str, Enum):
-    """What a food window's onset is tied to when windows are cut from recordings.
+    """What a food window's onset is tied to when windows are cut from recordings (on the card).
 
-    The model card records it; the live graph applies the same rule (see
-    :func:`capture_profile`): ``arm_motion`` and ``capture_start`` windows are cut at the food
-    behaviour's mark of the descent's start, ``contact`` windows at the onset the window node
-    detects itself.
+    Live, ``arm_motion`` and ``capture_start`` windows are cut at the food behaviour's motion mark,
+    ``contact`` windows at the onset the window node detects.
     """
 
     ARM_MOTION = "arm_motion"
@@ -231,10 +218,9 @@ class Anchor(str, Enum):
 
 
 CAPTURE_LEAD_NS = 580 * MS
-"""From a food capture's start to the start of the arm's motion: 0.54-0.60 s, median 0.58 s, over
-the 44 trials of 1 April 2021 that have arm bags. A ``capture_start`` window is a window whose
-onset is the (expected) motion start with this much signal before it, so the live graph serves it
-from the same motion-start mark as an ``arm_motion`` window."""
+"""From a food capture's start to the arm's motion start (median of the 1 April 2021 trials
+with arm bags, 0.54-0.60 s), so ``capture_start`` windows are served from the motion mark.
+"""
 CAPTURE_POST_NS = 2920 * MS
 """Post-onset span of ``capture_start`` windows: the window covers the capture's first 3.5 s."""
 CONTACT_PRE_NS = 500 * MS
@@ -246,11 +232,8 @@ CONTACT_POST_NS = 2000 * MS
 def capture_profile(anchor: Anchor | str) -> TaskProfile:
     """The food profile for windows cut from real captures at ``anchor``.
 
-    - ``arm_motion``: 0 to 3 s after the motion start (the captures end 3.1 s after it);
-    - ``capture_start``: the capture's first 3.5 s, i.e. ``CAPTURE_LEAD_NS`` before the motion
-      start to ``CAPTURE_POST_NS`` after it (external onset: the live graph's motion mark);
-    - ``contact``: ``CONTACT_PRE_NS`` before to ``CONTACT_POST_NS`` after the detected contact
-      (onset from the signal, as tap and handover).
+    ``arm_motion``: 0 to 3 s after the motion start; ``capture_start``: the capture's first 3.5 s
+    (external onset); ``contact``: around the detected contact (onset from the signal).
     """
     food = PROFILES[Task.FOOD_IDENTIFICATION]
     anchor = Anchor.parse(anchor)

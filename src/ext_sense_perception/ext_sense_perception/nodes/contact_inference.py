@@ -1,33 +1,19 @@
 """``contact_inference`` node: contact windows in, contact estimates out.
 
-Subscribes ``window`` (``ContactWindow``), runs the task's model bundle (``backend`` onnx or
-sklearn, from ``model_path``) and publishes ``ContactEstimate``: the final estimate of each
-contact alone on ``contact_estimate`` (one message per contact), and the estimates of its
-provisional windows (anytime estimates, ``provisional`` true) on ``contact_estimate/provisional``
-(``publish_provisional``), so a subscriber that wants decisions needs no filter.
+Subscribes ``window``, runs the model bundle (``backend`` onnx or sklearn, ``model_path``) and
+publishes each contact's final estimate on ``contact_estimate`` and its anytime ones on
+``contact_estimate/provisional`` (``publish_provisional``).
 
-Faults never stop the node: a missing or corrupt model, or a bundle whose card is invalid, is
-for another task or sensor, or does not describe its model
-(:func:`~ext_sense_perception.online.predictor.load_model` checks all that before use), or was
-trained on another object than ``held_object`` (the card's ``held_object``; a card that records
-none is accepted with a warning), is refused with one error line and reported as ERROR on
-``/diagnostics`` (windows meanwhile are counted as dropped); loading is retried every
-``reload_period_s``, and a loaded bundle whose files change on disk is loaded again (and
-refused if the new one is bad). A loaded bundle whose files vanish (the directory deleted or
-moved away) is not dropped: its model is served on, with one WARN on the console and WARN on
-``/diagnostics``, until a valid bundle appears there. A window the model
-rejects (NaN or inf, wrong shape) is counted and reported, and the next window is processed
-normally; any other exception in a callback is caught by the node's callback guard.
+Faults never stop the node: a bundle that is missing, corrupt, for another task, sensor or
+``held_object``, or not what its card says, is refused (ERROR on ``/diagnostics``, windows
+counted as dropped) and retried every ``reload_period_s``; a bundle whose files change is
+loaded again; one whose files vanish is served on with a WARN until a valid one appears. A
+rejected window is counted and reported.
 
-An estimate is published with ``degraded`` set, and the reason, when its window was degraded
-(data missing from it: a stall or lost input, marked by the window node) or when it is ready
-more than ``deadline_ms`` after its window ended: it is never passed off as a normal estimate.
-Degraded final estimates are counted on ``/diagnostics`` (WARN while recent).
-
-``compute_latency`` is the wall time from the end of the window (onset + post-onset time, on
-the host clock the driver stamps with) to the estimate being ready. When the window's clock is
-not the host clock (a bag replayed long after recording), it falls back to the time from the
-window's arrival in this node to the estimate being ready.
+An estimate is ``degraded`` (with the reason) when its window was, or when it is ready more
+than ``deadline_ms`` after its window ended. ``compute_latency`` runs from the window's end on
+the host clock to the estimate, or, for a window not on the host clock (a replayed bag), from
+its arrival.
 """
 
 from __future__ import annotations

@@ -1,45 +1,18 @@
 """``contact_window`` node: sensor packets in, contact windows (provisional and final) out.
 
-Subscribes ``packets`` (``SensorPacket``, the driver's raw bytes) and decodes them with the
-drivers' library decoder, and, for food, ``motion_start`` (``ContactGroundTruth``; its stamp is
-the arm's motion start). A ``seq`` gap is lost input (counted, on ``/diagnostics``, the windows
-across it degraded); a packet that cannot be read is counted and dropped with the reason
-logged. Publishes ``window`` (``ContactWindow``): provisional windows at the configured shorter
-post-onset times, then the final one. The windowing itself is
-:class:`~ext_sense_perception.online.stage.WindowStage`; the window and the anytime times come
-from the task profile (:mod:`ext_sense_perception.profiles`).
+Subscribes ``packets`` (``SensorPacket``) and, for food, ``motion_start``
+(``ContactGroundTruth``, stamped at the arm's motion start); publishes ``window``. The windowing
+and its one time rule are :class:`~ext_sense_perception.online.stage.WindowStage`'s, with the
+profile from :mod:`.window_parameters`; the node has no clock of its own for windows, so a
+replay of its packets cuts exactly its windows. Its one timer is for liveness, armed only while
+a stall could start or turn ERROR.
 
-When a window closes is :class:`~ext_sense_perception.online.stage.WindowStage`'s one rule: when
-the packets carry the stream past its end (their events, or the driver's "nothing read"
-packets, which it sends on its own cadence while the sensor is silent), or end the stream. This
-node has no clock of its own for windows, so a replay of the recorded packets cuts exactly the
-windows it cut (``test/test_packet_replay.py``). Its one timer is for the liveness status below,
-armed only while a stall could start or turn ERROR: an idle node does not wake.
-
-Liveness (:mod:`ext_sense_perception.online.liveness`): the node knows the rate its input
-should have (``expected_rate_hz``) and when it must arrive (BioTac: always; NUSkin: while the
-driver's stream goes, as its "nothing read" packets keep coming while the sensor is silent).
-Silence then beyond ``stall_warn_ms`` is a stall: WARN on ``/diagnostics``
-(status ``liveness``, naming the silent topic), ERROR beyond ``stall_error_ms``, published at
-once (not at the next 1 Hz tick), cleared when data returns. Every window overlapping a stall
-or input lost on the way (a ``seq`` gap, or the driver's word count ran ahead of the events
-received) goes out with ``degraded`` and the reason, as does a window reaching back before the
-first input the node got (it joined mid-stream: the onset found may be the tail of a contact
-already under way; the windower's rule, offline too). Degraded is decided on whether the
-window's data is complete, not on lateness: packets later than ``late_ms`` are counted
-(``late_packets``), but a window closes on data past its end and the stream is in order, so a
-late packet inside it is in it. Contacts are counted, not gaps: a
-final window across a fault is a degraded contact (``contacts_degraded``), lost input no window
-came to cover a lost one (``contacts_lost``, see :mod:`.online.liveness`). QoS deadline
-events are not used for this: a subscription's deadline is incompatible with the drivers'
-publishers, which offer none, and it would cut the stream instead of reporting it.
-
-Stuck taxels (NUSkin, :mod:`ext_sense_perception.online.stuck_taxels`): a taxel firing at
-``stuck_rate_hz`` or more for longer than ``stuck_after_ms`` (longer than any contact lasts) is
-masked from onset detection until it quiets, and reported at once: WARN on ``/diagnostics``
-(status ``taxels``, naming the taxel ids) and on the console; windows cut meanwhile go out
-degraded. An onset needs events from ``activity_min_taxels`` taxels, so one taxel at its ceiling
-never opens a contact, even before it is masked.
+Liveness (:mod:`ext_sense_perception.online.liveness`): silence while streaming beyond
+``stall_warn_ms`` is WARN on ``/diagnostics`` (``liveness``), beyond ``stall_error_ms`` ERROR,
+published at once; windows across a stall or lost input (``seq`` gaps) go out degraded.
+Lateness (``late_ms``) is counted only. QoS deadlines are not used: the drivers' publishers
+offer none. Stuck taxels (:mod:`ext_sense_perception.online.stuck_taxels`) are masked from
+onset detection, reported at once (``taxels``) and degrade the windows cut meanwhile.
 """
 
 from __future__ import annotations
@@ -213,11 +186,7 @@ class ContactWindowNode(Node):
         self._report_stall_change()
 
     def _streaming(self) -> bool:
-        """Whether input must be arriving now: BioTac always, NUSkin while its stream goes.
-
-        The NUSkin driver says every few ms that it read nothing while the sensor is silent,
-        so its packets keep coming until the stream ends (``end_of_stream``).
-        """
+        """Whether input must be arriving now: BioTac always, NUSkin until ``end_of_stream``."""
         return self.config.sensor is Sensor.BIOTAC or self._stream_going
 
     def _report_stall_change(self) -> None:
@@ -260,10 +229,8 @@ class ContactWindowNode(Node):
     def _arm(self, earlier_only: bool = False) -> None:
         """Arm the timer for the next moment the liveness status may change, or stop it.
 
-        Args:
-            earlier_only: Keep an armed timer unless the new moment is earlier (called per
-                message: data only moves it later, and a timer that fires early re-arms itself,
-                so most messages cost no timer call).
+        ``earlier_only`` (per message) keeps an armed timer unless the moment is earlier: data only
+        moves it later, and an early timer re-arms itself.
         """
         wake = self.liveness.next_change_ns(self._streaming())
         if wake is None:

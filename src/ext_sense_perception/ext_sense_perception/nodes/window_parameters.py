@@ -1,11 +1,8 @@
 """The ``contact_window`` node's parameters, and the window configuration and liveness they give.
 
-How windows are cut (window, sample bin, anytime times, debounce, onset detector) has one
-source: the model card's task profile (:meth:`WindowConfig.for_profile`, what training cut the
-model's windows with), else the task's own profile. The node's parameters say which task,
-sensor and model, which BioTac slots, and how the input's liveness and stuck taxels are
-judged; they do not override the profile, so a model is served the windows it was trained on.
-Pure: no rclpy.
+Windows are cut by the model card's task profile (what training cut the model's windows with),
+else the task's own; the parameters choose task, sensor, model, BioTac slots and the liveness
+and stuck-taxel judgement, never the profile. Pure: no rclpy.
 """
 
 from __future__ import annotations
@@ -121,8 +118,8 @@ def window_config(p: WindowParameters, log: Log) -> tuple[WindowConfig, tuple[in
     """The window configuration: the model card's profile, else the task's.
 
     Returns:
-        The configuration, the BioTac sensor slots joined into one window, and where the
-        profile came from (the card's path, or ``"task"``).
+        The configuration, the BioTac slots joined into one window, and the profile's source (the
+            card's path, or ``"task"``).
 
     Raises:
         ValueError: A bad task, sensor or stuck-taxel setting (the message names it).

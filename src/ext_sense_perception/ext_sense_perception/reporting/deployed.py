@@ -1,14 +1,9 @@
 """The deployed models behind the report's latency columns, as cached fits a cluster can run.
 
-A features x models row's ONNX latency is that of the model the protocol would deploy: trained
-on every window with the hyper-parameters most splits chose
-(:meth:`~ext_sense_perception.reporting.runner.Runner.infer_ms`). Such a fit takes as long as a
-split's, and a data set has a dozen: run one after the other in the report's own process, with
-the workers idle, they took about 10 minutes per tap data set and were trained again by every
-rerun. So they run where the split fits run (the
-:class:`~ext_sense_perception.training.fit_jobs.FitRunner`, on a Dask cluster when one was
-asked for) and are cached beside them under :func:`deployed_key`; only their timing runs in the
-report's process, one model at a time, never beside a fit. No ROS.
+A latency is that of the model the protocol would deploy, trained on every window with the
+modal hyper-parameters. Such fits take as long as a split's (about 10 minutes per tap data set
+run in turn), so they run and are cached where the split fits run; only their timing runs in
+the report's process, never beside a fit. No ROS.
 """
 
 from __future__ import annotations
@@ -25,10 +20,9 @@ from ext_sense_perception.training.protocol import features_for
 from ext_sense_perception.training.split_fit import code_digest
 
 DEPLOYED_STORE = "deployed"
-"""The fit cache's subdirectory of deployed models. They are kept apart from the split fits: a
-fitted model takes up to tens of megabytes (an RBF SVR keeps its support vectors), a split's
-result 1-2 kB, so a report's split fits can be kept beside it (``docs/perception_report/fits``
-is in git) and its deployed models not (ignored)."""
+"""The fit cache's subdirectory of deployed models: up to tens of MB each, so kept apart from
+the 1-2 kB split results (``docs/perception_report/fits`` is in git, these are ignored).
+"""
 
 
 class DeployedTask(NamedTuple):
@@ -61,16 +55,10 @@ def fit_deployed(task: DeployedTask, ws: WindowSet) -> TrainedModel:
 
 
 def deployed_key(task: DeployedTask, ws: WindowSet, data: str) -> str:
-    """The cache key of a deployed fit: its configuration, its data's hash and its code's.
+    """The cache key of a deployed fit: its configuration, the data's hash and its code's.
 
-    The code is that of the pipeline's classes (:func:`~.split_fit.code_digest`, as for a
-    split) plus the fitting module's and this one's, so a change to one model retrains only
-    its deployed models.
-
-    Args:
-        task: The fit.
-        ws: Its windows (to build the pipeline the code digest reads).
-        data: The hash of the windows and labels (the runner's fingerprint, hex).
+    The code is the pipeline's (:func:`~.split_fit.code_digest`) plus the fitting module's and this
+    one's, so a change to one model retrains only its deployed models.
     """
     feats = features_for(ws, task.features, **task.feature_params)
     pipe, _ = make_pipeline(feats, task.model, ws.is_regression, task.seed)

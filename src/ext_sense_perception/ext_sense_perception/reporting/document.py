@@ -1,9 +1,7 @@
 """The report's files: report.md and report.json written, a former report read back (no ROS).
 
-report.json is a list of rows, one per point a study shows (:meth:`.runner.Runner.row`);
-report.md has a data-set table (where each data set's rows come from), one section per data
-set and, across tap data sets, the rod-length table. Both tables are rebuilt from the rows at
-every write, so a report updated data set by data set (``--update``) stays consistent.
+The data-set and rod-length tables are rebuilt from the rows at every write, so a report
+updated data set by data set (``--update``) stays consistent.
 """
 
 from __future__ import annotations
@@ -33,11 +31,7 @@ SECTION_HEADING = re.compile(r"^## (\w+), (\w+) \(\d+ windows; `([^`]+)`")
 
 
 def read_report(out: Path) -> ReportParts:
-    """The data-set sections of ``out/report.md`` and the rows of ``out/report.json``.
-
-    Sections are told apart by their headings (``## task, sensor (N windows; `path`)``); the
-    other headings (data sets, rod length) are rebuilt from the rows when written. No report
-    in ``out``: nothing.
+    """The data-set sections of ``out/report.md`` (told by their headings) and report.json's rows.
 
     Raises:
         PerceptionError: report.json is not a list of rows.
@@ -68,11 +62,7 @@ def read_report(out: Path) -> ReportParts:
 
 
 def provenance(path: Path, sim_commit: str | None) -> dict[str, Any]:
-    """Where a data set's rows come from: ``source``, ``scene``, ``seed``, ``sim_commit``.
-
-    A simulator ``dataset.npz`` (it names its scene) is ``simulator``, with ``sim_commit`` as
-    given; anything else (captures, bags, preprocessed files) is ``recording``.
-    """
+    """Where a data set's rows come from: ``simulator`` (a scene's npz) or ``recording``."""
     if Path(path).suffix == ".npz":
         with np.load(path, allow_pickle=False) as z:
             if "scene" in z.files:
@@ -141,11 +131,7 @@ def rod_table(records: list[dict[str, Any]]) -> list[str]:
 
 
 def write_report(out: Path, parts: ReportParts, note: str | None = None) -> Path:
-    """Write ``report.md`` and ``report.json``; returns the markdown file.
-
-    The rows are written data set by data set in the order of the sections (a data set an
-    update replaced keeps its place), each data set's rows in the order they were listed.
-    """
+    """Write ``report.md`` and ``report.json`` (rows in section order); returns the first."""
     place = {name: i for i, name in enumerate(parts.sections)}
     records = sorted(parts.records, key=lambda r: place.get(r.get("dataset"), len(place)))
     lines = [

@@ -26,12 +26,7 @@ def plot(
     pareto_lower: bool | None = None,
     yerr: list[float] | None = None,
 ) -> None:
-    """Score against a time (or rate) axis as a PNG.
-
-    Optionally error bars (``yerr``: the score's std over splits), labelled points and the
-    Pareto front (``pareto_lower``: lower scores are better; computed by
-    :func:`~.scores.pareto_front`).
-    """
+    """Score against a time or rate axis as a PNG (error bars, labels, Pareto front optional)."""
     fig, ax = plt.subplots(figsize=(5, 3.4), dpi=110)
     order = np.argsort(xs)
     ax.errorbar(

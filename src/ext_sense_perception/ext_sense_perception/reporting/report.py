@@ -1,27 +1,16 @@
 """``ext-sense report``: paper-style tables (markdown) and plots (PNG) of accuracy against time.
 
-Per dataset (task): a features x models table (score, training time, ONNX inference time;
-NUSkin taps add the GRU (16) + MLP on binned counts when torch is installed),
-the score against the post-contact window (decision latency 25 to 250 ms), against inference
-latency, against sampling rate, one finger / one taxel against two fingers (default model and
-the linear SVM side by side; the single taxel chosen on each split's training part), and the
-anytime estimator's calibration (95% prediction-interval coverage for position; expected
-calibration error and Brier score of the class probabilities). Across tap datasets: rod length.
-
-Everything is measured with :func:`ext_sense_perception.protocol.evaluate` (K splits, default 3
-for speed; the paper's K is given in the table's header when used). A point shared by several
-sections is evaluated once and listed in report.json under each study that shows it (``study``
-``models``, ``decision_latency``, ``sampling_rate``, ``taxels``, ``rod_length``, with its
-``post_ms``, ``rate_hz``, ``channels``, ``rod_m``; :mod:`.document`); ``report.md`` is
-rewritten after every data set, so a long run keeps what it has, and ``update`` keeps the
-former report's other data sets. Each data set's sections are first planned
-(:meth:`Runner.plan`), so the fits of all its points go to the executor together
-(:meth:`Runner.flush`), then written.
+Per data set: a features x models table (with the GRU for NUSkin taps), the score against the
+post-contact window, inference latency, sampling rate, fingers and taxels, and the anytime
+estimator's calibration; across tap data sets, rod length. Points come from the protocol
+(:mod:`.runner`); ``report.md`` is rewritten after every data set, and ``update`` keeps the
+former report's other data sets.
 """
 
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -77,12 +66,9 @@ def report_dataset(
 ) -> list[str]:
     """Markdown lines (and PNGs in ``out``) for one window set.
 
-    ``run`` evaluates and memoises points (K, seed, ``base_params``, jobs); ``gru=False`` leaves
-    out the GRU row (see :func:`gru_row`); ``gru_params`` are fixed
-    :class:`~ext_sense_perception.gru.GRUEstimator` parameters (e.g. fewer epochs for a smoke
-    run); ``features`` / ``models`` replace the features x models table's defaults (the NUSkin
-    food table always starts with its default ``activity`` features); ``latency=False`` /
-    ``taxels=False`` leave out the decision-latency / finger and taxel sections.
+    ``gru=False`` leaves out the GRU row, ``gru_params`` fixes its parameters; ``features`` /
+    ``models`` replace the table's defaults (NUSkin food always starts with ``activity``);
+    ``latency`` / ``taxels`` False leave those sections out.
     """
     name = dataset_name(ws, path)
     lower = ws.is_regression
@@ -104,24 +90,28 @@ def report_dataset(
     ]
     inf_x, inf_y, inf_lab, inf_err, dec_x = [], [], [], [], []
     post_ms = ws.geometry.post_ns / MS
+
+    def model_row(f: str, m: str, model_params: dict[str, Any] | None = None) -> None:
+        try:
+            res = run(ws, name, f, m, model_params=model_params)
+            p50, p99 = run.infer_ms(ws, f, m, res, model_params)
+        except PerceptionError as err:
+            lines.append(f"| {f} | {m} | failed: {err} | | | |")
+            return
+        lines.append(
+            f"| {f} | {m} | {fmt(res)} | {np.mean(res.train_s):.2f} | {p50:.3f} / {p99:.3f} "
+            f"| {post_ms + p99:.1f} |"
+        )
+        run.row(res, Study.MODELS)
+        inf_x.append(p50)
+        inf_y.append(score(res))
+        inf_err.append(spread(res))
+        inf_lab.append(f"{f}+{m}")
+        dec_x.append(post_ms + p99)
+
     for f in feats:
         for m in mods:
-            try:
-                res = run(ws, name, f, m)
-                p50, p99 = run.infer_ms(ws, f, m, res)
-            except PerceptionError as err:
-                lines.append(f"| {f} | {m} | failed: {err} | | | |")
-                continue
-            lines.append(
-                f"| {f} | {m} | {fmt(res)} | {np.mean(res.train_s):.2f} | {p50:.3f} / {p99:.3f} "
-                f"| {post_ms + p99:.1f} |"
-            )
-            run.row(res, Study.MODELS)
-            inf_x.append(p50)
-            inf_y.append(score(res))
-            inf_err.append(spread(res))
-            inf_lab.append(f"{f}+{m}")
-            dec_x.append(post_ms + p99)
+            model_row(f, m)
     if gru_row(ws, gru):
         # the paper's best NUSkin tap model: GRU (16) + MLP on the binned counts
         if not torch_available():
@@ -130,22 +120,7 @@ def report_dataset(
                 "not installed | | | |"
             )
         else:
-            try:
-                res = run(ws, name, "baseline", "gru", model_params=gru_params)
-                p50, p99 = run.infer_ms(ws, "baseline", "gru", res, gru_params)
-            except PerceptionError as err:
-                lines.append(f"| baseline | gru | failed: {err} | | | |")
-            else:
-                lines.append(
-                    f"| baseline | gru | {fmt(res)} | {np.mean(res.train_s):.2f} "
-                    f"| {p50:.3f} / {p99:.3f} | {post_ms + p99:.1f} |"
-                )
-                run.row(res, Study.MODELS)
-                inf_x.append(p50)
-                inf_y.append(score(res))
-                inf_err.append(spread(res))
-                inf_lab.append("baseline+gru")
-                dec_x.append(post_ms + p99)
+            model_row("baseline", "gru", gru_params)
     if inf_x:
         png = out / f"{name}_vs_inference.png"
         plot(
@@ -172,22 +147,21 @@ def report_dataset(
     # sampling rate
     rx, ry, rerr = [], [], []
     rows = []
+    rates: Iterable[tuple[int, WindowSet, dict[str, float]]] = ()
     if ws.sensor == "nuskin" and Path(str(path)).suffix == ".npz":
-        for r in NUSKIN_QUICK_RATES_HZ if quick else NUSKIN_RATES_HZ:
-            res = run(from_sim_dataset(path, rate_hz=r), name, feat0, model0)
-            run.row(res, Study.SAMPLING_RATE, rate_hz=float(r))
-            rows.append(f"| {r} | {fmt(res)} |")
-            rx.append(r)
-            ry.append(score(res))
-            rerr.append(spread(res))
+        rates = (  # each rate's windows thinned from the events, loaded in turn
+            (r, from_sim_dataset(path, rate_hz=r), {})
+            for r in (NUSKIN_QUICK_RATES_HZ if quick else NUSKIN_RATES_HZ)
+        )
     elif ws.sensor == "biotac":
-        for r in BIOTAC_RATES_HZ:
-            res = run(ws, name, feat0, model0, rate_hz=float(r))
-            run.row(res, Study.SAMPLING_RATE, rate_hz=float(r))
-            rows.append(f"| {r} | {fmt(res)} |")
-            rx.append(r)
-            ry.append(score(res))
-            rerr.append(spread(res))
+        rates = ((r, ws, {"rate_hz": float(r)}) for r in BIOTAC_RATES_HZ)
+    for r, rate_ws, rate_params in rates:
+        res = run(rate_ws, name, feat0, model0, **rate_params)
+        run.row(res, Study.SAMPLING_RATE, rate_hz=float(r))
+        rows.append(f"| {r} | {fmt(res)} |")
+        rx.append(r)
+        ry.append(score(res))
+        rerr.append(spread(res))
     if rows:
         png = out / f"{name}_vs_rate.png"
         plot(
@@ -247,32 +221,27 @@ def build_report(
         quick: Fewer features, models, rates and candidate taxels.
         seed: Seed.
         base_params: Feature parameters for every NUSkin evaluation (e.g. ``bin_ns``).
-        gru: False leaves out the GRU row of NUSkin tap datasets (default: included, or
-            marked skipped when torch is missing).
+        gru: False leaves out the GRU row of NUSkin tap datasets.
         gru_params: Fixed GRU parameters (e.g. ``{"max_epochs": 5}`` for a smoke run).
-        features: Feature sets of the features x models tables (default: fft, baseline, est,
-            autoencoder; quick: fft, baseline).
-        models: Models of those tables (default: svm_linear, svm_rbf, mlp; quick: svm_rbf).
+        features: Feature sets of the features x models tables.
+        models: Models of those tables.
         n_jobs: Parallel grid-search jobs per evaluation.
         latency: False leaves out the decision-latency / anytime-calibration sections.
-        taxels: False leaves out the two fingers / one finger / one taxel sections.
+        taxels: False leaves out the fingers and taxels sections.
         executor: Where the split fits run and are cached (default: here, uncached).
-        full: The paper's tables in full: its K per point (unless ``k`` is given), every
-            feature set and model, the GRU row, every section (``quick`` is refused).
-        plan: A list: fit and write nothing, only append to it each data set's count of the
-            fits the report would run (:meth:`Runner.listed`: points, fits, cached, to do).
-        sim_commit: The simulator commit the simulator data sets were made with, recorded in
-            their rows and sections (a ``dataset.npz`` does not carry it).
-        update: Keep the data sets of the report already in ``out`` that this run does not
-            evaluate (their sections and rows as they are); the ones it evaluates replace
-            theirs in place, new ones follow.
+        full: The paper's tables in full: its K per point (unless ``k`` is given), every feature
+            set, model and section.
+        plan: A list: fit and write nothing, only append each data set's :meth:`Runner.listed`
+            counts.
+        sim_commit: The simulator commit of the simulator data sets, recorded in their rows.
+        update: Keep the former report's data sets this run does not evaluate.
 
     Returns:
         The markdown file (not written with ``plan``).
 
     Raises:
-        PerceptionError: on an unknown feature set or model name (before anything runs),
-            unreadable data, or (``update``) an unreadable former report.
+        PerceptionError: an unknown feature set or model (before anything runs), unreadable data, or
+            (``update``) an unreadable former report.
     """
     features, models = check_choices(features, models)
     if full:

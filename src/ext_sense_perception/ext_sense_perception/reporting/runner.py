@@ -1,17 +1,11 @@
 """Running the protocol for the report: each distinct point once, every point recorded (no ROS).
 
-A data set's sections run three times: first inside :meth:`Runner.plan`, where every point they
-ask for is listed (and answered with a placeholder); after :meth:`Runner.flush` has fitted the
-splits of all those points in one submission, inside :meth:`Runner.plan_deployed`, where the
-deployed models of the latency columns (which need the points' chosen hyper-parameters) are
-listed; and after :meth:`Runner.flush_deployed` has fitted those, for real, from the memos. So a
-cluster's workers get every fit of a data set at once instead of one point's K at a time, and
-every fit is cached (:mod:`.deployed`).
-
-report.json has one row per (point, study) the final pass shows (:meth:`Runner.row`): a point
-shared by several studies (the default model on the full window is a models-table cell, the
-full-window decision-latency row, the both-fingers row and the rod-length row) is fitted once
-and listed once under each study, every copy carrying the same ``point`` id.
+A data set's sections run three times: inside :meth:`Runner.plan` every point is listed (and
+answered with a placeholder); after :meth:`Runner.flush` fitted them all in one submission,
+inside :meth:`Runner.plan_deployed` the deployed models of the latency columns are listed; after
+:meth:`Runner.flush_deployed`, for real, from the memos. So a cluster gets a data set's fits at
+once, and every fit is cached. A point shared by several studies is fitted once and listed in
+report.json under each, every copy with the same ``point`` id.
 """
 
 from __future__ import annotations
@@ -74,15 +68,9 @@ class Study(str, Enum):
 def check_choices(
     features: list[str] | tuple[str, ...] | None, models: list[str] | tuple[str, ...] | None
 ) -> tuple[tuple[str, ...] | None, tuple[str, ...] | None]:
-    """Validated feature-set and model names for the features x models tables.
+    """Canonical feature-set and model names for the features x models tables, duplicates dropped.
 
-    Args:
-        features: Feature set names (aliases such as ``raw`` allowed), or None for the default.
-        models: Model names, or None for the default. ``gru`` is not one of them: the GRU has
-            its own row (``gru=False`` leaves it out).
-
-    Returns:
-        ``(features, models)``: canonical names, duplicates dropped, order kept (None stays None).
+    None stays None (the defaults); ``gru`` is no model here, it has its own row.
 
     Raises:
         PerceptionError: on an empty list or an unknown name.
@@ -155,12 +143,10 @@ def placeholder(plan: EvalPlan) -> EvalResult:
 class Runner:
     """Runs the protocol once per distinct (windows, features, model, parameters).
 
-    Points shared by several sections (the default model on the full window, both fingers,
-    the rod-length table) are evaluated once and reused; each section lists the points it
-    shows in ``records`` (report.json) with :meth:`row`. The split fits run on ``executor``
-    (here by default, or on a Dask cluster) and are cached there, so an interrupted report
-    reruns only what it had not finished. Points asked for inside :meth:`plan` are fitted
-    together by :meth:`flush`; others at once.
+    Shared points are evaluated once; each section lists what it shows in ``records`` with
+    :meth:`row`. Split fits run and are cached on ``executor``, so an interrupted report reruns only
+    what it had not finished. Points asked for inside :meth:`plan` are fitted together by
+    :meth:`flush`; others at once.
     """
 
     def __init__(
@@ -196,10 +182,7 @@ class Runner:
         return str(self.k) if self.k else "the paper's K: 5 for taps and the GRU, 20 otherwise;"
 
     def feature_params(self, ws: WindowSet, features: str, params: dict[str, Any]) -> dict:
-        """Feature parameters: base_params (NUSkin binned features), then params.
-
-        The feature bin itself defaults to the task profile's (see ``features_for``).
-        """
+        """Feature parameters: ``base_params`` (NUSkin binned features), then ``params``."""
         out: dict[str, Any] = {}
         if ws.sensor == "nuskin" and features in BINNED_FEATURES:
             out.update(self.base_params)
@@ -235,8 +218,8 @@ class Runner:
         """Score ``features`` + ``model`` on ``ws`` (K splits), or return the memoised result.
 
         Raises:
-            PerceptionError: the point cannot be evaluated, or one of its fits failed (the
-                same error each time the point is asked for).
+            PerceptionError: the point cannot be evaluated, or one of its fits failed (each time it
+                is asked for).
         """
         params = self.feature_params(ws, features, params)
         grid = dict(default_feature_grid(ws.task, ws.sensor, features))
@@ -285,10 +268,9 @@ class Runner:
         return hit
 
     def flush(self) -> None:
-        """Fit the splits of every listed point, all submitted together; record each point.
+        """Fit the splits of every listed point, all submitted together, and record each point.
 
-        ``eval_s`` of a record is the sum of its splits' fit times (grid search and refit),
-        wherever they ran.
+        A record's ``eval_s`` is the sum of its splits' fit times, wherever they ran.
         """
         pending, self._pending = list(self._pending.items()), {}
         outcomes = self.executor.run_jobs([plan.job() for _, (plan, _) in pending])
@@ -318,12 +300,8 @@ class Runner:
     def row(self, res: EvalResult, study: Study, **fields: Any) -> None:
         """List an evaluated point in report.json under ``study`` (on the final pass only).
 
-        Args:
-            res: A result this runner returned.
-            study: The study whose table shows it.
-            **fields: The row's parameters: ``post_ms`` (default: the result's window),
-                ``rate_hz`` (None: not resampled), ``channels`` (default ``all``), and any
-                study-specific ones (``rod_m``, ``taxel_per_split``, ...).
+        ``fields`` are the row's parameters: ``post_ms`` (default: the result's window), ``rate_hz``
+        (None: not resampled), ``channels`` (default ``all``) and any study-specific ones.
 
         Raises:
             PerceptionError: ``res`` is not a result of this runner.
@@ -342,9 +320,8 @@ class Runner:
     def listed(self) -> dict[str, Any]:
         """What the listed points would fit: points, fits, cached, to do per features+model.
 
-        Also the deployed models the planned sections train for their latency columns
-        (``final_fits``: fitted after the points, on the executor, cached; their cache state
-        is known only then, from the points' chosen hyper-parameters).
+        ``final_fits`` counts the deployed models too, whose cache state is known only after the
+        points.
         """
         cache = self.executor.cache
         todo: Counter[str] = Counter()
@@ -383,12 +360,7 @@ class Runner:
             self.deploying = False
 
     def flush_deployed(self) -> None:
-        """Fit every listed deployed model, all submitted together, and time each in turn.
-
-        The fits run on the executor (a cluster's workers when there is one) and are cached;
-        the timing (:func:`~ext_sense_perception.training.timing.measure_inference`) runs
-        here, after the last fit, so no fit competes with it for a core.
-        """
+        """Fit every listed deployed model together (cached), then time each with no fit running."""
         pending, self._deploy_pending = list(self._deploy_pending.items()), {}
         jobs = [
             FitJob(fit_deployed, [task], [key], {"ws": ws}, DEPLOYED_STORE)
@@ -417,10 +389,9 @@ class Runner:
     ) -> tuple[float, float]:
         """ONNX single-window p50 and p99 latency, ms, of the model the protocol would deploy.
 
-        It is trained on every window with the hyper-parameters chosen in most splits (a
-        one-candidate grid, so it costs about a quarter of a split, not a second search), as
-        a cached fit on the executor (:mod:`.deployed`). While planning points or deployed
-        models it trains nothing and gives NaN; a model not listed beforehand is fitted now.
+        It is trained on every window with the hyper-parameters chosen in most splits (a cached
+        one-candidate fit, :mod:`.deployed`). While planning it gives NaN; a model not listed
+        beforehand is fitted now.
 
         Raises:
             PerceptionError: its fit failed (the same error each time it is asked for).

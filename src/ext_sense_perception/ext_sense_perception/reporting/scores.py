@@ -34,9 +34,7 @@ def spread(res: EvalResult) -> float:
 def pareto_front(xs: list[float], ys: list[float], lower: bool) -> list[int]:
     """Indices of the points no other point beats on both axes, by ascending x.
 
-    x is a cost (latency: lower is better); y is the score (``lower``: an error, else an
-    accuracy). A point is on the front when no other point has x <= its x and a score at least
-    as good, with one of the two strictly better.
+    x is a cost (lower is better); y the score (``lower``: an error, else an accuracy).
     """
     sign = 1.0 if lower else -1.0
     pts = [(float(x), sign * float(y)) for x, y in zip(xs, ys, strict=True)]

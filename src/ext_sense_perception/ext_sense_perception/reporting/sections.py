@@ -16,11 +16,9 @@ from ext_sense_runtime.stamps import MS
 
 
 def gru_row(ws: WindowSet, gru: bool | None = None) -> bool:
-    """Whether the features x models table gets the GRU (baseline features) row.
+    """Whether the table gets the GRU row: NUSkin taps unless ``gru`` is False.
 
-    NUSkin tap localisation (the paper's best NUSkin tap model is the RNN on binned counts),
-    unless ``gru`` is False; the row says "skipped" when torch is not installed. BioTac is left
-    out: its raw PAC gives 660-step sequences, about 10x the training time.
+    BioTac is left out: its raw PAC gives 660-step sequences, about 10x the training time.
     """
     return gru is not False and ws.task == "tap_localization" and ws.sensor == "nuskin"
 
@@ -33,10 +31,8 @@ def dataset_name(ws: WindowSet, path: Path | str) -> str:
 def dataset_name_of(task: str, sensor: str, path: Path | str) -> str:
     """:func:`dataset_name` from the task, sensor and path a section heading shows.
 
-    The last part is the folder of a simulator ``dataset.npz`` (``tap_rod30_nuskin``), the
-    folder and stem of another file (``data_rod30`` for ``data/rod30.npz``) or the name of a
-    directory (captures, bags); a path with a suffix is a file, so a heading of data no longer
-    on disk gives the same name.
+    The last part is a ``dataset.npz``'s folder, another file's folder and stem, or a directory's
+    name; a path with a suffix is a file, so data no longer on disk gives the same name.
     """
     src = Path(str(path))
     if not src.suffix:
@@ -58,11 +54,9 @@ def taxel_section(
 ) -> list[str]:
     """Both fingers against one finger against one taxel, default and linear model side by side.
 
-    The single taxel is a hyper-parameter: among the ``n_top`` most active taxels (activity
-    summed over every window, which uses no label), each split's 4-fold grid search on its
-    training part picks it, so the test part never chooses it. Its report.json rows say
-    ``channels`` ``taxel:N`` (N: the taxel, 1..80, chosen in most splits), ``taxel_per_split``
-    and ``taxel_candidates``; the others ``all``, ``left`` or ``right``.
+    The single taxel is a hyper-parameter among the ``n_top`` most active (no label used), picked
+    by each split's grid search on its training part; its rows say ``channels`` ``taxel:N`` (the
+    modal pick), ``taxel_per_split`` and ``taxel_candidates``.
     """
     g = ws.geometry
     cols = [model0] + ([LINEAR_MODEL] if model0 != LINEAR_MODEL else [])
