@@ -1,11 +1,4 @@
-"""Byte sources behind one interface: serial (pyserial), CAN (python-can) and files.
-
-Every transport has ``open()``, ``read(timeout_s) -> Chunk`` and ``close()``; ``read`` gives the
-bytes that arrived with their host arrival time (integer nanoseconds, monotonic clock) and raises
-:class:`TransportError` when the device vanishes. :class:`StreamReader` runs one in a thread and
-reconnects with exponential backoff. Device-specific decoders (NUSkin words, BioTac bridge) sit on
-top and never see the transport.
-"""
+"""Byte sources behind one interface (serial, CAN, files) and the reconnecting reader thread."""
 
 from ext_sense_drivers.transports.base import Chunk, LinkState, Transport
 from ext_sense_drivers.transports.errors import TransportError

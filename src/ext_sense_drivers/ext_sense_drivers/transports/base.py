@@ -7,13 +7,7 @@ from typing import NamedTuple, Protocol, runtime_checkable
 
 
 class Chunk(NamedTuple):
-    """Bytes that arrived together.
-
-    Attributes:
-        data: The bytes, possibly empty (nothing arrived before the timeout).
-        t_ns: Host arrival time, integer nanoseconds of ``time.monotonic_ns`` (or the clock the
-            transport was given); taken right after the read returned.
-    """
+    """Bytes that arrived together (maybe none), and when the read returned (monotonic ns)."""
 
     data: bytes
     t_ns: int
@@ -45,19 +39,11 @@ class Transport(Protocol):
         ...
 
     def open(self) -> None:
-        """Open the source.
-
-        Raises:
-            TransportError: The device or file is not there or cannot be opened.
-        """
+        """Open the source (raises :class:`TransportError` when it cannot)."""
         ...
 
     def read(self, timeout_s: float) -> Chunk:
-        """Wait up to ``timeout_s`` for bytes and return what arrived (maybe nothing).
-
-        Raises:
-            TransportError: The source is not open, or vanished while reading.
-        """
+        """What arrived within ``timeout_s`` (raises :class:`TransportError` if it vanished)."""
         ...
 
     def close(self) -> None:

@@ -1,9 +1,4 @@
-"""CAN byte source and sink through python-can.
-
-A byte stream rides in consecutive data frames of up to 8 bytes under one arbitration id, in
-order; frames with other ids are counted and ignored. The sink cuts a stream into such frames,
-so the simulator can stand in for a receiver on a real or ``virtual`` bus.
-"""
+"""CAN byte source and sink (python-can): a stream in consecutive frames under one id."""
 
 from __future__ import annotations
 
@@ -21,11 +16,7 @@ _MAX_FRAMES_PER_READ = 4096
 
 
 def split_frames(data: bytes, size: int = CAN_PAYLOAD) -> list[bytes]:
-    """Cut a byte stream into consecutive frame payloads of at most ``size`` bytes.
-
-    Raises:
-        TransportError: ``size`` is not in 1..8.
-    """
+    """Cut a byte stream into consecutive frame payloads of at most ``size`` (1..8) bytes."""
     if not 1 <= size <= CAN_PAYLOAD:
         raise TransportError(f"The 'size' parameter must be in 1..8. Got {size} instead.")
     return [bytes(data[i : i + size]) for i in range(0, len(data), size)]
@@ -54,14 +45,14 @@ def _open_bus(interface: str, channel: str, bitrate: int | None):  # -> can.BusA
 
 
 class CanTransport:
-    """Reads the stream's frames from a CAN bus and joins their payloads.
+    """Reads the stream's frames from a CAN bus and joins their payloads (others are counted).
 
     Args:
         interface: python-can interface (``socketcan``, ``virtual``, ...).
-        channel: Channel on that interface (``can0``, a virtual channel name).
+        channel: Channel on that interface.
         arbitration_id: Id the stream's frames carry.
         extended: Whether the id is a 29-bit extended id.
-        bitrate: Bus bit rate in bit/s where the interface needs it (``None`` leaves it).
+        bitrate: Bus bit rate in bit/s where the interface needs it.
         clock: Monotonic integer nanoseconds, stamped on each read.
     """
 
@@ -140,15 +131,7 @@ class CanTransport:
 
 
 class CanSink:
-    """Writes a byte stream onto a CAN bus as consecutive frames of up to 8 bytes.
-
-    Args:
-        interface: python-can interface (``socketcan``, ``virtual``, ...).
-        channel: Channel on that interface.
-        arbitration_id: Id every frame carries.
-        extended: Whether the id is a 29-bit extended id.
-        bitrate: Bus bit rate in bit/s where the interface needs it.
-    """
+    """Writes a byte stream onto a CAN bus as consecutive frames (arguments as CanTransport)."""
 
     def __init__(
         self,
@@ -167,11 +150,7 @@ class CanSink:
         self.frames_sent = 0
 
     def write(self, data: bytes, timeout_s: float | None = 0.1) -> int:
-        """Send ``data`` as frames; returns the number of bytes sent.
-
-        Raises:
-            TransportError: The bus refused a frame (gone, or its send buffer stayed full).
-        """
+        """Send ``data`` as frames; return the bytes sent (TransportError if refused)."""
         import can
 
         sent = 0

@@ -11,14 +11,10 @@ from ext_sense_drivers.transports.errors import TransportError
 
 
 class FileTransport:
-    """Replays a file's bytes.
+    """Replays a file's bytes at ``bytes_per_s`` since :meth:`open`, or flat out.
 
-    At a given pace the bytes come out as a serial link would deliver them: by the time ``t``
-    seconds have passed since :meth:`open`, ``t * bytes_per_s`` bytes have been returned (in
-    chunks of whatever was due when ``read`` was called). Flat out (``bytes_per_s=None``) each
-    read returns up to ``chunk_size`` bytes at once. At the end :attr:`exhausted` turns True and
-    reads return nothing (after waiting their timeout, so a reader thread never spins), unless
-    ``loop`` starts the file over.
+    At the end :attr:`exhausted` turns True and reads wait their timeout and return nothing,
+    unless ``loop`` starts over.
 
     Args:
         path: The capture.
@@ -79,7 +75,7 @@ class FileTransport:
         self._t0_ns = self._clock()
 
     def read(self, timeout_s: float) -> Chunk:
-        """The next bytes that are due (see the class docstring)."""
+        """The next bytes that are due."""
         if self._data is None:
             raise TransportError(f"capture file {str(self.path)!r} is not open")
         timeout_s = max(0.0, float(timeout_s))

@@ -1,10 +1,4 @@
-"""The link settings every driver shares: which transport, and the serial, CAN and file details.
-
-The NUSkin and BioTac driver configs derive from :class:`LinkConfig`, so the choice and the
-construction of the byte source live here once; each config keeps its own defaults, its own
-exception type (:attr:`LinkConfig.error`) and its sensor-specific settings. Plain Python: no
-rclpy.
-"""
+"""The link settings every driver config derives from: transport choice, serial, CAN, file."""
 
 from __future__ import annotations
 
@@ -38,11 +32,7 @@ class TransportKind(IntEnum):
 
 @dataclass(frozen=True)
 class LinkConfig:
-    """Transport settings shared by the driver nodes (units in the names).
-
-    Subclasses override the defaults (``baud``, ``can_arbitration_id``) and :attr:`error`, and
-    may override :meth:`file_rate` (the NUSkin driver paces files from their markers).
-    """
+    """Transport settings shared by the drivers; subclasses set defaults and :attr:`error`."""
 
     error: ClassVar[type[Exception]] = TransportError
     """Raised for a bad transport choice or a file transport without a file."""
@@ -61,11 +51,7 @@ class LinkConfig:
 
     @property
     def transport_kind(self) -> TransportKind:
-        """The transport as an enum (case-insensitive).
-
-        Raises:
-            error: Not serial, can or file.
-        """
+        """The transport as an enum (case-insensitive; :attr:`error` if unknown)."""
         kinds = [k.name.lower() for k in TransportKind]
         if self.transport.lower() not in kinds:
             raise self.error(
@@ -84,11 +70,7 @@ class LinkConfig:
         return self.file_path
 
     def check_link(self) -> None:
-        """Check the transport choice, and that a file transport names its file.
-
-        Raises:
-            error: Not serial, can or file; or ``transport`` is file and ``file_path`` is empty.
-        """
+        """Raise :attr:`error` for an unknown transport or a file transport without a file."""
         if self.transport_kind == TransportKind.FILE and not self.file_path:
             raise self.error("The 'file_path' parameter must name a capture. Got '' instead.")
 
@@ -97,11 +79,7 @@ class LinkConfig:
         return float(self.file_bytes_per_s) if self.file_bytes_per_s > 0 else None
 
     def make_reader(self, backoff: Backoff | None = None) -> StreamReader:
-        """A reader thread (not started) for the configured source, at ``reader_priority``.
-
-        Raises:
-            error: ``reader_priority`` out of range, or what :meth:`make_transport` raises.
-        """
+        """A reader thread (not started) for the configured source, at ``reader_priority``."""
         from ext_sense_drivers.transports.reader import StreamReader
 
         low, high = READER_PRIORITY_RANGE
@@ -115,12 +93,7 @@ class LinkConfig:
         )
 
     def make_transport(self) -> Transport:
-        """The configured byte source (not opened yet).
-
-        Raises:
-            error: Bad transport choice, or a file transport without a file.
-            TransportError: Bad port, baud, CAN id or file rate.
-        """
+        """The configured byte source, not opened (:attr:`error` or TransportError if bad)."""
         kind = self.transport_kind
         if kind == TransportKind.SERIAL:
             from ext_sense_drivers.transports.serial_port import SerialTransport

@@ -1,8 +1,7 @@
 """A reader thread that owns one transport, reconnects with backoff and queues what arrives.
 
-Device reads must never block a ROS executor, so drivers run their transport here and drain the
-queued chunks from a timer. The link state and counters are plain attributes, read by the
-node's diagnostics task without locking (each is a single int or enum, written by one thread).
+Reads never block the executor; the state and counters are plain attributes written by the
+thread alone.
 """
 
 from __future__ import annotations
@@ -26,11 +25,7 @@ DRAINER_STEP = 10
 
 @dataclass(frozen=True)
 class Backoff:
-    """Exponential reconnect delays: ``initial_s``, then times ``factor`` up to ``max_s``.
-
-    Raises:
-        TransportError: A delay is not > 0, ``max_s < initial_s`` or ``factor < 1``.
-    """
+    """Exponential reconnect delays: ``initial_s``, then times ``factor`` up to ``max_s``."""
 
     initial_s: float = 0.1
     max_s: float = 5.0
@@ -57,32 +52,21 @@ class Backoff:
 class StreamReader:
     """Runs ``transport`` in a daemon thread; :meth:`drain` hands over what arrived.
 
-    The thread opens the transport, reads with ``read_timeout_s`` and queues non-empty chunks.
-    When opening or reading raises :class:`TransportError` it closes the transport, waits the
-    backoff delay and tries again, for ever, until :meth:`stop`. A finite source that is
-    exhausted ends the thread in :attr:`LinkState.EXHAUSTED`. When more than
-    ``max_pending_bytes`` wait in the queue (the consumer stalled) the oldest chunks are dropped
-    and counted in :attr:`dropped_bytes`.
+    On a :class:`TransportError` the thread closes the transport, waits the backoff delay and
+    retries until :meth:`stop`; an exhausted file ends it in :attr:`LinkState.EXHAUSTED`. Past
+    ``max_pending_bytes`` queued the oldest chunks are dropped (:attr:`dropped_bytes`).
 
     Args:
         transport: The byte source; only this thread touches it once started.
         backoff: Reconnect delays.
-        read_timeout_s: Longest single read; bounds how late :meth:`stop` takes effect. A read
-            returns with the first byte, so it does not delay data; it is how often a silent
-            link wakes this thread (part of an idle driver's cost).
+        read_timeout_s: Longest single read: how late :meth:`stop` acts and how often a
+            silent link wakes the thread.
         max_pending_bytes: Queue bound in bytes.
-        on_data: Called from the reader thread after each queued chunk (e.g. to wake an
-            executor); must be quick and must not raise. Public (:attr:`on_data`): a node
-            sets it once its timer exists.
-        priority: SCHED_FIFO priority the thread asks for when it starts (1-99; 0 leaves it
-            as it is). Refused, it takes a raised nice or nothing
-            (:func:`~ext_sense_drivers.transports.scheduling.raise_thread_priority`); what it
-            got is in :attr:`scheduling`, and a refusal is logged once (``logging``, WARNING).
-            The words carry no time, so how soon this thread runs after a read returns is
-            the stamp's error. The thread that calls :meth:`start` (the node's executor,
-            which drains this reader) is raised too, :data:`DRAINER_STEP` lower
-            (:attr:`drainer_scheduling`): both take Python's GIL, and a real-time reader
-            behind a drainer that the load preempts while it holds the GIL waits for it.
+        on_data: Called from the thread after each queued chunk; quick, never raising.
+        priority: SCHED_FIFO priority asked for (0: leave as is; refused, a raised nice or
+            nothing, see :attr:`scheduling`): how soon the thread runs after a read is the
+            stamp's error. The thread calling :meth:`start` is raised :data:`DRAINER_STEP`
+            lower, since a preempted drainer holding the GIL would stall the reader.
     """
 
     def __init__(
@@ -157,11 +141,7 @@ class StreamReader:
         return [chunk for _, chunk in self.drain_tagged()]
 
     def drain_tagged(self) -> list[tuple[int, Chunk]]:
-        """Like :meth:`drain`, each chunk with the connection it came on (1 = the first open).
-
-        A consumer that keeps per-stream state (a decoder's partial word) sees exactly where a
-        reconnect starts a new stream, even when chunks of both connections wait in the queue.
-        """
+        """Like :meth:`drain`, each chunk with the connection it came on (1 = the first open)."""
         with self._lock:
             tagged = list(self._queue)
             self._queue.clear()

@@ -16,8 +16,8 @@ class SerialTransport:
     """Reads whatever the port has, waiting at most the timeout for the first byte.
 
     Args:
-        port: Device path (``/dev/ttyACM0``, a pty slave) or pyserial URL (``loop://``).
-        baud: Line rate in bit/s (ignored by ptys and ``loop://``).
+        port: Device path (a pty slave too) or pyserial URL (``loop://``).
+        baud: Line rate in bit/s.
         clock: Monotonic integer nanoseconds, stamped on each read.
     """
 
