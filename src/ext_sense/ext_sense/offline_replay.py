@@ -6,7 +6,7 @@ two runs give identical estimates, and a packet bag gives those of the live run 
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -41,6 +41,24 @@ def bag_task_sensor(path: Path) -> tuple[str, str]:
     return task, sensor
 
 
+def packet_topic(topics: Mapping[str, Any], path: Path, sensor: str) -> str:
+    """The bag's topic of ``sensor``'s packets, given the bag's ``topics``.
+
+    Raises:
+        BagError: The bag holds none (one of decoded arrays is migrated first).
+    """
+    from ext_sense.topics import SENSOR_PACKETS
+    from ext_sense_bags import BagError
+
+    topic = SENSOR_PACKETS[sensor]
+    if topic not in topics or not topics[topic].count:
+        raise BagError(
+            f"{path} holds no {topic}: a bag of decoded arrays from before packets is "
+            f"migrated first (ext-sense bag migrate {path} OUT)."
+        )
+    return topic
+
+
 def offline_estimates(
     bag_path: Path, config: WindowConfig, model: ModelBundle, from_seq: int = 0
 ) -> Iterator[tuple[str, Any]]:
@@ -52,11 +70,9 @@ def offline_estimates(
     joined at that packet; after the last one, pending windows close as at a stream's end.
 
     Raises:
-        BagError: The bag holds no packets of the sensor (a bag of decoded arrays from before
-            packets: ``ext-sense bag migrate``).
+        BagError: The bag holds no packets of the sensor (:func:`packet_topic`).
     """
-    from ext_sense.topics import SENSOR_PACKETS
-    from ext_sense_bags import BagError, BagReader
+    from ext_sense_bags import BagReader
     from ext_sense_perception.errors import PerceptionError
     from ext_sense_perception.online.stage import WindowStage
     from ext_sense_runtime.stamps import stamp_to_ns
@@ -74,13 +90,7 @@ def offline_estimates(
             yield "estimate", estimate
 
     with BagReader(bag_path) as bag:
-        stream = SENSOR_PACKETS[sensor]
-        packets = bag.topics.get(stream)
-        if packets is None or not packets.count:
-            raise BagError(
-                f"{bag_path} holds no {stream}: a bag of decoded arrays from before packets is "
-                f"migrated first (ext-sense bag migrate {bag_path} OUT)."
-            )
+        stream = packet_topic(bag.topics, bag_path, sensor)
         wanted = [t for t in (stream, "/extsense/ground_truth") if t in bag.topics]
         for rec, msg in bag.messages(wanted):
             if rec.topic == "/extsense/ground_truth":

@@ -83,7 +83,6 @@ def test_a_grasp_is_played_as_the_pending_answer_names_it():
     assert answers.peek() is None
     assert answers.ask("grasp?") == "quit"  # a script that runs out ends the session
     assert grasp_class(None, HANDOVER_CLASSES) == ""
-    assert not Answers().scripted
     assert Answers().peek() is None
 
 

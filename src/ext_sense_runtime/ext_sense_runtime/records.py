@@ -20,8 +20,7 @@ class EventBlock(NamedTuple):
     """NUSkin events, parallel arrays with one entry per event.
 
     Attributes:
-        t_ns: Time of each event, integer nanoseconds (host arrival time from a driver; time
-            from the trial's origin in the simulator), shape ``(n,)`` int64.
+        t_ns: Time of each event, integer ns, shape ``(n,)`` int64.
         taxel: Taxel id 1..80 (1..40 left finger, 41..80 right), shape ``(n,)`` uint16.
         polarity: +1 positive spike, -1 negative, 0 unknown, shape ``(n,)`` int8.
         value: The receiver's 10-bit value field (0 when the source has none), ``(n,)`` uint16.
@@ -104,8 +103,7 @@ class GroundTruth(NamedTuple):
 
     Attributes:
         trial: Trial number.
-        onset_ns: Contact onset (food: the start of the arm's motion), integer ns, on the
-            clock of the stream it labels.
+        onset_ns: Contact onset (food: the arm's motion start), ns, on its stream's clock.
         task: Task label, e.g. ``"tap_localization"``.
         tap_position_m: Tap distance from the held end, metres (NaN when not a tap).
         class_label: Class (``"stable"``/``"unstable"``, a food), empty for taps.
@@ -145,8 +143,7 @@ class Estimate(NamedTuple):
         class_names: The model's classes.
         class_probabilities: Probabilities in the order of ``class_names``.
         stability_probability: P(stable grasp), 0..1.
-        degraded: Not a normal estimate: its window missed data (a stall or lost input), or
-            it was ready after the inference node's deadline.
+        degraded: Its window missed data, or it came after the inference node's deadline.
         degraded_reason: Why (empty when not degraded).
     """
 
@@ -185,7 +182,6 @@ def estimate_of(msg: Any) -> Estimate:
         class_names=tuple(str(n) for n in msg.class_names),
         class_probabilities=tuple(float(p) for p in msg.class_probabilities),
         stability_probability=float(msg.stability_probability),
-        # absent from messages recorded before the field existed
         degraded=bool(getattr(msg, "degraded", False)),
         degraded_reason=str(getattr(msg, "degraded_reason", "")),
     )

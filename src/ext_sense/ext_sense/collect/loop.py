@@ -67,13 +67,13 @@ class TrialLoop:
 
     Args:
         node: The collector node (spun elsewhere).
-        state: The session's state, saved after every answer.
+        state: The session's state, saved after every answer into ``out``.
         out: The session directory.
         answers: The script or the terminal.
         truth_mode: Tap labels from ``prompt``, ``sim`` or ``mocap``.
         args: The command's arguments (``classes``).
-        sim_trigger: Scripted handover against the simulator: collect triggers each grasp.
-        food_note: Why a food probe may have no live estimate (``""``: its window fits).
+        sim_trigger: Collect triggers each simulated grasp.
+        food_note: Why a food probe may have no live estimate (``session.window_note``).
     """
 
     def __init__(
@@ -249,8 +249,7 @@ class TrialLoop:
     def _wait_for_publisher(self, topic: str, node: str) -> None:
         """Wait until ``node`` publishes ``topic`` and the recording's subscription matched it.
 
-        Seen in the graph is not enough: a message published before the two endpoints matched
-        is lost to a volatile subscription (the Jazzy lane lost a first probe's truth so).
+        Before the match a message is lost to a volatile subscription.
 
         Raises:
             CollectError: Not within 90 s.
@@ -261,12 +260,7 @@ class TrialLoop:
         self.pump(lambda: False, MATCH_SETTLE_S)  # the publisher's side may match a moment later
 
     def _start_probe(self, m: int, d: int) -> None:
-        """Ask for a probe; again while the behaviour ignores the request.
-
-        An accepted ``/food/start`` is followed at once by a decision (``LOWERING``); one the
-        behaviour refuses (``food/start ignored: no arm state yet``, right after a retract)
-        by none, so only then is it sent again: a probe is never started twice.
-        """
+        """Ask for a probe; again only while no decision answers (never a probe twice)."""
         for _ in range(START_TRIES):
             self.node.start_probe()
             if self.pump(lambda: len(self.decisions) > d or len(self.motion) > m, 2.0):

@@ -197,11 +197,6 @@ class Answers:
         self._script: list[str] | None = list(scripted) if scripted is not None else None
         self._next = 0
 
-    @property
-    def scripted(self) -> bool:
-        """Answers come from a script (the next one can be known before it is asked for)."""
-        return self._script is not None
-
     def peek(self) -> str | None:
         """The next scripted answer without taking it; None from the terminal or past the end."""
         if self._script is None or self._next >= len(self._script):

@@ -1,25 +1,11 @@
-"""``ext-sense record``, ``replay`` and ``bag recover``: rosbag2 (mcap) without the ``ros2`` CLI.
+"""``ext-sense record``, ``replay`` and ``bag recover|migrate``: rosbag2 without the ``ros2`` CLI.
 
-- ``record OUT [--topics ...] [--duration S]`` subscribes raw and writes a bag whose type
-  hashes equal the built interfaces' (``ros2 bag play`` accepts it). It writes to the disk at
-  least every ``--flush-period`` (1 s), so a killed recorder loses at most that; a full disk or
-  an unwritable target ends it with one line saying why (exit 1; 2 if the bag cannot be
-  created).
-- ``bag recover BAG [--out DIR]`` rewrites every complete message of a bag a killed recorder
-  left (no footer, no ``metadata.yaml``) as a complete bag, and prints what it recovered.
-- ``bag migrate BAG OUT`` rewrites a bag of decoded arrays (recorded before packets) as the
-  packet bag the graphs replay (:mod:`ext_sense.bag_migrate`).
-- ``replay BAG [--rate R | --flat-out]`` publishes the bag's graph inputs (sensor streams and
-  ground truth) as recorded bytes, at recorded pace or flat out, and prints the throughput.
-  ``view:=true`` (with ``view_host``, ``view_port``, ``view_rate``: the arguments and the
-  ``foxglove_view`` node of every graph, :mod:`ext_sense.view.graph`) also starts the live view
-  in a process of its own, plays what the view reads (the sensor's raw packets, ground truth,
-  windows, estimates, ``/diagnostics``; :func:`ext_sense.view.channels.view_inputs`) and keeps
-  the view up after the bag until Ctrl-C: the channels a live graph's view serves, with the
-  recorded session's data.
-- ``replay BAG --offline`` drives the graph's core directly, without ROS: the same
-  :class:`~ext_sense_perception.online.stage.WindowStage` and model the nodes run, fed in
-  log-time order, so two runs on one bag give identical estimates (``--json`` writes them).
+``record`` writes a bag with the built interfaces' type hashes, to the disk at least every
+``--flush-period``; ``bag recover`` rewrites what a killed recorder left as a complete bag;
+``bag migrate`` turns a bag of decoded arrays into a packet bag (:mod:`ext_sense.bag_migrate`);
+``replay`` publishes a bag's graph inputs (with ``view:=true`` also the live view, kept up
+until Ctrl-C), or with ``--offline`` runs the graph's core on it deterministically
+(:mod:`ext_sense.offline_replay`).
 """
 
 from __future__ import annotations
@@ -31,20 +17,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ext_sense.offline_replay import bag_task_sensor as bag_task_sensor
-from ext_sense.offline_replay import offline_estimates as offline_estimates
+from ext_sense.offline_replay import bag_task_sensor, offline_estimates
 
 if TYPE_CHECKING:  # imported by the handlers: ``ext-sense --help`` stays fast
     from ext_sense.graph import NodeSpec
     from ext_sense_runtime.records import Estimate
-
-DEFAULT_INPUTS = (
-    "/extsense/nuskin/packets",
-    "/extsense/biotac/packets",
-    "/extsense/nuskin/events",
-    "/extsense/biotac/frames",
-    "/extsense/ground_truth",
-)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -83,11 +60,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rcv = bag_sub.add_parser(
         "recover",
         help="rewrite every complete message of a crashed recording as a complete bag",
-        description="Read every complete message of a bag whose recorder was killed (an mcap "
-        "file without footer, no metadata.yaml, a sqlite3 log or journal left open) and write "
-        "them into a complete bag with metadata.yaml; print the messages recovered per topic "
-        "and what was dropped. In place by default: the damaged original is renamed "
-        "BAG.damaged. A complete bag is left alone.",
+        description="Write every complete message of a bag whose recorder was killed into a "
+        "complete bag with metadata.yaml; print what was recovered and dropped. In place by "
+        "default (the original is renamed BAG.damaged); a complete bag is left alone.",
     )
     rcv.add_argument("bag", type=Path, help="bag directory or .mcap/.db3 file")
     rcv.add_argument(
@@ -97,14 +72,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     mig = bag_sub.add_parser(
         "migrate",
         help="rewrite a bag of decoded arrays (recorded before packets) as a packet bag",
-        description="Rewrite a bag recorded before the drivers published raw packets (its "
-        "TaxelEventBatch or BioTacFrame messages) as the packet bag the graphs replay: every "
-        "other topic is copied as recorded. The sensor's bytes are not in such a bag and cannot "
-        "be rebuilt exactly (what the decoder dropped is gone, the reads' times were not kept): "
-        "the events are encoded again with the drivers' word encoder (BioTac frames with the "
-        "bridge frame encoder), each word stamped within its transmission time of its recorded "
-        "time when decoded, with the driver's 'nothing read' packets while the recording is "
-        "silent.",
+        description="Rewrite a bag recorded before the drivers published raw packets as the "
+        "packet bag the graphs replay: its events or frames encoded again with the drivers' "
+        "encoders (the sensor's own bytes are not in it), every other topic copied.",
     )
     mig.add_argument("bag", type=Path, help="bag directory or .mcap/.db3 file to read")
     mig.add_argument("out", type=Path, help="directory of the new packet bag (must not exist)")
@@ -114,13 +84,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "replay",
         help="play a bag into the graph, or run the graph's core on it offline",
         usage="ext-sense replay [-h] [options] BAG [view:=true view_port:=N ...]",
-        description="Publish a bag's sensor streams and ground truth (recorded pace or flat "
+        description="Publish a bag's sensor packets and ground truth (recorded pace or flat "
         "out), or with --offline run windowing and the model on it deterministically. "
-        "view:=true (and view_host, view_port, view_rate, as for `ext-sense run`) starts the "
-        "live Foxglove view beside the player, plays what it reads (the sensor's raw packets, "
-        "or its decoded stream in a bag without packets; ground truth, windows, estimates, "
-        "/diagnostics; unless --topics says otherwise), and "
-        "keeps the view up after the bag until Ctrl-C (docs/view.md).",
+        "view:=true (view_host, view_port, view_rate as for `ext-sense run`) also starts the "
+        "live Foxglove view, plays what it reads and keeps it up until Ctrl-C (docs/view.md).",
     )
     rep.add_argument("bag", type=Path, help="bag directory or .mcap/.db3 file")
     pace = rep.add_mutually_exclusive_group()
@@ -154,11 +121,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _record(args: argparse.Namespace) -> int:
-    """Record until Ctrl-C (any stop signal), ``--duration`` or a write failure.
-
-    rclpy runs through :class:`~ext_sense_runtime.node_main.RosSession`: a stop signal is
-    recorded and ends the spin, then the recorder closes its bag; exit 0.
-    """
+    """Record until a stop signal (exit 0), ``--duration`` or a write failure (exit 1)."""
     from rclpy.parameter import Parameter
 
     from ext_sense.nodes.recorder import RecorderNode
@@ -265,8 +228,8 @@ def _replay_view(args: argparse.Namespace) -> NodeSpec | None:
     """The ``foxglove_view`` node that ``view:=true`` asks for, else ``None``.
 
     Raises:
-        GraphError: An argument that is not a view argument, or a value out of its range.
-        BagError: The bag does not tell its sensor and ``--sensor`` does not either.
+        GraphError: A bad view argument.
+        BagError: Neither the bag nor ``--sensor`` tells the sensor.
     """
     from ext_sense.graph import GraphError, as_bool, parse_assignments
     from ext_sense.topics import SENSOR_STREAMS
@@ -283,23 +246,13 @@ def _replay_view(args: argparse.Namespace) -> NodeSpec | None:
 
 
 def _view_inputs(bag: Path, sensor: str) -> list[str]:
-    """What to play for the view: the bag's packets and the topics passed through.
-
-    Raises:
-        BagError: The bag holds no packets of the sensor (one of decoded arrays from before
-            packets is migrated first: ``ext-sense bag migrate``).
-    """
-    from ext_sense.topics import SENSOR_PACKETS
+    """What to play for the view: the bag's packets (BagError: none) and the topics passed."""
+    from ext_sense.offline_replay import packet_topic
     from ext_sense.view.channels import view_inputs
-    from ext_sense_bags import BagError, BagReader
+    from ext_sense_bags import BagReader
 
     with BagReader(bag) as reader:
-        spec = reader.topics.get(SENSOR_PACKETS[sensor])
-    if spec is None or not spec.count:
-        raise BagError(
-            f"{bag} holds no {SENSOR_PACKETS[sensor]} for the view: a bag of decoded arrays "
-            f"from before packets is migrated first (ext-sense bag migrate {bag} OUT)."
-        )
+        packet_topic(reader.topics, bag, sensor)
     return list(view_inputs(sensor))
 
 

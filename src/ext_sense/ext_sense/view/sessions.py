@@ -99,6 +99,8 @@ def from_bag(path: Path) -> PlotSession:
     from ext_sense_bags.errors import BagError
     from ext_sense_bags.reader import BagReader
 
+    from ext_sense.offline_replay import packet_topic
+
     blocks: list[EventBlock] = []
     finals: list[tuple[int, int, int]] = []
     estimates: list[Estimate] = []
@@ -109,13 +111,7 @@ def from_bag(path: Path) -> PlotSession:
         with BagReader(path) as bag:
             have = bag.topics
             sensor = _bag_sensor(have)
-            # the driver's raw packets, decoded with the library decoder as the live nodes do
-            packets = SENSOR_PACKETS[sensor]
-            if packets not in have or not have[packets].count:
-                raise ViewError(
-                    f"Cannot plot {path}: it holds no {packets}. A bag of decoded arrays from "
-                    f"before packets is migrated first: ext-sense bag migrate {path} OUT."
-                )
+            packets = packet_topic(have, path, sensor)
             wanted = [t for t in (packets, WINDOWS, ESTIMATES, TRUTHS) if t in have]
             for rec, msg in bag.messages(wanted):
                 if rec.topic == packets:
