@@ -1,9 +1,4 @@
-"""Robotiq 2F gripper over Modbus RTU: CRC, frame codec, register map and a pyserial client.
-
-Pure Python (no rclpy). The gripper emulator lives in
-``ext_sense_sim.devices.robotiq_emulator``; the ROS node in
-``ext_sense_behaviours.nodes.robotiq_gripper``.
-"""
+"""Robotiq 2F gripper over Modbus RTU: CRC, frame codec, register map and a pyserial client."""
 
 from ext_sense_drivers.robotiq.client import RobotiqClient, open_serial
 from ext_sense_drivers.robotiq.crc import append_crc, crc16_modbus, crc_ok

@@ -1,9 +1,7 @@
 """A Robotiq 2F client speaking Modbus RTU over a serial port, with timeouts and retries.
 
-Every exchange is one request and one reply. A reply that does not arrive within
-``timeout_s`` or fails its CRC is retried ``retries`` times (after flushing whatever late bytes
-sit in the input buffer); then :class:`RobotiqError` is raised with ``kind`` NO_ANSWER or
-BAD_CRC. A Modbus exception reply is not retried. Counters say how often each happened.
+A missing or corrupt reply is retried ``retries`` times, then raised (NO_ANSWER, BAD_CRC); a
+Modbus exception reply is not retried.
 """
 
 from __future__ import annotations
@@ -31,8 +29,7 @@ from ext_sense_drivers.robotiq.registers import (
 )
 
 _PORT_ERRORS: tuple[type[BaseException], ...] = (OSError, termios.error)
-"""What a vanished port raises: serial.SerialException (an OSError), or termios.error from
-pyserial's flush on a closed pty."""
+"""What a vanished port raises (termios.error: pyserial's flush on a closed pty)."""
 
 
 class SerialPort(Protocol):
@@ -66,11 +63,7 @@ class ClientCounters:
 
 
 def open_serial(port: str, baudrate: int = DEFAULT_BAUDRATE, timeout_s: float = 0.5) -> SerialPort:
-    """Open ``port`` with pyserial (8N1, as the Robotiq 2F expects).
-
-    Raises:
-        RobotiqError: The port cannot be opened (``kind`` SERIAL).
-    """
+    """Open ``port`` with pyserial, 8N1 (RobotiqError, kind SERIAL, if it cannot)."""
     import serial
 
     try:
@@ -86,11 +79,10 @@ class RobotiqClient:
 
     Args:
         port: An open serial port (or anything with the same methods).
-        slave: Modbus slave id of the gripper (9 by default).
+        slave: Modbus slave id of the gripper.
         timeout_s: Time allowed for each reply, seconds.
         retries: Extra attempts after a missing or corrupt reply.
-        read_count: Status registers read per poll (3 hold the whole status; some drivers
-            read 6, which the device also answers).
+        read_count: Status registers read per poll (3 hold the whole status).
         sleep: Injected ``time.sleep`` for polling loops.
         clock: Injected monotonic clock, seconds.
     """
@@ -247,12 +239,9 @@ class RobotiqClient:
     def read_status(self, raise_on_fault: bool = False) -> GripperStatus:
         """Poll the status registers.
 
-        Args:
-            raise_on_fault: Raise when gFLT is not zero.
-
         Raises:
-            RobotiqError: The exchange failed, or (``raise_on_fault``) the gripper reports a
-                fault (``kind`` GRIPPER_FAULT).
+            RobotiqError: The exchange failed, or (``raise_on_fault``) gFLT is not zero
+                (``kind`` GRIPPER_FAULT).
         """
         status = GripperStatus.from_registers(self.read_registers(STATUS_REGISTER, self.read_count))
         self.last_status = status

@@ -17,15 +17,7 @@ _TABLE = _make_table()
 
 
 def crc16_modbus(data: bytes) -> int:
-    """CRC-16/Modbus of ``data``.
-
-    Args:
-        data: The frame without its CRC.
-
-    Returns:
-        The 16-bit CRC; on the wire it goes low byte first (``crc.to_bytes(2, "little")``).
-        The catalogue check value holds: ``crc16_modbus(b"123456789") == 0x4B37``.
-    """
+    """CRC-16/Modbus of a frame without its CRC (``crc16_modbus(b"123456789") == 0x4B37``)."""
     crc = 0xFFFF
     for byte in data:
         crc = (crc >> 8) ^ _TABLE[(crc ^ byte) & 0xFF]

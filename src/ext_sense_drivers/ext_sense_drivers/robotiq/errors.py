@@ -27,12 +27,7 @@ class FaultKind(IntEnum):
 
 
 class RobotiqError(Exception):
-    """A Robotiq frame, exchange or gripper state is not what was expected.
-
-    Args:
-        message: What was expected and what arrived.
-        kind: The class of failure, for callers that react per kind.
-    """
+    """A Robotiq frame, exchange or gripper state is not what was expected (see ``kind``)."""
 
     def __init__(self, message: str, kind: FaultKind = FaultKind.BAD_FRAME) -> None:
         super().__init__(message)

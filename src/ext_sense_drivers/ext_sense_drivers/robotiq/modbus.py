@@ -1,10 +1,6 @@
-"""Modbus RTU frames for the two functions a Robotiq 2F uses, for both ends of the link.
+"""Modbus RTU frames for the functions a Robotiq 2F uses, for client and device (emulator).
 
-Client side: :func:`encode_read_request`, :func:`encode_write_request`,
-:func:`decode_read_reply`, :func:`decode_write_reply`. Device side (the emulator):
-:func:`request_length`, :func:`decode_request`, :func:`encode_read_reply`,
-:func:`encode_write_reply`, :func:`encode_exception`. Registers are 16-bit big-endian on the wire;
-the CRC is CRC-16/Modbus, low byte first (:mod:`ext_sense_drivers.robotiq.crc`).
+Registers are 16-bit big-endian on the wire; the CRC-16/Modbus goes low byte first.
 """
 
 from __future__ import annotations
@@ -64,19 +60,11 @@ def _check_range(name: str, value: int, low: int, high: int) -> int:
 def encode_read_request(
     slave: int, address: int, count: int, function: Function = Function.READ_HOLDING_REGISTERS
 ) -> bytes:
-    """Request to read ``count`` registers from ``address``.
-
-    Args:
-        slave: Modbus slave id, 1..247 (the Robotiq default is 9).
-        address: First register, 0..0xFFFF.
-        count: Number of registers, 1..125.
-        function: 0x03 (holding) or 0x04 (input registers).
-
-    Returns:
-        The 8-byte RTU frame, CRC included.
+    """The 8-byte request to read ``count`` (1..125) registers from ``address``.
 
     Raises:
-        RobotiqError: An argument is out of range.
+        RobotiqError: Slave not in 1..247, address or count out of range, or a function
+            other than 0x03 and 0x04.
     """
     _check_range("slave", slave, 1, 247)
     _check_range("address", address, 0, 0xFFFF)
@@ -90,15 +78,7 @@ def encode_read_request(
 
 
 def encode_write_request(slave: int, address: int, values: Sequence[int]) -> bytes:
-    """Request to write ``values`` to consecutive registers from ``address`` (function 0x10).
-
-    Args:
-        slave: Modbus slave id, 1..247.
-        address: First register, 0..0xFFFF.
-        values: Register values, each 0..0xFFFF; 1..123 of them.
-
-    Returns:
-        The RTU frame: header, byte count, big-endian registers, CRC.
+    """The request (0x10) writing 1..123 ``values`` to consecutive registers from ``address``.
 
     Raises:
         RobotiqError: An argument is out of range.
@@ -159,16 +139,7 @@ def decode_read_reply(
     count: int,
     function: Function = Function.READ_HOLDING_REGISTERS,
 ) -> tuple[int, ...]:
-    """Registers carried by a read reply.
-
-    Args:
-        frame: The whole reply, CRC included.
-        slave: The slave id the request went to.
-        count: The register count requested.
-        function: The function of the request.
-
-    Returns:
-        ``count`` register values.
+    """The ``count`` registers a whole read reply carries.
 
     Raises:
         RobotiqError: Short frame, bad CRC (``BAD_CRC``), wrong slave/function/byte count, or a
@@ -206,10 +177,9 @@ def decode_write_reply(frame: bytes, slave: int, address: int, count: int) -> No
 
 
 def request_length(prefix: bytes) -> int | None:
-    """Length of the request that starts with ``prefix``, or ``None`` if more bytes are needed.
+    """Length of the request starting with ``prefix``, or ``None`` if more bytes are needed.
 
-    Unknown function codes give 8 (the length of a read request), so the device can still
-    check the CRC and answer ILLEGAL_FUNCTION, as a real Modbus server does.
+    Unknown functions give 8, so the device can still answer ILLEGAL_FUNCTION.
     """
     if len(prefix) < 2:
         return None

@@ -1,11 +1,8 @@
-"""The Robotiq 2F register map: command (robot output) and status (robot input) registers.
+"""The Robotiq 2F register map (2F-85/140 manual, 4.4-4.5): command and status blocks.
 
-Both blocks are 6 bytes in 3 big-endian 16-bit registers (Robotiq 2F-85/140 manual, section
-4.4-4.5). Command at 0x03E8: byte 0 action request (rACT bit 0, rGTO bit 3, rATR bit 4, rARD
-bit 5), bytes 1-2 reserved, byte 3 position request rPR, byte 4 speed rSP, byte 5 force rFR.
-Status at 0x07D0: byte 0 gripper status (gACT bit 0, gGTO bit 3, gSTA bits 4-5, gOBJ bits 6-7),
-byte 1 reserved, byte 2 fault (gFLT low nibble, kFLT high nibble), byte 3 position request
-echo gPR, byte 4 position gPO, byte 5 current gCU (about 10 mA per count).
+Each block is 6 bytes in 3 big-endian registers. Command at 0x03E8: action (rACT bit 0, rGTO
+3, rATR 4, rARD 5), 2 reserved, rPR, rSP, rFR. Status at 0x07D0: status (gACT bit 0, gGTO 3,
+gSTA 4-5, gOBJ 6-7), reserved, fault (gFLT low nibble, kFLT high), gPR, gPO, gCU.
 """
 
 from __future__ import annotations
@@ -20,7 +17,6 @@ DEFAULT_SLAVE_ID = 0x09
 DEFAULT_BAUDRATE = 115200
 COMMAND_REGISTER = 0x03E8
 STATUS_REGISTER = 0x07D0
-COMMAND_REGISTER_COUNT = 3
 STATUS_REGISTER_COUNT = 3
 POSITION_OPEN = 0x00
 POSITION_CLOSED = 0xFF
