@@ -1,20 +1,12 @@
-"""``ext-sense nuskin ...`` and ``ext-sense biotac ...``: the drivers' command-line tools.
-
-``nuskin decode RAW_FILE --out EVENTS.csv`` decodes a receiver capture (e.g. a lab
-``*_raw.tact``) into one CSV row per valid word, header ``word,polarity,taxel,value,flag``
-(``word`` counts the valid words from 0, ``flag`` is the word's flag bit as received, see
-:mod:`ext_sense_drivers.nuskin.events_csv`), and prints one line of decoder counters to
-stderr. The ``biotac`` commands live in :mod:`ext_sense_drivers.biotac.cli` and are added
-when present.
-"""
+"""``ext-sense nuskin decode`` (a receiver capture to event CSV) and ``ext-sense biotac ...``."""
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 from pathlib import Path
 
+from ext_sense_drivers.biotac.cli import register_biotac
 from ext_sense_drivers.nuskin.events_csv import CSV_HEADER
 
 _READ_BYTES = 1 << 20
@@ -44,17 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "received, in the flag column",
     )
     decode.set_defaults(func=_decode)
-    _register_biotac(subparsers)
-
-
-def _register_biotac(subparsers: argparse._SubParsersAction) -> None:
-    try:
-        module = importlib.import_module("ext_sense_drivers.biotac.cli")
-    except ModuleNotFoundError as err:
-        if err.name in ("ext_sense_drivers.biotac", "ext_sense_drivers.biotac.cli"):
-            return  # the BioTac tools are not there (yet): the nuskin part works without them
-        raise
-    module.register_biotac(subparsers)
+    register_biotac(subparsers)
 
 
 def _decode(args: argparse.Namespace) -> int:

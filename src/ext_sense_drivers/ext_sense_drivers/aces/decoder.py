@@ -45,8 +45,7 @@ class LineDecoder:
 
     Args:
         bank: Signature bank the line was encoded with (default: the default version).
-        threshold: Detection threshold as a fraction of a full match (amplitude x chips), in
-            (0, 1); default 0.5.
+        threshold: Detection threshold, fraction of a full match, in (0, 1).
         amplitude: Nominal chip amplitude of one signature on the line, line units (> 0).
         window: Samples per pass, at least ``4 * chips``; larger windows cost less per sample
             and delay events more.

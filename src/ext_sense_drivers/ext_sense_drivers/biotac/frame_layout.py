@@ -1,11 +1,8 @@
 """Byte layout of a BioTac bridge frame.
 
-All integers are little-endian::
+Little-endian; the CRC-16/CCITT-FALSE covers ``seq`` through the last word byte::
 
     0xAA 0x55 | seq u16 | sensor_id u8 | n_words u8 | n_words x (b0, b1) | crc u16
-
-The CRC-16/CCITT-FALSE covers ``seq`` through the last word byte. A standard frame holds 44
-words (96 bytes). See ``docs/biotac_bridge.md``.
 """
 
 from __future__ import annotations
