@@ -2,20 +2,9 @@
 
 Each model is trained by the perception package's one recipe
 (``ext_sense_perception.training.recipe.train_bundle``) on the windows the live graph would cut
-from the task's default scene (:data:`~ext_sense_sim.scene.DEFAULT_SCENES`):
-
-- NUSkin taps: the scene's trials laid out as the emulated device streams them
-  (``ext_sense_sim.trial_plan.lay_out_stream``), decoded and cut by the driver's decoder and
-  the ``contact_window`` node's core (``ext_sense_perception.data.device_stream``), so there
-  is no train/serve skew;
-- the NUSkin handover: the same stream cut ideally and again by late readers
-  (``ext_sense_perception.training.arrival_jitter.late_read_window_set``);
-- the rest: a simulated dataset, NUSkin events as the driver delivers them (:func:`as_delivered`).
-
-A bundle is kept while the fingerprint of its inputs (:func:`training_fingerprint`) is current.
-Bundles are written into a temporary directory beside their place and renamed into it, under
-a lock on the place, after the place was found writable
-(``ext_sense_perception.training.bundle_io``).
+from the task's default scene (:data:`~ext_sense_sim.scene.DEFAULT_SCENES`), and kept while the
+fingerprint of its inputs (:func:`training_fingerprint`) is current. Bundles are staged beside
+their place and renamed into it under a lock (``ext_sense_perception.training.bundle_io``).
 """
 
 from __future__ import annotations
@@ -54,19 +43,15 @@ TRIALS: dict[tuple[str, str], int] = {
     ("food_identification", "nuskin"): 70,
     ("food_identification", "biotac"): 70,
 }
-"""Simulated training trials per task and sensor. Taps: the demo's own default (the demo and
-``ros2 launch`` share one model). Food and the BioTac handover: small sets that keep the command
-at about a minute on a 2-core machine. The NUSkin handover: 400, because its release rule (3
-confident estimates in a row) needs probabilities that hold on live reads (docs/benchmarks.md,
-"Where the release streak is lost")."""
+"""Simulated training trials per task and sensor: small sets where a minute's training does;
+the NUSkin handover's release streak needs more (docs/benchmarks.md)."""
 
 JOBS = os.cpu_count() or 1
-"""Grid-search jobs of the recipe-trained models and processes cutting the NUSkin handover's
-stream: every core (the same model as one job; docs/benchmarks.md has the times)."""
+"""Grid-search jobs and processes cutting the NUSkin handover's stream: every core."""
 
 HANDOVER_LATE_READS = 2
-"""Extra cuts of the NUSkin handover's training stream by a late reader: its FFT + SVM reads
-2 ms bins, and live stamps move events by a bin (docs/benchmarks.md, "Late-read training")."""
+"""Extra cuts of the NUSkin handover's training stream by a late reader (live stamps move
+events by a bin; docs/benchmarks.md, "Late-read training")."""
 
 TRAIN_SEED = 1000
 """Seed of the training trials (the demo's own taps use another)."""
@@ -81,10 +66,8 @@ BYTES_PER_TRIAL = {
     "handover_stability": 1_600_000,
     "food_identification": 32_000,
 }
-"""Free space asked of a place per training trial of a bundle before training it: about 1.5x
-the NUSkin bundles measured (ONNX graph, joblib pipeline, training windows and the anytime
-models grow with the windows: taps 83 kB, handover trials 1.05 MB with their three cuts, food
-trials 20 kB; docs/benchmarks.md), an upper bound for the BioTac ones."""
+"""Free space asked of a place per training trial before training: about 1.5x what the NUSkin
+bundles take (docs/benchmarks.md), an upper bound for the BioTac ones."""
 
 
 def _quiet(_line: str) -> None:
@@ -94,9 +77,8 @@ def _quiet(_line: str) -> None:
 def training_fingerprint(sensor: str, scene: str, trials: int, how: str = "") -> str:
     """A hash of everything a default model is trained from.
 
-    The sources of the simulator and of the perception package outside their nodes (effects,
-    streaming, windows, features, models), the scene, how the set is made and the trial count.
-    A model whose fingerprint differs was trained on data this checkout no longer produces.
+    The sources of the simulator and of the perception package outside their nodes, the scene,
+    how the set is made and the trial count.
     """
     digest = hashlib.sha256(f"{sensor}|{scene}|{how}|{trials}|{TRAIN_SEED}".encode())
     for root in (Path(__file__).parent, Path(ext_sense_perception.__file__).parent):
@@ -108,11 +90,7 @@ def training_fingerprint(sensor: str, scene: str, trials: int, how: str = "") ->
 
 
 def as_delivered(dataset: Path, out: Path) -> Path:
-    """The dataset ``dataset.npz`` as the NUSkin driver delivers it live: every polarity 0.
-
-    The receiver's words carry no polarity (real receivers leave the flag bit 0, the emulated
-    one too), so a model meant for the live graph must see events without it.
-    """
+    """``dataset.npz`` as the NUSkin driver delivers it live: every polarity 0 (words have none)."""
     with np.load(dataset) as npz:
         arrays = {k: npz[k] for k in npz.files}
     arrays["ev_polarity"] = np.zeros_like(arrays["ev_polarity"])
@@ -120,64 +98,47 @@ def as_delivered(dataset: Path, out: Path) -> Path:
     return out
 
 
-def stream_set(scene: str, trials: int, log: Log = _quiet) -> WindowSet:
-    """The scene's taps as the emulated device streams them, cut as the live graph cuts them."""
-    t0 = time.monotonic()
-    laid = lay_out_stream(load_scene(scene), TRAIN_SEED, trials, TRIAL_PERIOD_S)
-    ws, counts = window_set_from_stream(laid.writes, laid.truths, source=f"stream:{scene}")
-    log(
-        f"{counts.labelled} labelled windows from {counts.words} words "
-        f"({counts.unmatched_windows} unmatched windows, {counts.missed_trials} trials without "
-        f"a window) in {time.monotonic() - t0:.1f} s"
-    )
-    return ws
-
-
-def late_read_set(
-    scene: str,
-    task: str,
-    trials: int,
-    late_reads: int = HANDOVER_LATE_READS,
-    n_jobs: int = JOBS,
-) -> WindowSet:
-    """The scene's trials as the emulated device streams them, cut ideally and by late reads.
-
-    The ``contact_window`` node's own configuration cuts them (``WindowConfig.for_task``), so
-    the windows are the ones the live graph makes.
-    """
-    laid = lay_out_stream(load_scene(scene), TRAIN_SEED, trials, TRIAL_PERIOD_S)
-    config = WindowConfig.for_task(task, "nuskin")
-    ws, _ = late_read_window_set(
-        laid.writes, laid.truths, config, late_reads, source=f"stream:{scene}", n_jobs=n_jobs
-    )
-    return ws
-
-
 def _how(task: str, sensor: str) -> str:
-    if sensor != "nuskin":
+    if sensor != "nuskin" or task == "food_identification":
         return "dataset"
     if task == "tap_localization":
         return "stream"
-    if task == "handover_stability":
-        return f"stream, {HANDOVER_LATE_READS} late reads"
-    return "dataset"
+    return f"stream, {HANDOVER_LATE_READS} late reads"
 
 
 def training_set(
     task: str, sensor: str, scene: str, trials: int, log: Log = _quiet
 ) -> tuple[WindowSet, Recipe]:
-    """The windows a default model is trained on, and the recipe that trains it."""
+    """The windows a default model is trained on, and the recipe that trains it.
+
+    NUSkin taps and handovers: the scene's trials as the emulated device streams them, cut by the
+    ``contact_window`` node's own core (the handover's also by late readers); the rest: a
+    simulated dataset.
+    """
     how = _how(task, sensor)
-    if how == "stream":
-        return stream_set(scene, trials, log), Recipe()
-    if how.startswith("stream"):
-        return late_read_set(scene, task, trials), Recipe(arrival_jitter=0.0, n_jobs=JOBS)
-    with tempfile.TemporaryDirectory(prefix="ext_sense_models_") as tmp:
-        run_scene(load_scene(scene), Path(tmp) / "sim", trials, TRAIN_SEED, formats=("npz",))
-        npz = Path(tmp) / "sim" / "dataset.npz"
-        if sensor == "nuskin":
-            npz = as_delivered(npz, Path(tmp) / "delivered.npz")
-        return from_sim_dataset(npz), Recipe(n_jobs=JOBS)
+    if how == "dataset":
+        with tempfile.TemporaryDirectory(prefix="ext_sense_models_") as tmp:
+            run_scene(load_scene(scene), Path(tmp) / "sim", trials, TRAIN_SEED, formats=("npz",))
+            npz = Path(tmp) / "sim" / "dataset.npz"
+            if sensor == "nuskin":
+                npz = as_delivered(npz, Path(tmp) / "delivered.npz")
+            return from_sim_dataset(npz), Recipe(n_jobs=JOBS)
+    t0 = time.monotonic()
+    laid = lay_out_stream(load_scene(scene), TRAIN_SEED, trials, TRIAL_PERIOD_S)
+    source = f"stream:{scene}"
+    if how != "stream":
+        config = WindowConfig.for_task(task, "nuskin")
+        ws, _ = late_read_window_set(
+            laid.writes, laid.truths, config, HANDOVER_LATE_READS, source=source, n_jobs=JOBS
+        )
+        return ws, Recipe(arrival_jitter=0.0, n_jobs=JOBS)
+    ws, counts = window_set_from_stream(laid.writes, laid.truths, source=source)
+    log(
+        f"{counts.labelled} labelled windows from {counts.words} words "
+        f"({counts.unmatched_windows} unmatched windows, {counts.missed_trials} trials without "
+        f"a window) in {time.monotonic() - t0:.1f} s"
+    )
+    return ws, Recipe()
 
 
 def is_current(model_dir: Path, task: str, sensor: str, trials: int, scene: str) -> bool:
@@ -191,10 +152,10 @@ def is_current(model_dir: Path, task: str, sensor: str, trials: int, scene: str)
     )
 
 
-def _ensure(
+def _train(
     model_dir: Path, task: str, sensor: str, trials: int, scene: str, force: bool, log: Log
 ) -> bool:
-    """:func:`ensure_model` with the place checked and locked by the caller."""
+    """Train one model unless current, with the place checked and locked by the caller."""
     if not force and is_current(model_dir, task, sensor, trials, scene):
         log(f"using model {model_dir} (trained from the same inputs)")
         return False
@@ -214,6 +175,28 @@ def _ensure(
     return True
 
 
+def _ensure_all(
+    place: Path, jobs: list[tuple[str, Path, int, str]], sensor: str, force: bool, log: Log
+) -> bool:
+    """Train each ``(task, model_dir, trials, scene)`` job unless its model is current.
+
+    When some must be trained, ``place`` is checked writable with room for them first and
+    locked while they are made (a second run waits, then keeps what the first made).
+    """
+    todo = []
+    for task, model_dir, trials, scene in jobs:
+        if not force and is_current(model_dir, task, sensor, trials, scene):
+            log(f"using model {model_dir} (trained from the same inputs)")
+        else:
+            todo.append((task, model_dir, trials, scene))
+    if not todo:
+        return False
+    check_place(place, sum(BYTES_PER_TRIAL[task] * trials for task, _, trials, _ in todo))
+    with place_lock(place, log):
+        trained = [_train(d, task, sensor, n, scene, force, log) for task, d, n, scene in todo]
+    return any(trained)
+
+
 def ensure_model(
     model_dir: Path,
     task: str,
@@ -225,8 +208,8 @@ def ensure_model(
 ) -> bool:
     """Train the task's default model into ``model_dir`` unless a current one is there.
 
-    A current model is used as it is, wherever it lies. Otherwise the parent of ``model_dir``
-    is checked writable with room for the bundle and locked while it is made.
+    A current model is used as it is, wherever it lies; otherwise the parent of ``model_dir``
+    is checked and locked as by :func:`create_models`.
 
     Args:
         model_dir: The bundle directory.
@@ -246,12 +229,7 @@ def ensure_model(
     """
     trials = trials or TRIALS[(task, sensor)]
     scene = scene or DEFAULT_SCENES[(task, sensor)]
-    if not force and is_current(model_dir, task, sensor, trials, scene):
-        log(f"using model {model_dir} (trained from the same inputs)")
-        return False
-    check_place(model_dir.parent, BYTES_PER_TRIAL[task] * trials)
-    with place_lock(model_dir.parent, log):
-        return _ensure(model_dir, task, sensor, trials, scene, force, log)
+    return _ensure_all(model_dir.parent, [(task, model_dir, trials, scene)], sensor, force, log)
 
 
 def create_models(
@@ -263,10 +241,6 @@ def create_models(
 ) -> None:
     """Train the default model of each task into ``out/<task>_<sensor>`` unless current.
 
-    When some must be trained, ``out`` is checked writable with room for them before anything
-    is trained, and locked while they are made (a second run into ``out`` waits, then keeps
-    what the first made).
-
     Raises:
         PerceptionError: ``out`` is not writable or too full, or a training failed.
         SceneError: A scene cannot be loaded.
@@ -275,15 +249,4 @@ def create_models(
         (t, out / default_name(t, sensor), TRIALS[(t, sensor)], DEFAULT_SCENES[(t, sensor)])
         for t in tasks
     ]
-    todo = []
-    for task, model_dir, trials, scene in jobs:
-        if not force and is_current(model_dir, task, sensor, trials, scene):
-            log(f"using model {model_dir} (trained from the same inputs)")
-        else:
-            todo.append((task, model_dir, trials, scene))
-    if not todo:
-        return
-    check_place(out, sum(BYTES_PER_TRIAL[task] * trials for task, _, trials, _ in todo))
-    with place_lock(out, log):
-        for task, model_dir, trials, scene in todo:
-            _ensure(model_dir, task, sensor, trials, scene, force, log)
+    _ensure_all(out, jobs, sensor, force, log)

@@ -1,21 +1,17 @@
 """A simulated Franka Panda / FR3 under franka_ros2: joints, trajectories, contact, reflex.
 
-Why: the food probe's arm adapter talks to the robot through franka_ros2's interfaces only
-(robot state, collision thresholds, a joint trajectory controller, error recovery). This core
-behaves as the robot does behind them, so the ``sim_arm`` node can stand in for it and the
-adapter code that runs on the robot is the code tested:
+The core behind the ``sim_arm`` node, so the food probe's arm adapter is tested against the
+robot's own interfaces:
 
 - joints follow a trajectory by linear interpolation between waypoints from where they were
-  when the goal arrived (``joint_trajectory_controller`` with positions and velocities does a
-  smoother spline; the path is the same at these speeds); a cancel holds the current position;
-- the end effector is where :func:`~ext_sense_behaviours.panda_kinematics.forward` puts it;
-  below ``surface_z_m`` a spring pushes it up (``stiffness_n_per_m`` times the penetration),
-  plus a constant bias and Gaussian noise per axis, as the Panda's ``O_F_ext_hat_K`` has;
+  when the goal arrived; a cancel holds the current position;
+- below ``surface_z_m`` a spring pushes the end effector up, plus a constant bias and Gaussian
+  noise per axis, as the Panda's ``O_F_ext_hat_K`` has;
 - each Cartesian axis whose |force| exceeds the lower threshold raises its contact flag, the
   upper its collision flag; over the upper one the robot enters reflex mode: motion stops, the
   trajectory aborts, new goals are refused until error recovery.
 
-Time is integer nanoseconds from an injectable clock (the node passes its own).
+Time is integer nanoseconds from an injectable clock.
 """
 
 from __future__ import annotations

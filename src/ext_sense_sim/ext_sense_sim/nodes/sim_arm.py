@@ -31,6 +31,7 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
+from scipy.spatial.transform import Rotation
 
 from ext_sense_behaviours.franka import FrankaNames
 from ext_sense_behaviours.panda_kinematics import Q_MAX, Q_MIN
@@ -95,15 +96,9 @@ class SimArmNode(Node):
         self.goals = {"accepted": 0, "rejected": 0, "succeeded": 0, "canceled": 0, "aborted": 0}
         self.threshold_requests = 0
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        self.state_pub = self.create_publisher(
-            FrankaRobotState,
-            p.state_topic,
-            qos,
-        )
+        self.state_pub = self.create_publisher(FrankaRobotState, p.state_topic, qos)
         self.create_service(
-            SetFullCollisionBehavior,
-            p.collision_service,
-            self.guard(self._on_thresholds),
+            SetFullCollisionBehavior, p.collision_service, self.guard(self._on_thresholds)
         )
         self.trajectory_server = ActionServer(
             self,
@@ -114,10 +109,7 @@ class SimArmNode(Node):
             cancel_callback=self._on_cancel,
         )
         self.recovery_server = ActionServer(
-            self,
-            ErrorRecovery,
-            p.error_recovery_action,
-            self._execute_recovery,
+            self, ErrorRecovery, p.error_recovery_action, self._execute_recovery
         )
         self.create_timer(1.0 / p.rate_hz, self.guard(self._tick))
         self.updater = Updater(hardware_id="sim_arm")
@@ -128,9 +120,8 @@ class SimArmNode(Node):
     def destroy_node(self) -> None:
         """Destroy the action servers, then the node.
 
-        rclpy's ``destroy_node`` leaves action servers alive until garbage collection: a node
-        made next in the same process would find this one's trajectory server, ready, and send
-        its goals to a node nobody spins (test_franka_adapter failed in CI on exactly that).
+        rclpy's ``destroy_node`` leaves action servers alive until garbage collection, where a
+        node made next in the same process would find them ready and send them its goals.
         """
         self.trajectory_server.destroy()
         self.recovery_server.destroy()
@@ -232,7 +223,7 @@ class SimArmNode(Node):
         ee = msg.o_t_ee
         ee.header = msg.header
         ee.pose.position.x, ee.pose.position.y, ee.pose.position.z = pose[:3, 3].tolist()
-        w, x, y, z = _quaternion(pose[:3, :3])
+        w, x, y, z = Rotation.from_matrix(pose[:3, :3]).as_quat(scalar_first=True).tolist()
         ee.pose.orientation.w, ee.pose.orientation.x = w, x
         ee.pose.orientation.y, ee.pose.orientation.z = y, z
         wrench = msg.o_f_ext_hat_k
@@ -262,23 +253,6 @@ class SimArmNode(Node):
                 **{f"goals_{k}": v for k, v in self.goals.items()},
             },
         )
-
-
-def _quaternion(r: np.ndarray) -> tuple[float, float, float, float]:
-    """(w, x, y, z) of a rotation matrix (Shepperd's method, the largest pivot)."""
-    w2 = np.array([1 + np.trace(r), 1 + r[0, 0] - r[1, 1] - r[2, 2]])
-    w2 = np.append(w2, [1 - r[0, 0] + r[1, 1] - r[2, 2], 1 - r[0, 0] - r[1, 1] + r[2, 2]])
-    i = int(np.argmax(w2))
-    s = 2.0 * np.sqrt(max(w2[i], 1e-12))
-    if i == 0:
-        q = (s / 4, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s)
-    elif i == 1:
-        q = ((r[2, 1] - r[1, 2]) / s, s / 4, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s)
-    elif i == 2:
-        q = ((r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, s / 4, (r[1, 2] + r[2, 1]) / s)
-    else:
-        q = ((r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, s / 4)
-    return tuple(float(v) for v in q)  # type: ignore[return-value]
 
 
 def main(args: list[str] | None = None) -> int:
