@@ -187,21 +187,16 @@ def window_set_from_bag(
 ) -> tuple[WindowSet, BagCounts]:
     """Windows of a bag's sensor stream, labelled by its ground truth (``groups``: the trial).
 
-    Args:
-        path: Bag directory, or a single ``.mcap`` / ``.db3`` file.
-        task: Task (default: the bag's ``custom_data``, else its first ground truth).
-        sensor: Sensor (default: ``custom_data``, else the sensor topic present).
-        topics: Topic names.
-        onsets: ``"truth"``, ``"detected"`` or ``"auto"`` (truth when the bag has any).
-        config: Window configuration (default: the task profile's).
-        rate_hz: NUSkin: per-taxel refractory drop before windowing (ignored for BioTac).
-        sensor_ids: BioTac sensors joined into one window (default: those among the first frames).
-        match_tolerance_ns: ``"detected"``: largest onset-to-truth distance for a label, ns.
-        require_labels: Raise when no window gets a label.
+    ``task`` and ``sensor`` default to the bag's ``custom_data``, else its ground truth and sensor
+    topic; ``onsets`` is ``truth``, ``detected`` or ``auto`` (truth when the bag has any).
+    ``rate_hz`` thins NUSkin events (BioTac decimates in the features); ``sensor_ids`` are the
+    BioTac
+    sensors joined into one window (default: those among the first frames).
+    ``match_tolerance_ns`` bounds a detected onset's distance to its label's truth.
 
     Raises:
         PerceptionError: An unreadable or empty bag, a missing or mistyped topic, an unknown task or
-            sensor, food without ground truth, or no labelled window when required.
+            sensor, food without ground truth, or no labelled window when ``require_labels``.
     """
     path = Path(path)
     if onsets not in ONSET_MODES:

@@ -70,14 +70,10 @@ def cut_stream(
 ) -> StreamCut:
     """The final windows (and, with ``keep_events``, the stamped events) of a NUSkin stream.
 
-    Args:
-        writes: ``(t_ns, bytes)`` per write to the link, in time order (any clock).
-        config: Window configuration (default: the ``contact_window`` node's for taps).
-        baud: Link rate the arrival clock assumes, bit/s.
-        read_period_ns: Writes within one tick of this length are read together, ns.
-        read_jitter: Each tick lasts ``read_period_ns * U(1 - j, 1 + j)``, as live reads vary.
-        seed: Seed of the jitter.
-        keep_events: Keep every decoded event (15 bytes an event).
+    ``writes`` are ``(t_ns, bytes)`` per write to the link, in time order; ``config`` defaults to
+    the ``contact_window`` node's for taps; ``baud`` is what the arrival clock assumes. Writes
+    within one ``read_period_ns`` tick are read together; ``read_jitter`` makes each tick last
+    ``read_period_ns * U(1 - j, 1 + j)`` (seeded by ``seed``), as live reads vary.
 
     Raises:
         PerceptionError: A BioTac configuration, or a read period or jitter out of range.
@@ -161,18 +157,10 @@ def recut(
     config: WindowConfig,
     shifts_ns: np.ndarray | int = 0,
 ) -> np.ndarray:
-    """Windows of ``events`` cut again with each onset moved by its shift.
+    """Windows ``(n, n_taxels, n_samples)`` of ``events`` cut again with each onset shifted.
 
     With no shift this is the window the ``contact_window`` node cut at that onset.
-
-    Args:
-        events: Events in time order, as the driver stamped them.
-        onsets_ns: ``(n,)`` onsets of the windows, ns.
-        config: A NUSkin window configuration.
-        shifts_ns: Onset shift, ns: one for all, or ``(n,)`` (positive: the window starts later).
-
-    Returns:
-        ``(n, n_taxels, n_samples)`` float32 signed event counts.
+    ``shifts_ns`` is one shift or one per onset (positive: the window starts later).
 
     Raises:
         PerceptionError: A BioTac configuration, or shifts of another length than the onsets.
@@ -243,10 +231,8 @@ def window_set_from_stream(
 ) -> tuple[WindowSet, StreamCounts]:
     """A labelled training set cut from a raw stream exactly as the live graph cuts it.
 
-    Args are :func:`cut_stream`'s, and:
-        truths: Ground truth per trial, stamped on the writes' clock.
-        match_tolerance_ns: Largest distance from a window's onset to its truth's stamp, ns.
-        source: Description stored in the set.
+    Arguments as :func:`cut_stream`'s; ``truths`` are stamped on the writes' clock, and a window is
+    labelled by the truth within ``match_tolerance_ns`` of its onset.
 
     Returns:
         The window set (one window per matched trial, ``groups`` the trial) and counts.

@@ -65,16 +65,10 @@ def _load_rows(path: Path, n_cols: int) -> np.ndarray:
 def read_paper_tact(
     path: str | Path, policy: InputPolicy | None = None, markers: bool = True
 ) -> EventBlock:
-    """The paper's NUSkin ``.tact``: ``isPos taxel removable t``; first and last lines are markers.
+    """The paper's NUSkin ``.tact`` (``isPos taxel removable t``), polarity +1 / -1, in time order.
 
-    Args:
-        path: The file.
-        policy: Strict (default) or lenient input rules (:mod:`.validation`).
-        markers: Whether the first and last lines are markers (the paper's files) or events (the
-            lab's rod-tap captures, REFERENCE.md section 2).
-
-    Returns:
-        Events with polarity +1 (``isPos`` 1) or -1, in time order.
+    ``markers``: the first and last lines are markers (the paper's files), not events (the lab's
+    rod-tap captures, REFERENCE.md section 2).
 
     Raises:
         PerceptionError: when the file is missing or malformed, or a row breaks a rule.
@@ -266,18 +260,11 @@ def food_poking_trials(
     policy: InputPolicy | None = None,
     arm_motion: bool = True,
 ) -> tuple[list[Recording], list[str]]:
-    """All trials of a session of real food-poking captures.
+    """All trials of a session of real food-poking captures, and the names of those excluded.
 
-    Args:
-        directory: A session folder such as ``../shared/data/nuskin_food_poking``.
-        include_empty: Keep the single ``empty`` trial (one trial cannot be split into folds).
-        policy: Strict (default) or lenient input rules; a lenient load excludes a trial with no
-            valid event.
-        arm_motion: Read each trial's arm bag (a missing bag is then an error); False: ``motion``
-            None.
-
-    Returns:
-        ``(recordings sorted by name, names of the excluded trials)``.
+    The single ``empty`` trial is excluded unless ``include_empty`` (one trial cannot be split);
+    a lenient ``policy`` excludes a trial with no valid event. ``arm_motion`` reads each trial's
+    arm bag (a missing one is then an error).
 
     Raises:
         PerceptionError: when the directory has no trials or a trial's bag is missing.

@@ -32,17 +32,9 @@ def from_recording(
 ) -> WindowSet:
     """Windows of one raw recording: the paper's ``.tact`` or BioTac ``.csv``, or a real capture.
 
-    Onsets come from the paper's essentials CSV (``t`` / ``tapped_time`` epoch seconds, or BioTac
-    ``orignal_index``), or for a capture without essentials from the arm bag beside it. Labels:
-    ``label_y`` (cm, to metres), ``isPos`` (stable/unstable), or the capture's food name.
-
-    Args:
-        path: The recording.
-        task: Task name.
-        sensor: Sensor name.
-        essentials: The paper's essentials CSV (None for real captures).
-        config: Windows to cut (default: the task profile's; a capture: 0-3 s after motion).
-        policy: Strict (default) or lenient input rules of the NUSkin readers.
+    Onsets come from the paper's ``essentials`` CSV (``t`` / ``tapped_time`` epoch seconds, or
+    BioTac ``orignal_index``), or for a capture without essentials from the arm bag beside it.
+    Labels: ``label_y`` (cm, to metres), ``isPos`` (stable/unstable), or the capture's food name.
 
     Raises:
         PerceptionError: when onsets cannot be found.

@@ -54,11 +54,8 @@ def from_sim_dataset(
 ) -> WindowSet:
     """Windows of the simulator's ``dataset.npz`` at each trial's onset.
 
-    Args:
-        path: The dataset.
-        config: Windows to cut (default: the task profile's for the dataset's sensor).
-        rate_hz: NUSkin: per-taxel refractory drop to this rate before binning (None: none).
-        policy: Strict (default) or lenient input rules (a lenient load drops and counts).
+    ``config`` defaults to the task profile's; ``rate_hz`` thins NUSkin events before binning; a
+    lenient ``policy`` drops and counts bad events and trials.
 
     Raises:
         PerceptionError: when the file is malformed.
@@ -171,12 +168,7 @@ def from_food_poking(
 ) -> WindowSet:
     """Windows of one session of real NUSkin food-poking captures (:func:`food_capture_config`).
 
-    Args:
-        directory: The session folder.
-        include_empty: Keep the single ``empty`` trial.
-        rate_hz: Per-taxel refractory drop to this rate before binning (None: none).
-        policy: Strict (default) or lenient input rules (:mod:`.validation`).
-        anchor: What the onsets are tied to (None: :func:`default_anchor`).
+    ``anchor`` defaults to :func:`default_anchor`; ``rate_hz`` thins the events before binning.
 
     Raises:
         PerceptionError: No trials, a missing bag for ``arm_motion``, a row breaking a rule, or no
@@ -313,14 +305,8 @@ def load_window_set(
 ) -> WindowSet:
     """Any supported source as a window set, chosen by what ``data`` is.
 
-    Args:
-        data: A rosbag2 bag, a food-poking directory, a simulator ``dataset.npz`` or a preprocessed
-            ``.npz``.
-        task: Task (needed for preprocessed files).
-        sensor: Sensor (needed for preprocessed files).
-        rate_hz: NUSkin: per-taxel refractory drop to this rate (None: none).
-        policy: Strict (default) or lenient input rules of the file readers.
-        anchor: Capture folders only: what the onsets are tied to.
+    A bag, a food-poking directory, a simulator ``dataset.npz`` or a preprocessed ``.npz`` (which
+    needs ``task`` and ``sensor``). ``anchor`` applies to capture folders only.
 
     Raises:
         PerceptionError: an unrecognised source, or an anchor for a source with its own onsets.

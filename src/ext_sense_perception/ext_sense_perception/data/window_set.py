@@ -146,18 +146,9 @@ def window_set_of(
 ) -> WindowSet:
     """A window set from windows cut with ``config`` (its task decides the label kind).
 
-    Args:
-        config: The configuration the windows were cut with.
-        windows: The windows, in label order.
-        labels: Tap positions (m) or class labels, one per window.
-        source: Where they came from (file names, scene).
-        data_hash: Hash of that data.
-        groups: Trial of each window (default: their order).
-        rod_length_m: Rod length per window, m (default NaN).
-        excluded: Trials left out.
-        n_channels: Channels of an empty set (default: the config's taxels).
-        profile: The profile to record (default: the config's); offline cutting changes onset source
-            and debounce, which the live graph must not inherit.
+    ``groups`` default to the windows' order, ``rod_length_m`` to NaN; ``n_channels`` sizes an
+    empty set; ``profile`` (default: the config's) is recorded, since offline cutting changes onset
+    source and debounce, which the live graph must not inherit.
     """
     n = len(windows)
     if windows:

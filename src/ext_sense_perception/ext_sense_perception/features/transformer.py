@@ -51,16 +51,8 @@ class WindowFeatures(TransformerMixin, BaseEstimator):
     """What every feature family shares: geometry, channels, crop, checks, the fitted state.
 
     Subclasses set :attr:`kind`, add their parameters and implement :meth:`_time_maps` (and
-    :meth:`_features` when they are not one time map).
-
-    Args:
-        n_channels: Channels of the input windows.
-        n_samples: Samples of the input windows.
-        period_ns: Sample period of the input windows, ns.
-        pre_ns: Pre-onset signal in the input windows, ns.
-        sensor: ``"nuskin"`` or ``"biotac"``.
-        post_ns: Post-onset signal used, ns (None: all of it).
-        channels: Channel selection (see :func:`~.maps.select_channels`).
+    :meth:`_features` when they are not one time map). ``post_ns`` crops the window after the onset
+    (None: all of it); ``channels`` is a selection (:func:`~.maps.select_channels`).
     """
 
     kind: ClassVar[str] = ""

@@ -170,11 +170,8 @@ def load_model(
 ) -> ModelBundle:
     """Load a bundle with its anytime models, checked before use rather than at the first window.
 
-    Args:
-        directory: The bundle directory.
-        backend: ``"onnx"`` (ONNX Runtime, CPU, one thread) or ``"sklearn"`` (joblib pipeline).
-        task: The task the caller serves (label or alias); ``None``: any.
-        sensor: The sensor the caller serves; ``None``: any.
+    ``backend`` is ``onnx`` (ONNX Runtime, CPU, one thread) or ``sklearn``; ``task`` and ``sensor``
+    (None: any) are what the caller serves.
 
     Raises:
         PerceptionError: a missing or corrupt file, an invalid card, a card for another task or

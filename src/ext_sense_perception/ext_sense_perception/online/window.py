@@ -58,22 +58,12 @@ class ContactWindow(NamedTuple):
 class WindowConfig:
     """How windows are cut for one task and sensor: the task profile plus the onset detector.
 
-    Attributes:
-        profile: The task's profile (window, sample bin, anytime times, onset source, debounce).
-        sensor: The sensor the windows are cut from.
-        activity_window_ns: NUSkin onset: the sliding window events are counted in, ns.
-        activity_min_events: NUSkin onset: events within ``activity_window_ns`` that mean contact.
-        activity_min_taxels: NUSkin onset: distinct taxels those events must come from (one taxel at
-            its ceiling is a fault, not a contact).
-        stuck_rate_hz: NUSkin: events per second of one taxel that count as its ceiling.
-        stuck_after_ns: NUSkin: a taxel at that rate longer than this is masked from onset detection
-            until it quiets, ns.
-        pac_energy_window_ns: BioTac onset: the sliding window of the PAC energy, ns.
-        pac_threshold_sigma: BioTac onset: threshold as a multiple of the PAC noise RMS.
-        pac_min_rms: BioTac onset: threshold floor of the PAC RMS deviation, ADC counts.
-        pac_baseline_tau_ns: BioTac: time constant of the PAC baseline tracker, ns.
-        n_taxels: NUSkin taxels (ids 1..n_taxels become channels).
-        history_ns: Extra stream history kept for late external onsets, ns.
+    NUSkin onset: ``activity_min_events`` events from at least ``activity_min_taxels`` taxels within
+    ``activity_window_ns`` (one taxel at its ceiling is a fault, not a contact); a taxel at
+    ``stuck_rate_hz`` for longer than ``stuck_after_ns`` is masked until it quiets. BioTac onset:
+    the PAC deviation from its baseline (time constant ``pac_baseline_tau_ns``) over
+    ``pac_energy_window_ns`` beyond ``max(pac_min_rms, pac_threshold_sigma * noise)``.
+    ``history_ns`` is extra stream kept for late external onsets.
     """
 
     profile: TaskProfile
@@ -227,12 +217,7 @@ def window_from_recording(
 ) -> ContactWindow:
     """Cut one final window offline from a whole recording at a known onset, as the windowers do.
 
-    Args:
-        config: Window configuration.
-        onset_ns: Onset, ns.
-        events: NUSkin events.
-        pac: BioTac PAC ``(n_sensors, n_samples)`` from ``pac_t0_ns``.
-        pac_t0_ns: Time of PAC sample 0, ns.
+    NUSkin needs ``events``; BioTac ``pac`` ``(n_sensors, n_samples)`` from ``pac_t0_ns``.
 
     Raises:
         PerceptionError: when the sensor's arrays are missing.

@@ -214,30 +214,13 @@ def build_report(
 ) -> Path:
     """Evaluate every dataset and write ``out/report.md``, PNGs and ``out/report.json``.
 
-    Args:
-        datasets: Simulator datasets or a food-poking capture directory.
-        out: Output directory.
-        k: Random splits per point (default 3, or 2 with ``quick``).
-        quick: Fewer features, models, rates and candidate taxels.
-        seed: Seed.
-        base_params: Feature parameters for every NUSkin evaluation (e.g. ``bin_ns``).
-        gru: False leaves out the GRU row of NUSkin tap datasets.
-        gru_params: Fixed GRU parameters (e.g. ``{"max_epochs": 5}`` for a smoke run).
-        features: Feature sets of the features x models tables.
-        models: Models of those tables.
-        n_jobs: Parallel grid-search jobs per evaluation.
-        latency: False leaves out the decision-latency / anytime-calibration sections.
-        taxels: False leaves out the fingers and taxels sections.
-        executor: Where the split fits run and are cached (default: here, uncached).
-        full: The paper's tables in full: its K per point (unless ``k`` is given), every feature
-            set, model and section.
-        plan: A list: fit and write nothing, only append each data set's :meth:`Runner.listed`
-            counts.
-        sim_commit: The simulator commit of the simulator data sets, recorded in their rows.
-        update: Keep the former report's data sets this run does not evaluate.
-
-    Returns:
-        The markdown file (not written with ``plan``).
+    ``k`` defaults to 3 (2 with ``quick``, which also takes fewer features, models, rates and
+    taxels); ``full`` gives the paper's tables in full (its K per point unless ``k`` is given, every
+    section). ``base_params`` go to every NUSkin evaluation, ``gru_params`` fix the GRU row's
+    estimator, ``features`` / ``models`` the tables' columns. With ``plan`` (a list) nothing is
+    fitted or written: each data set's :meth:`Runner.listed` counts are appended to it.
+    ``sim_commit`` is recorded in the simulator data sets' rows; ``update`` keeps the former
+    report's data sets this run does not evaluate.
 
     Raises:
         PerceptionError: an unknown feature set or model (before anything runs), unreadable data, or

@@ -150,17 +150,9 @@ def jitter_window(
     delay: ReadDelay,
     rng: np.random.Generator,
 ) -> np.ndarray:
-    """One binned NUSkin window as a late reader would have stamped its events.
+    """One binned NUSkin window as a late reader would have stamped its events (same events, moved).
 
-    Args:
-        x: ``(n_channels, n_samples)`` signed event counts.
-        period_ns: The bin, ns.
-        onset_bin: Bin of the onset to re-align on, or None (external onset).
-        delay: The read model.
-        rng: Random generator.
-
-    Returns:
-        ``(n_channels, n_samples)`` counts, same dtype; the same events, times moved.
+    ``onset_bin`` is the bin to re-align on the re-stamped onset, or None (an external onset).
     """
     counts = np.rint(x).astype(np.int64)
     channel, sample = np.nonzero(counts)
@@ -299,20 +291,10 @@ def late_read_window_set(
 ) -> tuple[WindowSet, StreamCounts]:
     """A device stream cut as the live graph cuts it: with ideal reads, and again per late read.
 
-    Each extra cut reads the bytes as a late reader would (a fresh draw of ``delay``), so events,
-    reads and detected onsets move as they do live, which :func:`augment` only approximates.
-    Figures: docs/benchmarks.md, "Late-read training".
-
-    Args:
-        writes: ``(t_ns, bytes)`` per write to the link, in time order.
-        truths: Ground truth per trial, on the writes' clock.
-        config: Window configuration (the ``contact_window`` node's).
-        late_reads: Extra cuts by a late reader (0: the ideal cut only).
-        delay: The late reader's read delays.
-        seed: Seed of the read delays.
-        source: Description stored in the set.
-        n_jobs: Processes cutting side by side; the reads are drawn first, so the result does not
-            depend on it.
+    Each of the ``late_reads`` extra cuts reads the bytes as a late reader would (a fresh draw of
+    ``delay``), so events, reads and detected onsets move as they do live, which :func:`augment`
+    only approximates (docs/benchmarks.md, "Late-read training"). The reads are drawn first, so
+    ``n_jobs`` does not change the result.
 
     Returns:
         The windows of every cut, and the ideal cut's counts.

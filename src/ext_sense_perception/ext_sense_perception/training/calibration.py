@@ -134,10 +134,10 @@ def calibrate(
     weight: int = DEFAULT_WEIGHT,
     seed: int = 0,
 ) -> ModelCard:
-    """Adapt ``bundle`` to the session of ``calib`` and save the result as a new bundle in ``out``.
+    """Adapt ``bundle`` to the session of ``calib``, with ``weight`` repeats of each of its trials.
 
     Returns:
-        The new card (``calibration`` and ``label_set`` filled in).
+        The new bundle's card (``calibration`` and ``label_set`` filled in).
 
     Raises:
         PerceptionError: a bundle without its training windows, or calibration windows that do not

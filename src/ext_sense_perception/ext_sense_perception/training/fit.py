@@ -65,20 +65,9 @@ def fit_model(
     """Fit a deployable model on all windows (grid search with K-fold CV, then refit).
 
     K is 4 for classes (the paper's); for tap positions ``cv_folds``, fewer (at least 4) when the
-    set has under 20 trials a fold. BLAS is pinned to one thread: small matrices on a shared 2-core
-    machine run up to 20x slower threaded.
-
-    Args:
-        ws: Labelled windows.
-        features: Feature set name.
-        model: Model name.
-        feature_params: Fixed :class:`WindowFeatures` parameters.
-        feature_grid: Feature parameters searched too (``features__<param>`` keys).
-        seed: Seed.
-        n_jobs: Grid-search jobs.
-        rate_hz: Sampling rate the windows were reduced to (for the card), Hz.
-        model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
-        cv_folds: Grid-search folds of a regression set (the card's CV MAE comes from them).
+    set has under 20 trials a fold. ``feature_params`` are fixed, ``feature_grid``
+    (``features__<param>``) searched; ``rate_hz`` is recorded in the card. BLAS is pinned to one
+    thread: small matrices on a shared 2-core machine run up to 20x slower threaded.
     """
     with threadpool_limits(limits=1):
         t0 = time.perf_counter()

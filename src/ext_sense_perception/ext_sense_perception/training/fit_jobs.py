@@ -249,13 +249,7 @@ def fit_runner(
     cache_dir: str | Path | None = None,
     progress: bool = False,
 ) -> Iterator[FitRunner]:
-    """The runner a command asked for (``--scheduler`` / ``--workers`` / neither).
-
-    Args:
-        scheduler: Address of an existing scheduler (``tcp://HOST:PORT``).
-        workers: Start a local cluster of this many single-threaded worker processes.
-        cache_dir: Where finished fits are kept (None: no cache).
-        progress: Show the progress line.
+    """The runner asked for: an existing ``scheduler``, a local cluster of ``workers``, or here.
 
     Raises:
         PerceptionError: both options, a bad worker count, or an unreachable scheduler.

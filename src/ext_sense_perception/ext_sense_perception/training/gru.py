@@ -119,24 +119,14 @@ def torch_available() -> bool:
 class GRUEstimator(BaseEstimator):
     """16 GRU cells then an MLP (16, 8), trained with Adam and weight decay.
 
-    Args:
-        regression: Regression (MSE on standardised targets) or classification (cross-entropy).
-        n_channels: Channels of the flattened feature vector (its first axis); the rest is time.
-        hidden: GRU cells.
-        max_epochs: Training epochs (an upper bound with early stopping).
-        patience: Epochs without a better validation loss before stopping.
-        batch_size: Mini-batch size.
-        lr: Adam learning rate.
-        weight_decay: Adam's L2 penalty on all weights.
-        reverse_time: Read the window backwards, so the final hidden state the MLP reads is nearest
-            the onset, where a tap's position is carried.
-        validation_fraction: Share held out for early stopping (never below 20 samples); 0 trains
-            ``max_epochs`` on everything, which measured better with weight decay.
-        input_scaling: How inputs are standardised while training: ``"global"`` (per-channel mean,
-            one scale), ``"channel"``, ``"none"``, or ``"auto"`` (none when their RMS is in
-            :data:`AUTO_UNSCALED_RMS`, else global). Folded into the input weights afterwards.
-        n_threads: torch CPU threads while fitting and predicting.
-        random_state: Seed of weights, batches and the validation split.
+    ``n_channels`` is the first axis of the flattened features, the rest is time.
+    ``reverse_time`` reads the window backwards, so the final hidden state the MLP reads is nearest
+    the onset, where a tap's position is carried. ``validation_fraction`` > 0 holds out a share for
+    early stopping (``patience`` epochs; never below 20 samples); 0 trains ``max_epochs`` on
+    everything, which measured better with weight decay. ``input_scaling`` standardises the inputs
+    while training (``global``: per-channel mean, one scale; ``channel``; ``none``; ``auto``: none
+    when their RMS is in :data:`AUTO_UNSCALED_RMS`, else global), folded into the input weights
+    afterwards. ``n_threads`` pins torch's CPU threads.
     """
 
     def __init__(

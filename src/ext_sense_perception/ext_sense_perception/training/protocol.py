@@ -283,22 +283,12 @@ def evaluate(
     model_params: dict[str, Any] | None = None,
     executor: FitRunner | None = None,
 ) -> EvalResult:
-    """Run the protocol.
+    """Run the protocol: ``k`` splits (default :func:`default_k`) of ``test_size`` held out.
 
-    Args:
-        ws: Labelled windows.
-        features: Feature transformer for the windows' geometry.
-        model: Model name (see :data:`ext_sense_perception.models.MODEL_NAMES`).
-        k: Random splits (default :func:`default_k`).
-        test_size: Held-out fraction per split.
-        seed: Seed of splits, folds and models.
-        progress: Show the fits' progress line (runs without an executor).
-        n_jobs: Parallel grid-search jobs.
-        feature_grid: Feature parameters to search too (``features__<param>``), recomputed in every
-            fold.
-        model_params: Fixed estimator parameters (e.g. ``{"max_epochs": 20}`` for the GRU).
-        executor: Where the split fits run and are cached (default: here, uncached); the result does
-            not depend on it.
+    ``feature_grid`` parameters (``features__<param>``) are searched too, recomputing the features
+    in every fold; ``model_params`` are fixed (e.g. ``{"max_epochs": 20}`` for the GRU).
+    ``executor`` runs and caches the split fits (default: here, uncached); the result does not
+    depend on it.
 
     Raises:
         PerceptionError: when there are too few windows or classes, or a fit failed.

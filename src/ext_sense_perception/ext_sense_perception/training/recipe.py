@@ -38,24 +38,15 @@ DEFAULT_BIN_KERNEL: dict[Task, str] = {Task.TAP_LOCALIZATION: "gauss"}
 
 @dataclass(frozen=True)
 class Recipe:
-    """The choices of a training run; every default is the task's own.
+    """The choices of a training run; every default (None) is the task's own.
 
-    Attributes:
-        features: Feature family (None: the task's default).
-        model: Model name (None: the task's default).
-        channels: Channel selection (``all``, ``left``, ``right``, ``taxel:N``, ``ids:a,b``).
-        feature_bin_ns: NUSkin feature bin, ns (None: the task profile's).
-        rate_hz: Rate the windows were reduced to (BioTac decimates in the features; for NUSkin the
-            card only records it).
-        anytime_post_ns: Post-contact times of the anytime models, ns (None: the profile's; ``()``:
-            none).
-        seed: Seed of folds, models and augmentation.
-        n_jobs: Grid-search jobs.
-        arrival_jitter: Fraction of NUSkin training windows re-stamped with the measured arrival
-            jitter (None: the task's :data:`~.arrival_jitter.DEFAULT_FRACTION`).
-        bin_kernel: NUSkin feature-bin kernel, ``box`` or ``gauss`` (None:
-            :data:`DEFAULT_BIN_KERNEL`).
-        onset_shifts: Copies of each NUSkin window added with the onset moved by up to 2 ms.
+    ``channels`` selects channels (``all``, ``left``, ``right``, ``taxel:N``, ``ids:a,b``);
+    ``rate_hz`` is the rate the windows were reduced to (BioTac decimates in the features; for
+    NUSkin the card only records it). ``anytime_post_ns`` ``()`` trains no anytime models.
+    ``arrival_jitter`` is the fraction of NUSkin windows re-stamped with the measured arrival jitter
+    (default :data:`~.arrival_jitter.DEFAULT_FRACTION`); ``bin_kernel`` ``box`` or ``gauss``
+    (default :data:`DEFAULT_BIN_KERNEL`); ``onset_shifts`` adds copies of each NUSkin window at
+    onsets moved by up to 2 ms.
     """
 
     features: str | None = None

@@ -41,12 +41,8 @@ def score_classes(
 ) -> dict[str, Any]:
     """The classification figures of ``ext-sense score``.
 
-    Args:
-        y_true: True class of each window.
-        proba: The model's probabilities ``(n, n_classes)``, columns in ``classes`` order.
-        classes: The model's classes.
-        allowed: The label set decisions are restricted to (empty: all of the model's).
-        names: A name per window for the list of unknown-class windows (default: its index).
+    ``proba`` columns follow ``classes``; decisions are restricted to ``allowed`` (empty: all);
+    ``names`` name the windows of unknown classes (default: their index).
 
     Returns:
         ``metric``, ``value``, ``n_windows`` (scored), ``class_names``, ``confusion`` (rows true),

@@ -31,17 +31,11 @@ _CHUNK = 64  # windows per native kernel block: 80 channels x 64 x ~1000 SVs x 8
 class TaxelStackSVR(RegressorMixin, BaseEstimator):
     """Per-channel RBF SVRs combined by ridge regression trained on out-of-fold predictions.
 
-    ``X`` is ``(n_windows, n_channels * n_per_channel)``, channel-major, as the ``fft``,
-    ``baseline`` and ``est`` features lay it out.
-
-    Args:
-        n_channels: Channels (equal contiguous blocks of the feature vector).
-        C: SVR penalty, in the label units (1.0 on metres = the paper's 100 on cm).
-        gamma: RBF gamma of every SVR (``"scale"``: per block).
-        epsilon: SVR epsilon-tube half-width, label units (0.001 m = 0.1 cm).
-        inner_folds: Folds of the out-of-fold predictions the ridge is trained on (>= 2).
-        alphas: Ridge penalties tried (generalised cross-validation), label units squared.
-        random_state: Seed of the inner folds' shuffle.
+    ``X`` is ``(n_windows, n_channels * n_per_channel)``, channel-major. ``C`` and ``epsilon`` are
+    in
+    label units (1.0 on metres = the paper's 100 on cm); ``gamma="scale"`` is per block. The ridge
+    is trained on ``inner_folds`` out-of-fold predictions, its penalty chosen among ``alphas`` by
+    generalised cross-validation.
     """
 
     def __init__(

@@ -22,14 +22,10 @@ def estimate_moves(
     config: WindowConfig,
     shifts_ns: Sequence[int],
 ) -> dict[int, np.ndarray]:
-    """Per shift, ``(n,)`` absolute moves of each window's estimate when its onset moves by it.
+    """Per shift, the ``(n,)`` absolute moves of each window's estimate when its onset moves by it.
 
-    Args:
-        predict: Estimates of flattened windows ``(n, n_taxels * n_samples)``, shape ``(n,)``.
-        events: The stream's events as the driver stamped them, in time order.
-        onsets_ns: ``(n,)`` the windows' onsets, ns.
-        config: The window configuration (NUSkin).
-        shifts_ns: Onset shifts, ns.
+    ``predict`` maps flattened windows to ``(n,)`` estimates; ``events`` are as the driver stamped
+    them.
     """
     onsets = np.asarray(onsets_ns, dtype=np.int64)
 
