@@ -92,12 +92,11 @@ class NodeSpec:
         parameters: Parameter overrides (typed, never strings for numbers).
         remappings: ``(from, to)`` topic remappings.
         required: When this node exits, the whole graph stops (launch's ``Shutdown``).
-        lifecycle: A lifecycle node (``rclpy.lifecycle``): it starts unconfigured.
-        manage: For a lifecycle node: the front end configures and activates it (launch
-            ``ChangeState`` events, ``ext-sense run`` in the node's process); false leaves it
-            unconfigured for an external lifecycle manager.
+        lifecycle: A lifecycle node: it starts unconfigured.
+        manage: The front end configures and activates a lifecycle node (else left to an
+            external manager).
         process: Name of the process this node shares with the others of that name (one
-            executor; :mod:`ext_sense.graph_process`); empty: a process of its own.
+            executor); empty: a process of its own.
     """
 
     package: str

@@ -44,8 +44,8 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
         ArgumentSpec(
             "source",
             "sim",
-            "Where the sensor bytes come from: the scene simulator's emulated device, a "
-            "serial port, a CAN channel, or a recorded bag.",
+            "Where the sensor bytes come from: the simulator's emulated device, a serial "
+            "port, a CAN channel, or a recorded bag.",
             SOURCES,
         ),
         ArgumentSpec(
@@ -92,10 +92,9 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
         ArgumentSpec(
             "behaviours",
             "false",
-            "Start the task's behaviour nodes. With source sim the simulated device then "
-            "follows them: it plays a trial when the food probe starts moving (its motion start "
-            "put at the probe's) or a grasp of grasp_trials trials when the handover offers the "
-            "object, silent in between.",
+            "Start the task's behaviour nodes. With source sim the simulated device follows "
+            "them: a trial when the food probe starts moving, a grasp of grasp_trials trials "
+            "when the handover offers the object.",
             ("true", "false"),
         ),
         ArgumentSpec(
@@ -111,9 +110,8 @@ def _common_arguments(default_trials: str) -> tuple[ArgumentSpec, ...]:
         ArgumentSpec(
             "manage_drivers",
             "true",
-            "Configure and activate the lifecycle driver nodes (the sensor driver, and the "
-            "gripper with behaviours); false leaves them unconfigured for an external "
-            "lifecycle manager (e.g. nav2_lifecycle_manager, `ros2 lifecycle set`).",
+            "Configure and activate the lifecycle nodes (the sensor driver, the gripper); "
+            "false leaves them to an external lifecycle manager.",
             ("true", "false"),
         ),
         *PACKET_ARGUMENTS,

@@ -26,7 +26,6 @@ from ext_sense.graph import GraphSpec, NodeSpec, as_bool
 from ext_sense.graph_process import process_groups
 from ext_sense_runtime.stop import (
     STACKS_SIGNAL,
-    StopRequest,
     install_stop_handlers,
     stop_signals_blocked,
 )
@@ -73,9 +72,7 @@ def run_one(spec: NodeSpec, use_sim_time: bool) -> int:
     """Start one node in this process and spin it until shutdown (the child side)."""
     from ext_sense_runtime.node_main import run_node
 
-    stop = _child_stop()
-    if stop.requested():  # a stop held while starting (see spawn_node)
-        stop.ignore_further()  # the runner's forwarded SIGINT may still come, during exit
+    if _stopped_while_starting():
         return 0
     node_class = spec.node_class()
     return run_node(lambda: _make_node(spec, node_class, use_sim_time), args=[])
@@ -84,18 +81,13 @@ def run_one(spec: NodeSpec, use_sim_time: bool) -> int:
 def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence[str] = ()) -> int:
     """Every node on one executor in this process, stopped as a node process is.
 
-    Args:
-        nodes: The nodes, built in this order.
-        use_sim_time: Every node's ``use_sim_time``.
-        args: Process-wide ROS arguments (``--ros-args ...``, as ``ros2 launch`` appends them),
-            for every node; each node's own name and remappings are its node arguments.
+    ``args`` are process-wide ROS arguments (``--ros-args ...``, as ``ros2 launch`` appends
+    them); each node's own name and remappings are its node arguments.
     """
     from ext_sense_runtime import intra_process
     from ext_sense_runtime.node_main import run_nodes
 
-    stop = _child_stop()
-    if stop.requested():  # a stop held while starting (see spawn_node)
-        stop.ignore_further()  # the runner's forwarded SIGINT may still come, during exit
+    if _stopped_while_starting():
         return 0
     classes = [(spec, spec.node_class()) for spec in nodes]
     intra_process.enable()  # the hot path's packets and windows go from callback to callback
@@ -105,8 +97,11 @@ def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence
     )
 
 
-def _child_stop() -> StopRequest:
-    """The stop handlers of a node process; one whose supervisor dies is stopped too."""
+def _stopped_while_starting() -> bool:
+    """Install a node process's stop handlers; whether a stop came while it started.
+
+    A process whose supervisor dies is stopped too (``PR_SET_PDEATHSIG``).
+    """
     stop = install_stop_handlers()
     supervisor = os.environ.pop(SUPERVISOR_ENV, "")  # not for processes this one starts
     if supervisor.isdigit():
@@ -114,7 +109,9 @@ def _child_stop() -> StopRequest:
             ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM))
         if os.getppid() != int(supervisor):  # it died before the request was in place
             os.kill(os.getpid(), signal.SIGTERM)
-    return stop
+    if stop.requested():  # held while starting (see spawn_node)
+        stop.ignore_further()  # the runner's forwarded SIGINT may still come, during exit
+    return stop.requested()
 
 
 def spawn_node(spec: NodeSpec, use_sim_time: bool) -> subprocess.Popen[bytes]:

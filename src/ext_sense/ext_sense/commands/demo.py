@@ -1,18 +1,10 @@
 """``ext-sense demo``: the main job, end to end, in one command.
 
-1. Makes sure a tap-localisation model exists: when ``MODEL_DIR/model_card.json`` is missing (or
-   was trained from other simulator or perception code) it trains one into
-   ``tap_localization_<sensor>`` in the user's data directory (``$EXT_SENSE_MODELS`` when set;
-   the place ``ext-sense models create`` writes and the graphs look in first, see
-   ``ext_sense_perception.online.model_store``), or into ``--model DIR``, as ``models create``
-   does (``ext_sense_sim.default_models``). NUSkin: on windows cut from the
-   emulated device's own byte stream by the driver's decoder and the window node's core (no
-   train/serve skew); BioTac: on a simulated dataset.
-2. Runs the ``tap_localization`` graph with ``source:=sim`` and ``hot_path:=one_process``
-   (``--hot-path``): the emulated NUSkin streams over a pty, the driver publishes its bytes,
-   ``contact_window`` cuts windows, ``contact_inference`` publishes
-   ``/extsense/contact_estimate``, and ``estimate_monitor`` prints each estimate beside the
-   simulator's ground truth and ends the graph after N taps with the line
+1. Trains the tap-localisation model when it is missing or stale (``tap_localization_<sensor>``
+   in the user's model store, or ``--model DIR``), as ``ext-sense models create`` does; the
+   NUSkin model on windows cut from the emulated device's own byte stream.
+2. Runs the ``tap_localization`` graph on the simulator: the monitor prints each estimate
+   beside the ground truth and ends after N taps with
    ``summary: taps=N mae_cm=X compute_p50_ms=Y compute_p99_ms=Z``.
 """
 
@@ -112,6 +104,5 @@ def _demo(args: argparse.Namespace) -> int:
         f"(hot_path:={args.hot_path})",
         file=sys.stderr,
     )
-    # python-can's virtual bus joins buses of one process only, so over CAN the whole graph
-    # runs in one process.
+    # python-can's virtual bus joins buses of one process only
     return run_graph(GRAPHS["tap_localization"], overrides, in_process=bool(args.can))

@@ -1,13 +1,9 @@
 """``ext-sense models create|list``: the default models of the three tasks, and where models are.
 
-``create`` trains the default model of every task for one sensor on the scene simulator
-(``ext_sense_sim.default_models``; the tap model is the one ``ext-sense demo``
-uses) into ``<task>_<sensor>/`` bundles in the user's data directory (``$EXT_SENSE_MODELS``
-when set; see ``ext_sense_perception.online.model_store``) or ``--out DIR``. The place is
-checked writable with room before anything is trained, locked while the bundles are made (a
-second ``create`` into it waits), and each bundle is renamed into place once complete. A model
-whose training inputs (simulator and perception sources, scene, trial count) are unchanged is
-kept; ``--force`` retrains it. ``list`` prints the search path and every bundle found along it.
+``create`` trains each task's default model for one sensor on the simulator into
+``<task>_<sensor>/`` in the user's model store (or ``--out DIR``), checked writable first,
+locked while made, each bundle renamed into place once complete; a model whose training inputs
+are unchanged is kept (``--force`` retrains). ``list`` prints the search path and every bundle.
 """
 
 from __future__ import annotations
