@@ -67,15 +67,14 @@ OBJECT_POSITION = 128
 
 @dataclass(frozen=True)
 class Task:
-    """A graph, its task label and the figure it is judged on."""
+    """A graph and its task label."""
 
     graph: str
     task: str
-    metric: str  # "mae_cm" or "accuracy"
 
 
-TAP = Task("tap_localization", "tap_localization", "mae_cm")
-HANDOVER = Task("handover", "handover_stability", "accuracy")
+TAP = Task("tap_localization", "tap_localization")
+HANDOVER = Task("handover", "handover_stability")
 
 
 @dataclass
