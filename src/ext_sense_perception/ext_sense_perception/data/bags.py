@@ -190,8 +190,7 @@ def window_set_from_bag(
     ``task`` and ``sensor`` default to the bag's ``custom_data``, else its ground truth and sensor
     topic; ``onsets`` is ``truth``, ``detected`` or ``auto`` (truth when the bag has any).
     ``rate_hz`` thins NUSkin events (BioTac decimates in the features); ``sensor_ids`` are the
-    BioTac
-    sensors joined into one window (default: those among the first frames).
+    BioTac sensors joined into one window (default: those among the first frames).
     ``match_tolerance_ns`` bounds a detected onset's distance to its label's truth.
 
     Raises:

@@ -1,9 +1,8 @@
 """Sessions, the unit of data: a recording with its metadata beside it (no ROS).
 
-A session is one capture folder, bag or simulator run. Its metadata lives in ``session.json``
-inside the folder or as ``<file>.session.json``; without one (the read-only captures) it is
-inferred from the data. The label set is what the session can hold; scoring restricts
-decisions to it.
+A session is one capture folder, bag or simulator run. Its metadata lives in ``session.json`` inside
+the folder or as ``<file>.session.json``; without one (the read-only captures) it is inferred from
+the data. The label set is what the session can hold; scoring restricts decisions to it.
 """
 
 from __future__ import annotations

@@ -119,11 +119,9 @@ class WindowStage:
         """Feed one ``SensorPacket`` (rclpy, rosbags or a ``Packet``); windows that became due.
 
         ``thin`` (NUSkin, offline) reduces the decoded events first. The decoder is made again when
-        the
-        encoding or its options change. An unreadable packet is counted in ``bad_packets`` (reason
-        in
-        :attr:`last_packet_error`); a ``seq`` gap in ``lost_packets``; an ``end_of_stream`` packet
-        flushes.
+        the encoding or its options change. An unreadable packet is counted in ``bad_packets``
+        (reason in :attr:`last_packet_error`); a ``seq`` gap in ``lost_packets``; an
+        ``end_of_stream`` packet flushes.
         """
         from ext_sense_drivers.packets import Packet, PacketError, make_decoder
 
@@ -157,8 +155,7 @@ class WindowStage:
         """Feed one ``BioTacFrame``; frames of several sensors are joined by sequence number.
 
         Frames of other sensors are counted and dropped, as is a sequence whose siblings never
-        arrive
-        once ``JOIN_DEPTH`` newer ones wait.
+        arrive once ``JOIN_DEPTH`` newer ones wait.
         """
         self._counts["frames"] += 1
         sid = int(msg.sensor_id)

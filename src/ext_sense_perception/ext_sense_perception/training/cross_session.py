@@ -1,10 +1,9 @@
 # ruff: noqa: N806  (X for the window matrix, as in scikit-learn)
 """Cross-session validation: leave one session out, score it on the classes the others know.
 
-The paper's protocol tests on the training days, which says little about the next day. Each
-session in turn is held out, the recipe fits on the others, and the held-out session is scored
-on its known classes with decisions restricted to its label set (the unrestricted figure
-beside it). No ROS.
+The paper's protocol tests on the training days, which says little about the next day. Each session
+in turn is held out, the recipe fits on the others, and the held-out session is scored on its known
+classes with decisions restricted to its label set (the unrestricted figure beside it). No ROS.
 """
 
 from __future__ import annotations

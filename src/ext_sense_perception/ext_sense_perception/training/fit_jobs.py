@@ -149,8 +149,7 @@ class FitRunner:
         """Every fit of every job, run together; results per job, in task order.
 
         Each task carries its own seed, so results do not depend on finishing order. A failed fit
-        gives
-        a :class:`FitFailure` in its place (see :func:`check`).
+        gives a :class:`FitFailure` in its place (see :func:`check`).
         """
         results: list[list[Any]] = [[None] * len(job.tasks) for job in jobs]
         todo = []

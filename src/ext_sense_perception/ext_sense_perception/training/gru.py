@@ -1,12 +1,11 @@
 # ruff: noqa: N803, N806  (X / F for sample matrices, as in scikit-learn)
 """GRU(16) + MLP(16, 8) estimator on the binned series (the paper's RNN; torch, optional extra).
 
-The GRU runs over the time axis of the features reshaped to ``(n, n_channels, n_steps)``
-(backwards by default), and the MLP reads its last hidden state. Trained with Adam, weight
-decay and gradient clipping on ``n_threads`` CPU threads. The network is kept as NumPy arrays
-(:class:`GRUNet`) and as torch's ONNX export (``onnx_``, spliced into the whole model's graph
-by :mod:`.onnx_export`), so a fitted estimator pickles and exports without torch; only
-:meth:`GRUEstimator.predict` needs it.
+The GRU runs over the time axis of the features reshaped to ``(n, n_channels, n_steps)`` (backwards
+by default), and the MLP reads its last hidden state. Trained with Adam, weight decay and gradient
+clipping on ``n_threads`` CPU threads. The network is kept as NumPy arrays (:class:`GRUNet`) and as
+torch's ONNX export (``onnx_``, spliced into the whole model's graph by :mod:`.onnx_export`), so a
+fitted estimator pickles and exports without torch; only :meth:`GRUEstimator.predict` needs it.
 """
 
 from __future__ import annotations
@@ -349,8 +348,7 @@ class GRUEstimator(BaseEstimator):
         """The network as ONNX by torch's TorchScript exporter (offline, no onnxscript).
 
         Input ``(n, n_channels * n_steps)`` float32; output ``(n, 1)`` estimates or ``(n,
-        n_classes)``
-        probabilities in ``classes_`` order.
+        n_classes)`` probabilities in ``classes_`` order.
         """
         torch = require_torch()
         net, (gru, head) = self.net_, self._modules()

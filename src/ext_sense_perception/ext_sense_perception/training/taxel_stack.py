@@ -32,10 +32,9 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
     """Per-channel RBF SVRs combined by ridge regression trained on out-of-fold predictions.
 
     ``X`` is ``(n_windows, n_channels * n_per_channel)``, channel-major. ``C`` and ``epsilon`` are
-    in
-    label units (1.0 on metres = the paper's 100 on cm); ``gamma="scale"`` is per block. The ridge
-    is trained on ``inner_folds`` out-of-fold predictions, its penalty chosen among ``alphas`` by
-    generalised cross-validation.
+    in label units (1.0 on metres = the paper's 100 on cm); ``gamma="scale"`` is per block. The
+    ridge is trained on ``inner_folds`` out-of-fold predictions, its penalty chosen among ``alphas``
+    by generalised cross-validation.
     """
 
     def __init__(
