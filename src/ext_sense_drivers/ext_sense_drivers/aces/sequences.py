@@ -70,10 +70,3 @@ def gold_family(poly_u: int, poly_v: int, degree: int) -> npt.NDArray[np.uint8]:
 def to_chips(bits: npt.NDArray[np.uint8]) -> npt.NDArray[np.int8]:
     """Map bits to antipodal chips: 0 -> +1, 1 -> -1 (the usual BPSK mapping)."""
     return (1 - 2 * bits.astype(np.int8)).astype(np.int8)
-
-
-def periodic_xcorr(a: npt.NDArray[np.integer], b: npt.NDArray[np.integer]) -> npt.NDArray[np.int64]:
-    """Periodic cross-correlation ``r[d] = sum_i a[i] * b[(i + d) mod N]`` for every shift ``d``."""
-    n = a.shape[0]
-    idx = (np.arange(n)[:, None] + np.arange(n)[None, :]) % n
-    return (b.astype(np.int64)[idx] @ a.astype(np.int64)).astype(np.int64)

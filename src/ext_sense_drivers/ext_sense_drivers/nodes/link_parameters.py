@@ -9,11 +9,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
-from ext_sense_drivers.transports.link_config import (
-    READER_PRIORITY_DESCRIPTION,
-    READER_PRIORITY_RANGE,
-    LinkConfig,
-)
+from ext_sense_drivers.transports.link_config import READER_PRIORITY_RANGE, LinkConfig
 from ext_sense_drivers.transports.reader import Backoff
 from ext_sense_runtime.parameters import param
 from ext_sense_runtime.stamps import MS
@@ -27,7 +23,11 @@ LINK_DESCRIPTIONS: Mapping[str, str] = {
     "can_extended_id": "29-bit extended id.",
     "file_path": "Capture file (transport file).",
     "file_loop": "Replay the file for ever.",
-    "reader_priority": READER_PRIORITY_DESCRIPTION,
+    "reader_priority": (
+        "SCHED_FIFO priority of the thread that reads and stamps the device (1-99; 0 leaves "
+        "the OS default). Refused (no CAP_SYS_NICE, ulimit -r 0) it falls back to nice -10 or "
+        "nothing; what it got is logged once. See docs/runtime.md, Real-time priority."
+    ),
 }
 """Wording of the link parameters a driver does not word for its sensor."""
 

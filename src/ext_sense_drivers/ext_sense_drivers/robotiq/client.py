@@ -134,8 +134,6 @@ class RobotiqClient:
         """Close the serial port."""
         self.port.close()
 
-    # -- one exchange ---------------------------------------------------------------------------
-
     def _read_exact(self, size: int, deadline: float) -> bytes:
         data = b""
         while len(data) < size:
@@ -233,8 +231,6 @@ class RobotiqClient:
             lambda f: modbus.decode_write_reply(f, self.slave, address, len(values)),
             modbus.WRITE_REPLY_LENGTH,
         )
-
-    # -- the gripper ----------------------------------------------------------------------------
 
     def read_status(self, raise_on_fault: bool = False) -> GripperStatus:
         """Poll the status registers.

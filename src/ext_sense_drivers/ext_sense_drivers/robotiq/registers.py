@@ -111,19 +111,15 @@ class GripperCommand:
         for name in ("position", "speed", "force"):
             _byte(name, getattr(self, name))
 
-    @property
-    def action_byte(self) -> int:
-        """Byte 0 of the command block."""
-        return (
+    def to_registers(self) -> tuple[int, int, int]:
+        """The three register values to write at :data:`COMMAND_REGISTER`."""
+        action = (
             int(self.activate)
             | int(self.go_to) << 3
             | int(self.auto_release) << 4
             | int(self.auto_release_open) << 5
         )
-
-    def to_registers(self) -> tuple[int, int, int]:
-        """The three register values to write at :data:`COMMAND_REGISTER`."""
-        return (self.action_byte << 8, self.position, self.speed << 8 | self.force)
+        return (action << 8, self.position, self.speed << 8 | self.force)
 
     @classmethod
     def from_registers(cls, registers: Sequence[int]) -> GripperCommand:
@@ -167,16 +163,6 @@ class GripperStatus:
     current: int = 0
 
     @property
-    def status_byte(self) -> int:
-        """Byte 0 of the status block."""
-        return (
-            int(self.activated)
-            | int(self.go_to) << 3
-            | int(self.activation) << 4
-            | int(self.object) << 6
-        )
-
-    @property
     def ready(self) -> bool:
         """Activated, activation complete and no fault."""
         return self.activated and self.activation == ActivationStatus.COMPLETED and not self.fault
@@ -193,9 +179,15 @@ class GripperStatus:
 
     def to_registers(self) -> tuple[int, int, int]:
         """The three register values a device answers at :data:`STATUS_REGISTER`."""
+        status = (
+            int(self.activated)
+            | int(self.go_to) << 3
+            | int(self.activation) << 4
+            | int(self.object) << 6
+        )
         fault_byte = (self.controller_fault & 0x0F) << 4 | (self.fault & 0x0F)
         return (
-            self.status_byte << 8,
+            status << 8,
             fault_byte << 8 | self.position_request,
             self.position << 8 | self.current,
         )

@@ -14,12 +14,6 @@ if TYPE_CHECKING:
 
 READER_PRIORITY_RANGE = (0, 99)
 """Range of the ``reader_priority`` parameter (Linux SCHED_FIFO priorities, 0 = leave as is)."""
-READER_PRIORITY_DESCRIPTION = (
-    "SCHED_FIFO priority of the thread that reads and stamps the device (1-99; 0 leaves the "
-    "OS default). Refused (no CAP_SYS_NICE, ulimit -r 0) it falls back to nice -10 or "
-    "nothing; what it got is logged once. See docs/runtime.md, Real-time priority."
-)
-"""Wording of ``reader_priority`` for the driver nodes' parameter descriptor."""
 
 
 class TransportKind(IntEnum):

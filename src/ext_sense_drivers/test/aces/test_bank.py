@@ -3,7 +3,14 @@ import pytest
 
 from ext_sense_drivers.aces import AcesError, correlation_stats, load_bank
 from ext_sense_drivers.aces.bank import BANK_SHA256, BANK_SPECS, aperiodic_xcorr
-from ext_sense_drivers.aces.sequences import gold_family, m_sequence, periodic_xcorr, to_chips
+from ext_sense_drivers.aces.sequences import gold_family, m_sequence, to_chips
+
+
+def periodic_xcorr(a, b):
+    """Periodic cross-correlation ``r[d] = sum_i a[i] * b[(i + d) mod N]`` for every shift ``d``."""
+    n = a.shape[0]
+    idx = (np.arange(n)[:, None] + np.arange(n)[None, :]) % n
+    return (b.astype(np.int64)[idx] @ a.astype(np.int64)).astype(np.int64)
 
 
 def test_bank_v1_shape_clock_and_hash():
