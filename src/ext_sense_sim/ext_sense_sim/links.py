@@ -10,6 +10,7 @@ import time
 from collections import deque
 from pathlib import Path
 
+from ext_sense_drivers.transports.scheduling import raise_thread_priority
 from ext_sense_sim.errors import SceneError
 
 
@@ -26,9 +27,13 @@ class PtyLink:
     Args:
         link: Optional path of a symlink to create to the slave (replaced if present).
         max_backlog_s: Oldest bytes the FIFO keeps, s.
+        priority: SCHED_FIFO priority of the writer thread (0: as it is); a receiver is
+            hardware, so a loaded host should not delay the emulated one's bytes.
     """
 
-    def __init__(self, link: str | Path | None = None, max_backlog_s: float = 0.1) -> None:
+    def __init__(
+        self, link: str | Path | None = None, max_backlog_s: float = 0.1, priority: int = 0
+    ) -> None:
         import tty
 
         if not max_backlog_s > 0:
@@ -40,6 +45,7 @@ class PtyLink:
         os.set_blocking(self.master, False)
         self.dropped_bytes = 0
         self.max_backlog_ns = round(max_backlog_s * 1e9)
+        self.priority = priority
         self.path = os.ttyname(self._slave)
         self.link = Path(link) if link else None
         if self.link is not None:
@@ -78,6 +84,7 @@ class PtyLink:
             self.dropped_bytes += len(old)
 
     def _drain(self) -> None:
+        raise_thread_priority(self.priority)
         while True:
             with self._cond:
                 while not self._fifo and not self._closed:
@@ -117,14 +124,18 @@ class PtyLink:
             self.link.unlink()
 
 
-def open_link(kind: str, *, link_path: str = "", can_channel: str = "", can_id: int = 0x100):
+def open_link(
+    kind: str, *, link_path: str = "", can_channel: str = "", can_id: int = 0x100, priority: int = 0
+):
     """A pty (default) or a python-can virtual channel sink, each with ``write`` and ``close``.
+
+    ``priority``: the pty writer thread's SCHED_FIFO priority (see :class:`PtyLink`).
 
     Raises:
         SceneError: Unknown link kind.
     """
     if kind == "pty":
-        return PtyLink(link_path or None)
+        return PtyLink(link_path or None, priority=priority)
     if kind == "can":
         from ext_sense_drivers.transports.can_bus import CanSink
 

@@ -30,6 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ext_sense_drivers.transports.scheduling import raise_thread_priority
 from ext_sense_runtime.enums import Sensor
 from ext_sense_runtime.records import GroundTruth
 from ext_sense_sim.bridge_line import BridgeLine
@@ -64,6 +65,7 @@ def stream(
     sleep: Callable[[float], None] = time.sleep,
     stats: StreamStats | None = None,
     ahead: bool = False,
+    priority: int = 0,
 ) -> StreamStats:
     """Write the scene's device bytes in real time until ``trials`` are done or ``stop`` is set.
 
@@ -80,10 +82,21 @@ def stream(
         stats: Counters to fill as it goes (e.g. read by a node's diagnostics); new if None.
         ahead: Simulate the trials in a low-priority child process
             (:class:`~ext_sense_sim.trials_ahead.TrialsAhead`: the same trials), not here.
+        priority: SCHED_FIFO priority the calling thread asks for while it paces the bytes (0:
+            as it is): the emulated sensor is hardware, which a loaded host does not slow.
+            What it got is in ``stats.extra["scheduling"]``; the child process runs at normal
+            priority either way.
     """
     stop = stop or threading.Event()
+    stats = StreamStats() if stats is None else stats
+    _take_priority(priority, stats)
     with _trials(scene, seed, stop, ahead) as plans:
         return _stream(scene, write, plans, trials, period_s, on_onset, stop, clock, sleep, stats)
+
+
+def _take_priority(priority: int, stats: StreamStats) -> None:
+    if priority > 0:
+        stats.extra["scheduling"] = raise_thread_priority(priority).describe()
 
 
 @contextlib.contextmanager
@@ -178,6 +191,10 @@ def _device_line(
     return _Line(line.write, idle), line
 
 
+DEVICE_PRIORITY = 60
+"""SCHED_FIFO priority of a live emulated device's pacing and pty writer threads: above a
+driver's reader (``reader_priority`` 50), as hardware is never late for the host's load."""
+
 LATE_WRITE_NS = 2_000_000
 """A write whose oldest chunk is due more than this long ago counts in ``late_writes``."""
 
@@ -246,6 +263,7 @@ def stream_on_trigger(
     sleep: Callable[[float], None] = time.sleep,
     stats: StreamStats | None = None,
     ahead: bool = False,
+    priority: int = 0,
 ) -> StreamStats:
     """Play ``per_trigger`` trials per trigger, silent in between: a behaviour drives the scene.
 
@@ -279,6 +297,7 @@ def stream_on_trigger(
         sleep: Sleeps seconds (injectable for tests).
         stats: Counters to fill as it goes; new if None.
         ahead: Simulate the trials in a low-priority child process (see :func:`stream`).
+        priority: SCHED_FIFO priority while pacing (see :func:`stream`).
 
     Raises:
         SceneError: Bad ``align`` or ``per_trigger``, the scene lacks the wire effect, or no
@@ -290,6 +309,7 @@ def stream_on_trigger(
         raise SceneError(f"The 'per_trigger' parameter must be >= 1. Got {per_trigger!r} instead.")
     stop = stop or threading.Event()
     stats = StreamStats() if stats is None else stats
+    _take_priority(priority, stats)
     with _trials(scene, seed, stop, ahead) as plans, contextlib.suppress(_StoppedError):
         _stream_on_trigger(
             scene,
@@ -460,7 +480,10 @@ def serve_device(args) -> int:
             f"Scene '{scene.name}' is for sensor '{scene.sensor.label}', not '{args.device}'."
         )
     sink = open_link(
-        "can" if args.can else "pty", link_path=args.link or "", can_channel=args.can or ""
+        "can" if args.can else "pty",
+        link_path=args.link or "",
+        can_channel=args.can or "",
+        priority=DEVICE_PRIORITY,
     )
     where = f"CAN virtual channel {args.can}" if args.can else sink.path
     print(f"sim serve {args.device}: streaming scene {scene.name} on {where}", flush=True)
@@ -476,6 +499,7 @@ def serve_device(args) -> int:
                 flush=True,
             ),
             ahead=True,
+            priority=DEVICE_PRIORITY,
         )
     except KeyboardInterrupt:
         return 0

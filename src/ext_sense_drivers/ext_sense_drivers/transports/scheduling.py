@@ -76,7 +76,10 @@ def _rlimit(name: str) -> int | None:
 
 
 def _set_fifo(tid: int, priority: int) -> None:
-    os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
+    # reset on fork: a process started from this thread (e.g. the simulator's trials-ahead
+    # child) runs at normal priority instead of inheriting real time
+    policy = os.SCHED_FIFO | getattr(os, "SCHED_RESET_ON_FORK", 0)
+    os.sched_setscheduler(tid, policy, os.sched_param(priority))
 
 
 def _set_nice(tid: int, nice: int) -> None:

@@ -109,3 +109,28 @@ def test_reader_thread_records_what_it_got_and_never_fails(monkeypatch):
 def test_bad_reader_priority_is_refused_by_the_config():
     with pytest.raises(Exception, match="'reader_priority' parameter must be in"):
         LinkConfig(transport="serial", port="loop://", reader_priority=120).make_reader()
+
+
+def test_a_process_started_from_a_real_time_thread_runs_at_normal_priority():
+    """Reset on fork: e.g. the simulator's trials-ahead child, started by the FIFO pacer."""
+    import os
+    import subprocess
+    import sys
+
+    out: dict[str, object] = {}
+
+    def run() -> None:
+        out["got"] = raise_thread_priority(20)
+        out["child"] = subprocess.run(
+            [sys.executable, "-c", "import os; print(os.sched_getscheduler(0))"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    thread.join()
+    if not out["got"].granted:
+        pytest.skip(f"SCHED_FIFO not granted here: {out['got'].describe()}")
+    assert out["child"] == str(os.SCHED_OTHER)

@@ -36,7 +36,14 @@ from ext_sense_runtime.records import GroundTruth
 from ext_sense_runtime.stamps import fill_stamp, stamp_to_ns
 from ext_sense_sim.links import open_link
 from ext_sense_sim.scene import load_scene
-from ext_sense_sim.streaming import ALIGNS, StreamStats, Trigger, stream, stream_on_trigger
+from ext_sense_sim.streaming import (
+    ALIGNS,
+    DEVICE_PRIORITY,
+    StreamStats,
+    Trigger,
+    stream,
+    stream_on_trigger,
+)
 
 MODES = ("free", "trigger")
 DEFAULT_SCENES = {"nuskin": "tap_rod30_nuskin", "biotac": "tap_rod30_biotac"}
@@ -98,7 +105,9 @@ class SimDeviceNode(Node):
                 f"The 'scene' parameter names a {self.scene.sensor.label} scene "
                 f"({self.scene.name}) but 'device' is {device!r}."
             )
-        self.sink = open_link(link, link_path=p.port_link, can_channel=can_channel)
+        self.sink = open_link(
+            link, link_path=p.port_link, can_channel=can_channel, priority=DEVICE_PRIORITY
+        )
         self.port = getattr(self.sink, "path", f"can:{can_channel}")
         self.pub = self.create_publisher(ContactGroundTruth, "ground_truth", GROUND_TRUTH_QOS)
         self.stats = StreamStats()
@@ -160,6 +169,7 @@ class SimDeviceNode(Node):
                 stop=self._stop,
                 stats=self.stats,
                 ahead=True,
+                priority=DEVICE_PRIORITY,
             )
         except Exception as err:
             self.error = repr(err)
@@ -190,6 +200,7 @@ class SimDeviceNode(Node):
                 stop=self._stop,
                 stats=self.stats,
                 ahead=True,
+                priority=DEVICE_PRIORITY,
             )
         except Exception as err:
             self.error = repr(err)
@@ -209,6 +220,8 @@ class SimDeviceNode(Node):
         msg.header.frame_id = self.scene.sensor.label
         self.pub.publish(msg)
         self.played += 1
+        if self.played == 1:
+            self.get_logger().info(f"pacing thread: {self.stats.extra.get('scheduling', '')}")
         self.get_logger().info(
             f"trial {gt.trial} ({gt.class_label or f'{gt.tap_position_m:.3f} m'}) onset at "
             f"{gt.onset_ns} ns (so far: {getattr(self.sink, 'dropped_bytes', 0)} bytes dropped, "
@@ -230,6 +243,7 @@ class SimDeviceNode(Node):
                 "late_writes": self.stats.extra.get("late_writes", 0),
                 "max_late_ms": round(self.stats.extra.get("max_late_ns", 0) / 1e6, 2),
                 "late_trials": self.stats.late_trials,
+                "scheduling": self.stats.extra.get("scheduling", ""),
             },
         )
 
