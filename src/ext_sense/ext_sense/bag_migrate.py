@@ -145,7 +145,7 @@ class _NuskinStream:
         t, taxel = t[order], taxel[order]
         value = np.asarray(msg.value, np.int64)[order] if len(msg.value) else np.zeros_like(taxel)
         flag = _flags(msg, order, self.signed)
-        out = self._quiet_until(int(t[0]))
+        out = [] if self.last_ns is None else list(self._quiet(self.last_ns, int(t[0])))
         if self.last_ns is None:
             opened = self.packer.opened(CONNECTION, min(self.start_ns, int(t[0])))
             out += [] if opened is None else [opened]
@@ -164,13 +164,8 @@ class _NuskinStream:
         self.last_ns = max(int(t[-1]), self.last_ns or 0)
         return out
 
-    def _quiet_until(self, next_ns: int) -> list[Packet]:
-        """The driver's "nothing read" packets from the last read up to ``next_ns``."""
-        if self.last_ns is None:
-            return []
-        return list(self._quiet(self.last_ns, next_ns))
-
     def _quiet(self, from_ns: int, to_ns: int) -> Iterator[Packet]:
+        """The driver's "nothing read" packets between two reads."""
         for t in range(from_ns + QUIET_NS, to_ns, QUIET_NS):
             packet = self.packer.nothing_read(t)
             if packet is not None:

@@ -237,23 +237,13 @@ class TrialLoop:
                 return
 
     def _wait_for(self, topic: str, nodes: set[str]) -> None:
-        """Wait until ``nodes`` subscribe to ``topic``: a trigger before that is lost.
-
-        Raises:
-            CollectError: Not within 90 s.
-        """
+        """Wait (90 s at most) until ``nodes`` subscribe to ``topic``: a trigger before is lost."""
         if not self.pump(lambda: nodes <= self.node.subscribers(topic), 90.0):
             missing = sorted(nodes - self.node.subscribers(topic))
             raise CollectError(f"{', '.join(missing)} did not subscribe to {topic} within 90 s")
 
     def _wait_for_publisher(self, topic: str, node: str) -> None:
-        """Wait until ``node`` publishes ``topic`` and the recording's subscription matched it.
-
-        Before the match a message is lost to a volatile subscription.
-
-        Raises:
-            CollectError: Not within 90 s.
-        """
+        """Wait (90 s at most) until ``node`` publishes ``topic`` to the recording: none is lost."""
         seen = lambda: node in self.node.publishers(topic) and self.node.matched_publishers(topic)  # noqa: E731
         if not self.pump(seen, 90.0):
             raise CollectError(f"{node} did not publish {topic} within 90 s")

@@ -225,12 +225,7 @@ def _replay(args: argparse.Namespace) -> int:
 
 
 def _replay_view(args: argparse.Namespace) -> NodeSpec | None:
-    """The ``foxglove_view`` node that ``view:=true`` asks for, else ``None``.
-
-    Raises:
-        GraphError: A bad view argument.
-        BagError: Neither the bag nor ``--sensor`` tells the sensor.
-    """
+    """The ``foxglove_view`` node that ``view:=true`` asks for, else ``None``."""
     from ext_sense.graph import GraphError, as_bool, parse_assignments
     from ext_sense.topics import SENSOR_STREAMS
     from ext_sense.view.graph import replay_view_graph

@@ -117,12 +117,7 @@ class SensorFeed:
                 self._draw_frame(frame.sensor_id, frame.electrodes, frame.pac)
 
     def _decoder_for(self, msg: Any) -> Any:
-        """The decoder of the packet's stream, made on its first packet.
-
-        Raises:
-            PacketError: An encoding of another sensor, an unknown one, or options its decoder
-                does not take.
-        """
+        """The decoder of the packet's stream, made on its first packet (or a PacketError)."""
         encoding = str(msg.encoding)
         options = str(msg.options if isinstance(msg, Packet) else msg.encoding_options)
         key = (encoding, options, int(msg.connection))

@@ -278,11 +278,7 @@ class FoxgloveViewNode(Node):
     # -- output: at display rate -----------------------------------------------------------
 
     def _follow_clients(self) -> bool:
-        """Subscribe to the packets while a client watches a sensor channel, else unsubscribe.
-
-        Returns:
-            Whether any client subscribes to any channel (else the tick has nothing to do).
-        """
+        """Read packets only while a client watches a sensor channel; whether any client is on."""
         watched = any(c.has_sinks() for c in self.sensor_channels)
         if watched and self.packets_subscription is None:
             self.packets_subscription = self.create_subscription(

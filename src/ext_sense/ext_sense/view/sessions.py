@@ -155,11 +155,7 @@ def _bag_sensor(have: Any) -> str:
 
 
 def _packet_blocks(msg: Any, decoders: dict[tuple[str, str, int], Any]) -> list[EventBlock]:
-    """One raw packet as plotted events (BioTac: one per frame, valued by its PAC range).
-
-    Raises:
-        ViewError: A packet the decoder library refuses (named with its ``seq``).
-    """
+    """One raw packet as plotted events (BioTac: one per frame, valued by its PAC range)."""
     from ext_sense_drivers.packets import PacketError, make_decoder
 
     key = (str(msg.encoding), str(msg.encoding_options), int(msg.connection))
