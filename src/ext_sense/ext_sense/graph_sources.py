@@ -13,7 +13,6 @@ from pathlib import Path
 from ext_sense.graph import ArgumentSpec, GraphError, NodeSpec, ParameterValue, as_bool
 from ext_sense.topics import (
     SENSOR_PACKETS,
-    SENSOR_STREAMS,
     TOPIC_GROUND_TRUTH,
     TOPIC_HANDOVER_OFFER,
     TOPIC_MOTION_START,
@@ -51,27 +50,14 @@ def _check_packets(bag: Path, sensor: str) -> None:
     Raises:
         GraphError: The bag cannot be read, or holds no ``SensorPacket`` of the sensor.
     """
+    from ext_sense.offline_replay import packet_topic
     from ext_sense_bags import BagError, BagReader
 
-    topic = SENSOR_PACKETS[sensor]
     try:
         with BagReader(bag) as reader:
-            spec = reader.topics.get(topic)
-            decoded = reader.topics.get(SENSOR_STREAMS[sensor][1])
+            packet_topic(reader.topics, bag, sensor)
     except (BagError, OSError) as err:
         raise GraphError(f"The 'bag' argument: {err}") from err
-    if spec is not None and spec.count > 0:
-        return
-    fix = (
-        f" It holds decoded arrays from before packets: run `ext-sense bag migrate {bag} OUT` "
-        "and replay OUT."
-        if decoded is not None and decoded.count > 0
-        else ""
-    )
-    raise GraphError(
-        f"The 'bag' argument must name a bag with {sensor} packets on {topic}. Got '{bag}': "
-        f"none.{fix}"
-    )
 
 
 def port_path(task: str, args: Mapping[str, str]) -> str:
