@@ -23,7 +23,6 @@ from ext_sense_drivers.nodes.link_node import (
     link_status,
     monotonic_to_ros_ns,
     packet_message,
-    stop_reader,
 )
 from ext_sense_drivers.nodes.link_parameters import STALL_OFF, LinkParameters, link_field
 from ext_sense_drivers.packets import (
@@ -252,11 +251,6 @@ class BioTacDriverNode(ManagedLink, LifecycleNode):
         if problems:
             return Level.WARN, ", ".join(problems) + " since the last report", values
         return Level.OK, "clean stream", values
-
-    def destroy_node(self) -> None:
-        """Stop the reader thread (closing the link) before the node goes."""
-        stop_reader(self)
-        super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> int:

@@ -88,13 +88,6 @@ def link_status(
     return Level.WARN, state.name.lower(), report
 
 
-def stop_reader(node: Node) -> None:
-    """Stop the node's ``reader`` thread (closing the link), if the constructor got that far."""
-    reader = getattr(node, "reader", None)
-    if reader is not None:
-        reader.stop()
-
-
 class ManagedLink:
     """The lifecycle of a driver's link, mixed into a ``rclpy.lifecycle.LifecycleNode``.
 
@@ -244,3 +237,10 @@ class ManagedLink:
                 throttle_duration_sec=5.0,
             )
         self._seen_failures = failures
+
+    def destroy_node(self: Any) -> None:
+        """Stop the reader thread (closing the link), if the constructor got that far."""
+        reader = getattr(self, "reader", None)
+        if reader is not None:
+            reader.stop()
+        super().destroy_node()

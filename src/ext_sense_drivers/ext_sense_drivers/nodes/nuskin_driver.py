@@ -22,7 +22,6 @@ from ext_sense_drivers.nodes.link_node import (
     link_status,
     monotonic_to_ros_ns,
     packet_message,
-    stop_reader,
 )
 from ext_sense_drivers.nodes.link_parameters import STALL_OFF, LinkParameters, link_field
 from ext_sense_drivers.nuskin.driver_config import DriverConfig, Mode
@@ -256,11 +255,6 @@ class NuskinDriverNode(ManagedLink, LifecycleNode):
             **self._qos_events.as_values(),
         }
         return link_status(self.reader, "port", values)
-
-    def destroy_node(self) -> None:
-        """Stop the reader thread (closing the port) before the node goes."""
-        stop_reader(self)
-        super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> int:

@@ -163,8 +163,7 @@ class RobotiqClient:
         """Send ``request``, read a ``length``-byte reply and decode it, retrying failures.
 
         Raises:
-            RobotiqError: NO_ANSWER or BAD_CRC after every retry, EXCEPTION_REPLY at once,
-                SERIAL when the port fails.
+            RobotiqError: NO_ANSWER or BAD_CRC after the retries, EXCEPTION_REPLY, SERIAL.
         """
         last: RobotiqError | None = None
         for attempt in range(self.retries + 1):
@@ -259,8 +258,7 @@ class RobotiqClient:
         """Reset, then set rACT and poll until activation completes.
 
         Raises:
-            RobotiqError: ACTIVATION when gSTA does not reach 3 in ``timeout_s``,
-                GRIPPER_FAULT when the gripper reports a fault meanwhile.
+            RobotiqError: ACTIVATION after ``timeout_s``, GRIPPER_FAULT on a fault.
         """
         self.reset()
         self.write_command(GripperCommand(activate=True, speed=0, force=0))
@@ -287,8 +285,7 @@ class RobotiqClient:
         """Poll until the last move ended (at its position or on an object).
 
         Raises:
-            RobotiqError: GRIPPER_FAULT on a fault; NO_ANSWER when the motion outlasts
-                ``timeout_s`` (the status still says moving).
+            RobotiqError: GRIPPER_FAULT on a fault, NO_ANSWER when still moving at ``timeout_s``.
         """
         deadline = self._clock() + timeout_s
         while True:

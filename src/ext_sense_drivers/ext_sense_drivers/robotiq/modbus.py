@@ -63,8 +63,7 @@ def encode_read_request(
     """The 8-byte request to read ``count`` (1..125) registers from ``address``.
 
     Raises:
-        RobotiqError: Slave not in 1..247, address or count out of range, or a function
-            other than 0x03 and 0x04.
+        RobotiqError: An argument is out of range, or the function is not 0x03 or 0x04.
     """
     _check_range("slave", slave, 1, 247)
     _check_range("address", address, 0, 0xFFFF)
@@ -142,8 +141,7 @@ def decode_read_reply(
     """The ``count`` registers a whole read reply carries.
 
     Raises:
-        RobotiqError: Short frame, bad CRC (``BAD_CRC``), wrong slave/function/byte count, or a
-            Modbus exception reply (``EXCEPTION_REPLY``).
+        RobotiqError: A bad frame or CRC (``BAD_CRC``), or an exception reply.
     """
     _check_reply(frame, slave, int(function))
     if len(frame) != read_reply_length(count) or frame[2] != 2 * count:

@@ -89,14 +89,8 @@ def _bytes_of(registers: Sequence[int], name: str) -> bytes:
 class GripperCommand:
     """What the robot asks of the gripper (the command registers).
 
-    Attributes:
-        activate: rACT; 0 resets the gripper, a 0 -> 1 edge starts activation.
-        go_to: rGTO; 1 moves to ``position``.
-        auto_release: rATR; emergency auto-release.
-        auto_release_open: rARD; auto-release direction (1 = open).
-        position: rPR, 0 (open) .. 255 (closed).
-        speed: rSP, 0 (slowest) .. 255 (fastest).
-        force: rFR, 0 (lowest) .. 255 (highest).
+    The fields in order: rACT (0 resets, a 0 -> 1 edge activates), rGTO, rATR, rARD (1 = open),
+    rPR (0 open .. 255 closed), rSP and rFR (0 .. 255).
     """
 
     activate: bool = True
@@ -140,16 +134,8 @@ class GripperCommand:
 class GripperStatus:
     """What the gripper reports (the status registers).
 
-    Attributes:
-        activated: gACT, echo of rACT.
-        go_to: gGTO, echo of rGTO.
-        activation: gSTA.
-        object: gOBJ.
-        fault: gFLT (low nibble of byte 2); see :class:`FaultCode`.
-        controller_fault: kFLT (high nibble of byte 2), vendor specific.
-        position_request: gPR, echo of rPR.
-        position: gPO, 0 (open) .. 255 (closed).
-        current: gCU, about 10 mA per count.
+    The fields in order: gACT, gGTO, gSTA, gOBJ, gFLT (:class:`FaultCode`), kFLT, gPR, gPO
+    (0 open .. 255 closed) and gCU (about 10 mA per count).
     """
 
     activated: bool = False

@@ -21,8 +21,8 @@ class FileTransport:
         bytes_per_s: Replay rate in bytes per second, or ``None`` for flat out.
         chunk_size: Most bytes one read returns, > 0.
         loop: Start over at the end instead of stopping.
-        clock: Monotonic integer nanoseconds.
-        sleep: Sleeps a number of seconds; injectable for tests.
+        clock: Monotonic integer nanoseconds (injectable, as ``sleep``).
+        sleep: Sleeps a number of seconds.
     """
 
     def __init__(
