@@ -78,14 +78,7 @@ def add_data_options(p: argparse.ArgumentParser, *, need_task: bool = False) -> 
 
 
 class Wanted(NamedTuple):
-    """The windows a model bundle takes: what the sessions loaded to score or adapt it must be.
-
-    Attributes:
-        task: The bundle's task.
-        sensor: The bundle's sensor.
-        anchor: Capture folders: what its food windows were tied to (empty: none).
-        who: The bundle, as error messages name it.
-    """
+    """The windows a model bundle takes (``who`` names it in errors; ``anchor`` empty: none)."""
 
     task: str
     sensor: str
@@ -185,14 +178,12 @@ def load_sessions(
 ) -> list[Session]:
     """Every ``--data`` as a session: its windows (cropped by ``--post-ms``) and metadata.
 
-    Args:
-        args: The parsed options (:func:`add_data_options`).
-        need_labels: Bags must hold ground truth.
-        wanted: The windows a bundle takes (``score``, ``calibrate``), else None.
+    ``need_labels``: bags must hold ground truth; ``wanted``: the windows a bundle takes
+    (``score``, ``calibrate``).
 
     Raises:
-        PerceptionError: Unreadable data, ``session.json`` breaking its schema or naming
-            another sensor, or data of another task or sensor than asked for.
+        PerceptionError: Unreadable data, ``session.json`` breaking its schema or naming another
+            sensor, or data of another task or sensor than asked for.
     """
     from ext_sense_perception.data.sessions import as_session
 

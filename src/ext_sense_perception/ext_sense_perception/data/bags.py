@@ -63,12 +63,9 @@ class BagTopics(NamedTuple):
 class BagCounts(NamedTuple):
     """What became of a bag's messages and windows.
 
-    Attributes:
-        undecodable: Messages whose bytes do not decode as their type.
-        bad_messages: Decoded sensor messages the window stage dropped (malformed arrays).
-        truncated: Windows the bag ended inside (zero-padded tail).
-        unmatched_windows: Windows no truth was near (``"detected"`` onsets).
-        missed_truths: Truths no window was cut for.
+    ``undecodable`` messages did not decode; ``bad_messages`` decoded but were malformed;
+    ``truncated`` windows the bag ended inside; ``unmatched_windows`` had no truth near
+    (``detected`` onsets); ``missed_truths`` got no window.
     """
 
     sensor_messages: int

@@ -43,14 +43,7 @@ class StreamCounts(NamedTuple):
 
 
 class StreamCut(NamedTuple):
-    """What the live graph makes of a byte stream.
-
-    Attributes:
-        windows: The final windows, oldest first.
-        events: Every decoded event as stamped, in arrival order (empty unless asked for).
-        words: Decoded words.
-        skipped_bytes: Bytes the decoder skipped.
-    """
+    """What the live graph makes of a byte stream: final windows, stamped events if kept, counts."""
 
     windows: list[ContactWindow]
     events: EventBlock

@@ -28,14 +28,11 @@ SESSION_FILE = "session.json"
 
 @dataclass(frozen=True)
 class SessionInfo:
-    """A session's metadata.
+    """A session's metadata (empty strings: unknown).
 
-    Attributes:
-        date: Day of the recording, ``YYYY-MM-DD`` (empty: unknown).
-        sensor_id: The physical sensor's serial number (empty: unknown).
-        labels: The classes the session may hold (empty: the data's own, or regression).
-        baseline: A capture with nothing touched, relative to the session path (empty: none).
-        inferred: Whether the metadata was inferred rather than read from a file.
+    ``date`` is ``YYYY-MM-DD``; ``labels`` the classes the session may hold (empty: the data's own);
+    ``baseline`` a capture with nothing touched, relative to the session; ``inferred``: not read
+    from a file.
     """
 
     name: str

@@ -34,24 +34,15 @@ RULE_WINDOW = "window holds NaN or inf"
 
 @dataclass
 class InputPolicy:
-    """Strict (raise on the first bad row) or lenient (drop and count), shared by one load.
-
-    Attributes:
-        lenient: Drop and count bad rows and trials instead of raising.
-        dropped: Rows (or trials, windows) dropped per rule, when lenient.
-    """
+    """Strict (raise at the first bad row) or ``lenient`` (drop; ``dropped`` counts per rule)."""
 
     lenient: bool = False
     dropped: Counter[str] = field(default_factory=Counter)
 
     def keep(self, bad: np.ndarray, rule: str, where: str, shown: np.ndarray | None = None) -> None:
-        """Raise on the first ``bad`` row (strict), or count them (lenient).
+        """Raise on the first ``bad`` row breaking ``rule`` (strict), or count them (lenient).
 
-        Args:
-            bad: Boolean mask of rows breaking ``rule``.
-            rule: The rule, in words.
-            where: The file (and trial) the rows come from.
-            shown: The offending values, for the error message (default: none shown).
+        ``where`` names the file (and trial), ``shown`` the offending values for the message.
 
         Raises:
             PerceptionError: Strict, and a row breaks the rule.

@@ -169,13 +169,9 @@ class WindowFeatures(TransformerMixin, BaseEstimator):
 class _Reduced(WindowFeatures):
     """A family that first reduces the window's time axis: NUSkin rebinning, BioTac decimation.
 
-    Args:
-        n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels: As
-            :class:`WindowFeatures`.
-        bin_ns: NUSkin feature bin, ns (a multiple of ``period_ns``).
-        rate_hz: BioTac decimation target, Hz (None: full rate).
-        bin_kernel: NUSkin bins: ``box`` (the paper's sums) or ``gauss``
-            (:func:`~.maps.gauss_rebin_matrix`).
+    ``bin_ns`` is the NUSkin feature bin (a multiple of ``period_ns``), ``bin_kernel`` its weights
+    (``box``, the paper's sums, or ``gauss``, :func:`~.maps.gauss_rebin_matrix`); ``rate_hz`` the
+    BioTac decimation target (None: full rate).
     """
 
     def __init__(
@@ -252,15 +248,7 @@ class FFTFeatures(_Reduced):
 
 
 class AutoencoderFeatures(FFTFeatures):
-    """The 32-d code of an MLP autoencoder trained on the FFT features of the training windows.
-
-    Args:
-        n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels, bin_ns, rate_hz,
-            bin_kernel: As :class:`FFTFeatures`.
-        ae_code: Code size.
-        ae_max_iter: Training epochs.
-        random_state: Seed of the autoencoder.
-    """
+    """The ``ae_code``-d code of an MLP autoencoder trained on the windows' FFT features."""
 
     kind = "autoencoder"
 
@@ -333,12 +321,8 @@ class AutoencoderFeatures(FFTFeatures):
 class ESTFeatures(WindowFeatures):
     """Event Spike Tensor style: each channel convolved with a learned-shape decaying kernel.
 
-    Args:
-        n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels: As
-            :class:`WindowFeatures`.
-        est_samples: Equally spaced output samples per channel.
-        est_tau_s: Decay time constant the kernel MLP is fitted to, s (:mod:`.est_kernel`).
-        random_state: Seed of the kernel fit.
+    The kernel MLP is fitted to ``exp(-t / est_tau_s)`` (:mod:`.est_kernel`); ``est_samples``
+    equally spaced outputs per channel.
     """
 
     kind = "est"
@@ -380,12 +364,8 @@ class ESTFeatures(WindowFeatures):
 class ActivityFeatures(WindowFeatures):
     """NUSkin only: log1p event activity over time (all taxels) and per taxel over the window.
 
-    Args:
-        n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels: As
-            :class:`WindowFeatures`.
-        activity_bin_ns: Bin of the all-taxel activity series, ns.
-        activity_late_ns: Also sum each taxel's activity from this time after the window's start, ns
-            (None: not).
+    ``activity_bin_ns`` bins the all-taxel series; ``activity_late_ns`` (None: not) also sums each
+    taxel's activity from that time after the window's start.
     """
 
     kind = "activity"

@@ -57,13 +57,9 @@ class Fault:
 class StreamLiveness(StallCounts):
     """Tracks one input stream's arrivals and says when it stalls or runs late.
 
-    Args:
-        stream: The stream's name in messages (its topic).
-        expected_rate_hz: Messages per second while streaming (shown).
-        warn_ns: Silence while streaming that is a stall (WARN).
-        error_ns: Silence while streaming that is an ERROR.
-        late_ns: Extra delay over the stream's usual one that makes a packet late.
-        clock: Monotonic integer nanoseconds; injectable so tests never sleep.
+    ``stream`` names it in messages; silence while streaming beyond ``warn_ns`` is a stall, beyond
+    ``error_ns`` an ERROR; a packet ``late_ns`` over the usual delay is late. ``clock`` (monotonic
+    ns) is injectable so tests never sleep.
     """
 
     stream: str

@@ -30,11 +30,9 @@ LENGTH_TOLERANCE_M = 0.005
 
 
 class HeldObject(NamedTuple):
-    """The object held between the fingers: its kind and length.
+    """The object held between the fingers: its kind (``rod``, ``box``, ...) and length, m.
 
-    Attributes:
-        kind: ``"rod"``, ``"box"``, ``"plate"``, ``"fork"`` (the scenes' kinds).
-        length_m: Its length, m (None: unknown, or the model was trained on several).
+    ``length_m`` None: unknown, or the model was trained on several.
     """
 
     kind: str

@@ -55,13 +55,11 @@ class PacWindower(WindowerBase):
         period_ns: int = PAC_PERIOD_NS,
         valid: np.ndarray | None = None,
     ) -> list[ContactWindow]:
-        """Add PAC samples (e.g. one frame's 22) and return the windows that became due.
+        """Add PAC samples, ``(n,)`` or ``(n_sensors, n)`` raw counts; the windows that became due.
 
-        Args:
-            t0_ns: Time of the first sample, ns.
-            pac: Raw ADC counts, ``(n,)`` or ``(n_sensors, n)``.
-            period_ns: Sample period, ns (fixed for the stream's life).
-            valid: Optional boolean mask like ``pac``; invalid samples hold the previous value.
+        ``period_ns`` is fixed for the stream's life; samples ``valid`` marks False hold the
+        previous
+        value.
 
         Raises:
             PerceptionError: on a wrong shape, NaN/inf, or a changed sample period.

@@ -31,13 +31,7 @@ BACKEND_NAMES = {"onnx": "ONNX", "sklearn": "scikit-learn"}
 
 
 class ModelBundle:
-    """A loaded bundle that turns windows into estimates.
-
-    Args:
-        card: The model card.
-        backend: ``"onnx"`` or ``"sklearn"``.
-        runner: ONNX Runtime session or the scikit-learn pipeline.
-    """
+    """A loaded bundle that turns windows into estimates (``runner``: ONNX session or pipeline)."""
 
     def __init__(
         self, card: ModelCard, backend: str, runner: Any, anytime: tuple[ModelBundle, ...] = ()

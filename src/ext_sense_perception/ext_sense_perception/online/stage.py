@@ -52,11 +52,7 @@ class StageCounters(NamedTuple):
 
 
 class WindowStage:
-    """Sensor messages in, contact windows out.
-
-    Args:
-        config: Window configuration (task, sensor, durations).
-        sensor_ids: BioTac sensor slots to join into one multi-channel window (NUSkin: unused).
+    """Sensor messages in, contact windows out (``sensor_ids``: BioTac slots joined in one).
 
     Raises:
         PerceptionError: An empty ``sensor_ids`` for BioTac.
@@ -98,11 +94,8 @@ class WindowStage:
     ) -> list[ContactWindow]:
         """Feed a block of decoded events; returns the windows that became due.
 
-        Args:
-            events: The events.
-            stamp_ns: The batch's stamp: with no events stream time still reaches it (the stream is
-                in order).
-            complete_ns: For a decoded packet, the stream time up to which every event is out.
+        With no events, stream time still reaches the batch's ``stamp_ns`` (the stream is in order);
+        ``complete_ns`` is a decoded packet's time up to which every event is out.
         """
         self._counts["events"] += events.size
         now = complete_ns if complete_ns is not None else (None if events.size else stamp_ns)

@@ -36,13 +36,9 @@ ONNX_OPSET = 17
 class GRUNet(NamedTuple):
     """A trained GRU + MLP head, everything inference needs (float32, torch's layout).
 
-    Attributes:
-        w_ih: ``(3 * hidden, n_channels)``, row blocks (r, z, n).
-        w_hh: ``(3 * hidden, hidden)``, row blocks (r, z, n).
-        layers: MLP layers ``(weight (out, in), bias (out,))``; ReLU between them.
-        y_mean: Regression target mean (outputs are ``raw * y_scale + y_mean``).
-        classes: Class labels (classification) or ``None`` (regression).
-        reverse: The GRU reads the steps last to first.
+    GRU weights are row blocks (r, z, n); ``layers`` are ``(weight (out, in), bias (out,))`` with
+    ReLU between them; regression outputs are ``raw * y_scale + y_mean`` (``classes`` None);
+    ``reverse`` reads the steps last to first.
     """
 
     w_ih: np.ndarray
