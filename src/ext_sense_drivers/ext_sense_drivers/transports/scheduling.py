@@ -1,16 +1,9 @@
 """The best scheduling the machine allows for one thread: SCHED_FIFO, else a raised nice.
 
-The NUSkin words carry no time: the reader thread stamps each read when it returns, so every
-millisecond the thread waits for a core is a millisecond of stamp error (docs/benchmarks.md,
-"Reader priority and the arrival clock"). A real-time policy lets the reader preempt
-ordinary work the moment its read returns. Not every machine grants one: SCHED_FIFO needs
-``CAP_SYS_NICE`` or a non-zero ``RLIMIT_RTPRIO`` (``ulimit -r``), a lower nice needs
-``CAP_SYS_NICE`` or ``RLIMIT_NICE``. :func:`raise_thread_priority` tries them in that order and
-says what it got; it never raises, because a driver that cannot get real time must still
-read (docs/runtime.md, "Real-time priority for the reader").
-
-Plain Python (no rclpy); Linux semantics (``os.sched_setscheduler`` and ``os.setpriority`` act
-on one thread when given its native id). Elsewhere the calls are missing and the result says so.
+The reader stamps each read when it returns, so its wait for a core is stamp error
+(docs/benchmarks.md, "Reader priority and the arrival clock"). SCHED_FIFO needs
+``CAP_SYS_NICE`` or ``RLIMIT_RTPRIO``, a lower nice ``CAP_SYS_NICE`` or ``RLIMIT_NICE``;
+:func:`raise_thread_priority` tries them in turn and never raises. Linux semantics.
 """
 
 from __future__ import annotations
@@ -21,8 +14,7 @@ from collections.abc import Callable
 from typing import NamedTuple
 
 FALLBACK_NICE = -10
-"""Nice asked for when SCHED_FIFO is refused: ahead of ordinary processes (nice 0), behind the
-kernel's own threads. Clamped to what ``RLIMIT_NICE`` allows."""
+"""Nice asked for when SCHED_FIFO is refused (clamped to what ``RLIMIT_NICE`` allows)."""
 
 MAX_FIFO_PRIORITY = 99
 """Linux's highest SCHED_FIFO priority."""
@@ -32,8 +24,7 @@ class Scheduling(NamedTuple):
     """What a thread got.
 
     Attributes:
-        policy: ``"fifo"`` (SCHED_FIFO), ``"nice"`` (SCHED_OTHER with a lowered nice) or
-            ``"default"`` (left as it was).
+        policy: ``"fifo"``, ``"nice"`` (SCHED_OTHER, lowered nice) or ``"default"``.
         value: The FIFO priority (1-99), the nice value, or 0.
         requested: The FIFO priority asked for (0: nothing asked).
         reason: Why the policy is not the one asked for ("" when it is).
@@ -101,19 +92,15 @@ def raise_thread_priority(
 ) -> Scheduling:
     """Give thread ``tid`` SCHED_FIFO at ``priority``, else the best nice allowed, else nothing.
 
-    A priority above ``RLIMIT_RTPRIO`` (when that limit is below it but above 0) is lowered to
-    the limit first: the best the machine allows. Never raises.
+    A priority above a non-zero ``RLIMIT_RTPRIO`` is tried at the limit too. Never raises.
 
     Args:
         priority: SCHED_FIFO priority, 1-99; 0 or less leaves the thread as it is.
-        tid: Native thread id (default: the calling thread's, ``threading.get_native_id()``).
-        fallback_nice: Nice to ask for when SCHED_FIFO is refused (clamped to ``RLIMIT_NICE``).
-        set_fifo: Sets SCHED_FIFO (injectable for tests).
-        set_nice: Sets a thread's nice (injectable for tests).
-        get_nice: Reads a thread's nice (injectable for tests).
-
-    Returns:
-        What the thread got.
+        tid: Native thread id (default: the calling thread's).
+        fallback_nice: Nice to ask for when SCHED_FIFO is refused.
+        set_fifo: Sets SCHED_FIFO; ``set_nice`` and ``get_nice`` likewise injectable for tests.
+        set_nice: Sets a thread's nice.
+        get_nice: Reads a thread's nice.
     """
     requested = min(int(priority), MAX_FIFO_PRIORITY)
     if requested <= 0:
