@@ -25,13 +25,6 @@ class Mode(IntEnum):
     """Raw ACES line samples (int16 little-endian, one per chip)."""
 
 
-def _choice(name: str, value: str, enum: type[IntEnum]) -> IntEnum:
-    names = [m.name.lower() for m in enum]
-    if value.lower() not in names:
-        raise NuskinError(f"The '{name}' parameter must be one of {names}. Got {value!r} instead.")
-    return enum[value.upper()]
-
-
 @dataclass(frozen=True)
 class DriverConfig(LinkConfig):
     """The NUSkin driver's settings beyond :class:`LinkConfig`'s (errors: :class:`NuskinError`)."""
@@ -48,7 +41,7 @@ class DriverConfig(LinkConfig):
     @property
     def mode_kind(self) -> Mode:
         """The mode as an enum (raises :class:`NuskinError` if not words or aces_line)."""
-        return _choice("mode", self.mode, Mode)  # type: ignore[return-value]
+        return self.choice("mode", Mode)
 
     def file_rate(self) -> float | None:
         """Replay rate of a file in bytes/s, or ``None`` for flat out.
@@ -82,8 +75,8 @@ class DriverConfig(LinkConfig):
             NuskinError: Bad mode or flag polarity, or the ACES package is not available.
         """
         if self.mode_kind == Mode.WORDS:
-            polarity = _choice("flag_polarity", self.flag_polarity, FlagPolarity)
-            return WordStream(FlagPolarity(polarity), ArrivalClock.for_baud(self.baud))
+            polarity = self.choice("flag_polarity", FlagPolarity)
+            return WordStream(polarity, ArrivalClock.for_baud(self.baud))
         try:
             return AcesLineStream(threshold=self.aces_threshold)
         except ImportError as err:

@@ -131,15 +131,7 @@ class _SeqDecoder:
         self.last_error = f"decoding packet seq {packet.seq} failed, a read dropped: {err!r}"
 
     def _packet_values(self) -> dict[str, object]:
-        c = self.counters
-        return {
-            "encoding": self.encoding,
-            "packets": c.packets,
-            "lost_packets": c.lost_packets,
-            "bad_packets": c.bad_packets,
-            "decode_failures": c.decode_failures,
-            "driver_restarts": c.driver_restarts,
-        }
+        return {"encoding": self.encoding, **self.counters._asdict()}
 
 
 class NuskinPacketDecoder(_SeqDecoder):

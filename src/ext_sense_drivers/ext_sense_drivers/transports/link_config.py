@@ -4,13 +4,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, ClassVar, TypeVar
 
 from ext_sense_drivers.transports.base import Transport
 from ext_sense_drivers.transports.errors import TransportError
 
 if TYPE_CHECKING:
     from ext_sense_drivers.transports.reader import Backoff, StreamReader
+
+E = TypeVar("E", bound=IntEnum)
 
 READER_PRIORITY_RANGE = (0, 99)
 """Range of the ``reader_priority`` parameter (Linux SCHED_FIFO priorities, 0 = leave as is)."""
@@ -43,15 +45,20 @@ class LinkConfig:
     file_loop: bool = False
     reader_priority: int = 0
 
+    def choice(self, name: str, enum: type[E]) -> E:
+        """The setting ``name`` as a member of ``enum`` (case-insensitive; :attr:`error` if not)."""
+        value = getattr(self, name)
+        names = [m.name.lower() for m in enum]
+        if value.lower() not in names:
+            raise self.error(
+                f"The '{name}' parameter must be one of {names}. Got {value!r} instead."
+            )
+        return enum[value.upper()]
+
     @property
     def transport_kind(self) -> TransportKind:
-        """The transport as an enum (case-insensitive; :attr:`error` if unknown)."""
-        kinds = [k.name.lower() for k in TransportKind]
-        if self.transport.lower() not in kinds:
-            raise self.error(
-                f"The 'transport' parameter must be one of {kinds}. Got {self.transport!r} instead."
-            )
-        return TransportKind[self.transport.upper()]
+        """The transport as an enum."""
+        return self.choice("transport", TransportKind)
 
     @property
     def hardware_id(self) -> str:
