@@ -122,12 +122,6 @@ def _infer_sensor(topics: dict[str, Any], names: BagTopics, custom: dict[str, st
     raise PerceptionError("The bag holds both sensors' streams: give --sensor nuskin or biotac.")
 
 
-def read_truths(bag: Any, topic: str, drops: list[int]) -> tuple[list[GroundTruth], str]:
-    """The bag's ground truth in log-time order and the first task name (or "")."""
-    truths = [truth_of(msg) for msg in _decoded(bag, topic, drops)]
-    return truths, next((g.task for g in truths if g.task), "")
-
-
 class _Refractory:
     """The per-taxel refractory drop of :func:`.refractory.refractory_mask`, across blocks."""
 
@@ -222,10 +216,10 @@ def window_set_from_bag(
         _check_type(have, stream, PACKETS_TYPE if use_packets else expected)
         drops = [0]
         truths: list[GroundTruth] = []
-        truth_task = ""
         if topics.truth in have:
             _check_type(have, topics.truth, TRUTH_TYPE)
-            truths, truth_task = read_truths(bag, topics.truth, drops)
+            truths = [truth_of(msg) for msg in _decoded(bag, topics.truth, drops)]
+        truth_task = next((g.task for g in truths if g.task), "")  # the first one's
         task_name = task or bag.custom_data.get("task") or truth_task
         if not task_name:
             raise PerceptionError(

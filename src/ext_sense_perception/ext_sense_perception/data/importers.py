@@ -42,12 +42,17 @@ def _seconds_to_ns(text_seconds: np.ndarray) -> np.ndarray:
     return (np.round(np.asarray(text_seconds, dtype=np.float64) * 1e6).astype(np.int64)) * 1000
 
 
-def _load_rows(path: Path, n_cols: int) -> np.ndarray:
+def _existing_file(path: str | Path, name: str = "path") -> Path:
     path = Path(path)
     if not path.is_file():
         raise PerceptionError(
-            f"The 'path' parameter must name an existing file. Got {str(path)!r} instead."
+            f"The {name!r} parameter must name an existing file. Got {str(path)!r} instead."
         )
+    return path
+
+
+def _load_rows(path: Path, n_cols: int) -> np.ndarray:
+    path = _existing_file(path)
     try:
         rows = np.loadtxt(path, dtype=np.float64, ndmin=2)
     except ValueError as err:
@@ -120,11 +125,7 @@ def read_csv_columns(path: str | Path) -> dict[str, np.ndarray]:
     Raises:
         PerceptionError: when the file is missing or empty.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise PerceptionError(
-            f"The 'path' parameter must name an existing file. Got {str(path)!r} instead."
-        )
+    path = _existing_file(path)
     with path.open(newline="") as fh:
         reader = csv.reader(fh)
         try:
@@ -198,11 +199,7 @@ def read_arm_motion(bag: str | Path, speed_threshold: float = 0.05) -> ArmMotion
     Raises:
         PerceptionError: when the bag is missing, unreadable, or the arm never moves.
     """
-    bag = Path(bag)
-    if not bag.is_file():
-        raise PerceptionError(
-            f"The 'bag' parameter must name an existing file. Got {str(bag)!r} instead."
-        )
+    bag = _existing_file(bag, "bag")
     try:
         times: list[int] = []
         speeds: list[float] = []

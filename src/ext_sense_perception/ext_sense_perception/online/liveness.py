@@ -132,7 +132,9 @@ class StreamLiveness(StallCounts):
         self.messages += 1
         self.last_arrival_ns, self.last_stamp_ns = now, stamp_ns
         self._settle(stamp_ns)
-        self._forget(stamp_ns)
+        self.faults = [  # no window reaches back to older faults
+            f for f in self.faults if f.end_ns is None or stamp_ns - f.end_ns < KEEP_FAULTS_NS
+        ]
 
     def on_counts(self, stamp_ns: int, words_total: int, bad_words: int, n_events: int) -> None:
         """Check the driver's running count of good words against the events received (NUSkin).
@@ -305,8 +307,3 @@ class StreamLiveness(StallCounts):
         if self.last_arrival_ns is None:
             return Level.OK, f"waiting for {self.stream}", values
         return Level.OK, "streaming", values
-
-    def _forget(self, now_stamp_ns: int) -> None:
-        self.faults = [
-            f for f in self.faults if f.end_ns is None or now_stamp_ns - f.end_ns < KEEP_FAULTS_NS
-        ]

@@ -30,13 +30,6 @@ JOIN_DEPTH = 64
 """BioTac frames of several sensors waiting for their siblings (same sequence) at most."""
 
 
-def make_windower(config: WindowConfig, n_sensors: int = 1) -> EventWindower | PacWindower:
-    """The windower for the config's sensor (``n_sensors`` BioTac PAC channels; NUSkin: unused)."""
-    if config.sensor is Sensor.NUSKIN:
-        return EventWindower(config)
-    return PacWindower(config, n_sensors=n_sensors)
-
-
 class StageCounters(NamedTuple):
     """What a :class:`WindowStage` dropped or joined (monotonic)."""
 
@@ -63,7 +56,11 @@ class WindowStage:
         self.sensor_ids = tuple(int(s) for s in sensor_ids)
         if config.sensor is Sensor.BIOTAC and not self.sensor_ids:
             raise PerceptionError("The 'sensor_ids' parameter must name at least one sensor.")
-        self.windower = make_windower(config, n_sensors=max(1, len(self.sensor_ids)))
+        self.windower: EventWindower | PacWindower = (
+            EventWindower(config)
+            if config.sensor is Sensor.NUSKIN
+            else PacWindower(config, n_sensors=max(1, len(self.sensor_ids)))
+        )
         self._counts = dict.fromkeys(StageCounters._fields, 0)
         self._join: OrderedDict[int, dict[int, Any]] = OrderedDict()
         self.last_data_ns: int | None = None

@@ -18,13 +18,10 @@ BUCKET_NS = 100 * MS
 
 
 class StuckTaxels:
-    """Which taxels fire at their ceiling for too long (masked from onset detection).
+    """Which taxels (ids ``1..n_taxels``) fire at their ceiling for too long.
 
-    Args:
-        n_taxels: Taxel ids are ``1..n_taxels``.
-        rate_hz: Events per second of one taxel that count as firing at its ceiling.
-        after_ns: Time at that rate after which a taxel is stuck, ns (longer than any contact).
-        bucket_ns: Stream time each rate is counted over, ns.
+    A taxel at ``rate_hz`` or more, counted over ``bucket_ns`` of stream time, for longer than
+    ``after_ns`` (longer than any contact) is stuck.
 
     Raises:
         PerceptionError: A non-positive rate, time or bucket.

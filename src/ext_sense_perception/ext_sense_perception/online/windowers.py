@@ -246,12 +246,11 @@ class EventWindower(WindowerBase):
         """Whether the stuck taxels changed in the last :meth:`feed` (the node reports it)."""
 
     def feed(self, events: EventBlock, now_ns: int | None = None) -> list[ContactWindow]:
-        """Add a block of events and return the windows that became due, oldest first.
+        """Add a block of events (arrival order, one clock) and return the windows that became due.
 
-        Args:
-            events: Events in arrival order, one clock throughout; taxel ids outside 1..n_taxels are
-                counted in ``bad_taxel_events`` and dropped.
-            now_ns: Stream time after this block, ns (default: the newest event).
+        Taxel ids outside 1..n_taxels are counted in ``bad_taxel_events`` and dropped; ``now_ns`` is
+        the
+        stream time after the block (default: the newest event).
 
         Raises:
             PerceptionError: The block's arrays differ in length or its times are not integers.

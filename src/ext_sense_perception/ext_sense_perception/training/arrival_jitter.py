@@ -40,12 +40,9 @@ LINK_BAUD = 4_000_000
 
 
 class ReadDelay(NamedTuple):
-    """A measured distribution of read delays, as quantiles (inverse CDF, linear between).
+    """A measured distribution of read delays as quantiles: ``delay_ns`` at each of ``probs``.
 
-    Attributes:
-        probs: Cumulative probabilities, ascending from 0 to 1.
-        delay_ns: The delay at each probability, ns, non-decreasing.
-        source: Where it was measured (the command and the machine's state).
+    Linear between them (an inverse CDF); ``source`` says where it was measured.
     """
 
     probs: tuple[float, ...]
@@ -83,11 +80,8 @@ def read_groups(
     """The reads a late reader makes of words due at ``t_ns`` (non-decreasing, ns).
 
     A read returns ``delay`` after the oldest unread word was due (never before the previous read)
-    and takes every word due by then.
-
-    Returns:
-        ``(ends, read_ns)``: read ``k`` takes words ``ends[k-1]:ends[k]`` and returns at
-            ``read_ns[k]``.
+    and takes every word due by then. Returns ``(ends, read_ns)``: read ``k`` takes words
+    ``ends[k-1]:ends[k]`` and returns at ``read_ns[k]``.
     """
     t = np.asarray(t_ns, dtype=np.int64)
     ends: list[int] = []
@@ -109,11 +103,7 @@ def read_groups(
 
 
 def restamp(t_ns: np.ndarray, delay: ReadDelay, rng: np.random.Generator) -> np.ndarray:
-    """Stamps the driver gives words due at ``t_ns`` when read by a late reader.
-
-    Returns:
-        ``(n,)`` int64 stamps, non-decreasing, in the order of ``t_ns``.
-    """
+    """The ``(n,)`` stamps the driver gives words due at ``t_ns`` when read by a late reader."""
     ends, reads = read_groups(t_ns, delay, rng)
     clock = ArrivalClock.for_baud(LINK_BAUD)
     out = np.empty(np.asarray(t_ns).size, dtype=np.int64)
@@ -218,15 +208,10 @@ link moves it by up to about 2 ms, issue 30).
 
 
 def shift_window(x: np.ndarray, shift_ns: int, period_ns: int) -> np.ndarray:
-    """A binned NUSkin window cut again with its onset moved by ``shift_ns``.
+    """A binned NUSkin window ``(..., n_samples)`` cut again with its onset moved by ``shift_ns``.
 
     A bin's events are taken as spread evenly inside it; events moved past either end leave the
-    window and none come in.
-
-    Args:
-        x: ``(..., n_samples)`` signed event counts.
-        shift_ns: Onset shift, ns (positive: the window starts later).
-        period_ns: The bin, ns.
+    window and none come in (positive shift: the window starts later).
     """
     q, f = divmod(int(shift_ns), int(period_ns))
     counts = np.rint(x).astype(np.float64)
