@@ -1,14 +1,8 @@
 """Real captures and simulated trials, both at the host's 10 ms time resolution.
 
-The lab's host wrote each event's arrival time with two decimals, so a real capture only
-tells which 10 ms bin an event fell in. A simulated trial is reduced to the same: its event
-times are shifted by a random phase within one bin (the host's clock has no relation to the
-trial's origin) and floored to 10 ms bins. Everything downstream sees a :class:`Capture`.
-
-Real rod taps are read with the perception package's paper ``.tact`` reader (their first and
-last lines are events, not markers); real food trials with its food-poking reader, which also
-gives the arm's motion start (from the trial's bag, else the capture's start plus the
-measured lead).
+The lab's host wrote each event's arrival time with two decimals, so a real capture only tells
+which 10 ms bin an event fell in. A simulated trial is reduced to the same: its event times are
+shifted by a random phase within one bin and floored to 10 ms bins.
 """
 
 from __future__ import annotations
@@ -34,27 +28,17 @@ from ext_sense_sim.fidelity.errors import FidelityError
 from ext_sense_sim.scene import Scene
 
 BIN_NS = 10 * MS
-"""The real captures' time resolution: host epoch seconds written with two decimals."""
 TAP_FILES = "temp_signal*.tact"
 """The lab's real-time rod demo wrote one capture per tap under this name."""
 FOOD_FILES = "*_zero_*.tact"
-"""The lab's food-poking captures, one per trial (``<food>_zero_<n>.tact``)."""
 
 
 class Capture(NamedTuple):
-    """One real capture or simulated trial, event times as 10 ms bins.
+    """One real capture or simulated trial, event times as 10 ms bins from its first (0).
 
-    Attributes:
-        name: File stem (real) or ``trial_NNNN`` (simulated).
-        label: Food class; ``""`` for taps (real tap positions were not recorded).
-        bins: 10 ms bin of each event from the capture's first bin (0), ``(n,)`` int64, sorted.
-        taxel: Taxel 1..80 of each event, ``(n,)`` uint16.
-        polarity: +1 / -1 of each event (0: the source does not say), ``(n,)`` int8.
-        value: The receiver's 10-bit value field (0 when the source has none), ``(n,)`` uint16.
-        span_bins: Bins the capture covers (real: to its last event; simulated: to the trial's
-            end, the last bin partly).
-        mark_bin: Bin of a known instant: the true contact onset of a simulated tap, the arm's
-            motion start of a food trial; -1 when unknown (real taps).
+    ``label`` is the food class (``""`` for taps); ``span_bins`` the bins it covers (real: to
+    its last event); ``mark_bin`` the bin of a known instant: a simulated tap's true onset, a
+    food trial's motion start, -1 when unknown.
     """
 
     name: str
@@ -86,11 +70,7 @@ def to_bins(t_ns: npt.NDArray[np.int64], origin_ns: int) -> npt.NDArray[np.int64
 
 
 def rod_cm(scene: Scene) -> int:
-    """The scene's rod length in whole centimetres.
-
-    Raises:
-        FidelityError: The scene holds no rod.
-    """
+    """The scene's rod length in whole centimetres (:class:`FidelityError` if no rod)."""
     if scene.geometry.kind != "rod":
         raise FidelityError(
             f"Scene '{scene.name}' holds a {scene.geometry.kind}, not a rod: real rod-tap "
@@ -102,10 +82,8 @@ def rod_cm(scene: Scene) -> int:
 def tap_folder(path: str | Path, rod: int) -> tuple[str, Path]:
     """The session name and the folder of ``rod`` cm captures of one ``--real`` folder.
 
-    ``path`` is a day's folder holding ``rodNN/`` folders, or one ``rodNN/`` folder itself.
-
-    Raises:
-        FidelityError: A missing folder, one of another rod, or one without captures.
+    ``path`` is a day's folder holding ``rodNN/`` folders, or one ``rodNN/`` folder itself; a
+    missing folder, one of another rod or one without captures raises :class:`FidelityError`.
     """
     path = Path(path)
     if not path.is_dir():
@@ -133,12 +111,7 @@ def _capture_number(path: Path) -> tuple[int, str]:
 
 
 def read_tap_session(path: str | Path, rod: int) -> Session:
-    """Every rod-tap capture of one ``--real`` folder for the ``rod`` cm rod, by file number.
-
-    Raises:
-        FidelityError: No such captures, or a file that does not read as ``isPos taxel
-            removable t`` rows (named with its line).
-    """
+    """Every rod-tap capture of one ``--real`` folder for the ``rod`` cm rod, by file number."""
     name, folder = tap_folder(path, rod)
     captures = []
     for tact in sorted(folder.glob(TAP_FILES), key=_capture_number):
@@ -156,14 +129,9 @@ def read_tap_session(path: str | Path, rod: int) -> Session:
 def read_food_session(path: str | Path) -> Session:
     """Every food-poking trial (the ``empty`` one included) of one ``--real`` folder.
 
-    The session is named by its folder, with the day of its first capture (UTC host clock)
-    appended when the name holds no date.
-
-    The motion start comes from each trial's arm bag when every trial has one, else from the
-    capture's start plus ``CAPTURE_LEAD_NS`` (the lab's own alignment).
-
-    Raises:
-        FidelityError: A missing folder, one without food captures, or an unreadable file.
+    The session is named by its folder, plus the day of its first capture when the name holds
+    no date. The motion start comes from each trial's arm bag when every trial has one, else
+    from the capture's start plus ``CAPTURE_LEAD_NS`` (the lab's own alignment).
     """
     path = Path(path)
     if not path.is_dir():
@@ -196,11 +164,7 @@ def read_food_session(path: str | Path) -> Session:
 
 
 def check_kind(scene: Scene) -> Task:
-    """The scene's task, if real captures of it exist here (NUSkin taps or food).
-
-    Raises:
-        FidelityError: A BioTac scene, or a task without real captures (handover).
-    """
+    """The scene's task, if real captures of it exist (NUSkin taps or food), else an error."""
     if scene.sensor is not Sensor.NUSKIN:
         raise FidelityError(
             f"Scene '{scene.name}' simulates the {scene.sensor.label}; the real captures are "
@@ -215,28 +179,17 @@ def check_kind(scene: Scene) -> Task:
 
 
 def read_sessions(scene: Scene, paths: Sequence[str | Path]) -> list[Session]:
-    """The real sessions of ``--real`` folders, read for the scene's task (taps: its rod).
-
-    Raises:
-        FidelityError: A scene without real kin, or a missing or unreadable folder.
-    """
+    """The real sessions of ``--real`` folders, read for the scene's task (taps: its rod)."""
     if check_kind(scene) is Task.FOOD_IDENTIFICATION:
         return [read_food_session(path) for path in paths]
     return [read_tap_session(path, rod_cm(scene)) for path in paths]
 
 
 def simulate(scene: Scene, trials: int, seed: int, extra_s: float = 0.0) -> Session:
-    """Simulate ``trials`` trials of ``scene`` and reduce them to 10 ms host bins.
+    """Simulate ``trials`` trials of a NUSkin scene and reduce them to 10 ms host bins.
 
-    Args:
-        scene: A NUSkin scene.
-        trials: Number of trials (>= 1).
-        seed: The run's seed; the host-clock phases come from a generator of its own.
-        extra_s: Seconds added to each trial's end (a tap's window may run past the scene's
-            ``trial_s``; the physics does not depend on the trial's length).
-
-    Raises:
-        SceneError: A bad scene or trial count (from the simulator).
+    ``extra_s`` lengthens each trial (a tap's window may run past ``trial_s``); the host-clock
+    phases come from a generator of their own.
     """
     longer = dataclasses.replace(scene, trial_s=scene.trial_s + extra_s)
     sim = Simulator(longer)

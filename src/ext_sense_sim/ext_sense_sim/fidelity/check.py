@@ -1,8 +1,7 @@
-"""One fidelity run: read the real sessions, simulate the scene, compare, print.
+"""One fidelity run: read the real sessions, simulate the scene, compare.
 
-:func:`run_fidelity` returns a :class:`FidelityRun`: a JSON-ready ``result`` (what ``--json``
-writes) and the per-window tables the figure is drawn from; :func:`format_table` renders the
-result as the CLI's table.
+:func:`run_fidelity` returns the JSON-ready result (what ``--json`` writes) and the per-window
+tables the figure is drawn from.
 """
 
 from __future__ import annotations
@@ -61,19 +60,13 @@ class FidelityRun(NamedTuple):
 def run_fidelity(
     scene: Scene, real: list[str | Path], trials: int | None = None, seed: int | None = None
 ) -> FidelityRun:
-    """Compare ``scene`` with the real captures under each folder of ``real``.
+    """Compare a NUSkin tap or food scene with the real captures under each folder of ``real``.
 
-    Args:
-        scene: A NUSkin tap or food scene.
-        real: Real session folders (taps: a day's folder or its ``rodNN/``; food: a folder
-            of ``<food>_zero_<n>.tact``).
-        trials: Simulated trials (default :data:`DEFAULT_TRIALS`).
-        seed: Seed (default: the scene's).
+    ``trials`` defaults to :data:`DEFAULT_TRIALS`, ``seed`` to the scene's.
 
     Raises:
         FidelityError: No or unreadable real folders, two folders of one session, a session
             with no usable capture, or a scene without real kin.
-        SceneError: A bad scene or trial count.
     """
     task = check_kind(scene)
     if not real:
@@ -218,27 +211,24 @@ def _auc(
 ) -> dict[str, Any]:
     """Two-sample AUCs on the statistics ``names`` and the target built on them.
 
-    Sim vs pooled real (and vs each session when ``each``), and every pair of real sessions;
-    ``repeats`` cross-validation shuffles each (fewer for the AUCs only shown). The folds and
-    forests have a seed of their own (:data:`CV_SEED`), so the real sessions' yardstick does
-    not move with the simulation's seed.
+    Sim vs pooled real (and vs each session when ``each``), and every pair of real sessions.
+    The folds and forests have a seed of their own (:data:`CV_SEED`), so the real sessions'
+    yardstick does not move with the simulation's seed.
     """
-    sim = tables[SIMULATED].features(names)
-    pooled = np.vstack([tables[n].features(names) for n in real_names])
-    pairs = {
-        f"{a} | {b}": two_sample_auc(
-            tables[a].features(names), tables[b].features(names), CV_SEED, repeats
-        )
-        for a, b in combinations(real_names, 2)
+    rows = {
+        name: np.column_stack([t.stats[s] for s in names]) if t.names else np.zeros((0, len(names)))
+        for name, t in tables.items()
     }
+
+    def auc(a: np.ndarray, b: np.ndarray) -> float:
+        return two_sample_auc(a, b, CV_SEED, repeats)
+
+    pairs = {f"{a} | {b}": auc(rows[a], rows[b]) for a, b in combinations(real_names, 2)}
     finite = [v for v in pairs.values() if np.isfinite(v)]
     yardstick = max(finite) if finite else None
-    vs_pooled = two_sample_auc(sim, pooled, CV_SEED, repeats)
-    per = {}
-    if each:
-        per = {
-            n: two_sample_auc(sim, tables[n].features(names), CV_SEED, repeats) for n in real_names
-        }
+    sim = rows[SIMULATED]
+    vs_pooled = auc(sim, np.vstack([rows[n] for n in real_names]))
+    per = {n: auc(sim, rows[n]) for n in real_names} if each else {}
     return {
         "statistics": list(names),
         "sim_vs_pooled": vs_pooled,

@@ -1,10 +1,10 @@
 """Summaries, the issue's targets and a classifier two-sample test.
 
 The two-sample test asks a random forest to tell two sets of windows apart from their
-statistics alone; its cross-validated ROC AUC is 0.5 when it cannot and 1.0 when it always
-can. Real sessions of one rod already differ (another day, another grip), so the yardstick is
-the AUC between two real sessions: a scene passes when the forest separates it from the real
-windows no better than that, plus a margin.
+statistics; its cross-validated ROC AUC is 0.5 when it cannot, 1.0 when it always can. Real
+sessions of one rod already differ (another day, another grip), so the yardstick is the AUC
+between two real sessions: a scene passes when the forest separates it from the real windows
+no better than that, plus a margin.
 """
 
 from __future__ import annotations
@@ -21,8 +21,7 @@ AUC_MARGIN = 0.05
 """Issue 30: sim-vs-real AUC no higher than real-vs-real + 0.05."""
 FOLDS = 5
 REPEATS = 5
-"""Cross-validation shuffles averaged: the AUC of two real sessions then moves by about 0.02
-(standard deviation) from seed to seed, against 0.04 with two."""
+"""Cross-validation shuffles averaged (the real sessions' AUC then moves by ~0.02 by seed)."""
 TREES = 50
 
 
@@ -84,18 +83,8 @@ def two_sample_auc(
 ) -> float:
     """Cross-validated ROC AUC of a random forest telling the rows of ``a`` from those of ``b``.
 
-    Stratified ``min(5, smaller set)``-fold cross-validation, repeated with ``repeats``
-    shuffles and averaged; classes weighted to balance unequal sets.
-
-    Args:
-        a: One set, ``(n_a, n_features)``.
-        b: The other, ``(n_b, n_features)``.
-        seed: Seed of the folds and forests.
-        repeats: Shuffles of the folds averaged over.
-
-    Returns:
-        The AUC (0.5: indistinguishable, 1.0: always told apart); NaN when a set has under
-        two rows.
+    Stratified ``min(5, smaller set)``-fold cross-validation, averaged over ``repeats``
+    shuffles, classes weighted; NaN when a set has under two rows.
     """
     folds = min(FOLDS, len(a), len(b))
     if folds < 2:

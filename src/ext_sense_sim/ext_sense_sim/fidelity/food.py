@@ -1,8 +1,7 @@
 """What a food trial holds after the arm starts moving: one rule for real and simulated trials.
 
-Each trial is read over the same span from the arm's motion start (:data:`SPAN_S`: every
-real capture covers it; the shortest runs about 2.3 s past its motion start), so the counts
-of trials of different lengths compare.
+Each trial is read over the same :data:`SPAN_S` from the arm's motion start (every real capture
+covers it), so trials of different lengths compare.
 """
 
 from __future__ import annotations
@@ -28,32 +27,17 @@ STATS: dict[str, str] = {
 }
 """Per-trial statistics, name to meaning, in table order."""
 FEATURES = ("events_per_s", "active_taxels", "value_p5", "value_p50", "value_p95")
-"""The two-sample test's inputs. Polarity is not among the statistics: the real food
-captures' polarity bit is 0 throughout."""
+"""The two-sample test's inputs (no polarity: the real food captures' bit is 0 throughout)."""
 
 
 class FoodTrials(NamedTuple):
-    """The trials of a food session.
-
-    Attributes:
-        names: Capture of each trial, ``(n,)``.
-        labels: Food class of each trial, ``(n,)``.
-        stats: Statistic name (:data:`STATS`) to one value per trial, ``(n,)`` float64.
-        values: The 10-bit values of every event in the span, all trials together.
-        cut_short: Trials whose capture ends before the span does.
-    """
+    """The trials of a food session; ``values``: the 10-bit values of all their events."""
 
     names: list[str]
     labels: list[str]
     stats: dict[str, npt.NDArray[np.float64]]
     values: npt.NDArray[np.uint16]
     cut_short: list[str]
-
-    def features(self, names: tuple[str, ...] = FEATURES) -> npt.NDArray[np.float64]:
-        """The statistics ``names`` as the two-sample test's inputs, ``(n, len(names))``."""
-        if not self.names:
-            return np.zeros((0, len(names)))
-        return np.column_stack([self.stats[s] for s in names])
 
 
 def food_trials(captures: list[Capture]) -> FoodTrials:

@@ -1,11 +1,9 @@
 """A tap's window and what it holds: one rule for real captures and simulated trials.
 
-The window (REFERENCE.md section 2, issue 30): the onset is the first 10 ms bin holding at
-least ``max(30, 20 % of the busiest bin)`` events of the whole capture; the window is the 25
-bins from it (250 ms). A capture of under 1,000 events is a missed tap and gives no window.
-Before the onset a real capture holds a quiet stretch (median 0.8 s, ~200 events) and a
-simulated trial the scene's ``onset_s`` (~50 ms); both stay far under the onset threshold, so
-the rule finds the tap the same way in both.
+The window (REFERENCE.md section 2, issue 30): the onset is the first 10 ms bin holding at least
+``max(30, 20 % of the busiest bin)`` events of the whole capture; the window is the 25 bins from
+it (250 ms). A capture of under 1,000 events is a missed tap and gives no window. The stretch
+before a tap stays far under the onset threshold in both real and simulated captures.
 """
 
 from __future__ import annotations
@@ -18,16 +16,14 @@ import numpy.typing as npt
 from ext_sense_sim.fidelity.captures import BIN_NS, Capture
 
 WINDOW_BINS = 25
-"""250 ms of 10 ms bins."""
 MISSED_BELOW = 1000
-"""A capture with fewer events is a missed tap (the lab's detector opened on nothing)."""
 ONSET_MIN_EVENTS = 30
 ONSET_SHARE = 0.2
 ACTIVE_MIN_EVENTS = 10
-"""A taxel is active in a window from this many events (the real taps: ~40 active at 1 to 25)."""
+"""A taxel is active in a window from this many events."""
 PREROLL_GUARD_BINS = 2
-"""The quiet rate before a tap is counted up to 20 ms before the onset bin: the bins just
-before it may hold the tap's first events (under the onset threshold)."""
+"""The quiet rate before a tap is counted up to 20 ms before the onset bin, which the tap's
+first events may precede."""
 BIN_S = BIN_NS / 1e9
 WINDOW_S = WINDOW_BINS * BIN_S
 
@@ -58,16 +54,14 @@ RATIO_STATS = (
 )
 """Statistics compared as simulated / real; the others (shares) as simulated - real."""
 NOT_FEATURES = ("preroll_rate",)
-"""Statistics the two-sample test leaves out: the stretch before the onset is ~0.8 s in a real
-capture and the scene's ``onset_s`` in a simulated trial, so its rate is measured on spans too
-unlike to compare window by window (the table still shows it)."""
+"""Left out of the two-sample test: measured on spans too unlike (~0.8 s real, the scene's
+``onset_s`` simulated) to compare window by window."""
 FEATURES = tuple(s for s in STATS if s not in NOT_FEATURES)
 TABLE_FEATURES = ("events", "first_30ms", "last_100ms", "busiest_10", "finger_imbalance")
 """The statistics of issue 30's table."""
 TARGET_FEATURES = TABLE_FEATURES[:4]
-"""The statistics the AUC target is judged on: the table's without the finger imbalance. The
-imbalance is the day's grip: alone it tells the two real sessions of the 30 and 50 cm rods
-apart (AUC 1.0), so with it the yardstick reaches 1 and the target could not fail."""
+"""The AUC target's statistics: without the finger imbalance, the day's grip, which alone tells
+the real sessions apart (so with it the target could not fail)."""
 SPECTRUM_BANDS = {"spectrum_4_8hz": (1, 3), "spectrum_12_20hz": (3, 6), "spectrum_24_48hz": (6, 13)}
 """rFFT bins (4 Hz apart over 250 ms) of each band, ``[start, stop)``."""
 
@@ -75,16 +69,8 @@ SPECTRUM_BANDS = {"spectrum_4_8hz": (1, 3), "spectrum_12_20hz": (3, 6), "spectru
 class TapWindows(NamedTuple):
     """The windows of a set of captures.
 
-    Attributes:
-        names: Capture of each window, ``(n,)``.
-        stats: Statistic name (:data:`STATS`) to one value per window, ``(n,)`` float64.
-        profiles: Events per 10 ms bin over each window, ``(n, 25)`` float64.
-        taxel_counts: Events per taxel in each window, ``(n, 80)`` float64.
-        missed: Captures left out as missed taps (under :data:`MISSED_BELOW` events or no
-            bin reaching the onset threshold).
-        cut_short: Windows running past their capture's end (their last bins are empty).
-        onset_error_ms: Found onset minus the true one, ms (simulated trials), ``(n,)``; NaN
-            where the true onset is unknown.
+    Per window: ``stats`` (:data:`STATS`), ``profiles`` (events per bin, ``(n, 25)``),
+    ``taxel_counts`` ``(n, 80)``, ``onset_error_ms`` (found minus true onset, NaN if unknown).
     """
 
     names: list[str]
@@ -94,12 +80,6 @@ class TapWindows(NamedTuple):
     missed: list[str]
     cut_short: list[str]
     onset_error_ms: npt.NDArray[np.float64]
-
-    def features(self, names: tuple[str, ...] = FEATURES) -> npt.NDArray[np.float64]:
-        """The statistics ``names`` as the two-sample test's inputs, ``(n, len(names))``."""
-        if not self.names:
-            return np.zeros((0, len(names)))
-        return np.column_stack([self.stats[s] for s in names])
 
 
 def onset_bin(counts: npt.NDArray[np.integer]) -> int | None:
@@ -118,18 +98,7 @@ def window_stats(
     preroll_events: int,
     preroll_bins: int,
 ) -> tuple[dict[str, float], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """The statistics of one window's events.
-
-    Args:
-        wbin: Bin of each event within the window, 0..24.
-        taxel: Taxel 1..80 of each event.
-        polarity: +1 / -1 of each event.
-        preroll_events: Events of the quiet stretch before the tap.
-        preroll_bins: Bins of that stretch (0: none, the rate is NaN).
-
-    Returns:
-        ``(stats, profile (25,), taxel counts (80,))``.
-    """
+    """The statistics, profile ``(25,)`` and taxel counts ``(80,)`` of one window's events."""
     n = wbin.size
     profile = np.bincount(wbin, minlength=WINDOW_BINS).astype(np.float64)
     counts = np.bincount(taxel.astype(np.intp) - 1, minlength=80).astype(np.float64)
