@@ -161,11 +161,7 @@ def correlation_stats(chips: npt.NDArray[np.integer]) -> CorrelationStats:
 
 @lru_cache(maxsize=4)
 def load_bank(version: int = DEFAULT_VERSION) -> SignatureBank:
-    """The (cached, read-only) signature bank of a :data:`BANK_SPECS` version.
-
-    Raises:
-        AcesError: Unknown version.
-    """
+    """The (cached, read-only) bank of a :data:`BANK_SPECS` version (AcesError if unknown)."""
     spec = BANK_SPECS.get(version)
     if spec is None:
         raise AcesError(

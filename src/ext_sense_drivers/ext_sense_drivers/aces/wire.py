@@ -35,11 +35,7 @@ class Quantised(NamedTuple):
 
 
 def samples_to_bytes(line: npt.ArrayLike) -> Quantised:
-    """Quantise line samples ``(n,)`` (line units) to the wire format.
-
-    Raises:
-        AcesError: Not one-dimensional, not real, or holds NaN/inf.
-    """
+    """Quantise line samples ``(n,)`` to the wire (AcesError if not 1-D, real and finite)."""
     x = np.asarray(line)
     if x.ndim != 1 or not (
         np.issubdtype(x.dtype, np.floating) or np.issubdtype(x.dtype, np.integer)
@@ -60,11 +56,7 @@ def samples_to_bytes(line: npt.ArrayLike) -> Quantised:
 
 
 def bytes_to_samples(data: bytes | bytearray | memoryview) -> npt.NDArray[np.float64]:
-    """Line samples (line units, float64) of whole wire samples.
-
-    Raises:
-        AcesError: Odd byte count (streams carry the odd byte: :func:`chunk_samples`).
-    """
+    """Line samples (float64) of whole wire samples (AcesError on an odd byte count)."""
     if len(data) % BYTES_PER_SAMPLE:
         raise AcesError(
             f"The 'data' parameter must hold whole int16 samples. Got {len(data)} bytes."

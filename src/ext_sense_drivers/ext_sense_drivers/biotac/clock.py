@@ -23,11 +23,7 @@ PAC_PERIOD_NS = S // PAC_RATE_HZ  # 454_545: the message field (floor, 0.45 ns s
 
 
 def pac_offset_ns(i: int, rate_hz: int = PAC_RATE_HZ) -> int:
-    """``round(i * 1e9 / rate_hz)`` (half up, exact): PAC sample ``i``'s offset from the frame.
-
-    Raises:
-        BioTacError: ``i`` is negative or ``rate_hz`` is not positive.
-    """
+    """PAC sample ``i``'s offset from the frame, ``round(i * 1e9 / rate_hz)`` exactly (half up)."""
     if int(i) < 0:
         raise BioTacError(f"The sample index 'i' must be >= 0. Got {i} instead.")
     if int(rate_hz) <= 0:

@@ -101,11 +101,7 @@ def encode_standard_frame(
 
 
 def encode_frames(seq: ArrayLike, sensor_id: ArrayLike, replies: ArrayLike) -> bytes:
-    """``n`` standard frames back to back from ``(n,)`` seq, ``(n,)`` slots, ``(n, 44)`` replies.
-
-    Raises:
-        BioTacError: A shape or value is wrong.
-    """
+    """``n`` standard frames back to back from ``(n,)`` seq, ``(n,)`` slots, ``(n, 44)`` replies."""
     seq_a = np.asarray(seq, dtype=np.int64).ravel()
     sid = np.asarray(sensor_id, dtype=np.int64).ravel()
     rep = np.asarray(replies, dtype=np.int64)

@@ -45,11 +45,7 @@ def _show(value: Any) -> str:
 
 
 def parse_line(raw: bytes, where: str = "line") -> dict[str, Any]:
-    """The JSON object on one line of bytes (``where`` prefixes error messages).
-
-    Raises:
-        BioTacError: Not UTF-8, not JSON, nested too deeply, a number too long, not an object.
-    """
+    """The JSON object on one line of bytes (BioTacError, prefixed ``where``, if it is none)."""
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as err:

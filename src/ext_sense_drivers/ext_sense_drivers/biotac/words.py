@@ -48,11 +48,7 @@ def _parity_bit(data7: NDArray[np.int64]) -> NDArray[np.int64]:
 
 
 def encode_values(values: ArrayLike) -> NDArray[np.uint16]:
-    """uint16 reply words (correct parity) carrying 12-bit values, any shape.
-
-    Raises:
-        BioTacError: A value is outside 0..4095 or not an integer.
-    """
+    """uint16 reply words (correct parity) carrying 12-bit integer values, any shape."""
     arr = np.asarray(values)
     if arr.size and not np.issubdtype(arr.dtype, np.integer):
         raise BioTacError(f"BioTac values must be integers in 0..4095. Got dtype {arr.dtype}.")

@@ -69,11 +69,7 @@ class DriverConfig(LinkConfig):
         )
 
     def make_stream(self) -> WordStream | AcesLineStream:
-        """The configured decoding path.
-
-        Raises:
-            NuskinError: Bad mode or flag polarity, or the ACES package is not available.
-        """
+        """The configured decoding path (NuskinError for a bad mode or flag polarity)."""
         if self.mode_kind == Mode.WORDS:
             polarity = self.choice("flag_polarity", FlagPolarity)
             return WordStream(polarity, ArrivalClock.for_baud(self.baud))

@@ -31,11 +31,7 @@ class TaxelPlace(NamedTuple):
 
 
 def place(taxel: int) -> TaxelPlace:
-    """Finger, row and column of a taxel id.
-
-    Raises:
-        NuskinError: ``taxel`` is not in 1..80.
-    """
+    """Finger, row and column of a taxel id 1..80."""
     if not FIRST_TAXEL <= int(taxel) <= LAST_TAXEL:
         raise NuskinError(f"The 'taxel' parameter must be in 1..80. Got {taxel} instead.")
     index = int(taxel) - 1
@@ -44,11 +40,7 @@ def place(taxel: int) -> TaxelPlace:
 
 
 def taxel_id(finger: Finger, row: int, column: int) -> int:
-    """The taxel id at a finger's lattice cell (inverse of :func:`place`).
-
-    Raises:
-        NuskinError: ``row`` not in 0..7 or ``column`` not in 0..4.
-    """
+    """The taxel id at a finger's lattice cell, row 0..7, column 0..4 (inverse of :func:`place`)."""
     if not 0 <= row < ROWS:
         raise NuskinError(f"The 'row' parameter must be in 0..7. Got {row} instead.")
     if not 0 <= column < COLUMNS:

@@ -38,11 +38,7 @@ class TactFile(NamedTuple):
 
 
 def read_tact(path: str | Path) -> TactFile:
-    """Read a decoded ``.tact`` file.
-
-    Raises:
-        NuskinError: The file is missing, not four numeric columns, or lacks its markers.
-    """
+    """Read a decoded ``.tact`` file (NuskinError if unreadable or without its markers)."""
     path = Path(path)
     try:
         rows = np.loadtxt(path, dtype=np.float64, ndmin=2)
@@ -70,11 +66,7 @@ def read_tact(path: str | Path) -> TactFile:
 
 
 def decoded_path(raw_path: str | Path) -> Path:
-    """The ``.tact`` beside a ``_raw.tact`` capture.
-
-    Raises:
-        NuskinError: ``raw_path`` does not end in ``_raw.tact``.
-    """
+    """The ``.tact`` beside a ``_raw.tact`` capture."""
     raw_path = Path(raw_path)
     if not raw_path.name.endswith(RAW_SUFFIX):
         raise NuskinError(
@@ -84,11 +76,7 @@ def decoded_path(raw_path: str | Path) -> Path:
 
 
 def recorded_rate(raw_path: str | Path) -> float:
-    """The capture's average byte rate in bytes/s, from its size and its ``.tact`` markers.
-
-    Raises:
-        NuskinError: The ``.tact`` is missing or its markers span no time.
-    """
+    """The capture's average byte rate, bytes/s, from its size and its ``.tact`` markers."""
     raw_path = Path(raw_path)
     tact = read_tact(decoded_path(raw_path))
     span = tact.stop_s - tact.start_s

@@ -97,11 +97,7 @@ class _SeqDecoder:
         return PacketCounters(**self._counts)
 
     def _accept(self, packet: Any) -> tuple[Packet, int, bool]:
-        """The checked packet, the packets lost before it, and whether its stream broke.
-
-        Raises:
-            PacketError: Malformed, or of another encoding or options than this decoder's.
-        """
+        """The checked packet, the packets lost before it, and whether its stream broke."""
         try:
             packet = packet.check() if isinstance(packet, Packet) else packet_of(packet)
             if (packet.encoding, packet.options) != (self.encoding, self.options):
@@ -311,11 +307,7 @@ class BioTacPacketDecoder(_SeqDecoder):
 
 
 def make_decoder(encoding: str, options: str = "") -> NuskinPacketDecoder | BioTacPacketDecoder:
-    """The decoder of an encoding (the factory every consumer uses).
-
-    Raises:
-        PacketError: Unknown encoding, or options its decoder does not take.
-    """
+    """The decoder of an encoding (PacketError if unknown or its options are not taken)."""
     if encoding in (NUSKIN_WORDS_V1, ACES_LINE_V1):
         return NuskinPacketDecoder(encoding, options)
     if encoding == BIOTAC_BRIDGE_V1:

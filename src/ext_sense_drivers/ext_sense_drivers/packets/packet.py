@@ -110,12 +110,7 @@ class Packet(NamedTuple):
         return out
 
     def check(self) -> Packet:
-        """Return the packet if its arrays agree, else raise.
-
-        Raises:
-            PacketError: ``read_end`` and ``read_offset_ns`` differ in length, the ends are not
-                non-decreasing up to ``len(data)``, or an offset is negative.
-        """
+        """Return the packet if its arrays agree, else raise PacketError."""
         ends, offsets = self.read_end, self.read_offset_ns
         where = f"packet seq {self.seq} ({self.encoding or 'no encoding'})"
         if len(ends) != len(offsets):
@@ -150,11 +145,7 @@ def _bytes_of(field: Any) -> bytes:
 
 
 def packet_of(msg: Any) -> Packet:
-    """The checked :class:`Packet` of a ``SensorPacket`` message (rclpy or rosbags).
-
-    Raises:
-        PacketError: The message's arrays disagree (see :meth:`Packet.check`).
-    """
+    """The checked :class:`Packet` of a ``SensorPacket`` message (rclpy or rosbags)."""
     return Packet(
         stamp_to_ns(msg.header.stamp),
         int(msg.seq),

@@ -160,11 +160,7 @@ class RobotiqClient:
         return head + self._read_exact(normal_length - len(head), deadline)
 
     def exchange(self, request: bytes, decode: Callable[[bytes], object], length: int) -> object:
-        """Send ``request``, read a ``length``-byte reply and decode it, retrying failures.
-
-        Raises:
-            RobotiqError: NO_ANSWER or BAD_CRC after the retries, EXCEPTION_REPLY, SERIAL.
-        """
+        """Send ``request``, read a ``length``-byte reply and decode it, retrying failures."""
         last: RobotiqError | None = None
         for attempt in range(self.retries + 1):
             if attempt:
@@ -255,11 +251,7 @@ class RobotiqClient:
         self.write_command(GripperCommand(activate=False, speed=0, force=0))
 
     def activate(self, timeout_s: float = 5.0, poll_s: float = 0.05) -> GripperStatus:
-        """Reset, then set rACT and poll until activation completes.
-
-        Raises:
-            RobotiqError: ACTIVATION after ``timeout_s``, GRIPPER_FAULT on a fault.
-        """
+        """Reset, then set rACT and poll until activation completes (ACTIVATION, GRIPPER_FAULT)."""
         self.reset()
         self.write_command(GripperCommand(activate=True, speed=0, force=0))
         deadline = self._clock() + timeout_s
@@ -282,11 +274,7 @@ class RobotiqClient:
         )
 
     def wait_for_motion(self, timeout_s: float = 5.0, poll_s: float = 0.02) -> GripperStatus:
-        """Poll until the last move ended (at its position or on an object).
-
-        Raises:
-            RobotiqError: GRIPPER_FAULT on a fault, NO_ANSWER when still moving at ``timeout_s``.
-        """
+        """Poll until the last move ended (GRIPPER_FAULT; NO_ANSWER if moving at ``timeout_s``)."""
         deadline = self._clock() + timeout_s
         while True:
             status = self.read_status(raise_on_fault=True)

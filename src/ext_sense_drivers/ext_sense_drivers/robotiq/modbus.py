@@ -60,11 +60,7 @@ def _check_range(name: str, value: int, low: int, high: int) -> int:
 def encode_read_request(
     slave: int, address: int, count: int, function: Function = Function.READ_HOLDING_REGISTERS
 ) -> bytes:
-    """The 8-byte request to read ``count`` (1..125) registers from ``address``.
-
-    Raises:
-        RobotiqError: An argument is out of range, or the function is not 0x03 or 0x04.
-    """
+    """The 8-byte request to read ``count`` (1..125) registers from ``address``."""
     _check_range("slave", slave, 1, 247)
     _check_range("address", address, 0, 0xFFFF)
     _check_range("count", count, 1, MAX_READ_REGISTERS)
@@ -77,11 +73,7 @@ def encode_read_request(
 
 
 def encode_write_request(slave: int, address: int, values: Sequence[int]) -> bytes:
-    """The request (0x10) writing 1..123 ``values`` to consecutive registers from ``address``.
-
-    Raises:
-        RobotiqError: An argument is out of range.
-    """
+    """The request (0x10) writing 1..123 ``values`` to consecutive registers from ``address``."""
     _check_range("slave", slave, 1, 247)
     _check_range("address", address, 0, 0xFFFF)
     _check_range("len(values)", len(values), 1, MAX_WRITE_REGISTERS)
@@ -138,11 +130,7 @@ def decode_read_reply(
     count: int,
     function: Function = Function.READ_HOLDING_REGISTERS,
 ) -> tuple[int, ...]:
-    """The ``count`` registers a whole read reply carries.
-
-    Raises:
-        RobotiqError: A bad frame or CRC (``BAD_CRC``), or an exception reply.
-    """
+    """The ``count`` registers a whole read reply carries (BAD_CRC, EXCEPTION_REPLY, BAD_FRAME)."""
     _check_reply(frame, slave, int(function))
     if len(frame) != read_reply_length(count) or frame[2] != 2 * count:
         raise RobotiqError(
@@ -154,11 +142,7 @@ def decode_read_reply(
 
 
 def decode_write_reply(frame: bytes, slave: int, address: int, count: int) -> None:
-    """Check a reply to a write of ``count`` registers at ``address``.
-
-    Raises:
-        RobotiqError: As :func:`decode_read_reply`, or the echoed address/count differ.
-    """
+    """Check a reply to a write of ``count`` registers at ``address``."""
     _check_reply(frame, slave, Function.WRITE_MULTIPLE_REGISTERS)
     if len(frame) != WRITE_REPLY_LENGTH:
         raise RobotiqError(
@@ -187,11 +171,7 @@ def request_length(prefix: bytes) -> int | None:
 
 
 def decode_request(frame: bytes) -> Request:
-    """Decode a whole request on the device side.
-
-    Raises:
-        RobotiqError: Bad CRC (``BAD_CRC``) or an inconsistent write byte count.
-    """
+    """Decode a whole request on the device side (BAD_CRC, BAD_FRAME)."""
     if len(frame) < 8:
         raise RobotiqError(f"Request too short: {len(frame)} bytes.", FaultKind.BAD_FRAME)
     if not crc_ok(frame):
