@@ -33,11 +33,8 @@ RECENT_NS = 10_000_000_000
 class CallbackGuard:
     """Wraps callbacks so that an exception is caught, counted, logged once and diagnosed.
 
-    Args:
-        log: Where the first exception of each (callback, exception type) is written, e.g. a
-            node's ``get_logger().error``.
-        clock: Monotonic integer nanoseconds; injectable so tests never sleep.
-        recent_ns: How long after the last exception the status stays ERROR.
+    ``log`` gets the first exception of each (callback, type), e.g. a node logger's
+    ``error``; ``clock`` is monotonic ns (injectable); the status stays ERROR ``recent_ns``.
     """
 
     def __init__(
@@ -75,14 +72,10 @@ class CallbackGuard:
     ) -> F:
         """Return ``fn`` guarded: its exceptions are caught and reported, it returns ``None``.
 
-        Coroutine functions get an async wrapper. Non-``Exception``s (``KeyboardInterrupt``,
-        ``SystemExit``) pass: they are stops, not faults.
-
-        Args:
-            fn: The callback.
-            name: Its name in the log and on ``/diagnostics``; default ``fn.__name__``.
-            fallback: Gives the return value after an exception (an on-set-parameters callback
-                must return a ``SetParametersResult``: :func:`~.parameters.refused`).
+        Coroutine functions get an async wrapper; ``KeyboardInterrupt`` and ``SystemExit``
+        pass. ``name`` (default ``fn.__name__``) is shown in the log and on ``/diagnostics``;
+        ``fallback(err)`` gives the return value after an exception (an on-set callback needs
+        one: :func:`~.parameters.refused`).
         """
         label = name or getattr(fn, "__name__", None) or repr(fn)
         if inspect.iscoroutinefunction(fn):

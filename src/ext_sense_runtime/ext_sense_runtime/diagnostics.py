@@ -110,12 +110,9 @@ class RateTask:
 
 
 class Updater:
-    """Collects tasks and produces their reports at most every ``period_ns``.
+    """Collects tasks and produces their reports at most every ``period_ns`` (1 s).
 
-    Args:
-        hardware_id: The sensor's serial number or port, shown on every status.
-        period_ns: Minimum time between two updates (1 s, as ROS diagnostics expects).
-        clock: Monotonic nanoseconds; injectable for tests.
+    ``hardware_id`` (the sensor's serial or port) is shown on every status.
     """
 
     def __init__(

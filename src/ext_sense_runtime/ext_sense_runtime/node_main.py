@@ -48,13 +48,9 @@ class RosSession:
             ros.spin(until=lambda: node.done)
 
     On the way out (also on an exception) everything is torn down once (:meth:`close`). Off
-    the main thread (a test process) no handlers can be installed and rclpy's own are kept.
-
-    Args:
-        args: Command-line arguments for ``rclpy.init`` (``--ros-args ...``); ``None`` reads
-            ``sys.argv``.
-        interrupt: The first stop signal also raises ``KeyboardInterrupt`` in the main thread
-            (one waiting on an operator while :meth:`spin_in_background` runs the callbacks).
+    the main thread (a test process) rclpy's own handlers are kept. ``args`` go to
+    ``rclpy.init`` (``None``: ``sys.argv``); with ``interrupt`` the first stop signal also
+    raises ``KeyboardInterrupt`` in a main thread waiting on an operator.
     """
 
     def __init__(self, args: Sequence[str] | None = None, *, interrupt: bool = False) -> None:
@@ -94,9 +90,7 @@ class RosSession:
     def spin(self, until: Callable[[], bool] | None = None, timeout_s: float = 0.1) -> None:
         """Run callbacks in this thread until a stop, a shutdown, or ``until()`` holds.
 
-        Args:
-            until: Polled between callbacks; true ends the spin (a command's own end).
-            timeout_s: Longest wait for one callback: bounds how late the end is noticed.
+        ``timeout_s``, the longest wait for one callback, bounds how late the end is noticed.
         """
         stop = self.stop.requested
 
@@ -157,14 +151,8 @@ def destroy_node(node: Node) -> None:
 def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | None = None) -> int:
     """Create nodes after ``rclpy.init``, spin them on one executor until a stop, clean up once.
 
-    An exception from a factory or a callback propagates after the cleanup.
-
-    Args:
-        factories: Each builds one node (usually a Node subclass itself).
-        args: Command-line arguments (``--ros-args ...``); ``None`` reads ``sys.argv``.
-
-    Returns:
-        Process exit code: 0 on a clean stop.
+    Returns the exit code, 0 on a clean stop; an exception from a factory or a callback
+    propagates after the cleanup. ``args`` as for :class:`RosSession`.
     """
     with RosSession(args) as ros:
         for factory in factories:

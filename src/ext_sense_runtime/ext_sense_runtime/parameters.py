@@ -80,17 +80,10 @@ def param(
 ) -> Any:
     """A schema field that is a node parameter.
 
-    Args:
-        default: Default value, of the parameter's type (``1.0`` for a double); lists are
-            tuples.
-        description: What it does, with its unit.
-        low: Inclusive lower bound, given together with ``high``.
-        high: Inclusive upper bound.
-        read_only: Refuse changes after start-up.
-        choices: The values allowed.
-        check: Returns why a value is refused (completing "The 'x' parameter ..."), or
-            ``None``/``""`` to accept it.
-        name: The parameter's name when it is not the field's (``franka.state_topic``).
+    ``default`` has the parameter's type (``1.0`` for a double; lists are tuples);
+    ``description`` says its unit; ``low`` and ``high`` are inclusive, given together;
+    ``check`` returns why a value is refused (completing "The 'x' parameter ...") or a falsy
+    value; ``name`` is the parameter's when not the field's (``franka.state_topic``).
     """
     if (low is None) != (high is None):
         raise ValueError(f"parameter {name or description!r}: give both low and high, or neither")
@@ -178,15 +171,9 @@ def declare_all(
 ) -> T:
     """Declare every parameter of ``schema`` on ``node`` and return the typed config.
 
-    Runtime changes are validated by an on-set callback (rclpy itself enforces type, range and
-    ``read_only``).
-
-    Args:
-        node: The node that owns the parameters.
-        schema: The node's frozen dataclass of :func:`param` fields.
-        on_change: Called with the new config before a change is accepted; returns ``None`` to
-            accept or the reason to refuse.
-        guard: Wraps the on-set callback (an exception refuses the change).
+    Runtime changes are validated by an on-set callback (rclpy enforces type, range and
+    ``read_only``), then handed to ``on_change``, which may refuse by returning a reason;
+    ``guard`` wraps the callback (an exception refuses the change).
 
     Raises:
         ValueError: A value given at start-up is refused, with the parameter's name.

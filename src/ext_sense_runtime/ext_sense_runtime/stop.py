@@ -42,14 +42,9 @@ class StopRequest:
         self.interrupt = False
 
     def install(self, interrupt: bool = False) -> bool:
-        """Install the handlers for :data:`STOP_SIGNALS` (once; main thread only).
+        """Install the handlers for :data:`STOP_SIGNALS` once; whether they are (main thread).
 
-        Args:
-            interrupt: Also raise ``KeyboardInterrupt`` at the first signal (see the class).
-
-        Returns:
-            Whether the handlers are installed (``False`` off the main thread, where Python
-            cannot install signal handlers).
+        ``interrupt``: also raise ``KeyboardInterrupt`` at the first signal (see the class).
         """
         self.interrupt = self.interrupt or interrupt
         if not self.installed and threading.current_thread() is threading.main_thread():
