@@ -21,6 +21,9 @@ from ext_sense_sim.scene import DEFAULT_SCENES as DEFAULT_SCENES
 
 STARTUP_SPARE_TRIALS = 3
 """Extra simulated trials: those streamed while the graph is still starting are lost."""
+MONITOR_WAIT_S = 60.0
+"""How long the simulated device waits for the monitor before its first trial, s (discovery
+under load can take seconds)."""
 
 SIM_TRIGGERS = {
     "handover_stability": (TOPIC_HANDOVER_OFFER, "start"),
@@ -120,6 +123,8 @@ def source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
         stream: dict[str, ParameterValue] = {
             "trials": trials + STARTUP_SPARE_TRIALS if trials > 0 else 0
         }
+        if as_bool(args["monitor"]):  # no trial before the monitor can hear its estimate
+            stream["wait_for_listener_s"] = MONITOR_WAIT_S
         remaps: tuple[tuple[str, str], ...] = (("ground_truth", TOPIC_GROUND_TRUTH),)
         if as_bool(args["behaviours"]) and task in SIM_TRIGGERS:
             trigger_topic, align = SIM_TRIGGERS[task]

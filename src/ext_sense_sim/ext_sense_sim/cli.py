@@ -195,10 +195,52 @@ def _serve(args: argparse.Namespace) -> int:
 
         return int(serve(args) or 0)
     from ext_sense_sim.errors import SceneError
-    from ext_sense_sim.streaming import serve_device
 
     try:
-        return serve_device(args)
+        return _serve_sensor(args)
     except SceneError as err:
         print(f"ext-sense sim serve: {err}", file=sys.stderr)
         return 2
+
+
+def _serve_sensor(args: argparse.Namespace) -> int:
+    """``ext-sense sim serve nuskin|biotac``: stream a scene over a pty or a CAN channel."""
+    from ext_sense_sim.errors import SceneError
+    from ext_sense_sim.links import open_link
+    from ext_sense_sim.scene import load_scene
+    from ext_sense_sim.streaming import DEVICE_PRIORITY, stream
+
+    default = {"nuskin": "tap_rod30_nuskin", "biotac": "tap_rod30_biotac"}[args.device]
+    scene = load_scene(args.scene or default)
+    if scene.sensor.label != args.device:
+        raise SceneError(
+            f"Scene '{scene.name}' is for sensor '{scene.sensor.label}', not '{args.device}'."
+        )
+    sink = open_link(
+        "can" if args.can else "pty",
+        link_path=args.link or "",
+        can_channel=args.can or "",
+        priority=DEVICE_PRIORITY,
+    )
+    where = f"CAN virtual channel {args.can}" if args.can else sink.path
+    print(f"sim serve {args.device}: streaming scene {scene.name} on {where}", flush=True)
+    try:
+        stats = stream(
+            scene,
+            sink.write,
+            seed=scene.seed if args.seed is None else args.seed,
+            trials=args.trials,
+            period_s=args.period,
+            on_onset=lambda gt: print(
+                f"trial {gt.trial} onset at {gt.onset_ns} ns {gt.class_label or gt.tap_position_m}",
+                flush=True,
+            ),
+            ahead=True,
+            priority=DEVICE_PRIORITY,
+        )
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        sink.close()
+    print(f"sent {stats.trials} trials, {stats.bytes} bytes, late trials {stats.late_trials}")
+    return 0

@@ -35,7 +35,6 @@ from ext_sense_runtime.enums import Sensor
 from ext_sense_runtime.records import GroundTruth
 from ext_sense_sim.bridge_line import BridgeLine
 from ext_sense_sim.errors import SceneError
-from ext_sense_sim.links import open_link
 from ext_sense_sim.scene import Scene
 from ext_sense_sim.trial_plan import PlannedTrial, plan_trials, require_wire
 from ext_sense_sim.trials_ahead import TrialsAhead
@@ -66,6 +65,7 @@ def stream(
     stats: StreamStats | None = None,
     ahead: bool = False,
     priority: int = 0,
+    ready: Callable[[], bool] | None = None,
 ) -> StreamStats:
     """Write the scene's device bytes in real time until ``trials`` are done or ``stop`` is set.
 
@@ -86,12 +86,16 @@ def stream(
             as it is): the emulated sensor is hardware, which a loaded host does not slow.
             What it got is in ``stats.extra["scheduling"]``; the child process runs at normal
             priority either way.
+        ready: Polled every 5 ms once the first trial is simulated; its start waits for true
+            (e.g. a listener to the ground truth). None: start at once.
     """
     stop = stop or threading.Event()
     stats = StreamStats() if stats is None else stats
     _take_priority(priority, stats)
     with _trials(scene, seed, stop, ahead) as plans:
-        return _stream(scene, write, plans, trials, period_s, on_onset, stop, clock, sleep, stats)
+        return _stream(
+            scene, write, plans, trials, period_s, on_onset, stop, clock, sleep, stats, ready
+        )
 
 
 def _take_priority(priority: int, stats: StreamStats) -> None:
@@ -122,10 +126,10 @@ def _stream(
     stop: threading.Event,
     clock: Callable[[], int],
     sleep: Callable[[float], None],
-    stats: StreamStats | None,
+    stats: StreamStats,
+    ready: Callable[[], bool] | None,
 ) -> StreamStats:
     period_ns = round(max(period_s, scene.trial_s) * 1e9)
-    stats = StreamStats() if stats is None else stats
     start: int | None = None
     delay_ns = 0  # how far late trials have pushed the schedule
     rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
@@ -138,6 +142,9 @@ def _stream(
         if stop.is_set() or (trials and plan.trial >= trials):
             break
         if start is None:  # the first trial is simulated before the clock starts
+            while ready is not None and not ready() and not stop.is_set():
+                line.idle()
+                sleep(0.005)
             start = clock()
         t0 = start + plan.trial * period_ns + delay_ns
         now = clock()
@@ -467,43 +474,3 @@ def _play(
                     )
                 )
         i = j
-
-
-def serve_device(args) -> int:
-    """``ext-sense sim serve nuskin|biotac``: stream a scene over a pty or a CAN channel."""
-    from ext_sense_sim.scene import load_scene
-
-    default = {"nuskin": "tap_rod30_nuskin", "biotac": "tap_rod30_biotac"}[args.device]
-    scene = load_scene(args.scene or default)
-    if scene.sensor.label != args.device:
-        raise SceneError(
-            f"Scene '{scene.name}' is for sensor '{scene.sensor.label}', not '{args.device}'."
-        )
-    sink = open_link(
-        "can" if args.can else "pty",
-        link_path=args.link or "",
-        can_channel=args.can or "",
-        priority=DEVICE_PRIORITY,
-    )
-    where = f"CAN virtual channel {args.can}" if args.can else sink.path
-    print(f"sim serve {args.device}: streaming scene {scene.name} on {where}", flush=True)
-    try:
-        stats = stream(
-            scene,
-            sink.write,
-            seed=scene.seed if args.seed is None else args.seed,
-            trials=args.trials,
-            period_s=args.period,
-            on_onset=lambda gt: print(
-                f"trial {gt.trial} onset at {gt.onset_ns} ns {gt.class_label or gt.tap_position_m}",
-                flush=True,
-            ),
-            ahead=True,
-            priority=DEVICE_PRIORITY,
-        )
-    except KeyboardInterrupt:
-        return 0
-    finally:
-        sink.close()
-    print(f"sent {stats.trials} trials, {stats.bytes} bytes, late trials {stats.late_trials}")
-    return 0

@@ -4,6 +4,11 @@ Every final estimate matched to a trial prints a line; after ``expected`` scored
 once ``expected`` trials were seen, ``idle_timeout_s`` without news) it prints the summary and
 shuts its context down, which ends the graph. With ``ground_truth`` false every final estimate
 is printed unscored (:class:`~ext_sense.nodes.scoreboard.Scoreboard`).
+
+The monitor subscribes to ``ground_truth`` only once it hears an estimate publisher: a trial it
+takes is one whose estimate it can hear. The simulated device waits for that subscriber before
+its first trial (``sim_device`` ``wait_for_listener_s``), so under load, when discovery takes
+seconds, no trial goes out before the graph can score it.
 """
 
 from __future__ import annotations
@@ -85,7 +90,7 @@ class EstimateMonitorNode(Node):
         self.trials_seen = 0
         self.done = False
         self._last_news = time.monotonic_ns()
-        self.create_subscription(
+        self._estimates = self.create_subscription(
             ContactEstimate, "contact_estimate", self.guard(self._on_estimate), ESTIMATE_QOS
         )
         if self.show_provisional:
@@ -95,9 +100,7 @@ class EstimateMonitorNode(Node):
                 self.guard(self._on_estimate),
                 ESTIMATE_QOS,
             )
-        self.create_subscription(
-            ContactGroundTruth, "ground_truth", self.guard(self._on_truth), GROUND_TRUTH_QOS
-        )
+        self._truths = None
         self.create_timer(0.2, self.guard(self._on_timer))
         self.updater = Updater(hardware_id=p.task)
         self.updater.add_check("score", self._check)
@@ -131,7 +134,15 @@ class EstimateMonitorNode(Node):
         self._print(self.board.add_estimate(est))
         self._maybe_finish()
 
+    def _listen_to_truth(self) -> None:
+        """Subscribe to ``ground_truth`` once an estimate publisher is heard (module docstring)."""
+        if self._truths is None and self._estimates.get_publisher_count() > 0:
+            self._truths = self.create_subscription(
+                ContactGroundTruth, "ground_truth", self.guard(self._on_truth), GROUND_TRUTH_QOS
+            )
+
     def _on_timer(self) -> None:
+        self._listen_to_truth()
         idle = time.monotonic_ns() - self._last_news
         # without ground truth the estimates are the trials
         seen = self.trials_seen if self.ground_truth else self.board.scored

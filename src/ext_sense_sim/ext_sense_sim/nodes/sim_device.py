@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 import queue
 import threading
+import time
 from dataclasses import dataclass
 
 from rclpy.node import Node
@@ -64,6 +65,14 @@ class SimDeviceParameters:
     trials: int = _ro(0, "Trials to stream (0 = forever).", low=0, high=1_000_000)
     seed: int = _ro(0, "Seed of the stream.", low=0, high=2**31 - 1)
     trial_period_s: float = _ro(1.0, "Time between trial starts, s.", low=0.01, high=3600.0)
+    wait_for_listener_s: float = _ro(
+        0.0,
+        "Mode free: before the first trial, wait up to this long for a subscriber to "
+        "ground_truth (a monitor, which subscribes once it hears the estimates), s; 0: start "
+        "at once.",
+        low=0.0,
+        high=3600.0,
+    )
     mode: str = _ro(
         "free",
         "free: trials every trial_period_s from start-up; trigger: trials_per_trigger "
@@ -120,6 +129,8 @@ class SimDeviceNode(Node):
         self.triggers: queue.Queue[Trigger] = queue.Queue()
         self.played = 0
         self._ready = threading.Event()
+        wait_ns = round(p.wait_for_listener_s * 1e9)
+        self._listener_deadline_ns = time.monotonic_ns() + wait_ns if wait_ns else None
         if p.mode == "trigger":
             target, run_args = (
                 self._run_triggered,
@@ -170,10 +181,24 @@ class SimDeviceNode(Node):
                 stats=self.stats,
                 ahead=True,
                 priority=DEVICE_PRIORITY,
+                ready=self._listener_or_deadline,
             )
         except Exception as err:
             self.error = repr(err)
             self.get_logger().error(f"stream stopped: {err!r}")
+
+    def _listener_or_deadline(self) -> bool:
+        """Whether the first trial may start: ground truth has a listener, or the wait is over."""
+        deadline = self._listener_deadline_ns
+        if deadline is None or self.pub.get_subscription_count() > 0:
+            return True
+        if time.monotonic_ns() < deadline:
+            return False
+        self._listener_deadline_ns = None
+        self.get_logger().warning(
+            "no subscriber to ground_truth within wait_for_listener_s: streaming anyway"
+        )
+        return True
 
     def _run_triggered(
         self,

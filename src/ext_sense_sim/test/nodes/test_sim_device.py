@@ -68,3 +68,50 @@ def test_node_streams_bytes_and_publishes_ground_truth(tmp_path):
                 n.destroy_node()
         rclpy.try_shutdown(context=context)
     assert not link.exists()
+
+
+def test_with_wait_for_listener_the_first_trial_waits_for_a_ground_truth_subscriber(tmp_path):
+    """No trial before someone listens: trial 0 is the first the listener hears."""
+    rclpy = pytest.importorskip("rclpy")
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+
+    from ext_sense_msgs.msg import ContactGroundTruth
+    from ext_sense_runtime.qos import GROUND_TRUTH_QOS
+    from ext_sense_sim.nodes.sim_device import SimDeviceNode
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = listener = None
+    try:
+        node = SimDeviceNode(
+            context=context,
+            parameter_overrides=[
+                Parameter("scene", value="tap_rod20_nuskin"),
+                Parameter("port_link", value=str(tmp_path / "nuskin_port")),
+                Parameter("trial_period_s", value=0.4),
+                Parameter("wait_for_listener_s", value=60.0),
+            ],
+        )
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        deadline = time.monotonic() + 5.0  # the first trial is simulated in about 1.5 s
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert node.played == 0  # nobody listens: nothing streamed
+        assert node.stats.writes == 0
+        listener = rclpy.create_node("gt_listener", context=context)
+        got = []
+        listener.create_subscription(
+            ContactGroundTruth, "ground_truth", got.append, GROUND_TRUTH_QOS
+        )
+        executor.add_node(listener)
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and not got:
+            executor.spin_once(timeout_sec=0.05)
+        assert [m.trial for m in got][:1] == [0]
+    finally:
+        for n in (node, listener):
+            if n is not None:
+                n.destroy_node()
+        rclpy.try_shutdown(context=context)
