@@ -8,7 +8,6 @@ Heavy imports (scikit-learn, ONNX Runtime, matplotlib) live inside the handlers 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -20,6 +19,7 @@ from ext_sense_perception.cli.options import (
     fail,
     load_pooled,
     load_sessions,
+    write_json,
 )
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_runtime.stamps import MS
@@ -358,9 +358,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         f"{rec['infer_p50_ms_onnx']:.3f}/{rec['infer_p99_ms_onnx']:.3f} ms;"
         f" decision latency {rec['decision_latency_ms']:.1f} ms"
     )
-    if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(rec, indent=2) + "\n")
+    write_json(args.json, rec)
     return 0
 
 

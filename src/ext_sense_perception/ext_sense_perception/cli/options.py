@@ -6,6 +6,7 @@ Handlers import the heavy modules lazily, so ``ext-sense --help`` stays fast.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from pathlib import Path
@@ -200,6 +201,13 @@ def load_sessions(
             ws = ws.crop(round(args.post_ms * MS))
         sessions.append(as_session(path, ws))
     return sessions
+
+
+def write_json(path: str | None, record: dict) -> None:
+    """Write ``record`` as indented JSON to ``path`` (``--json``; None: nowhere)."""
+    if path:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(json.dumps(record, indent=2) + "\n")
 
 
 def fail(err: Exception) -> int:

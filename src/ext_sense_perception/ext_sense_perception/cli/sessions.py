@@ -6,11 +6,10 @@ Handlers import lazily, as :mod:`.learning`'s, so ``ext-sense --help`` stays fas
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ext_sense_perception.cli.options import add_data_options, fail, load_sessions
+from ext_sense_perception.cli.options import add_data_options, fail, load_sessions, write_json
 from ext_sense_perception.errors import PerceptionError
 
 if TYPE_CHECKING:
@@ -107,7 +106,7 @@ def _cmd_score(args: argparse.Namespace) -> int:
         **result,
     }
     _print_score(result)
-    _write_json(args.json, result)
+    write_json(args.json, result)
     return 0
 
 
@@ -151,12 +150,6 @@ def _print_score(r: dict[str, Any]) -> None:
             f"{len(r['unknown'])} windows of classes the model does not know ({', '.join(labels)}),"
             " not scored"
         )
-
-
-def _write_json(path: str | None, record: dict[str, Any]) -> None:
-    if path:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(json.dumps(record, indent=2) + "\n")
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
@@ -238,7 +231,7 @@ def cross_session_command(args: argparse.Namespace, sessions: list[Session], rec
         for name, row in curve["sessions"].items():
             print(f"  {name:<32s} " + " ".join(f"{v:>6.3f}" for v in row))
         print(f"  {'mean':<32s} " + " ".join(f"{v:>6.3f}" for v in curve["mean"]))
-    _write_json(args.json, result)
+    write_json(args.json, result)
     return 0
 
 
