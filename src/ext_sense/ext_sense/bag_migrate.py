@@ -48,15 +48,7 @@ CONNECTION = 1
 
 
 class Migration(NamedTuple):
-    """What :func:`migrate_bag` wrote.
-
-    Attributes:
-        out: The new bag.
-        copied: Messages copied as recorded, by topic.
-        packets: Packets written, by topic (the "nothing read" and end packets included).
-        events: NUSkin events encoded as receiver words.
-        frames: BioTac frames encoded as bridge frames.
-    """
+    """What :func:`migrate_bag` wrote: copies and packets by topic, events and frames encoded."""
 
     out: Path
     copied: dict[str, int]

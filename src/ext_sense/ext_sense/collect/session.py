@@ -61,14 +61,10 @@ def class_sequence(classes: Sequence[str], n: int, seed: int) -> list[str]:
 
 @dataclass
 class Trial:
-    """One kept trial: its label and the onset its ground truth is stamped with.
+    """One kept trial: its label and the onsets its ground truth is stamped with.
 
-    Attributes:
-        index: Trial number within the session (the ground truth's ``trial``).
-        label: Class name, or tap position in metres as text (``"0.125"``).
-        onsets_ns: Ground-truth stamps, one per window of the trial (food: the motion start),
-            host epoch ns.
-        truth: What an independent source said (mocap/simulator), ``""`` when none.
+    ``label`` is a class or a tap position in metres as text (``"0.125"``); ``onsets_ns`` has
+    one host epoch stamp per window; ``truth`` is what mocap or the simulator said, or ``""``.
     """
 
     index: int
@@ -81,13 +77,8 @@ class Trial:
 class CollectState:
     """A session's progress, written to ``collect.json`` after every change (resume).
 
-    Attributes:
-        task: Task name.
-        planned: The prompt sequence: tap positions (m, as text) or classes.
-        trials: Kept trials, in order.
-        prompt_index: Next entry of ``planned`` to prompt.
-        next_index: Next trial number.
-        attempts: Trials played so far (kept, redone or discarded): the simulator's schedule.
+    ``planned`` is the prompt sequence (tap positions in m as text, or classes); ``attempts``
+    counts trials played, kept or not (the simulator's schedule).
     """
 
     task: str

@@ -22,11 +22,8 @@ from ext_sense_runtime.stamps import MS
 class Scoreboard:
     """Matches final estimates to ground truth and keeps the running score.
 
-    Args:
-        task: ``tap_localization``, ``handover_stability`` or ``food_identification``.
-        match_tolerance_ns: Largest |estimated onset - true onset| that still matches.
-        ground_truth: Whether trials come with ground truth; without, final estimates are
-            counted and printed unscored.
+    ``match_tolerance_ns`` is the largest onset difference that still matches; without
+    ``ground_truth`` final estimates are counted and printed unscored.
     """
 
     task: str

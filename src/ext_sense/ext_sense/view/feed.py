@@ -40,13 +40,8 @@ MAX_DECODERS = 8
 class FeedCounters(NamedTuple):
     """What a :class:`SensorFeed` took, dropped and ignored (monotonic).
 
-    Attributes:
-        packets: Packets received (read or refused).
-        lost_packets: Packets missing before the ones received (``seq`` gaps).
-        bad_packets: Packets refused: malformed, unknown encoding, another sensor's.
-        decode_failures: Reads a decoder failed on (each costs that read).
-        events: NUSkin events drawn.
-        frames: BioTac frames drawn.
+    ``lost_packets`` are ``seq`` gaps; ``bad_packets`` were refused (malformed, unknown
+    encoding, another sensor's); ``decode_failures`` are reads a decoder failed on.
     """
 
     packets: int = 0
@@ -58,13 +53,7 @@ class FeedCounters(NamedTuple):
 
 
 class SensorFeed:
-    """Packets in, the view's taxel, electrode and PAC state fed.
-
-    Args:
-        sensor: ``nuskin`` or ``biotac``.
-        taxels: What NUSkin events are counted into.
-        electrodes: What BioTac frames' electrodes go to.
-        pac: What BioTac frames' PAC samples go to.
+    """Packets in, the view's taxel (NUSkin), electrode and PAC (BioTac) state fed.
 
     Raises:
         ViewError: An unknown sensor.

@@ -12,10 +12,7 @@ from ext_sense.view.errors import ViewError
 class DisplayPacer:
     """Allows one frame per ``1 / rate_hz`` seconds of the caller's clock (integer ns).
 
-    Frames are at least 0.8 periods apart: at most ``1.25 * rate_hz`` in any stretch.
-
-    Args:
-        rate_hz: Highest frame rate, frames/s, in (0, 120].
+    Frames are at least 0.8 periods apart: at most ``1.25 * rate_hz`` (in (0, 120]) a second.
     """
 
     def __init__(self, rate_hz: float) -> None:

@@ -23,19 +23,12 @@ def raster_image(
     min_height: int = 160,
     finger_rows: int = 40,
 ) -> Image:
-    """Draw one window.
+    """Draw one ``(n_channels, n_samples)`` window as an RGB image, the onset column red.
 
-    Args:
-        data: ``(n_channels, n_samples)`` window data.
-        pre_onset_ns: Signal before the onset, ns (negative: the window starts after it).
-        sample_period_ns: Duration of one sample, ns.
-        provisional: An anytime window: a yellow band on top (final: blue).
-        max_columns: Widest image, pixels; samples are summed into columns.
-        min_height: Rows are repeated until the image is at least this tall, pixels.
-        finger_rows: Channels per finger (a grey line between fingers); 0 for none.
-
-    Returns:
-        RGB image; the onset column red.
+    ``pre_onset_ns`` is the signal before the onset (negative: the window starts after it);
+    a provisional window gets a yellow band on top (final: blue); samples are summed into at
+    most ``max_columns`` columns, rows repeated to ``min_height`` pixels; a grey line parts
+    every ``finger_rows`` channels (0: none).
 
     Raises:
         ViewError: ``data`` is not 2-D with at least one sample, or the period is not positive.

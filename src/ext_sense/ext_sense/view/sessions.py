@@ -30,13 +30,8 @@ TRIAL_GAP_NS = S // 2
 class Contact(NamedTuple):
     """One contact: its onset, the span its window covers, and what is known about it.
 
-    Attributes:
-        onset_ns: Onset on the session's timeline (food: the arm's motion start), ns.
-        start_ns: First instant the window covers, ns.
-        end_ns: Last instant, ns.
-        name: What to call it (trial number, capture name).
-        estimate: The final estimate for it, if the source has one.
-        truth: Its ground truth, if known.
+    Times are ns on the session's timeline (food: the onset is the motion start); the final
+    estimate and the truth are there when the source has them.
     """
 
     onset_ns: int
@@ -48,15 +43,9 @@ class Contact(NamedTuple):
 
 
 class PlotSession(NamedTuple):
-    """A session to draw.
+    """A session to draw; ``task`` may be empty, ``contacts`` are in time order.
 
-    Attributes:
-        name: Bag or folder name.
-        task: Task (``tap_localization``, ...), empty when unknown.
-        sensor: ``nuskin`` or ``biotac``.
-        events: NUSkin events (BioTac: one event per frame of channel ``sensor_id + 1`` with
-            the PAC's peak-to-peak as value, enough for an overview of activity).
-        contacts: The contacts, in time order.
+    BioTac events are one per frame on channel ``sensor_id + 1``, valued by the PAC's range.
     """
 
     name: str

@@ -26,12 +26,9 @@ ELECTRODE_TOP = 4095
 class TaxelActivity:
     """Recent event rate of each NUSkin taxel, smoothed over ``tau_s``.
 
-    :meth:`add` counts each batch; :meth:`update`, at display rate, turns counts into rates.
-
-    Args:
-        tau_s: Time constant of the rate's exponential smoothing, s.
-        dead_after_s: Silence after which a taxel counts as dead while its finger fires, s.
-        saturation_hz: Rate at and above which a taxel counts as saturated, events/s.
+    :meth:`add` counts each batch; :meth:`update`, at display rate, turns counts into rates. A
+    taxel silent ``dead_after_s`` while its finger fires is dead; one at ``saturation_hz``
+    (events/s) or above is saturated.
     """
 
     def __init__(
@@ -97,12 +94,9 @@ def nuskin_grid(
 ) -> Image:
     """Both fingers' taxels on their 8 x 5 lattices, left finger on the left.
 
-    Args:
-        rate_hz: Rate of taxels 1..80, shape ``(80,)``.
-        dead: Dead taxels, ``(80,)`` bool; crossed out.
-        saturated: Saturated taxels, ``(80,)`` bool; framed white.
-        top_hz: Rate at the top of the colour scale (log scale from 0).
-        cell: Side of one taxel's square, pixels.
+    ``rate_hz``, ``dead`` and ``saturated`` are of taxels 1..80, shape ``(80,)``; dead ones are
+    crossed out, saturated ones framed; ``top_hz`` tops the log colour scale; ``cell`` is a
+    taxel's side, pixels.
 
     Returns:
         ``(8 * cell + 2 * margin, 10 * cell + gap + 2 * margin, 3)`` RGB image.

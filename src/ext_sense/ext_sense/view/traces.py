@@ -20,10 +20,8 @@ PAC_RATE_HZ = 2200
 class PacTrace:
     """The last ``seconds`` of each BioTac sensor's PAC samples, a ring buffer per sensor.
 
-    Args:
-        seconds: Length of the trace, s.
-        decimate: Keep every ``decimate``-th sample in :meth:`message` (plot size, not detail:
-            1100 points still show a 1 kHz vibration's envelope).
+    :meth:`message` keeps every ``decimate``-th sample (1100 points still show a 1 kHz
+    vibration's envelope).
     """
 
     def __init__(self, seconds: float = 1.0, decimate: int = 2) -> None:
