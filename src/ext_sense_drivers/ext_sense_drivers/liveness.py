@@ -29,8 +29,7 @@ class StreamWatch(StallCounts):
 
     Args:
         stream: What is silent, in messages ("receiver words from /dev/ttyACM0").
-        expected_rate_hz: Least rate of the stream while streaming, items/s; 0 disables the
-            check (a source silent when idle, as the simulator's emulated devices are).
+        expected_rate_hz: Least rate while streaming, items/s; 0 disables the check.
         warn_ns: Silence while streaming that is a stall (WARN).
         error_ns: Silence while streaming that is an ERROR.
         clock: Monotonic integer nanoseconds; injectable so tests never sleep.

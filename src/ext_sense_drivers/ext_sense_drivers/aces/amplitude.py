@@ -35,12 +35,7 @@ def tracked_amplitude(
 ) -> float | None:
     """The amplitude to cancel with after a pass's ``n`` (> 0) detections, or None to keep it.
 
-    Args:
-        in_use: The amplitude cancelled with now.
-        nominal: The decoder's nominal amplitude.
-        strength: Summed correlation per chip of the pass's detections.
-        n: Their number.
-        seen: Detections that measured the amplitude before.
+    ``strength`` is their summed correlation per chip, ``seen`` the detections measured before.
     """
     memory = min(seen, AMPLITUDE_MEMORY)
     step = n / (n + memory)

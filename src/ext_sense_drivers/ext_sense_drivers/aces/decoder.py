@@ -153,17 +153,10 @@ class LineDecoder:
         return self.window + self._commit
 
     def feed(self, chunk: bytes | bytearray | memoryview | npt.NDArray[np.floating]) -> EventBlock:
-        """Take the next piece of the line and return the events decided so far.
+        """The events decided so far, in time order, after the next piece of the line.
 
-        Args:
-            chunk: Wire bytes (split anywhere) or a 1-D float array in line units.
-
-        Returns:
-            Newly decided events in time order, at ``t0_ns`` plus the sample clock.
-
-        Raises:
-            AcesError: Wrong type or shape, an array while half a wire sample is pending, or a
-                stream already flushed.
+        ``chunk`` is wire bytes (split anywhere) or 1-D float samples; AcesError for a bad chunk or
+        a flushed stream.
         """
         if self._ended:
             raise AcesError("This stream was flushed; call reset() before feeding a new one.")

@@ -76,20 +76,17 @@ def encode_line(
     noise_std: float = 0.0,
     rng: np.random.Generator | None = None,
 ) -> EncodedLine:
-    """Sum the signatures of events into line samples.
+    """Sum the signatures of events into line samples (AcesError for a bad argument).
 
     Args:
-        t_ns: Event times, integer ns since the line's sample 0, shape ``(n,)``.
-        taxel: Taxel ids 1..80, shape ``(n,)``.
-        polarity: +1 or -1, shape ``(n,)``.
-        bank: Signature bank (default: :func:`load_bank` of the default version).
-        n_samples: Line length in samples; default just long enough for the last signature.
+        t_ns: Event times ``(n,)``, integer ns since the line's sample 0.
+        taxel: Taxel ids 1..80, ``(n,)``.
+        polarity: +1 or -1, ``(n,)``.
+        bank: Signature bank (default: the default version).
+        n_samples: Line length; default just long enough for the last signature.
         amplitude: Chip amplitude of one signature, line units.
-        noise_std: Standard deviation of white Gaussian noise added to every sample, line units.
+        noise_std: Standard deviation of white Gaussian noise added, line units.
         rng: Random generator for the noise (default: a fresh unseeded one).
-
-    Raises:
-        AcesError: An argument of the wrong shape, type or range.
     """
     bank = bank if bank is not None else load_bank()
     t, k, p = _check_events(t_ns, taxel, polarity, bank.n_taxels)

@@ -33,14 +33,7 @@ MAX_ACCEPTED = 128
 
 
 class MatchedFilterSic:
-    """Correlate a window with the whole bank and cancel successively.
-
-    Args:
-        bank: The signature bank.
-        amplitude: Nominal chip amplitude, line units.
-        threshold: Detection threshold, fraction of a full match.
-        size: Window length in samples.
-    """
+    """Correlate a ``size``-sample window with the whole bank and cancel successively."""
 
     def __init__(self, bank: SignatureBank, amplitude: float, threshold: float, size: int) -> None:
         self.size = size

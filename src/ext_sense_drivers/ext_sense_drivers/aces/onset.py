@@ -40,13 +40,7 @@ noise or garbage; a 95 % busy line tests about 100."""
 
 
 class OnsetDecoder:
-    """Decode a residual window onset by onset.
-
-    Args:
-        bank: The signature bank.
-        amplitude: Nominal chip amplitude, line units.
-        threshold: Detection threshold, fraction of a full match.
-        back: Starts tested before each onset.
+    """Decode a residual window onset by onset, also testing ``back`` starts before each onset.
 
     Attributes:
         exhausted: Whether the last :meth:`decode` stopped at :data:`MAX_TESTS` onsets.
@@ -78,16 +72,10 @@ class OnsetDecoder:
     def decode(
         self, r: npt.NDArray[np.float64], commit: int, settle: int | None = None
     ) -> Detections:
-        """Detect and cancel, in place, every signature with an onset before ``commit``.
+        """Detect and cancel in ``r`` every signature with an onset in ``[0, commit)``.
 
-        Args:
-            r: Residual line, at least ``commit + L - 1`` samples (changed in place).
-            commit: Onsets are looked for in ``[0, commit)``.
-            settle: Only detections starting before this (default ``commit``) add to
-                ``strength``; later ones are tentative.
-
-        Returns:
-            The detections in the order found.
+        Only detections starting before ``settle`` (default ``commit``) add to ``strength``; later
+        ones are tentative. ``r`` needs at least ``commit + L - 1`` samples.
         """
         length, k_codes, back = self._length, self._chips.shape[0], self._back
         chips, det = self._chips, self._det

@@ -36,12 +36,6 @@ def blank_overload(
 ) -> Blanked | None:
     """Set to 0 the samples before ``commit`` in stretches above either depth limit.
 
-    Args:
-        buf: The window's residual samples (changed in place).
-        commit: Samples of the window decided in this pass.
-        amplitude: Chip amplitude in use.
-        length: Chips per signature.
-
     Returns:
         The blanked samples and their energy, or None.
     """

@@ -14,15 +14,9 @@ from ext_sense_drivers.aces.errors import AcesError
 def m_sequence(poly: int, degree: int) -> npt.NDArray[np.uint8]:
     """One period ``(2**degree - 1,)`` uint8 of the m-sequence of a primitive polynomial.
 
-    The recurrence ``a[k + degree] = XOR of a[k + i]`` over the set bits ``i < degree`` starts
-    from all ones.
-
-    Args:
-        poly: Feedback polynomial as a bit mask, e.g. ``0b10001001`` for ``x^7 + x^3 + 1``.
-        degree: Its degree.
-
-    Raises:
-        AcesError: Not a degree-``degree`` mask with a constant term, or not primitive.
+    ``poly`` is a bit mask (``0b10001001`` for ``x^7 + x^3 + 1``); the recurrence
+    ``a[k + degree] = XOR of a[k + i]`` over its bits ``i < degree`` starts from all ones.
+    AcesError if the mask is not of that degree with a constant term, or not primitive.
     """
     if degree < 2 or poly >> degree != 1 or not poly & 1:
         raise AcesError(
@@ -47,14 +41,9 @@ def m_sequence(poly: int, degree: int) -> npt.NDArray[np.uint8]:
 
 
 def gold_family(poly_u: int, poly_v: int, degree: int) -> npt.NDArray[np.uint8]:
-    """The Gold family of a preferred pair of polynomials of one degree.
+    """The Gold family of a preferred pair of polynomials: ``(2**degree + 1, 2**degree - 1)`` bits.
 
-    Returns:
-        ``(2**degree + 1, 2**degree - 1)`` uint8 bits: ``u``, ``v``, then
-        ``u XOR roll(v, -k)`` for every ``k``.
-
-    Raises:
-        AcesError: A polynomial is not primitive of that degree.
+    Rows ``u``, ``v``, then ``u XOR roll(v, -k)`` for every ``k`` (AcesError if not primitive).
     """
     u = m_sequence(poly_u, degree)
     v = m_sequence(poly_v, degree)

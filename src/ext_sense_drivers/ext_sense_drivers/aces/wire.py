@@ -67,18 +67,10 @@ def bytes_to_samples(data: bytes | bytearray | memoryview) -> npt.NDArray[np.flo
 def chunk_samples(
     chunk: bytes | bytearray | memoryview | npt.NDArray[np.floating], odd: bytes = b""
 ) -> tuple[npt.NDArray[np.float64], bytes]:
-    """Line samples of the next chunk of a stream, carrying a trailing half wire sample.
+    """Line samples (float64) of the next chunk of a stream, and the half wire sample it leaves.
 
-    Args:
-        chunk: Wire bytes (split anywhere) or a 1-D float array in line units.
-        odd: The half sample the previous chunk left (``b""`` if none).
-
-    Returns:
-        float64 samples, and the half sample this chunk leaves for the next.
-
-    Raises:
-        AcesError: Neither bytes nor a 1-D float array, or an array while half a wire sample
-            is pending.
+    ``chunk`` is wire bytes (split anywhere) or a 1-D float array in line units; ``odd`` the half
+    sample the previous chunk left. AcesError for another type, or an array while one is pending.
     """
     if isinstance(chunk, bytes | bytearray | memoryview):
         data = odd + bytes(chunk)

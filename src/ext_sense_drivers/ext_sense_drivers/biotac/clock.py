@@ -48,14 +48,8 @@ def pac_times_ns(first_sample_ns: NDArray[np.int64] | int) -> NDArray[np.int64]:
 class FrameClock:
     """First-sample times of one sensor's frames from their host arrival times.
 
-    Args:
-        frame_period_ns: Bridge frame period, > 0.
-        lead_ns: A frame's first sample to its least-delayed arrival (frame span,
-            transmission and any known latency).
-        window: Frames over which the minimum latency is tracked, >= 1.
-
-    Raises:
-        BioTacError: A parameter is out of range.
+    ``lead_ns`` is a frame's first sample to its least-delayed arrival (frame span, transmission
+    and any known latency), tracked over ``window`` frames (BioTacError if out of range).
     """
 
     def __init__(

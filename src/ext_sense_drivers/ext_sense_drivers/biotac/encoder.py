@@ -28,16 +28,10 @@ from ext_sense_drivers.biotac.words import (
 
 
 def encode_frame(seq: int, sensor_id: int, replies: ArrayLike | bytes) -> bytes:
-    """One bridge frame around reply words as the BioTac sent them.
+    """One bridge frame, CRC included, around reply words as the BioTac sent them.
 
-    Args:
-        seq: Frame sequence number, 0..65535.
-        sensor_id: Sensor slot, 0..255 on the wire (0..4 are valid).
-        replies: Up to 255 reply words (any bits: corrupt words can be encoded), or their
-            bytes in wire order.
-
-    Raises:
-        BioTacError: A field is out of range.
+    ``seq`` is 0..65535, ``sensor_id`` 0..255 on the wire (0..4 valid); ``replies`` up to 255
+    words (any bits: corrupt words can be encoded) or their bytes. BioTacError if out of range.
     """
     if not 0 <= int(seq) < SEQ_MODULO:
         raise BioTacError(f"The 'seq' field must be in 0..65535. Got {seq} instead.")
@@ -66,15 +60,7 @@ def standard_replies(
 ) -> NDArray[np.uint16]:
     """The ``(44,)`` reply words of a standard frame, with correct parity.
 
-    Args:
-        pac: 22 PAC samples, 0..4095.
-        electrodes: 19 electrode values E01..E19, 0..4095.
-        pdc: Static pressure, 0..4095.
-        tac: AC temperature, 0..4095.
-        tdc: DC temperature, 0..4095.
-
-    Raises:
-        BioTacError: A length or value is wrong.
+    22 PAC samples, electrodes E01..E19, PDC, TAC and TDC, all 0..4095 (BioTacError if not).
     """
     pac_arr = np.asarray(pac)
     el_arr = np.asarray(electrodes)

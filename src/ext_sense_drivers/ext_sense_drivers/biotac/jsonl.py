@@ -111,15 +111,10 @@ def _field(record: dict[str, Any], key: str, size: int | None, where: str) -> li
 def record_to_frame(
     record: dict[str, Any], next_seq: list[int] | None = None, where: str = "record"
 ) -> bytes:
-    """One bridge frame from a JSON object.
+    """One bridge frame from a JSON object (BioTacError for a missing key or a bad value).
 
-    Args:
-        record: The object.
-        next_seq: Per-sensor next sequence numbers, used and advanced when ``seq`` is absent.
-        where: Prefix of error messages (e.g. ``"line 3"``).
-
-    Raises:
-        BioTacError: A key is missing or a value is out of range.
+    ``next_seq`` holds per-sensor next sequence numbers, used and advanced when ``seq`` is absent;
+    ``where`` prefixes error messages (``"line 3"``).
     """
     if not isinstance(record, dict):
         raise BioTacError(f"{where}: expected a JSON object. Got {type(record).__name__}.")

@@ -23,9 +23,8 @@ BITS_PER_BYTE_ON_WIRE = 10
 class ArrivalClock:
     """Spreads the words of each read over the interval since the previous read.
 
-    Args:
-        byte_time_ns: Time one byte takes on the link, ns (> 0): sets the cap on the spread.
-        min_spread_ns: The cap is never below this, ns.
+    The spread is capped at the link time of the read's bytes (``byte_time_ns`` each), never
+    below ``min_spread_ns``.
     """
 
     def __init__(self, byte_time_ns: int = 10_000, min_spread_ns: int = 1_000_000) -> None:

@@ -22,14 +22,7 @@ def write_rows(
     value: npt.ArrayLike,
     flag: npt.ArrayLike,
 ) -> int:
-    """Append one CSV row per event (no header), words numbered from ``first_word``.
-
-    Returns:
-        Rows written.
-
-    Raises:
-        ValueError: The ``(n,)`` arrays differ in length.
-    """
+    """Append one CSV row per event (no header), words numbered from ``first_word``; return rows."""
     import numpy as np  # here: ``ext-sense --help`` imports this module for CSV_HEADER
 
     columns = [np.asarray(a, dtype=np.int64).ravel() for a in (polarity, taxel, value, flag)]

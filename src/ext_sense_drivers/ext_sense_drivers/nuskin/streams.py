@@ -46,12 +46,7 @@ class FlaggedEvents(NamedTuple):
 
 
 class WordStream:
-    """Receiver words -> events stamped by :class:`ArrivalClock`.
-
-    Args:
-        flag_polarity: How the word's flag bit maps to polarity.
-        clock: The arrival clock (default: 8N1 at 1 Mbit/s caps the spread).
-    """
+    """Receiver words -> events stamped by ``clock`` (default: a 1 Mbit/s :class:`ArrivalClock`)."""
 
     def __init__(
         self,
@@ -97,12 +92,8 @@ class WordStream:
 class AcesLineStream:
     """Raw ACES line samples -> events timed by the line's sample clock.
 
-    The first chunk of each connection fixes sample 0 at its arrival minus the duration of
-    the samples before it (no drift correction against the host clock).
-
-    Args:
-        **decoder_kwargs: Passed to ``ext_sense_drivers.aces.LineDecoder`` (``threshold``,
-            ``amplitude``, ``window``, ``bank``).
+    The first chunk of each connection fixes sample 0 at its arrival minus the duration of the
+    samples before it (no drift correction). ``decoder_kwargs`` go to ``LineDecoder``.
     """
 
     def __init__(self, **decoder_kwargs: object) -> None:

@@ -253,15 +253,10 @@ def _prefix_suffix_len(buf: npt.NDArray[np.uint8], tail: int) -> int:
 def encode_words(
     taxel: npt.ArrayLike, value: npt.ArrayLike, flag: npt.ArrayLike | None = None
 ) -> bytes:
-    """Encode events as ``4 * n`` bytes of receiver words.
+    """Encode events ``(n,)`` as ``4 * n`` bytes of receiver words (NuskinError if out of range).
 
-    Args:
-        taxel: Taxel ids ``(n,)``; the whole 7-bit field 0..127 is accepted (fault injection).
-        value: 10-bit values ``(n,)``.
-        flag: Flag bits ``(n,)``, or ``None`` for all 0 as the real receivers send.
-
-    Raises:
-        NuskinError: Lengths differ, or a field is out of range.
+    The whole 7-bit taxel field 0..127 is accepted (fault injection); ``flag`` ``None`` sends 0,
+    as the real receivers do.
     """
     t = np.asarray(taxel, dtype=np.int64).ravel()
     v = np.asarray(value, dtype=np.int64).ravel()

@@ -133,12 +133,8 @@ class _SeqDecoder:
 class NuskinPacketDecoder(_SeqDecoder):
     """``nuskin-words-v1`` and ``aces-line-v1`` packets -> stamped events.
 
-    Args:
-        encoding: :data:`NUSKIN_WORDS_V1` or :data:`ACES_LINE_V1`.
-        options: ``baud`` and ``flag_polarity`` (words), ``threshold`` (ACES line).
-
-    Raises:
-        PacketError: Another encoding, or options the NUSkin decoders do not take.
+    ``options``: ``baud`` and ``flag_polarity`` (words), ``threshold`` (ACES line); PacketError
+    for another encoding or option.
     """
 
     def __init__(self, encoding: str, options: str = "") -> None:
@@ -204,12 +200,7 @@ class NuskinPacketDecoder(_SeqDecoder):
 class BioTacPacketDecoder(_SeqDecoder):
     """``biotac-bridge-v1`` packets -> frames stamped by the per-sensor frame clock.
 
-    Args:
-        encoding: :data:`BIOTAC_BRIDGE_V1`.
-        options: ``lead_ns`` and ``clock_window_frames`` of the driver's clock model.
-
-    Raises:
-        PacketError: Another encoding or unknown options.
+    ``options``: ``lead_ns``, ``clock_window_frames``; PacketError for another encoding or option.
     """
 
     def __init__(self, encoding: str = BIOTAC_BRIDGE_V1, options: str = "") -> None:

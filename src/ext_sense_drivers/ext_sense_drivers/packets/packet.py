@@ -31,11 +31,8 @@ QUIET_PACKETS_PERIOD_S = 0.002
 class QuietSchedule:
     """When a NUSkin words driver says it read nothing (:meth:`PacketPacker.nothing_read`).
 
-    One packet every ``period_s`` after the last bytes while none come. Clock-free, so the
-    driver's timer and ``bench/latency_figures.py`` follow one rule.
-
-    Args:
-        period_s: ``quiet_packets_period_s``; 0 or less: never.
+    One packet every ``period_s`` (0 or less: never) after the last bytes while none come.
+    Clock-free, so the driver's timer and ``bench/latency_figures.py`` follow one rule.
     """
 
     def __init__(self, period_s: float = QUIET_PACKETS_PERIOD_S) -> None:
@@ -167,15 +164,10 @@ def format_options(options: dict[str, object]) -> str:
 
 
 def parse_options(text: str, known: Iterable[str]) -> dict[str, str]:
-    """The ``key=value`` pairs of ``encoding_options``.
+    """The ``key=value`` pairs of ``encoding_options`` (``"key=value;..."``, maybe empty).
 
-    Args:
-        text: ``"key=value;..."`` (empty: no options).
-        known: The keys the encoding's decoder understands.
-
-    Raises:
-        PacketError: A pair without ``=`` or a key the decoder does not know (a newer driver's
-            setting: decoding without it would give other events than the driver's).
+    PacketError for a pair without ``=`` or a key not in ``known``: a newer driver's setting,
+    without which decoding would give other events than the driver's.
     """
     known = set(known)
     out: dict[str, str] = {}
@@ -195,11 +187,7 @@ class PacketPacker:
     """A driver's reads in, packets out: one per drain and connection, numbered by ``seq``.
 
     Keeps the current connection, so a lost link ends its stream exactly once, and counts its
-    bytes for the ACES line's ``time_base``.
-
-    Args:
-        encoding: One of :data:`ENCODINGS`.
-        options: The driver's decoding settings (:func:`format_options`).
+    bytes for the ACES line's ``time_base``. ``encoding`` is one of :data:`ENCODINGS`.
     """
 
     def __init__(self, encoding: str, options: str = "") -> None:
@@ -221,17 +209,11 @@ class PacketPacker:
     def pack(
         self, tagged: Sequence[tuple[int, Chunk]], link_down: bool, to_ros_ns: int = 0
     ) -> list[Packet]:
-        """Packets for one drain of the reader.
+        """Packets for one drain of the reader, in order.
 
-        Args:
-            tagged: ``(connection, chunk)`` pairs as the reader queued them; empty reads are
-                kept out (they carry no bytes, and the arrival clock only moves with data).
-            link_down: The link is not connected (read before draining): the stream of the
-                current connection ends after these bytes.
-            to_ros_ns: Offset from the chunks' clock (monotonic) to ROS time, ns.
-
-        Returns:
-            Zero or more packets in order; an empty one only to say a stream ended.
+        ``tagged`` holds ``(connection, chunk)`` pairs as queued (empty reads are left out);
+        ``link_down`` (read before draining) ends the current stream after these bytes, with an
+        empty packet if need be; ``to_ros_ns`` is the offset from the monotonic clock to ROS time.
         """
         groups: list[tuple[int, list[Chunk]]] = []
         for connection, chunk in tagged:
@@ -276,19 +258,12 @@ class PacketPacker:
         return packet
 
     def nothing_read(self, t_ns: int, to_ros_ns: int = 0) -> Packet | None:
-        """A packet saying the link read nothing up to ``t_ns``: no reads, no bytes.
+        """A packet saying the link read nothing up to ``t_ns`` (monotonic): no reads, no bytes.
 
         The words carry no time, so without it a silent sensor's windows would close on the
-        consumer's clock, which a replay cannot repeat; recorded, it closes them the same way
-        live and replayed. It holds no read, so the arrival clock does not move.
-
-        Args:
-            t_ns: When the driver found nothing queued (the chunks' clock, monotonic).
-            to_ros_ns: Offset from that clock to ROS time, ns.
-
-        Returns:
-            The packet; ``None`` with no stream going, or for an encoding other than the
-            receiver's words (the others send all the time and are not stamped by arrival).
+        consumer's clock, which a replay cannot repeat. It holds no read, so the arrival clock does
+        not move. ``None`` with no stream going, or for an encoding other than the receiver's words
+        (the others send all the time).
         """
         if self._finished or self.encoding != NUSKIN_WORDS_V1:
             return None
@@ -296,18 +271,11 @@ class PacketPacker:
         return self._no_bytes(end_of_stream=False)
 
     def opened(self, connection: int, t_ns: int, to_ros_ns: int = 0) -> Packet | None:
-        """A packet saying the link opened ``connection`` at ``t_ns`` and read nothing yet.
+        """A packet saying the link opened ``connection`` at ``t_ns`` (monotonic), no bytes yet.
 
-        A consumer then knows the stream from the open, so the first contact of a receiver
-        silent until touched is not judged "joined mid-stream". Holds no read.
-
-        Args:
-            connection: The link's connection number (1, 2, ...).
-            t_ns: When it opened (the chunks' clock, monotonic).
-            to_ros_ns: Offset from that clock to ROS time, ns.
-
-        Returns:
-            The packet; ``None`` for the current connection or an encoding other than words.
+        A consumer then knows the stream from the open, so the first contact of a receiver silent
+        until touched is not judged "joined mid-stream". ``None`` for the current connection or an
+        encoding other than words.
         """
         if self.encoding != NUSKIN_WORDS_V1 or connection == self._connection:
             return None

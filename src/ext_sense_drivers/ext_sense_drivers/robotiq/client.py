@@ -75,16 +75,11 @@ def open_serial(port: str, baudrate: int = DEFAULT_BAUDRATE, timeout_s: float = 
 
 
 class RobotiqClient:
-    """Talks to one Robotiq 2F gripper.
+    """Talks to one Robotiq 2F gripper on an open serial port (or anything with its methods).
 
-    Args:
-        port: An open serial port (or anything with the same methods).
-        slave: Modbus slave id of the gripper.
-        timeout_s: Time allowed for each reply, seconds.
-        retries: Extra attempts after a missing or corrupt reply.
-        read_count: Status registers read per poll (3 hold the whole status).
-        sleep: Injected ``time.sleep`` for polling loops.
-        clock: Injected monotonic clock, seconds.
+    Each reply may take ``timeout_s`` and is retried ``retries`` times; a poll reads
+    ``read_count`` status registers (3 hold the whole status); ``sleep`` and ``clock`` (monotonic
+    seconds) are injectable.
     """
 
     def __init__(

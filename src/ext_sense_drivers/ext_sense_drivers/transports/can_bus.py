@@ -45,15 +45,10 @@ def _open_bus(interface: str, channel: str, bitrate: int | None):  # -> can.BusA
 
 
 class CanTransport:
-    """Reads the stream's frames from a CAN bus and joins their payloads (others are counted).
+    """Reads the stream's frames from a python-can bus and joins their payloads.
 
-    Args:
-        interface: python-can interface (``socketcan``, ``virtual``, ...).
-        channel: Channel on that interface.
-        arbitration_id: Id the stream's frames carry.
-        extended: Whether the id is a 29-bit extended id.
-        bitrate: Bus bit rate in bit/s where the interface needs it.
-        clock: Monotonic integer nanoseconds, stamped on each read.
+    Only frames under ``arbitration_id`` (29-bit when ``extended``) count; others and error
+    frames are counted and ignored. ``clock`` stamps each read (monotonic ns).
     """
 
     def __init__(

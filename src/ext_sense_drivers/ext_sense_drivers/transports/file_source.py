@@ -11,18 +11,11 @@ from ext_sense_drivers.transports.errors import TransportError
 
 
 class FileTransport:
-    """Replays a file's bytes at ``bytes_per_s`` since :meth:`open`, or flat out.
+    """Replays a file's bytes at ``bytes_per_s`` since :meth:`open`, or flat out (``None``).
 
-    At the end :attr:`exhausted` turns True and reads wait their timeout and return nothing,
-    unless ``loop`` starts over.
-
-    Args:
-        path: The capture.
-        bytes_per_s: Replay rate in bytes per second, or ``None`` for flat out.
-        chunk_size: Most bytes one read returns, > 0.
-        loop: Start over at the end instead of stopping.
-        clock: Monotonic integer nanoseconds (injectable, as ``sleep``).
-        sleep: Sleeps a number of seconds.
+    Reads return at most ``chunk_size`` bytes. At the end :attr:`exhausted` turns True and reads
+    wait their timeout and return nothing, unless ``loop`` starts over. ``clock`` (monotonic ns)
+    and ``sleep`` are injectable.
     """
 
     def __init__(

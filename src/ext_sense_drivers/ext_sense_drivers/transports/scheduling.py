@@ -92,15 +92,9 @@ def raise_thread_priority(
 ) -> Scheduling:
     """Give thread ``tid`` SCHED_FIFO at ``priority``, else the best nice allowed, else nothing.
 
-    A priority above a non-zero ``RLIMIT_RTPRIO`` is tried at the limit too. Never raises.
-
-    Args:
-        priority: SCHED_FIFO priority, 1-99; 0 or less leaves the thread as it is.
-        tid: Native thread id (default: the calling thread's).
-        fallback_nice: Nice to ask for when SCHED_FIFO is refused.
-        set_fifo: Sets SCHED_FIFO; ``set_nice`` and ``get_nice`` likewise injectable for tests.
-        set_nice: Sets a thread's nice.
-        get_nice: Reads a thread's nice.
+    A priority above a non-zero ``RLIMIT_RTPRIO`` is tried at the limit too; 0 or less leaves the
+    thread as it is; ``fallback_nice`` is asked for when SCHED_FIFO is refused. ``tid`` defaults
+    to the calling thread; ``set_fifo``, ``set_nice`` and ``get_nice`` are injectable. Never raises.
     """
     requested = min(int(priority), MAX_FIFO_PRIORITY)
     if requested <= 0:

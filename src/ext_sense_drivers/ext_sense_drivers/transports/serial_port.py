@@ -13,12 +13,9 @@ _MAX_READ = 65536
 
 
 class SerialTransport:
-    """Reads whatever the port has, waiting at most the timeout for the first byte.
+    """Reads what the port (a device, pty or pyserial URL) has, waiting at most the timeout.
 
-    Args:
-        port: Device path (a pty slave too) or pyserial URL (``loop://``).
-        baud: Line rate in bit/s.
-        clock: Monotonic integer nanoseconds, stamped on each read.
+    ``clock`` stamps each read (monotonic ns).
     """
 
     def __init__(
