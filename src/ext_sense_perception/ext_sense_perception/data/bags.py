@@ -1,15 +1,10 @@
 """Labelled windows from a rosbag2 bag, cut by the live graph's own windowing code (no ROS).
 
-The sensor stream (``SensorPacket``, preferred, or the decoded ``TaxelEventBatch`` /
-``BioTacFrame`` of older bags) goes through
-:class:`~ext_sense_perception.online.stage.WindowStage` in log-time order. Onsets:
-
-- ``"truth"`` (default with ground truth): every ``ContactGroundTruth`` stamp is an onset, with
-  debounce off, as ``dataset.npz`` is cut.
-- ``"detected"``: onsets detected as live, each window labelled by the nearest truth
-  (unlabelled without ground truth).
-
-Undecodable messages and malformed batches are counted and dropped (:class:`BagCounts`).
+The sensor stream (``SensorPacket``, else the decoded arrays of older bags) goes through
+:class:`~ext_sense_perception.online.stage.WindowStage` in log-time order. Onsets are the
+``ContactGroundTruth`` stamps (``truth``, debounce off, as ``dataset.npz`` is cut) or detected
+as live (``detected``, labelled by the nearest truth). Undecodable and malformed messages are
+counted and dropped (:class:`BagCounts`).
 """
 
 from __future__ import annotations

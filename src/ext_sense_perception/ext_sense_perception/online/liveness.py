@@ -3,18 +3,14 @@
 A stopped driver or blocked link looks downstream like silence then a burst, and a window cut
 across it misses signal while every status says OK. No ROS; the clock is injectable.
 
-- *Streaming*: input must arrive (always for BioTac; for NUSkin while the driver's stream goes).
-- A *stall*: silence while streaming beyond ``warn_ns`` (WARN), then ``error_ns`` (ERROR), kept
-  as an interval of stream time so every window overlapping it is marked.
-- A *late packet*: more than ``late_ns`` over the stream's usual delay (its smallest recent
-  ``arrival - stamp``). Counted only: the stream is in order, so a late packet is still in its
-  window.
-- *Lost input*: the driver's running word count grew by more than the events that arrived
-  (:meth:`StreamLiveness.on_counts`), or packets are missing by ``seq``.
+- A *stall*: silence while input must arrive (BioTac always, NUSkin while the driver's stream
+  goes) beyond ``warn_ns`` (WARN), then ``error_ns`` (ERROR), kept as stream time.
+- A *late packet*: ``late_ns`` over the stream's usual delay; counted only, since the stream is
+  in order and a late packet is still in its window.
+- *Lost input*: the driver's word count ran ahead of the events received, or ``seq`` gaps.
 
-Windows overlapping a fault get a reason from :meth:`StreamLiveness.fault_in` and are published
-``degraded``. Lost input no window covered, once the stream is ``contact_horizon_ns`` past it,
-is a lost contact if it could hold an onset; gaps closer than ``debounce_ns`` count once.
+Windows overlapping a fault are published ``degraded`` (:meth:`StreamLiveness.fault_in`); lost
+input no window covered that could hold an onset is a lost contact.
 """
 
 from __future__ import annotations

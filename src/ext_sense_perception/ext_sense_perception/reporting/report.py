@@ -1,10 +1,8 @@
 """``ext-sense report``: paper-style tables (markdown) and plots (PNG) of accuracy against time.
 
-Per data set: a features x models table (with the GRU for NUSkin taps), the score against the
-post-contact window, inference latency, sampling rate, fingers and taxels, and the anytime
-estimator's calibration; across tap data sets, rod length. Points come from the protocol
-(:mod:`.runner`); ``report.md`` is rewritten after every data set, and ``update`` keeps the
-former report's other data sets.
+Per data set: models, decision latency, inference latency, sampling rate, fingers and taxels,
+anytime calibration; across tap data sets, rod length. ``report.md`` is rewritten after every
+data set.
 """
 
 from __future__ import annotations

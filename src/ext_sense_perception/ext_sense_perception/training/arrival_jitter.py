@@ -1,17 +1,10 @@
 """Arrival jitter as a late reader makes it: re-stamping events per read (no ROS).
 
 The driver stamps each read's words over the time since the previous read, so a late read
-stamps a whole chunk at once (issue #16). The read model (:class:`ReadDelay`, measured by
-``bench/bench_arrival.py``) is the time from when the oldest unread word was due to the read's
-return; a read takes every word then due.
-
-- :func:`rechunk_writes` groups a byte stream into a late reader's reads;
-  :func:`late_read_window_set` trains on such cuts beside the ideal one.
-- :func:`augment` re-stamps binned NUSkin windows in place (``Recipe.arrival_jitter``),
-  re-aligned on the re-stamped onset; only times move.
-- :func:`onset_shifted` adds copies with the onset moved by up to ``max_shift_ns``
-  (``Recipe.onset_shifts``), so a model does not read position from where events fall in the
-  onset's bin.
+stamps a whole chunk at once (issue #16). :class:`ReadDelay` (``bench/bench_arrival.py``) is
+the time from when the oldest unread word was due to the read's return. :func:`rechunk_writes`
+and :func:`late_read_window_set` replay it on byte streams; :func:`augment` re-stamps binned
+windows; :func:`onset_shifted` adds copies at moved onsets.
 """
 
 from __future__ import annotations

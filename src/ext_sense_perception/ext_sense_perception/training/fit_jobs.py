@@ -1,11 +1,8 @@
 """Where protocol fits run, on joblib: here or on a Dask cluster, with a cache of finished fits.
 
-``--workers N`` starts a local Dask cluster for the command, ``--scheduler tcp://HOST:PORT``
-uses an existing one; without either, fits run here one after the other.
-:meth:`FitRunner.run_jobs` runs the fits of many points with ``joblib.Parallel`` (its Dask
-backend on a cluster). Finished fits are cached by this process as they arrive
-(:class:`FitCache`), so an interrupted run loses only the running fits and workers need no
-shared file system. ``dask`` is imported only when a cluster is asked for. No ROS.
+``--workers N`` starts a local cluster, ``--scheduler`` uses an existing one, else fits run
+here. Finished fits are cached by this process as they arrive (:class:`FitCache`), so an
+interrupted run loses only the running fits and workers need no shared file system. No ROS.
 """
 
 from __future__ import annotations

@@ -1,11 +1,9 @@
 # ruff: noqa: N803, N806  (X / F for sample matrices, as in scikit-learn)
 """GRU(16) + MLP(16, 8) estimator on the binned series (the paper's RNN; torch, optional extra).
 
-The GRU runs over the time axis of the features reshaped to ``(n, n_channels, n_steps)`` (backwards
-by default), and the MLP reads its last hidden state. Trained with Adam, weight decay and gradient
-clipping on ``n_threads`` CPU threads. The network is kept as NumPy arrays (:class:`GRUNet`) and as
-torch's ONNX export (``onnx_``, spliced into the whole model's graph by :mod:`.onnx_export`), so a
-fitted estimator pickles and exports without torch; only :meth:`GRUEstimator.predict` needs it.
+The network is kept as NumPy arrays (:class:`GRUNet`) and as torch's ONNX export (``onnx_``,
+spliced in by :mod:`.onnx_export`), so a fitted estimator pickles and exports without torch;
+only :meth:`GRUEstimator.predict` needs it.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """The paper's models and their hyper-parameter grids (no ROS).
 
-A model is a ``Pipeline``: ``features`` -> ``scale`` (``StandardScaler``) -> ``model``. Grids follow
-the public code's C grid on cm labels; labels here are metres, so C and epsilon are divided by 100.
-The GRU (torch, optional) scales its own inputs, so its scaler is the identity; ``taxel_svr`` (taps
-only) is :class:`~ext_sense_perception.training.taxel_stack.TaxelStackSVR`.
+A model is a ``Pipeline``: ``features`` -> ``scale`` -> ``model``. The C grid is the public
+code's on cm labels; labels here are metres, so C and epsilon are divided by 100. The GRU
+scales its own inputs (its scaler is the identity).
 """
 
 from __future__ import annotations

@@ -1,12 +1,10 @@
 # ruff: noqa: N806  (X / F for sample matrices, as in scikit-learn)
 """The paper's evaluation protocol (no ROS).
 
-K times: a random 90/10 split (stratified for classes), a grid search with 4-fold CV on the
-90%, refit, score the 10%; splits and folds keep a trial's windows together. Seeded. Each split
-is one task (:mod:`.split_fit`) run here or on Dask (:mod:`.fit_jobs`) with the same result:
-:func:`plan_evaluation` lists a point's tasks, :func:`assemble` makes its result, and
-:func:`evaluate` does both. Features without learned state (all but the autoencoder) are
-computed once for all windows, which equals computing them per fold.
+K times: a random 90/10 split (stratified for classes, whole trials), a 4-fold grid search on
+the 90%, refit, score the 10%. Each split is one task (:mod:`.split_fit`) run here or on Dask
+(:mod:`.fit_jobs`) with the same result. Features without learned state (all but the
+autoencoder) are computed once for all windows, which equals computing them per fold.
 """
 
 from __future__ import annotations

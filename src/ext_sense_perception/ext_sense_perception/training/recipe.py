@@ -1,10 +1,7 @@
 """The one training recipe: a window set in, a saved bundle (with its anytime models) out.
 
-``ext-sense train``, the demo, training from bags and the tests all call :func:`train_bundle`,
-so bundles differ only in their windows and :class:`Recipe` choices. The recipe fixes the
-task's default features and model, the profile's feature bin and bin kernel, the default
-feature grid, the anytime models, the grid search and refit of :func:`~.fit.fit_model`, and
-optional arrival-jitter augmentation (:mod:`.arrival_jitter`).
+Every trainer (``ext-sense train``, the demo, bags, tests) calls :func:`train_bundle`, so
+bundles differ only in their windows and :class:`Recipe` choices.
 """
 
 from __future__ import annotations
