@@ -23,12 +23,8 @@ class GraphError(ValueError):
 class ArgumentSpec:
     """One launch argument: ``name:=value`` on the command line of both front ends.
 
-    Values arrive as strings, checked by :meth:`check` before any node starts.
-
-    Attributes:
-        kind: ``str``, ``int`` or ``float``: what the value must parse as.
-        low: Inclusive lower bound of a number (``None``: none).
-        high: Inclusive upper bound of a number (``None``: none).
+    Values arrive as strings, checked by :meth:`check` before any node starts: they must parse
+    as ``kind`` and lie in the inclusive ``[low, high]`` (``None``: unbounded).
     """
 
     name: str
@@ -82,21 +78,11 @@ class ArgumentSpec:
 
 @dataclass(frozen=True)
 class NodeSpec:
-    """One node to start.
+    """One node to start: ``ros2 run package executable``, or ``plugin`` (``"module:Class"``).
 
-    Attributes:
-        package: ROS package that installs the executable.
-        executable: Console script (``ros2 run package executable``).
-        name: Node name.
-        plugin: ``"module:Class"`` of the Node subclass; the runner imports it.
-        parameters: Parameter overrides (typed, never strings for numbers).
-        remappings: ``(from, to)`` topic remappings.
-        required: When this node exits, the whole graph stops (launch's ``Shutdown``).
-        lifecycle: A lifecycle node: it starts unconfigured.
-        manage: The front end configures and activates a lifecycle node (else left to an
-            external manager).
-        process: Name of the process this node shares with the others of that name (one
-            executor); empty: a process of its own.
+    ``parameters`` are typed overrides; when a ``required`` node exits the graph stops; a
+    ``lifecycle`` node starts unconfigured and is configured and activated by the front end if
+    it ``manage``s it; nodes of one ``process`` name share a process (empty: their own).
     """
 
     package: str

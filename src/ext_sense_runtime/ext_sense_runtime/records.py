@@ -101,13 +101,8 @@ class EventBlock(NamedTuple):
 class GroundTruth(NamedTuple):
     """What really happened in one trial (the fields of ``ContactGroundTruth``).
 
-    Attributes:
-        trial: Trial number.
-        onset_ns: Contact onset (food: the arm's motion start), ns, on its stream's clock.
-        task: Task label, e.g. ``"tap_localization"``.
-        tap_position_m: Tap distance from the held end, metres (NaN when not a tap).
-        class_label: Class (``"stable"``/``"unstable"``, a food), empty for taps.
-        rod_length_m: Rod length, metres (NaN when no rod).
+    ``onset_ns`` (food: the arm's motion start) is on the clock of the stream it labels; the
+    tap position is from the held end, metres; fields that do not apply are NaN or empty.
     """
 
     trial: int
@@ -126,25 +121,10 @@ class GroundTruth(NamedTuple):
 class Estimate(NamedTuple):
     """What a model concluded about one contact window (fields of ``ContactEstimate``).
 
-    Fields that do not apply are NaN, -1, "" or empty.
-
-    Attributes:
-        task: Task label.
-        onset_ns: Contact onset of the window (food: motion start), integer ns.
-        sensor: Sensor label.
-        model_id: The model card id of the model that produced it.
-        provisional: An anytime estimate from a shortened window.
-        post_contact_used_ns: Post-contact signal the model used, ns.
-        compute_latency_ns: Time to compute it, ns (see the inference node for the clock).
-        tap_position_m: Tap distance from the held end, metres.
-        tap_position_std_m: Its standard deviation, metres.
-        class_index: Index of ``class_label`` in ``class_names``.
-        class_label: The most probable class.
-        class_names: The model's classes.
-        class_probabilities: Probabilities in the order of ``class_names``.
-        stability_probability: P(stable grasp), 0..1.
-        degraded: Its window missed data, or it came after the inference node's deadline.
-        degraded_reason: Why (empty when not degraded).
+    Fields that do not apply are NaN, -1, "" or empty. Times are integer ns (``onset_ns``:
+    food's motion start), positions metres from the held end. ``provisional``: an anytime
+    estimate from a shortened window; ``degraded``: its window missed data, or it came after
+    the inference node's deadline (``degraded_reason`` says which).
     """
 
     task: str
