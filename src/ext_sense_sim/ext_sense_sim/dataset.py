@@ -1,24 +1,4 @@
-"""The compact simulator dataset (``dataset.npz``) in the format of docs/conventions.md.
-
-Keys (one row per trial unless stated):
-
-- ``task`` (str), ``sensor`` (``"nuskin"``/``"biotac"``), ``label_kind``
-  (``"regression"``/``"classification"``), ``scene`` (str), ``seed`` (int64);
-- ``y``: tap position from the held end, float64 metres, or ``<U`` class labels;
-- ``trial`` int32, ``onset_ns`` int64 (contact onset, food: motion start, from the trial's
-  origin), ``rod_length_m`` float64 (NaN when the object is not a rod), ``trial_ns`` int64
-  (length of every trial);
-- ``object_kind`` (str: ``rod``, ``box``, ``plate``, ``fork``) and ``object_length_m``
-  (float64): the held object, which a model trained on the dataset records in its card;
-- ``finger_taxels`` uint16 ``(2, 40)``: taxel ids of the left and right finger, each row
-  row-major on the 8 x 5 lattice (row along the object's axis, row 7 nearest the free span);
-- NUSkin: ``ev_trial`` int32, ``ev_t_ns`` int64 (from the trial's origin), ``ev_taxel`` uint16
-  (1..80), ``ev_polarity`` int8 (+1/-1), ``ev_value`` uint16, one row per event, sorted by
-  trial then time;
-- BioTac: ``pac`` ``(n_trials, 2, n_pac)`` uint16 at 2200 Hz from ``pac_t0_ns`` (n_trials,)
-  int64; ``pdc``, ``tac``, ``tdc`` ``(n_trials, 2, n_slow)`` uint16 and ``electrodes``
-  ``(n_trials, 2, n_slow, 19)`` uint16 at 100 Hz from the same origin (sensor 0 left finger).
-"""
+"""The compact simulator dataset ``dataset.npz`` (keys: docs/simulator.md, docs/conventions.md)."""
 
 from __future__ import annotations
 

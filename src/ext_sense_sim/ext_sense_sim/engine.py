@@ -1,9 +1,8 @@
 """Running a scene: build the listed effects, check their chain, simulate trials in batches.
 
-Only the effects a scene lists are constructed and run; each keeps a count of its calls and
-the time it took (:attr:`Simulator.stats`), so a scene without an effect visibly never pays
-for it. A scene whose chain misses a signal fails before anything runs, naming the effect
-that would give it.
+Only the effects a scene lists are built and run, each counting its calls and time
+(:attr:`Simulator.stats`); a chain that misses a signal fails before anything runs, naming the
+effect that would give it.
 """
 
 from __future__ import annotations
@@ -41,15 +40,7 @@ def provider_of(signal: str) -> list[str]:
 
 
 class Simulator:
-    """The effects of one scene, built and checked.
-
-    Args:
-        scene: The scene.
-
-    Raises:
-        SceneError: Unknown effect, an effect whose input no earlier effect gives, or a
-            chain that never produces the sensor's signal (the message names the effect).
-    """
+    """The effects of one scene, built and checked (see module docstring)."""
 
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
@@ -96,12 +87,7 @@ class Simulator:
         return tb, signals
 
     def batches(self, trials: int, seed: int) -> Iterator[tuple[TimeBase, Signals]]:
-        """All trials of a run, ``batch_size`` at a time, each batch with its own generator.
-
-        Args:
-            trials: Number of trials (>= 1).
-            seed: Seed of the run; the batch ``b`` uses ``SeedSequence(seed).spawn`` child ``b``.
-        """
+        """All trials of a run in batches; batch b draws from child b of ``SeedSequence(seed)``."""
         if trials < 1:
             raise SceneError(f"The 'trials' argument must be >= 1. Got {trials} instead.")
         size = self.scene.batch_size

@@ -1,8 +1,4 @@
-"""Materials and cross-sections of the held objects, and where the gripper holds them.
-
-Material constants are handbook values (Young's modulus, density, loss factor); the loss
-factor sets the modal damping ratio ``zeta = eta / 2`` unless a scene overrides it.
-"""
+"""Materials (handbook values) and cross-sections of the held objects, and where they are held."""
 
 from __future__ import annotations
 
@@ -34,17 +30,10 @@ MATERIALS: dict[str, Material] = {
 
 @dataclass(frozen=True)
 class Geometry:
-    """The held object as a straight prismatic beam, held at one end.
+    """The held object as a straight prismatic beam held at one end (SI units).
 
-    Attributes:
-        kind: ``"rod"``, ``"box"``, ``"plate"`` or ``"fork"``.
-        material: Its material.
-        length_m: Overall length, metres.
-        held_length_m: Length inside the grasp, from the held end to the pads' edge, metres.
-        area_m2: Cross-section area, m^2.
-        inertia_normal_m4: Second moment for bending toward the pads, m^4.
-        inertia_tangent_m4: Second moment for bending along the pads, m^4.
-        width_m: Width of the section across the pads' columns, metres (contact strip).
+    ``held_length_m`` runs from the held end to the pads' edge; the second moments are for
+    bending toward (normal) and along (tangent) the pads; ``width_m`` is across the pads.
     """
 
     kind: str
@@ -63,14 +52,10 @@ class Geometry:
 
 
 def section_properties(section: Mapping[str, Any]) -> tuple[float, float, float, float]:
-    """Area, inertia toward the pads, inertia along the pads and contact width of a section.
+    """Area, inertia toward and along the pads and contact width of a section.
 
-    Args:
-        section: ``{shape: circle, diameter_m}``, ``{shape: rect, width_m, thickness_m}``
-            (thickness toward the pads) or ``{shape: hollow_rect, width_m, thickness_m, wall_m}``.
-
-    Raises:
-        SceneError: Unknown shape or a missing/non-positive dimension.
+    ``section``: ``{shape: circle, diameter_m}``, ``{shape: rect, width_m, thickness_m}``
+    (thickness toward the pads) or ``{shape: hollow_rect, width_m, thickness_m, wall_m}``.
     """
     shape = section.get("shape")
 
@@ -110,11 +95,7 @@ def section_properties(section: Mapping[str, Any]) -> tuple[float, float, float,
 
 
 def geometry_from(obj: Mapping[str, Any], held_length_m: float) -> Geometry:
-    """Build the :class:`Geometry` of a scene's ``object`` section.
-
-    Raises:
-        SceneError: Unknown material, bad section, or a grasp longer than the object.
-    """
+    """Build the :class:`Geometry` of a scene's ``object`` section."""
     material_name = obj.get("material", "acrylic")
     if material_name not in MATERIALS:
         raise SceneError(

@@ -1,9 +1,6 @@
 """``sim run``: simulate a scene's trials and write every output into one folder.
 
-Layout of ``OUT`` (see docs/simulator.md): ``dataset.npz``; the paper's formats
-(``nuskin/trial_NNNN.tact`` + ``nuskin/essentials.csv``, or ``biotac/biotac.csv``); raw device
-streams under ``raw/`` when the scene lists the wire effect; ``bag/`` (rosbag2, mcap) when
-the bag writer is available; ``run.json`` with the effect costs.
+The layout of the folder is in docs/simulator.md ("Outputs of ``sim run``").
 """
 
 from __future__ import annotations
@@ -27,17 +24,9 @@ def run_scene(
     seed: int | None = None,
     formats: tuple[str, ...] = ("npz", "paper", "raw", "bag"),
 ) -> dict[str, Any]:
-    """Simulate and write the outputs; returns the summary also written to ``run.json``.
+    """Simulate and write the outputs into a new or empty ``out``; returns ``run.json``'s summary.
 
-    Args:
-        scene: The scene.
-        out: Output folder (created).
-        trials: Number of trials (default: the scene's).
-        seed: Seed (default: the scene's).
-        formats: Which outputs to write.
-
-    Raises:
-        SceneError: A bad scene, or an output folder that is not empty.
+    ``trials`` and ``seed`` default to the scene's.
     """
     from ext_sense_sim.output import write_outputs
 

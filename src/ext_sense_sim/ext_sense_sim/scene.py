@@ -1,7 +1,7 @@
 """Scenes: YAML files declaring task, object, grasp, sensor, effects, trials and seed.
 
-A scene names every effect it needs, in the order they run; the simulator builds only those.
-Shipped scenes live in ``ext_sense_sim/scenes/*.yaml`` and are found by name.
+A scene names every effect it needs, in run order. Shipped scenes live in
+``ext_sense_sim/scenes/*.yaml`` and are found by name.
 """
 
 from __future__ import annotations
@@ -29,27 +29,14 @@ DEFAULT_SCENES = {
     ("food_identification", "nuskin"): "food_fork_nuskin",
     ("food_identification", "biotac"): "food_fork_biotac",
 }
-"""The shipped scene of each ``(task, sensor)``: what a graph simulates and the default models
-are trained on when no scene is named."""
+"""The shipped scene of each ``(task, sensor)`` when none is named."""
 
 
 @dataclass(frozen=True)
 class Scene:
-    """A parsed scene.
+    """A parsed scene; ``effects`` are ``(name, parameters)`` in run order.
 
-    Attributes:
-        name: Scene name (file stem for shipped scenes).
-        task: What is being simulated.
-        sensor: Which sensor.
-        geometry: The held object and the grasp.
-        effects: ``(effect name, parameters)`` in run order.
-        rate_hz: Simulation sample rate, Hz.
-        trial_s: Length of one trial, seconds.
-        trials: Default number of trials.
-        seed: Default seed.
-        batch_size: Trials simulated together (results depend on seed and batch size).
-        description: One line for ``sim list``.
-        path: Where the scene was read from.
+    Results depend on the seed and on ``batch_size``, the trials simulated together.
     """
 
     name: str
@@ -105,11 +92,7 @@ def _effects(raw: Any) -> tuple[tuple[str, Mapping[str, Any]], ...]:
 
 
 def scene_from_dict(data: Mapping[str, Any], name: str, path: Path | None = None) -> Scene:
-    """Build a :class:`Scene` from parsed YAML.
-
-    Raises:
-        SceneError: A missing or malformed section, naming it.
-    """
+    """Build a :class:`Scene` from parsed YAML (a :class:`SceneError` names a bad section)."""
     if not isinstance(data, Mapping):
         raise SceneError(f"Scene '{name}' must be a YAML mapping. Got {type(data).__name__}.")
     task = _enum(Task, data.get("task"), "task")
@@ -156,11 +139,7 @@ def shipped_scenes() -> dict[str, Path]:
 
 
 def load_scene(name_or_path: str | Path) -> Scene:
-    """Load a shipped scene by name, or any scene file by path.
-
-    Raises:
-        SceneError: Unknown name, unreadable file, bad YAML or a malformed scene.
-    """
+    """Load a shipped scene by name, or any scene file by path."""
     shipped = shipped_scenes()
     key = str(name_or_path)
     path = shipped.get(key, Path(key))

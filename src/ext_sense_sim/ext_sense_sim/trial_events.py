@@ -1,15 +1,9 @@
 """NUSkin events of a batch of trials: the runtime ``EventBlock`` plus the trial of each event.
 
-The simulator's ``events`` signal is the pair ``(trial, events)`` (:data:`TrialEvents`):
-
-- ``events`` is an :class:`ext_sense_runtime.records.EventBlock` (the record every package
-  passes NUSkin events in), times from each trial's origin;
-- ``trial`` is an ``int32`` array parallel to it: the trial index of each event, batch-local in
-  the effects, run-wide once :class:`ext_sense_sim.dataset.DatasetCollector` has offset it.
-
-The pair is sorted by trial, then time (stable), so one trial's events are a contiguous slice
-(:func:`trial_bounds`). The functions here keep the two in step; none copies the event columns
-into a record of its own.
+The simulator's ``events`` signal is the pair ``(trial, events)`` (:data:`TrialEvents`): an
+``int32`` trial index per event (batch-local in the effects, run-wide in the dataset) and the
+events, times from each trial's origin, sorted by trial then time, so one trial's events are a
+contiguous slice (:func:`trial_bounds`).
 """
 
 from __future__ import annotations
@@ -31,15 +25,7 @@ def empty() -> TrialEvents:
 
 
 def by_trial(trial: npt.ArrayLike, events: EventBlock) -> TrialEvents:
-    """The pair sorted by trial, then time (stable: equal keys keep their order).
-
-    Args:
-        trial: Trial index of each event, shape ``(events.size,)``.
-        events: The events.
-
-    Raises:
-        ValueError: ``trial`` is not 1-D of the events' length.
-    """
+    """The pair sorted by trial, then time (stable); ``trial`` gives one index per event."""
     trial = np.asarray(trial).astype(np.int32, copy=False)
     if trial.shape != (events.size,):
         raise ValueError(
@@ -66,20 +52,14 @@ def merge(*parts: TrialEvents) -> TrialEvents:
 
 
 def trial_bounds(trial: npt.NDArray[np.integer], n_trials: int) -> npt.NDArray[np.intp]:
-    """``(n_trials + 1,)`` bounds: trial ``i``'s events are ``[bounds[i], bounds[i + 1])``.
-
-    ``trial`` must be sorted (as :func:`by_trial` leaves it).
-    """
+    """Bounds ``(n_trials + 1,)`` of each trial's events in a sorted ``trial``."""
     return np.searchsorted(trial, np.arange(n_trials + 1))
 
 
 def last_values(
     trial: npt.NDArray[np.integer], events: EventBlock, n_trials: int
 ) -> npt.NDArray[np.uint16]:
-    """Value of each taxel's last event per trial (0 when none), ``(n_trials, 80)`` uint16.
-
-    "Last" is the latest row of a sorted pair (as :func:`by_trial` leaves it).
-    """
+    """Value of each taxel's last event per trial (0 when none) of a sorted pair, ``(n, 80)``."""
     out = np.zeros((n_trials, 80), dtype=np.uint16)
     out[trial, events.taxel.astype(np.intp) - 1] = events.value  # later rows win
     return out

@@ -1,17 +1,10 @@
 """Fitting a scene's free physical parameters to statistics of real captures.
 
-A calibration names the parameters to fit (:class:`FreeParameter`: an effect's parameter, its
-bounds, and for a ``[low, high]`` range the fixed ratios of its ends to the fitted centre), the
-statistics to match (:class:`Target`: the real value and the tolerance that counts as a
-match) and how to measure them on a scene. :func:`fit` then runs a deterministic coordinate
-search in log space: each parameter in turn is multiplied and divided by a step, a change is
-kept when it lowers the loss, and the step halves when a whole round keeps nothing. Every
-evaluation simulates the same trials with the same seed (common random numbers), so a change
-of loss is the parameter's doing, not the draw's, and a rerun gives the same fit.
-
-The loss is the mean of squared misses in units of each target's tolerance: a statistic inside
-its tolerance costs at most 1. Counts are compared as log ratios (events per window x0.7-1.4
-is a tolerance of ``log 1.4``).
+:func:`fit` runs a deterministic coordinate search in log space: each :class:`FreeParameter` in
+turn is multiplied and divided by a step, a change is kept when it lowers the loss, and the step
+halves (in log) when a round keeps nothing. Every evaluation simulates the same trials with the
+same seed, so a change of loss is the parameter's doing, and a rerun gives the same fit. The
+loss is the mean squared miss of each :class:`Target` in units of its tolerance.
 """
 
 from __future__ import annotations
@@ -29,13 +22,9 @@ from ext_sense_sim.scene import Scene
 
 @dataclass(frozen=True)
 class FreeParameter:
-    """One parameter of one effect that the fit may move.
+    """One parameter of one effect that the fit may move, within ``[low, high]``.
 
-    Attributes:
-        effect: Effect name as listed in the scene (``contact_impulse``).
-        key: Parameter name (``force_n``).
-        low, high: Bounds of the fitted value (of the centre for a range).
-        spread: ``None`` for a scalar; ``(a, b)`` writes the range ``[a v, b v]`` for value ``v``.
+    With ``spread = (a, b)`` the parameter is a range written ``[a v, b v]`` for the value ``v``.
     """
 
     effect: str
@@ -72,13 +61,9 @@ class FreeParameter:
 
 @dataclass(frozen=True)
 class Target:
-    """A statistic to match: its real value, the tolerance of a match, and how to compare.
+    """A statistic to match: its real value and the miss counted as one unit of loss.
 
-    Attributes:
-        name: Statistic name, as the measure function returns it.
-        value: The real captures' value (pooled median).
-        tolerance: Difference counted as one unit of loss (for ``log`` targets a log ratio).
-        log: Compare ``log(sim / real)`` instead of ``sim - real``.
+    ``log`` targets compare ``log(sim / real)`` instead of ``sim - real``.
     """
 
     name: str
@@ -108,11 +93,7 @@ class FitStep:
 
 
 def with_values(scene: Scene, free: Sequence[FreeParameter], values: Sequence[float]) -> Scene:
-    """A copy of ``scene`` with each free parameter set to its value.
-
-    Raises:
-        SceneError: A free parameter names an effect the scene does not list.
-    """
+    """A copy of ``scene`` with each free parameter set to its value."""
     effects = [(name, dict(params)) for name, params in scene.effects]
     for parameter, value in zip(free, values, strict=True):
         params = _params_of(scene, effects, parameter)
@@ -159,20 +140,11 @@ def fit(
     max_evaluations: int = 80,
     on_step: Callable[[FitStep], None] | None = None,
 ) -> tuple[list[float], list[FitStep]]:
-    """Coordinate search of the free parameters (see module docstring).
+    """Coordinate search of the free parameters from the scene's values (see module docstring).
 
-    Args:
-        scene: The scene to calibrate; its current values are the starting point.
-        free: Parameters to move, each kept inside its bounds.
-        targets: Statistics to match.
-        measure: Simulates a scene and returns its statistics (same trials and seed each call).
-        step: First multiplicative step; halved (in log) when a round keeps nothing.
-        min_step: The search ends when the step falls below this factor.
-        max_evaluations: Upper bound on simulations.
-        on_step: Called after every evaluation (progress, logging).
-
-    Returns:
-        ``(best values, every step in order)``.
+    ``measure`` simulates a scene and returns its statistics; the search ends when the step
+    falls below ``min_step`` or after ``max_evaluations``. Returns the best values and every
+    step in order.
     """
     values = start_values(scene, free)
     history: list[FitStep] = []

@@ -1,9 +1,8 @@
 """What every effect shares: its declared inputs and outputs, parameters and per-trial draws.
 
-An effect is a small unit with one documented model. It reads named signals from a
-:class:`Signals` board and writes the signals it gives; the engine checks before running
-anything that every signal an effect needs is given by an effect listed before it.
-Signals carry a leading batch axis: one row per trial of the batch.
+An effect reads named signals from a :class:`Signals` board and writes the signals it gives;
+the engine checks before running anything that an effect listed earlier gives each signal an
+effect needs. Signals carry a leading batch axis: one row per trial of the batch.
 """
 
 from __future__ import annotations
@@ -19,14 +18,7 @@ from ext_sense_sim.errors import SceneError
 
 @dataclass(frozen=True)
 class TimeBase:
-    """The sample grid shared by the effects of one batch.
-
-    Attributes:
-        rate_hz: Simulation sample rate, Hz.
-        n_samples: Samples per trial.
-        n_trials: Trials in this batch.
-        first_trial: Index of the batch's first trial within the run.
-    """
+    """The sample grid shared by the effects of one batch (``first_trial``: its run index)."""
 
     rate_hz: float
     n_samples: int
@@ -64,17 +56,10 @@ Range = tuple[float, float]
 
 
 class Effect:
-    """Base of all effects.
+    """Base of all effects, built from the scene's ``params`` and the scene as ``context``.
 
-    Subclasses set ``name``, ``needs``, ``gives``, ``defaults`` (parameter name to default;
-    a two-element list is a uniform per-trial randomisation range) and implement :meth:`run`.
-
-    Args:
-        params: Parameters from the scene, overriding ``defaults``.
-        context: Scene-wide facts (object geometry, grasp, sensor, seed) the effect may read.
-
-    Raises:
-        SceneError: An unknown parameter, or a value of the wrong shape.
+    Subclasses set ``name``, ``needs``, ``gives``, ``defaults`` (parameter name to default; a
+    two-element list is a uniform per-trial range) and implement :meth:`run`.
     """
 
     name: ClassVar[str] = ""
@@ -122,11 +107,7 @@ class Effect:
         low: float | None = None,
         high: float | None = None,
     ) -> np.ndarray:
-        """Per-trial values of ``key``: uniform in ``[lo, hi]`` for a range, else constant.
-
-        Returns:
-            float64 array of shape ``(n,)``.
-        """
+        """Per-trial values ``(n,)`` of ``key``: uniform over a range, else constant."""
         value = self.params[key]
         if isinstance(value, (list, tuple)):
             if len(value) != 2:

@@ -39,11 +39,7 @@ _ASYMPTOTIC_FROM = 12
 
 
 def clamped_free_roots(n_modes: int) -> np.ndarray:
-    """The first ``n_modes`` roots ``beta_n L`` of ``1 + cos(x) cosh(x) = 0``.
-
-    Solved as ``cos(x) + 1 / cosh(x) = 0`` (no overflow); from mode 12 on the root equals
-    ``(2n - 1) pi / 2`` to double precision.
-    """
+    """The first roots ``beta_n L`` of ``1 + cos(x) cosh(x) = 0``, solved without overflow."""
     roots = np.empty(n_modes)
     for i in range(n_modes):
         n = i + 1
@@ -57,18 +53,10 @@ def clamped_free_roots(n_modes: int) -> np.ndarray:
 
 
 def mode_shapes(beta_l: np.ndarray, x_over_l: np.ndarray) -> np.ndarray:
-    """Clamped-free mode shapes with unit mean square (``int_0^L phi^2 dx = L``).
+    """Clamped-free mode shapes with unit mean square, ``S + (n_modes,)`` at positions ``S``.
 
-    Uses ``phi = e^{-bx} + (1 - sigma) sinh(bx) - cos(bx) + sigma sin(bx)`` with
-    ``(1 - sigma) sinh(bx)`` written as ratios of decaying exponentials, so high modes and
-    long beams stay finite.
-
-    Args:
-        beta_l: Roots ``beta_n L``, shape ``(n_modes,)``.
-        x_over_l: Positions as a fraction of the span, any shape ``S``.
-
-    Returns:
-        ``S + (n_modes,)`` array of ``phi_n(x)``.
+    ``phi = e^{-bx} + (1 - sigma) sinh(bx) - cos(bx) + sigma sin(bx)``, the sinh term written as
+    ratios of decaying exponentials, so high modes and long beams stay finite.
     """
     bl = np.asarray(beta_l, dtype=np.float64)
     bx = np.asarray(x_over_l, dtype=np.float64)[..., None] * bl
@@ -123,12 +111,8 @@ def zoh_filters(
 class BeamModel:
     """Modal model of one bending plane of a clamped-free beam (see module docstring).
 
-    Args:
-        length_m: Free span, metres.
-        youngs_pa, inertia_m4, density, area_m2: Beam constants (SI).
-        zeta: Modal damping ratio (scalar or per mode).
-        max_freq_hz: Keep the modes below this frequency (at least one mode).
-        max_modes: Upper bound on the number of modes.
+    Arguments in SI units; ``zeta`` is scalar or per mode; the modes below ``max_freq_hz`` are
+    kept (at least one, at most ``max_modes``).
     """
 
     def __init__(
@@ -176,16 +160,7 @@ class BeamModel:
     def root_loads(
         self, force: np.ndarray, position_m: np.ndarray, dt: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Root shear and moment for forces at positions.
-
-        Args:
-            force: ``(n_trials, n_samples)`` newtons, held over each sample.
-            position_m: ``(n_trials,)`` metres from the clamp.
-            dt: Sample period, seconds.
-
-        Returns:
-            ``(shear, moment)``, each ``(n_trials, n_samples)``, newtons and newton-metres.
-        """
+        """Root shear and moment of ``force`` ``(n_trials, n_samples)`` at ``position_m``."""
         b_q, _, a = zoh_filters(self.omega, self.zeta, dt)
         phi = self.shapes_at(position_m)  # (n_trials, n_modes)
         shear = np.zeros_like(force)
@@ -265,15 +240,10 @@ class TorsionModel:
 class BeamModes(Effect):
     """Clamped-free Euler-Bernoulli modes of the held object (see module docstring).
 
-    Gives ``clamp_load``: ``(n_trials, 6, n_samples)`` float64, channels shear toward the
-    pads (N), moment toward the pads (N m), shear along the pads (N), moment along the
-    pads (N m), axial force (N), torque about the object's axis (N m; zero unless
-    ``torsion`` is on).
-
-    ``torsion: true`` (round rods struck on their surface) adds the twist: the tap's component
-    along the pads acts at the surface, a lever of one radius ``r = sqrt(A / pi)`` about the
-    axis, so ``T = F sin(angle) r`` drives the :class:`TorsionModel` (``G = E / (2 (1 + nu))``
-    with ``poisson_ratio``).
+    Gives ``clamp_load`` ``(n_trials, 6, n_samples)``: shear and moment toward the pads, shear
+    and moment along them, axial force, torque about the object's axis. ``torsion: true``
+    (round rods struck on their surface) drives the :class:`TorsionModel` with the torque of
+    the tap's component along the pads one radius off the axis.
     """
 
     name = "beam_modes"

@@ -1,17 +1,13 @@
 """BioTac transduction: finger pressure to PAC at 2200 Hz and the slow channels at 100 Hz.
 
-Model. The BioTac's fluid averages the pressure over the fingertip, so each finger's fluid
-pressure is the mean of its 40 taxel pressures. PAC (the AC-coupled hydrophone channel) is
-that pressure through a band-pass of ``pac_band_hz`` (10-1040 Hz, second-order Butterworth
-band-pass), times ``pac_counts_per_pa`` about mid-scale ``pac_mid``, plus ``pac_noise_counts``
-of white noise, sampled at 2200 Hz (the simulation rate must be a multiple) and quantised by a
-12-bit ADC (0..4095, clipped). PDC is the fluid pressure through a 10 Hz low-pass,
-``pdc_counts_per_pa`` above ``pdc_rest``; TAC and TDC are the temperatures (constant rest
-values plus noise, and a slow drift for TDC); each of the 19 impedance electrodes reads
-``electrode_rest`` minus ``electrode_counts_per_pa`` times the pressure around its place on
-the fingertip (a Gaussian average over the taxel lattice). The slow channels are sampled once
-per 10 ms frame, at the frame's first PAC sample. The frame grid starts at a random PAC phase
-of the trial (``pac_t0_ns``).
+Model. The fluid averages the pressure over the fingertip: each finger's fluid pressure is the
+mean of its 40 taxel pressures. PAC is that pressure through a second-order band-pass of
+``pac_band_hz``, ``pac_counts_per_pa`` about ``pac_mid``, plus white noise, sampled at 2200 Hz
+(the simulation rate must be a multiple) and quantised to 12 bits. PDC is the fluid pressure
+through a 10 Hz low-pass above ``pdc_rest``; TAC and TDC are rest temperatures plus noise (TDC
+drifting); each of the 19 electrodes reads ``electrode_rest`` minus a gain times the pressure
+around its place (a Gaussian average over the taxel lattice). The slow channels are sampled at
+each 10 ms frame's first PAC sample; the frame grid starts at a random PAC phase.
 """
 
 from __future__ import annotations

@@ -1,8 +1,4 @@
-"""The contact a task source hands to the structure: forces at a point, plus the labels.
-
-Every task source effect (tap, handover grasp, fork) gives the signal ``contact`` and the
-signal ``labels``; the structural effects turn the contact into loads at the grasp.
-"""
+"""The contact a task source hands to the structure (forces at a point) and the labels."""
 
 from __future__ import annotations
 
@@ -12,16 +8,10 @@ import numpy as np
 
 
 class Contact(NamedTuple):
-    """Forces applied to the held object, per trial.
+    """Forces on the held object per trial, ``(n_trials, n_samples)`` newtons.
 
-    Attributes:
-        force_n: Force across the object, newtons, ``(n_trials, n_samples)``; its direction
-            in the cross-section is ``angle_rad`` from the finger pads' normal.
-        force_axial: Force along the object's axis toward the grasp, newtons,
-            ``(n_trials, n_samples)``; reaches the pads as tangential traction.
-        position_m: Where the force acts, metres from the grasp edge along the free span,
-            ``(n_trials,)``.
-        angle_rad: Direction of ``force_n`` from the pad normal, radians, ``(n_trials,)``.
+    ``force_n`` acts across the object at ``position_m`` from the grasp edge, ``angle_rad`` from
+    the pads' normal; ``force_axial`` along its axis toward the grasp.
     """
 
     force_n: np.ndarray
@@ -31,13 +21,7 @@ class Contact(NamedTuple):
 
 
 class Labels(NamedTuple):
-    """The ground truth of each trial of a batch.
-
-    Attributes:
-        onset_ns: True contact onset (food: motion start) from the trial origin, ``int64``.
-        y_m: Tap position from the held end, metres (NaN when not a tap).
-        class_label: Class per trial (food name, ``"stable"``/``"unstable"``, or ``""``).
-    """
+    """The ground truth per trial: onset (food: motion start), tap position, class label."""
 
     onset_ns: np.ndarray
     y_m: np.ndarray
@@ -47,20 +31,10 @@ class Labels(NamedTuple):
 def half_sine_bins(
     peak: np.ndarray, duration_s: np.ndarray, start_s: np.ndarray, rate_hz: float, n: int
 ) -> np.ndarray:
-    """A half-sine force pulse averaged over each sample interval.
+    """A half-sine force pulse per trial, ``(n_trials, n)``, averaged over each sample interval.
 
-    Averaging over the interval (instead of sampling at instants) keeps the impulse exact,
-    ``2 * peak * duration / pi``, however short the pulse is against the sample period.
-
-    Args:
-        peak: Peak force per trial, newtons, ``(n_trials,)``.
-        duration_s: Pulse length per trial, seconds, ``(n_trials,)``.
-        start_s: Pulse start per trial from the trial origin, seconds, ``(n_trials,)``.
-        rate_hz: Sample rate, Hz.
-        n: Samples per trial.
-
-    Returns:
-        ``(n_trials, n)`` float64; sample ``k`` is the mean force over ``[k, k+1) / rate_hz``.
+    Averaging (not sampling at instants) keeps the impulse ``2 * peak * duration / pi`` exact
+    however short the pulse is against the sample period.
     """
     dt = 1.0 / rate_hz
     edges = np.arange(n + 1) * dt

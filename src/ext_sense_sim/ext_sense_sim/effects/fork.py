@@ -1,23 +1,21 @@
 """Fork penetration into food, the arm descending at 1 cm/s and stopping on 10 N.
 
-Model. From the motion start (the trial's onset) the arm lowers the fork at ``speed``
-(0.01 m/s); the tines touch the food after a gap ``gap_m``. With ``d`` the depth reached, the
-vertical force on the tines is, per food (``FOODS``, order-of-magnitude texture values, each
-scaled per trial by ``spread``):
+Model. From the motion start (the trial's onset) the arm lowers the fork at ``speed``; the tines
+touch the food after a gap ``gap_m``. With ``d`` the depth reached, the vertical force on the
+tines is, per food (``FOODS``, order-of-magnitude texture values, each scaled per trial by
+``spread``):
 
 - before fracture, Hertz-like indentation ``F = k d^1.5``;
-- on reaching ``fracture_n`` the food breaks: the force drops to the cutting force ``cut_n``,
-  and along further travel micro-fractures occur as a Poisson process of ``crunch_per_mm``
-  events per millimetre, each a quick drop and recovery of ``crunch_n``;
-- water has no fracture: the meniscus snaps on at first touch (``cut_n`` of a few mN, surface
-  tension on the tines' perimeter) and buoyancy grows ``rho g A d`` (``k`` as N/m);
-- ``empty`` is no food: no force at all.
+- on reaching ``fracture_n`` the force drops to the cutting force ``cut_n``, and along further
+  travel micro-fractures occur as a Poisson process of ``crunch_per_mm`` events per millimetre,
+  each a quick drop and recovery of ``crunch_n``;
+- water: the meniscus snaps on at first touch (``cut_n``) and buoyancy grows ``rho g A d``;
+- ``empty``: no force at all.
 
-The arm stops at the preset depth ``travel_m`` or when the force reaches ``stop_n`` (10 N,
-the Cartesian collision threshold), holding its position after. The fork is held tilted
-``tilt_deg`` (12 degrees) from the vertical: ``F sin(tilt)`` acts across the fork at its tip
-(ringing its modes through ``beam_modes``) and ``F cos(tilt)`` along it (tangential traction on
-the pads). The signal ``motion`` gives the per-trial motion start and stop (seconds).
+The arm stops at the depth ``travel_m`` or when the force reaches ``stop_n`` (the Cartesian
+collision threshold), holding its position after. The fork is tilted ``tilt_deg`` from the
+vertical: ``F sin(tilt)`` acts across the fork at its tip, ``F cos(tilt)`` along it. The signal
+``motion`` gives the per-trial motion start and stop (seconds).
 """
 
 from __future__ import annotations
@@ -62,16 +60,9 @@ class Motion(NamedTuple):
 def penetration_force(
     depth: np.ndarray, food: Food, crunch_depths: np.ndarray, crunch_n: float
 ) -> np.ndarray:
-    """Vertical tine force along a monotonic depth path (see module docstring).
+    """Vertical tine force along a non-decreasing ``depth`` path (<= 0: not touching).
 
-    Args:
-        depth: Depth into the food, metres, non-decreasing, ``(n,)`` (<= 0: not touching).
-        food: The food's texture.
-        crunch_depths: Depths of the micro-fractures, metres, sorted.
-        crunch_n: Size of each micro-fracture's drop, N.
-
-    Returns:
-        ``(n,)`` force, newtons.
+    ``crunch_depths`` (sorted) are the micro-fractures' depths, each a drop of ``crunch_n``.
     """
     d = np.maximum(depth, 0.0)
     touching = depth > 0

@@ -1,21 +1,13 @@
 """The human grasp of a robot-to-human handover: settling when stable, stick-slip when not.
 
 Model. At the onset the hand touches the object at ``position`` (a fraction of the free span)
-with a short half-sine across-force (the touch). The hand's pull along the object reaches the
-robot's pads as an axial force:
-
-- stable grasp: a second-order settling ``F(t) = F_end (1 - e^{-z w t} (cos w_d t +
-  z / sqrt(1 - z^2) sin w_d t))`` with natural frequency ``settle_hz`` and damping
-  ``settle_zeta`` (the hand closing on the object);
-- unstable grasp: the classic spring-block stick-slip. The skin (stiffness ``skin_k``) is
-  dragged at ``pull_speed``; the friction force rises at ``k v`` from ``mu_k N`` until it
-  reaches ``mu_s N`` and then slips back to ``mu_k N`` within ``slip_tau_s``. The stick period
-  is ``(mu_s - mu_k) N / (k v)`` (jittered 15% per cycle). Each slip's sudden release also
-  knocks the object across its axis with ``slip_kick`` of the force drop, which rings the
-  object's modes again at every slip.
-
-Each trial is stable with probability ``p_stable``; the class label is ``"stable"`` or
-``"unstable"``.
+with a short half-sine across-force. The hand's pull along the object reaches the pads as an
+axial force: when stable, a second-order settling to ``pull_force_n`` (``settle_hz``,
+``settle_zeta``); when not, spring-block stick-slip: the skin (stiffness ``skin_k``) is dragged
+at ``pull_speed``, friction rises at ``k v`` from ``mu_k N`` to ``mu_s N`` and slips back
+within ``slip_tau_s``, a stick period of ``(mu_s - mu_k) N / (k v)`` jittered 15% per cycle;
+each slip knocks the object across its axis with ``slip_kick`` of the force drop. Each trial is
+stable with probability ``p_stable`` (label ``"stable"`` or ``"unstable"``).
 """
 
 from __future__ import annotations
@@ -30,14 +22,7 @@ from ext_sense_sim.effects.contact import Contact, Labels, half_sine_bins
 
 
 def settling(t: np.ndarray, final: np.ndarray, freq_hz: np.ndarray, zeta: float) -> np.ndarray:
-    """Underdamped second-order step response, zero for ``t < 0``; shapes broadcast.
-
-    Args:
-        t: Times from the start, seconds.
-        final: Final value.
-        freq_hz: Natural frequency, Hz.
-        zeta: Damping ratio in (0, 1).
-    """
+    """Underdamped second-order step response to ``final``, zero for ``t < 0``."""
     w = 2 * np.pi * freq_hz
     wd = w * np.sqrt(1 - zeta**2)
     ts = np.maximum(t, 0.0)
@@ -56,19 +41,9 @@ def stick_slip(
     speed: float,
     jitter: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Friction force of a dragged spring-block, before smoothing the slips.
+    """Friction force of a dragged spring-block at ``t`` (from the drag's start), and its slips.
 
-    Args:
-        t: Times from the start of dragging, seconds, ``(n,)`` (negative: not yet).
-        normal_n: Grip normal force, N.
-        mu_s: Static friction coefficient (``mu_s > mu_k``).
-        mu_k: Kinetic friction coefficient.
-        stiffness: Skin stiffness, N/m.
-        speed: Drag speed, m/s.
-        jitter: Relative per-cycle variation of the stick period, ``(n_cycles,)``.
-
-    Returns:
-        ``(force, slip_times)``: force ``(n,)`` newtons and the times of the slips, seconds.
+    ``jitter`` is the relative variation of each cycle's stick period.
     """
     rate = stiffness * speed
     first = mu_s * normal_n / rate  # loading from zero up to the first slip

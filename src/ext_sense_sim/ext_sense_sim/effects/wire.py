@@ -1,22 +1,12 @@
 """The wire: NUSkin receiver words, the ACES line, BioTac bridge frames, and wire faults.
 
-Models.
-
-- ``nuskin_wire``: the receiver sends each event as one 4-byte word
-  (:func:`ext_sense_drivers.nuskin.wire.encode_words`, the real captures' format; flag bit 0)
-  ``latency_s`` after the event (ACES: a constant 1 ms).
-- ``aces_line``: every event's taxel signature is summed onto the shared line
-  (:func:`ext_sense_drivers.aces.encoder.encode_line`) with line noise and decoded back by the
-  receiver (:class:`ext_sense_drivers.aces.decoder.LineDecoder`); the events are replaced by
-  what the receiver recovers, so collisions cost what they really cost. The line carries no
-  value field: recovered events take the value of the nearest sent event of their taxel.
-- ``biotac_wire``: one bridge frame per sensor per 10 ms
-  (:func:`ext_sense_drivers.biotac.encoder.encode_frames`), written when its last PAC sample
-  was taken; sensors interleave, each numbering its frames (the sensors of one
-  step share the number), on across trials.
-- ``wire_faults``: each byte is lost with probability ``lost``, flipped (one random bit) with
-  ``flipped``, and an extra random byte follows it with ``extra``.
-
+Models, each on the drivers' own codecs. ``nuskin_wire``: each event as one 4-byte receiver
+word (flag bit 0), written ``latency_s`` after it. ``aces_line``: every event's taxel signature
+summed onto the shared line with line noise and decoded back by the receiver, so collisions
+cost what they really cost; recovered events take the value of the nearest sent event of their
+taxel. ``biotac_wire``: one bridge frame per sensor per 10 ms, written when its last PAC sample
+was taken, the sensors of one step sharing their number. ``wire_faults``: each byte is lost,
+flipped (one random bit) or followed by an extra random byte with the given probabilities.
 The signal ``wire`` is a list, per trial, of :class:`WireStream`.
 """
 
@@ -32,13 +22,7 @@ from ext_sense_sim.trial_events import by_trial, concat, trial_bounds
 
 
 class WireStream(NamedTuple):
-    """Bytes of one trial as written to the link.
-
-    Attributes:
-        data: The bytes.
-        offsets: ``(n_chunks + 1,)`` int64; chunk ``i`` is ``data[offsets[i]:offsets[i+1]]``.
-        t_ns: ``(n_chunks,)`` int64, when each chunk is written, from the trial origin.
-    """
+    """Bytes of one trial: chunk ``i``, ``data[offsets[i]:offsets[i+1]]``, goes at ``t_ns[i]``."""
 
     data: bytes
     offsets: np.ndarray
@@ -168,8 +152,7 @@ class BiotacWire(Effect):
             values[..., pos] = bt[key].transpose(0, 2, 1)
         replies = encode_values(values.reshape(-1, 44)).reshape(-1, 44)
         n = replies.shape[0]
-        # the bridge numbers each sensor's frames (docs/biotac_bridge.md: per sensor, +1 per
-        # frame): the sensors' frames of one 10 ms step share their number
+        # each sensor numbers its frames (+1 per frame): one 10 ms step shares its number
         steps = n_trials * n_frames
         seq = np.repeat((self.seq + np.arange(steps)) % 65536, n_sensors)
         self.seq = int((self.seq + steps) % 65536)
@@ -192,8 +175,7 @@ def inject_faults(
 ) -> tuple[WireStream, dict[str, int]]:
     """Lose, flip and add bytes of a stream, keeping each surviving byte in its chunk.
 
-    Returns:
-        The faulty stream and the counts ``lost``, ``flipped``, ``extra``.
+    Returns the faulty stream and the counts ``lost``, ``flipped``, ``extra``.
     """
     arr = np.frombuffer(stream.data, dtype=np.uint8).copy()
     chunk = np.repeat(np.arange(stream.t_ns.size), np.diff(stream.offsets))

@@ -1,10 +1,7 @@
 """rosbag2 (mcap) bag of a run: typed sensor messages plus the ground truth.
 
-Topics: ``/extsense/nuskin/events`` (``ext_sense_msgs/TaxelEventBatch``, one batch per 1 ms
-holding events, the drivers' default batching) or ``/extsense/biotac/frames``
-(``ext_sense_msgs/BioTacFrame``, one per sensor per 10 ms, frame_id ``biotac_left``/
-``biotac_right``), and ``/extsense/ground_truth`` (``ContactGroundTruth`` stamped at the true
-onset). Trial ``i`` starts at epoch ``BASE_EPOCH_S + i * trial_s`` (as in the paper formats);
+NUSkin events in 1 ms batches (the drivers' default batching) or BioTac frames, and the ground
+truth stamped at the true onset; trial ``i`` starts at epoch ``BASE_EPOCH_S + i * trial_s``, and
 log times equal header stamps, so ``ros2 bag play`` paces the bag as it was simulated.
 """
 

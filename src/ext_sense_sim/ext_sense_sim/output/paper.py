@@ -1,14 +1,7 @@
-"""The paper's own file formats.
+"""The paper's own file formats: NUSkin ``.tact`` files with ``essentials.csv``, ``biotac.csv``.
 
-NUSkin: one ``.tact`` text file per trial, lines ``isPos taxel removable t`` (space separated:
-``isPos`` 1 for a positive event else 0, taxel 1..80, ``removable`` the value field as in the
-lab's decoded captures, ``t`` epoch seconds with 6 decimals), framed by a first marker line
-``1 1 1 t0`` and a last ``2 2 2 t1`` (dropped by readers), plus ``essentials.csv`` with one
-row per trial: ``trial,file,label,onset_s,t0_epoch_s,rod_length_m``. Trial ``i`` starts at
-epoch ``t0 = base_epoch_s + i * trial_s`` (a fixed made-up date, so files are reproducible).
-
-BioTac: ``biotac.csv``, one row per PAC sample: ``trial,sensor,t_s,pac`` then the slow
-channels of the frame the sample belongs to: ``pdc,tac,tdc,e01..e19``.
+The formats are in docs/simulator.md; trial ``i`` starts at epoch ``BASE_EPOCH_S + i * trial_s``
+(a fixed made-up date, so files are reproducible).
 """
 
 from __future__ import annotations

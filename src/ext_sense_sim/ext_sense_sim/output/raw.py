@@ -1,9 +1,8 @@
 """Raw device byte streams of a run, as the device would have written them.
 
-``raw/<device>.bin`` holds every trial's bytes back to back (NUSkin: receiver words in the
-real captures' format; BioTac: bridge frames), and ``raw/<device>_chunks.csv`` says when each
-write happened: ``offset,length,t_ns,trial`` with ``t_ns`` from the run's start (trial ``i``
-starts at ``i * trial_s``). Replaying the ``.bin`` at those times reproduces the link.
+``raw/<device>.bin`` holds every trial's bytes back to back, ``raw/<device>_chunks.csv`` when each
+write happened (``offset,length,t_ns,trial``); replaying the ``.bin`` at those times reproduces
+the link.
 """
 
 from __future__ import annotations
