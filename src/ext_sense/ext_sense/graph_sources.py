@@ -17,6 +17,7 @@ from ext_sense.topics import (
     TOPIC_HANDOVER_OFFER,
     TOPIC_MOTION_START,
 )
+from ext_sense_perception.profiles import profile_for
 from ext_sense_sim.scene import DEFAULT_SCENES as DEFAULT_SCENES
 
 STARTUP_SPARE_TRIALS = 3
@@ -125,6 +126,9 @@ def source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
         }
         if as_bool(args["monitor"]):  # no trial before the monitor can hear its estimate
             stream["wait_for_listener_s"] = MONITOR_WAIT_S
+        # a trial within the task's debounce of the last would be one contact with it (food:
+        # 8 s, longer than a 6.5 s trial, so every other trial was lost)
+        stream["trial_period_s"] = max(1.0, profile_for(task).debounce_ns / 1e9 + 0.5)
         remaps: tuple[tuple[str, str], ...] = (("ground_truth", TOPIC_GROUND_TRUTH),)
         if as_bool(args["behaviours"]) and task in SIM_TRIGGERS:
             trigger_topic, align = SIM_TRIGGERS[task]
