@@ -1,14 +1,9 @@
 """The emulated BioTac bridge between trials: every sensor's frame every 10 ms, always.
 
-A real bridge streams each sensor's frame at 100 Hz whatever touches the finger
-(docs/biotac_bridge.md), so on the robot the window node closes a BioTac window with the frames
-that follow it, and silence means a stopped device (its stall check). The scene simulator
-produces frames only for its trials; played as they are, the bridge fell silent after each
-trial, every window waited for the next trial's frames (over a second) and came out late and
-flagged as spoiled by a stall. :class:`BridgeLine` stands between the trials and the link: it
-writes a trial's frames as they come, renumbered so that each sensor's sequence runs on
-(+1 per frame, as the bridge counts), and in between writes rest frames (each sensor's last
-reply words again) on the same 10 ms cadence.
+A real bridge streams each sensor's frame at 100 Hz whatever touches the finger, so the window
+node closes a BioTac window with the frames that follow it and takes silence for a stopped
+device. :class:`BridgeLine` writes a trial's frames renumbered so that each sensor's sequence
+runs on, and in between rest frames (each sensor's last reply words again) on the same cadence.
 """
 
 from __future__ import annotations
@@ -24,8 +19,7 @@ from ext_sense_drivers.biotac.frame_layout import SEQ_MODULO
 FRAME_PERIOD_NS = 10_000_000
 """One frame per sensor per 10 ms (100 Hz), as the bridge sends them."""
 MAX_CATCH_UP_FRAMES = 20
-"""Rest frames written at most at once after a pause (a stalled stream thread): older steps
-are skipped, as a bridge whose host stopped reading would have dropped them."""
+"""Rest frames written at most at once after a pause; older steps are skipped, as dropped."""
 
 
 class BridgeLine:

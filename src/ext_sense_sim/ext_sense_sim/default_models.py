@@ -208,20 +208,9 @@ def ensure_model(
 ) -> bool:
     """Train the task's default model into ``model_dir`` unless a current one is there.
 
-    A current model is used as it is, wherever it lies; otherwise the parent of ``model_dir``
-    is checked and locked as by :func:`create_models`.
-
-    Args:
-        model_dir: The bundle directory.
-        task: Which task's default model.
-        sensor: For which sensor.
-        trials: Simulated training trials (default: :data:`TRIALS`).
-        scene: Simulator scene (default: the task's, ``ext_sense_sim.scene.DEFAULT_SCENES``).
-        force: Train even when a current model is there.
-        log: Called with each progress line.
-
-    Returns:
-        Whether a model was trained.
+    ``trials`` and ``scene`` default to the task's (:data:`TRIALS`, ``DEFAULT_SCENES``); a
+    current model is used wherever it lies, else the parent of ``model_dir`` is checked and
+    locked as by :func:`create_models`. Returns whether a model was trained.
 
     Raises:
         PerceptionError: The place is not writable or too full, or training failed.

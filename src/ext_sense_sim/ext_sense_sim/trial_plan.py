@@ -44,11 +44,7 @@ class PlannedTrial(NamedTuple):
 
 
 def plan_trials(scene: Scene, seed: int) -> Iterator[PlannedTrial]:
-    """Simulate trials one by one, forever; the scene must list its sensor's wire effect.
-
-    Raises:
-        SceneError: The scene lacks the wire effect (named) for its sensor.
-    """
+    """Simulate trials one by one, forever; the scene must list its sensor's wire effect."""
     from ext_sense_sim.engine import Simulator  # here: see the module docstring
 
     require_wire(scene)
@@ -71,13 +67,10 @@ def plan_trials(scene: Scene, seed: int) -> Iterator[PlannedTrial]:
 
 
 class LaidOutStream(NamedTuple):
-    """A run of trials laid on one stream clock as the device would write them (no waiting).
+    """A run of trials laid on one stream clock: ``(t_ns, bytes)`` writes and ground truths.
 
-    Attributes:
-        writes: ``(t_ns, bytes)`` per write, time from the stream's start, in order.
-        truths: The ground truth of every trial, ``onset_ns`` on the same clock: the time of the
-            write holding the trial's first bytes at or after its true onset (as ``stream``
-            stamps it live).
+    A truth's ``onset_ns`` is the time of the write holding the trial's first bytes at or after
+    its true onset, as ``stream`` stamps it live.
     """
 
     writes: list[tuple[int, bytes]]
@@ -89,15 +82,6 @@ def lay_out_stream(scene: Scene, seed: int, trials: int, period_s: float = 1.0) 
 
     The same wire effect and trial spacing as :func:`~ext_sense_sim.streaming.stream`, simulated
     in the scene's batches, so a model can be trained on exactly what the driver decodes live.
-
-    Args:
-        scene: A scene listing its sensor's wire effect.
-        seed: Seed of the run.
-        trials: Number of trials (>= 1).
-        period_s: Time between trial starts, s (at least the trial length).
-
-    Raises:
-        SceneError: The scene lacks the wire effect, or ``trials`` < 1.
     """
     from ext_sense_sim.engine import Simulator  # here: see the module docstring
 

@@ -87,14 +87,8 @@ def _write_all(ready: queue.Queue[bytes | None], out: BinaryIO) -> None:
 class TrialsAhead(Iterator[PlannedTrial]):
     """``plan_trials(scene, seed)`` computed in a low-priority child process.
 
-    Args:
-        scene: The scene (must list its sensor's wire effect).
-        seed: Seed of the trials.
-        stop: When set, a wait for the next trial ends the iteration.
-        nice: The child's priority increment.
-
-    Raises:
-        SceneError: (from ``next``) the scene cannot be streamed, or the child ended.
+    Setting ``stop`` ends a wait for the next trial; ``next`` raises :class:`SceneError` when the
+    scene cannot be streamed or the child ended.
     """
 
     def __init__(

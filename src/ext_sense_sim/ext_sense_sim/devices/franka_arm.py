@@ -34,7 +34,7 @@ DEFAULT_THRESHOLDS = {
     "lower_force_thresholds_nominal": [20.0] * 6,
     "upper_force_thresholds_nominal": [20.0] * 6,
 }
-"""franka_ros2's defaults (``franka_hardware``: 20 for every threshold) until a request arrives."""
+"""franka_ros2's defaults until a request arrives."""
 
 
 class TrajectoryState:
@@ -49,14 +49,7 @@ class TrajectoryState:
 
 @dataclass(frozen=True)
 class SurfaceModel:
-    """What the fork touches: a spring surface with a biased, noisy force estimate.
-
-    Attributes:
-        surface_z_m: Height of the surface, m (``None``: nothing to touch).
-        stiffness_n_per_m: Spring constant, N/m.
-        force_bias_n: Constant bias of the force estimate (x, y, z), N.
-        noise_n: Standard deviation of the estimate's noise per axis, N.
-    """
+    """What the fork touches: a spring surface (``None``: none); a biased, noisy force estimate."""
 
     surface_z_m: float | None = 0.152
     stiffness_n_per_m: float = 1000.0
@@ -65,11 +58,7 @@ class SurfaceModel:
 
 
 def start_pose(x_m: float, z_m: float) -> np.ndarray:
-    """Joint positions with the end effector at (``x_m``, 0, ``z_m``), pointing down.
-
-    Raises:
-        SceneError: Out of reach.
-    """
+    """Joint positions with the end effector at (``x_m``, 0, ``z_m``), pointing down."""
     target = forward(READY_Q)
     target[0, 3], target[2, 3] = x_m, z_m
     try:
@@ -79,14 +68,7 @@ def start_pose(x_m: float, z_m: float) -> np.ndarray:
 
 
 class SimFrankaArm:
-    """The simulated robot (see module docstring).
-
-    Args:
-        q0: Initial joint positions, (7,) radians.
-        surface: The surface and force model.
-        now_ns: Time of the initial state, integer ns.
-        seed: Noise seed.
-    """
+    """The simulated robot from joints ``q0`` at ``now_ns`` (see module docstring)."""
 
     def __init__(self, q0: np.ndarray, surface: SurfaceModel, now_ns: int, seed: int = 0) -> None:
         self.q = np.asarray(q0, dtype=np.float64).copy()
@@ -127,13 +109,7 @@ class SimFrankaArm:
         return ""
 
     def follow(self, times_s: np.ndarray, points: np.ndarray, now_ns: int) -> str:
-        """Start a trajectory from the present position; returns why it is refused, or ``""``.
-
-        Args:
-            times_s: (n,) increasing times from the start, s (first > 0).
-            points: (n, 7) joint positions, radians.
-            now_ns: Time the goal arrived, integer ns.
-        """
+        """Follow joint ``points`` (n, 7) at ``times_s`` from here; returns why not, or ``""``."""
         self.step(now_ns)
         times_s, points = np.asarray(times_s, dtype=np.float64), np.asarray(points, np.float64)
         if self.reflex:

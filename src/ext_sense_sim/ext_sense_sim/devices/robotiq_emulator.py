@@ -1,15 +1,10 @@
 """A Robotiq 2F gripper emulator that answers Modbus RTU on a pty like the real one.
 
-Layers, each usable alone:
-
-- :class:`GripperModel`: the gripper itself (activation sequence, finger motion at the
-  commanded speed, object detection, gFLT faults), advanced by an injected clock.
-- :class:`RobotiqEmulator`: the Modbus RTU server in front of it (slave id, function codes
-  0x03/0x04/0x10, exception replies, silence on a bad CRC or another slave id) plus injected
-  link faults (no answer, corrupt CRC) and gripper faults.
-- :class:`RtuFramer`: splits a byte stream into requests (by length, resetting on silence).
-- :class:`PtyGripper`: serves an emulator on a pseudo-terminal, in a thread or in the
-  foreground (:func:`serve`, the handler of ``ext-sense sim serve robotiq``).
+:class:`GripperModel` is the gripper (activation, finger motion, object detection, gFLT faults)
+on an injected clock; :class:`RobotiqEmulator` the Modbus RTU server in front of it, with
+injectable link and gripper faults; :class:`RtuFramer` cuts a byte stream into requests;
+:class:`PtyGripper` serves an emulator on a pseudo-terminal (:func:`serve`: ``ext-sense sim
+serve robotiq``).
 """
 
 from __future__ import annotations
@@ -44,7 +39,7 @@ DEMO_OBJECT_POSITION = 128
 """Where ``ext-sense sim serve robotiq`` puts an object between the fingers by default."""
 
 REGISTER_BLOCK = 8
-"""Registers answered from each base address (3 used, the rest read as 0, as reserved)."""
+"""Registers answered from each base address (3 used, the reserved rest read as 0)."""
 
 
 class LinkFault(IntEnum):
@@ -66,12 +61,8 @@ class LinkFault(IntEnum):
 class GripperModel:
     """The gripper's behaviour behind its registers.
 
-    Args:
-        activation_s: Duration of the activation sequence (the real one takes seconds).
-        object_position: Finger position (0..255) where an object between the fingers stops
-            them while closing; ``None`` for no object.
-        min_speed_cps, max_speed_cps: Finger speed in position counts per second for rSP = 0
-            and rSP = 255.
+    ``object_position`` (0..255, ``None``: no object) stops the closing fingers; the finger
+    speed runs from ``min_speed_cps`` (rSP 0) to ``max_speed_cps`` (rSP 255) counts per second.
     """
 
     activation_s: float = 0.3
@@ -88,8 +79,6 @@ class GripperModel:
         self._activation_end: float | None = None
         self._last_t: float | None = None
         self._moving = False
-
-    # -- inputs ---------------------------------------------------------------------------------
 
     def write(self, command: GripperCommand, now: float) -> None:
         """Apply what the robot wrote to the command registers at time ``now`` (seconds)."""
@@ -119,8 +108,6 @@ class GripperModel:
         """Raise a gFLT fault now: the fingers stop where they are until a reset."""
         self.fault = code
         self._moving = False
-
-    # -- time -----------------------------------------------------------------------------------
 
     def _start_motion(self) -> None:
         if self.fault and self.fault != FaultCode.ACTION_DELAYED:
@@ -172,8 +159,6 @@ class GripperModel:
             self.object = ObjectStatus.AT_POSITION
             self._moving = False
 
-    # -- outputs --------------------------------------------------------------------------------
-
     def status(self) -> GripperStatus:
         """The status registers as they read now."""
         go_to = self.command.activate and self.command.go_to
@@ -210,13 +195,7 @@ class EmulatorCounters:
 
 
 class RobotiqEmulator:
-    """The Modbus RTU face of a :class:`GripperModel`.
-
-    Args:
-        model: The gripper behind the registers (a default one if omitted).
-        slave: Slave id it answers to.
-        clock: Monotonic seconds; injectable for tests.
-    """
+    """The Modbus RTU face of a :class:`GripperModel`, on a monotonic seconds ``clock``."""
 
     def __init__(
         self,
@@ -313,10 +292,10 @@ class RobotiqEmulator:
 
 
 class RtuFramer:
-    """Cuts a byte stream into RTU requests: by the length the function code implies.
+    """Cuts a byte stream into RTU requests by the length their function code implies.
 
-    A partial request followed by ``gap_s`` of silence is dropped (Modbus RTU ends a frame
-    on 3.5 characters of silence; a pty and a Python scheduler need a wider margin).
+    A partial request followed by ``gap_s`` of silence (wider than RTU's 3.5 characters, for a
+    pty and a Python scheduler) is dropped.
     """
 
     def __init__(self, gap_s: float = 0.05) -> None:
@@ -343,10 +322,9 @@ class RtuFramer:
 
 
 class PtyGripper:
-    """Serves a :class:`RobotiqEmulator` on a new pseudo-terminal.
+    """Serves a :class:`RobotiqEmulator` on a new pseudo-terminal at :attr:`path` (any baud).
 
     Use as a context manager (serves in a daemon thread) or call :meth:`serve_forever`.
-    Clients open :attr:`path` with pyserial like a real port (the baud rate is ignored).
     """
 
     def __init__(self, emulator: RobotiqEmulator | None = None, gap_s: float = 0.05) -> None:
@@ -420,14 +398,10 @@ def _interrupt(signum: int, frame: object) -> None:
 
 
 def serve(args: argparse.Namespace) -> int:
-    """Open the emulated gripper on a pty, print its path, serve until Ctrl-C (or SIGTERM).
+    """Open the emulated gripper on a pty, print its path, serve until Ctrl-C or SIGTERM.
 
-    Args:
-        args: Parsed options (see :func:`add_arguments`); missing ones take their defaults.
-            ``args.link``, when set, also gets a symlink to the pty (removed at exit).
-
-    Returns:
-        0 on Ctrl-C.
+    Options missing from ``args`` (see :func:`add_arguments`) take their defaults; ``args.link``
+    also gets a symlink to the pty, removed at exit.
     """
     object_position = int(getattr(args, "object_position", DEMO_OBJECT_POSITION))
     model = GripperModel(

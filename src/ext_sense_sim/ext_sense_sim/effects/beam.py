@@ -1,25 +1,18 @@
 """Euler-Bernoulli bending modes of the held object, clamped at the grasp and free at the tip.
 
-Model. The free span (length ``L`` beyond the pads' edge) is a uniform Euler-Bernoulli beam,
-clamped-free: ``w(0) = w'(0) = 0`` at the grasp, ``w''(L) = w'''(L) = 0`` at the tip. Its
-natural frequencies are ``omega_n = (beta_n L)^2 / L^2 * sqrt(E I / (rho A))`` with
-``beta_n L`` the roots of ``1 + cos(x) cosh(x) = 0`` (1.8751, 4.6941, 7.8548, ...), and its mode
-shapes ``phi_n(x) = cosh - cos - sigma_n (sinh - sin)`` of ``beta_n x``, evaluated in a form
-that never overflows, mass-normalised so that ``int rho A phi^2 = 1``.
+Model. The free span (length ``L`` beyond the pads' edge) is a uniform clamped-free beam; its
+natural frequencies are ``omega_n = (beta_n L)^2 / L^2 * sqrt(E I / (rho A))`` with ``beta_n L``
+the roots of ``1 + cos(x) cosh(x) = 0``, its mode shapes mass-normalised. A force ``F(t)``
+across the beam at ``x = a`` drives each mode through its shape there,
+``q_n'' + 2 zeta_n omega_n q_n' + omega_n^2 q_n = phi_n(a) F(t)``: the tap position sets the
+modes' relative excitation, which carries the position to the grasp. Each mode is integrated
+exactly for a force held over each sample (zero-order hold: unconditionally stable).
 
-A force ``F(t)`` across the beam at ``x = a`` drives each mode through its shape at that point:
-``q_n'' + 2 zeta_n omega_n q_n' + omega_n^2 q_n = phi_n(a) F(t)``. The tap position thus sets
-the relative excitation of the modes, which is what carries the position to the grasp. Each mode
-is integrated exactly for a force held over each sample (zero-order hold), so the scheme is
-unconditionally stable and free energy can only decay.
-
-At the grasp the beam loads the pads with the root shear ``V = -E I w'''(0)`` and moment
-``M = E I w''(0)``. The modal series of the shear converges slowly, so the response of the
-modes left out above ``max_freq_hz`` is added back quasi-statically (the mode-acceleration
-method): for a slowly varying force the loads are exactly ``V = F`` and ``M = F a``.
-Both bending planes are computed: toward the pads (``angle 0``) and along them.
-Damping: ``zeta_n = eta / 2 + grasp_damping_ratio`` (material loss factor plus the soft
-pads of the grasp) unless the scene sets ``damping_ratio`` (scalar or one per mode).
+The beam loads the pads with the root shear ``V = -E I w'''(0)`` and moment ``M = E I w''(0)``,
+in both bending planes; the modes above ``max_freq_hz`` are added back quasi-statically (the
+mode-acceleration method), so a slow force gives exactly ``V = F`` and ``M = F a``. Damping:
+``zeta_n = eta / 2 + grasp_damping_ratio`` (material loss plus the soft pads) unless the scene
+sets ``damping_ratio`` (scalar or one per mode).
 """
 
 from __future__ import annotations

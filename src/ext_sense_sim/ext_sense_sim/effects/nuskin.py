@@ -55,17 +55,9 @@ def level_crossing(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Send-on-delta encoding with a refractory period, vectorised across channels.
 
-    Args:
-        signal: ``(n_samples, n_channels)`` (time-major, C-contiguous for speed).
-        threshold: Change that triggers an event, same unit as ``signal``.
-        refractory: Samples after an event during which the channel cannot fire (>= 1).
-        reset: ``False``: the reference steps one threshold toward the signal per event (a
-            change of ``n`` thresholds gives ``n`` events). ``True``: the reference jumps to
-            the signal at the event (one event per detected change, whatever its size; the
-            value field carries the size).
-
-    Returns:
-        ``(sample, channel, polarity)`` of every event in time order; polarity is +1/-1.
+    ``signal`` is time-major ``(n_samples, n_channels)``; ``refractory`` is in samples (>= 1);
+    ``reset`` jumps the reference to the signal at each event, else it steps one threshold.
+    Returns ``(sample, channel, polarity)`` of every event in time order.
     """
     n_samples, n_channels = signal.shape
     ref = signal[0].astype(np.float64)
@@ -104,14 +96,10 @@ def level_crossing(
 def refractory_safe_jitter(
     k: np.ndarray, channel: np.ndarray, refractory: int, rng: np.random.Generator
 ) -> np.ndarray:
-    """Uniform positions of events inside their sample that keep the refractory period.
+    """Uniform offsets in [0, 1) of events inside their sample that keep the refractory period.
 
-    Two events of one channel exactly ``refractory`` samples apart would come closer than the
-    refractory period if the second one's offset were smaller; within such chains the offsets
-    are made non-decreasing (a running maximum per chain).
-
-    Returns:
-        ``(n,)`` offsets in [0, 1), in the order of ``k``.
+    Within chains of one channel's events exactly ``refractory`` samples apart the offsets are
+    made non-decreasing, so no two come closer than the refractory period.
     """
     u = rng.uniform(0.0, 1.0, size=k.size)
     if k.size < 2:
