@@ -72,6 +72,9 @@ from ext_sense_runtime.qos import (
 from ext_sense_runtime.records import estimate_of, truth_of
 from ext_sense_runtime.stamps import split_ns
 
+MAX_PENDING_ESTIMATES = 16
+"""Estimates (distinct contacts) kept for the next frame; older ones are dropped first."""
+
 PASSED = {  # graph topic (relative, remapped by the graph) -> (channel, type, QoS)
     "contact_estimate": (TOPIC_ESTIMATE, ContactEstimate, ESTIMATE_QOS),
     "contact_estimate/provisional": (TOPIC_PROVISIONAL_ESTIMATE, ContactEstimate, ESTIMATE_QOS),
@@ -158,7 +161,9 @@ class FoxgloveViewNode(Node):
         self.truths: deque = deque(maxlen=200)
         self.statuses: dict[str, tuple[int, str]] = {}
         self._window: Image | None = None
-        self._estimate: tuple[Image, dict[str, Any]] | None = None
+        self._estimates: dict[int, tuple[Image, dict[str, Any]]] = {}
+        """Estimates waiting for the next frame, by onset: a contact's final replaces its
+        provisional ones, and each contact is drawn even when several wait for one frame."""
         self._diag_dirty = False
         self.feed = SensorFeed(self.sensor, self.taxels, self.electrodes, self.pac)
 
@@ -266,7 +271,12 @@ class FoxgloveViewNode(Node):
     def _on_estimate(self, msg: ContactEstimate) -> None:
         est = estimate_of(msg)
         truth = matching_truth(est, self.truths, self.tolerance_ns)
-        self._estimate = (estimate_image(est, truth, self.rod_m), estimate_message(est, truth))
+        self._estimates[est.onset_ns] = (
+            estimate_image(est, truth, self.rod_m),
+            estimate_message(est, truth),
+        )
+        while len(self._estimates) > MAX_PENDING_ESTIMATES:  # unwatched: keep the newest
+            del self._estimates[min(self._estimates)]
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
@@ -314,11 +324,11 @@ class FoxgloveViewNode(Node):
         if self._window is not None:
             self._send_image(ch.WINDOW, self._window, stamp)
             self._window = None
-        if self._estimate is not None:
-            image, numbers = self._estimate
-            self._send_image(ch.ESTIMATE, image, stamp)
-            self.json[ch.ESTIMATE_INFO].log(numbers, log_time=stamp)
-            self._estimate = None
+        for k, onset in enumerate(sorted(self._estimates)):  # a ns apart: one log time each
+            image, numbers = self._estimates[onset]
+            self._send_image(ch.ESTIMATE, image, stamp + k)
+            self.json[ch.ESTIMATE_INFO].log(numbers, log_time=stamp + k)
+        self._estimates.clear()
         if self._diag_dirty:
             self.json[ch.DIAGNOSTICS].log(diagnostics_message(self.statuses), log_time=stamp)
             self._diag_dirty = False

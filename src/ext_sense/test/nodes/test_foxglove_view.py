@@ -239,3 +239,44 @@ def test_the_view_lowers_every_thread_of_its_process() -> None:
     want = max(base, 7)
     assert first == f"[{want}] [{want}]"
     assert second == str(want)  # 3 is below: never raised back
+
+
+def test_every_contact_is_drawn_when_several_wait_for_one_frame() -> None:
+    """Three contacts' estimates within one display period: three pictures, none overwritten."""
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+
+    from ext_sense.view import channels as ch
+    from ext_sense.view.node import FoxgloveViewNode
+    from ext_sense_msgs.msg import ContactEstimate
+    from ext_sense_runtime.qos import ESTIMATE_QOS
+    from ext_sense_runtime.stamps import fill_stamp
+
+    def view(**kw):
+        return FoxgloveViewNode(
+            parameter_overrides=[
+                Parameter("port", value=0),
+                Parameter("display_rate_hz", value=1.0),  # one frame a second
+                Parameter("nice", value=0),
+            ],
+            **kw,
+        )
+
+    with spinning(view, lambda **kw: Node("view_test_source", **kw)) as (node, src):
+        client = FoxgloveClient(f"ws://127.0.0.1:{node.port}")
+        try:
+            assert wait_for(lambda: ch.ESTIMATE_INFO in client.topics())
+            pub = src.create_publisher(ContactEstimate, "contact_estimate", ESTIMATE_QOS)
+            assert wait_for(lambda: pub.get_subscription_count() > 0)
+            assert wait_for(lambda: client.messages(ch.DIAGNOSTICS), timeout=10)  # a frame went
+            for k in range(3):
+                msg = _estimate()
+                fill_stamp(msg.header.stamp, (k + 1) * 1_000_000_000)
+                pub.publish(msg)
+            assert wait_for(lambda: len(client.messages(ch.ESTIMATE_INFO)) >= 3, timeout=10)
+            onsets = sorted(client.decode(m)["onset_ns"] for m in client.messages(ch.ESTIMATE_INFO))
+            pictures = {m.log_time_ns for m in client.messages(ch.ESTIMATE)}
+        finally:
+            client.close()
+    assert onsets == [1_000_000_000, 2_000_000_000, 3_000_000_000]
+    assert len(pictures) == 3
