@@ -1,21 +1,16 @@
 """Streaming a scene's device bytes in real time: the core shared by ``sim serve`` and the node.
 
-Trials are simulated one at a time, each in the idle time after the previous one (never on
-its own clock: a trial simulated at its start would be sent late, its first bytes in one
-burst); trial ``k`` starts
-``k * period_s`` after the stream starts, and each of its wire chunks is written when the
-host clock reaches the trial start plus the chunk's time. When the first chunk at or after the
-true contact onset is written, ``on_onset`` gets the ground truth stamped with the host time
-(``time.time_ns``, the clock drivers stamp arrival with) of that write. A trial that could not
-be simulated before its start starts when it is ready, at its own pace, and the trials after it
-keep their spacing (counted in ``late_trials``): the world waits for the simulator, as a real
-tap simply happens later; sending the overdue bytes at once would squeeze the tap into a burst
-no receiver makes and overflow the link.
+Trial ``k`` starts ``k * period_s`` after the stream starts, and each of its wire chunks is
+written when the host clock reaches the trial start plus the chunk's time. Each next trial is
+simulated in the idle time before it is due (one simulated at its start would go out late, its
+first bytes in one burst); one that is still late starts when it is ready, at its own pace, and
+the trials after it keep their spacing (counted in ``late_trials``): a burst of overdue bytes is
+a tap no receiver makes. When the first chunk at or after the true contact onset is written,
+``on_onset`` gets the ground truth stamped with the host time (``time.time_ns``, the clock
+drivers stamp arrival with) of that write.
 
-The trials come from :mod:`~ext_sense_sim.trial_plan`, simulated here or, with ``ahead`` (the
-``sim_device`` node and ``sim serve``), in a low-priority child process
-(:mod:`~ext_sense_sim.trials_ahead`: the emulated world's CPU off the host's hot path); the
-bytes go to a link of :mod:`~ext_sense_sim.links` (a pty or a CAN sink).
+The trials come from :mod:`~ext_sense_sim.trial_plan`, simulated here or, with ``ahead``, in a
+low-priority child process (:mod:`~ext_sense_sim.trials_ahead`).
 """
 
 from __future__ import annotations
@@ -69,33 +64,50 @@ def stream(
 ) -> StreamStats:
     """Write the scene's device bytes in real time until ``trials`` are done or ``stop`` is set.
 
-    Args:
-        scene: A scene listing its sensor's wire effect.
-        write: Sends bytes to the link (pty, CAN sink, file).
-        seed: Seed of the stream.
-        trials: Trials to send; 0 = until stopped.
-        period_s: Time between trial starts (at least the trial length).
-        on_onset: Called with the ground truth when a trial's onset bytes are written.
-        stop: Set it to end the stream.
-        clock: Epoch integer nanoseconds (injectable for tests).
-        sleep: Sleeps seconds (injectable for tests).
-        stats: Counters to fill as it goes (e.g. read by a node's diagnostics); new if None.
-        ahead: Simulate the trials in a low-priority child process
-            (:class:`~ext_sense_sim.trials_ahead.TrialsAhead`: the same trials), not here.
-        priority: SCHED_FIFO priority the calling thread asks for while it paces the bytes (0:
-            as it is): the emulated sensor is hardware, which a loaded host does not slow.
-            What it got is in ``stats.extra["scheduling"]``; the child process runs at normal
-            priority either way.
-        ready: Polled every 5 ms once the first trial is simulated; its start waits for true
-            (e.g. a listener to the ground truth). None: start at once.
+    ``write`` sends bytes to the link; ``trials`` 0 streams until stopped; ``period_s`` is at
+    least the trial length; ``clock`` (epoch ns) and ``sleep`` are injectable for tests;
+    ``stats`` fills as it goes (a node's diagnostics read it). ``ahead`` simulates the same
+    trials in a low-priority child process. ``priority``: the SCHED_FIFO priority the calling
+    thread asks for while it paces the bytes (0: as it is), as hardware is not slowed by a
+    loaded host; what it got is in ``stats.extra["scheduling"]``. ``ready`` is polled every
+    5 ms once the first trial is simulated, which waits for it (e.g. a ground-truth listener).
     """
     stop = stop or threading.Event()
     stats = StreamStats() if stats is None else stats
     _take_priority(priority, stats)
+    period_ns = round(max(period_s, scene.trial_s) * 1e9)
+    rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
     with _trials(scene, seed, stop, ahead) as plans:
-        return _stream(
-            scene, write, plans, trials, period_s, on_onset, stop, clock, sleep, stats, ready
-        )
+        start: int | None = None
+        delay_ns = 0  # how far late trials have pushed the schedule
+        upcoming: PlannedTrial | None = next(plans, None)
+        line, bridge = _device_line(scene, write, clock, stats)
+        if bridge is not None and upcoming is not None:
+            bridge.prime(b"".join(c[1] for c in upcoming.chunks[:4]))
+        while upcoming is not None:
+            plan = upcoming
+            if stop.is_set() or (trials and plan.trial >= trials):
+                break
+            if start is None:  # the first trial is simulated before the clock starts
+                while ready is not None and not ready() and not stop.is_set():
+                    line.idle()
+                    sleep(0.005)
+                start = clock()
+            t0 = start + plan.trial * period_ns + delay_ns
+            now = clock()
+            if now > t0:
+                stats.late_trials += now - t0 > LATE_WRITE_NS
+                delay_ns += now - t0
+                t0 = now
+            _play(plan, t0, line.write, stats, scene, rod, on_onset, stop, clock, sleep)
+            stats.trials += 1
+            last = bool(trials) and plan.trial + 1 >= trials
+            upcoming = None if last or stop.is_set() else next(plans, None)  # in the idle time
+            # the bridge keeps sending through the last period too: the last window closes on data
+            while not stop.is_set() and clock() < t0 + period_ns and (not last or bridge):
+                line.idle()
+                sleep(min(0.005, max(0.0, (t0 + period_ns - clock()) / 1e9)))
+    return stats
 
 
 def _take_priority(priority: int, stats: StreamStats) -> None:
@@ -116,56 +128,6 @@ def _trials(
         yield plans
 
 
-def _stream(
-    scene: Scene,
-    write: Callable[[bytes], object],
-    plans: Iterator[PlannedTrial],
-    trials: int,
-    period_s: float,
-    on_onset: Callable[[GroundTruth], None] | None,
-    stop: threading.Event,
-    clock: Callable[[], int],
-    sleep: Callable[[float], None],
-    stats: StreamStats,
-    ready: Callable[[], bool] | None,
-) -> StreamStats:
-    period_ns = round(max(period_s, scene.trial_s) * 1e9)
-    start: int | None = None
-    delay_ns = 0  # how far late trials have pushed the schedule
-    rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
-    upcoming: PlannedTrial | None = next(plans, None)
-    line, bridge = _device_line(scene, write, clock, stats)
-    if bridge is not None and upcoming is not None:
-        bridge.prime(b"".join(c[1] for c in upcoming.chunks[:4]))
-    while upcoming is not None:
-        plan = upcoming
-        if stop.is_set() or (trials and plan.trial >= trials):
-            break
-        if start is None:  # the first trial is simulated before the clock starts
-            while ready is not None and not ready() and not stop.is_set():
-                line.idle()
-                sleep(0.005)
-            start = clock()
-        t0 = start + plan.trial * period_ns + delay_ns
-        now = clock()
-        if now > t0:
-            stats.late_trials += now - t0 > LATE_WRITE_NS
-            delay_ns += now - t0
-            t0 = now
-        _play(plan, t0, line.write, stats, scene, rod, on_onset, stop, clock, sleep)
-        stats.trials += 1
-        last = bool(trials) and plan.trial + 1 >= trials
-        # Simulate the next trial now, in the idle time before it is due: simulating it at
-        # its start made it ~0.1 s late, so its first ~0.1 s of bytes (the tap itself) went
-        # out in one burst, squeezing the tap's events into a few ms on the driver's clock.
-        upcoming = None if last or stop.is_set() else next(plans, None)
-        # the bridge keeps sending through the last period too: the last window closes on data
-        while not stop.is_set() and clock() < t0 + period_ns and (not last or bridge is not None):
-            line.idle()
-            sleep(min(0.005, max(0.0, (t0 + period_ns - clock()) / 1e9)))
-    return stats
-
-
 class _Line(NamedTuple):
     """What the stream writes trials with, and what it calls while it waits between them."""
 
@@ -178,10 +140,8 @@ def _device_line(
 ) -> tuple[_Line, BridgeLine | None]:
     """How a scene's trials reach the link.
 
-    A BioTac scene streams through a :class:`~ext_sense_sim.bridge_line.BridgeLine` (rest
-    frames between trials, as the bridge sends them); a NUSkin one writes its trials as they are
-    (the emulated receiver is silent when idle). A scene that corrupts its wire on purpose
-    (``wire_faults``) is written as it is: its frames are not decoded again.
+    A BioTac scene streams through a :class:`~ext_sense_sim.bridge_line.BridgeLine` (rest frames
+    between trials); a NUSkin one, or one that corrupts its wire on purpose, as it is.
     """
     faults = any(name == "wire_faults" for name, _ in scene.effects)
     if scene.sensor is not Sensor.BIOTAC or faults:
@@ -209,9 +169,8 @@ LATE_WRITE_NS = 2_000_000
 class Trigger(NamedTuple):
     """A request to play the next trial(s) now: ``stamp_ns`` on the host epoch clock.
 
-    ``label`` (a class name; ``""``: the schedule's) is the class to play: whoever triggers
-    can keep the scene in step with what it knows only then (``ext-sense collect`` replays a
-    class when a grasp gave no contact window).
+    ``label`` (``""``: the schedule's) is the class to play, so whoever triggers can keep the
+    scene in step with what it knows only then (``ext-sense collect`` replays a missed class).
     """
 
     stamp_ns: int
@@ -274,37 +233,15 @@ def stream_on_trigger(
 ) -> StreamStats:
     """Play ``per_trigger`` trials per trigger, silent in between: a behaviour drives the scene.
 
-    The triggers are a food probe's motion start or a handover's offer.
-
-    The trials of one trigger are ``period_s`` apart and, with ``labels``, all of the class
+    The triggers are a food probe's motion start or a handover's offer. The trials of one
+    trigger are ``period_s`` apart and, with ``labels``, all of the class
     ``labels[k % len(labels)]`` for the k-th trigger, or the trigger's own ``label`` (trials of
     other classes are skipped, so the seed still fixes everything). ``align="start"``: the first
-    trial starts when the trigger is taken. ``align="onset"``: its onset (the motion start for
-    food) is put at the trigger's stamp; the trial's bytes before its onset are then in the past
-    and are skipped (counted in ``extra["skipped_bytes"]``), those from the onset to now go out
-    at once, and the ground truth is stamped with the trigger's stamp (the true onset by
-    construction). The next trial is simulated while waiting for its trigger.
-
-    Args:
-        scene: A scene listing its sensor's wire effect.
-        write: Sends bytes to the link.
-        triggers: Triggers arrive here (e.g. from a ROS subscription).
-        seed: Seed of the stream.
-        trials: Trials to play in all; 0 = until stopped.
-        per_trigger: Trials per trigger (>= 1).
-        period_s: Time between the starts of one trigger's trials (at least the trial length).
-        labels: Class schedule of successive triggers (empty: trials as the scene draws them).
-        align: ``"start"`` or ``"onset"`` (see above).
-        on_onset: Called with the ground truth of each trial at its onset.
-        on_ready: Called each time the next trigger's trial is simulated and waits for it (a
-            trigger that comes earlier is played late, its first bytes in a burst; the node
-            listens for triggers only after the first call).
-        stop: Set it to end the stream.
-        clock: Epoch integer nanoseconds (injectable for tests).
-        sleep: Sleeps seconds (injectable for tests).
-        stats: Counters to fill as it goes; new if None.
-        ahead: Simulate the trials in a low-priority child process (see :func:`stream`).
-        priority: SCHED_FIFO priority while pacing (see :func:`stream`).
+    trial starts when the trigger is taken. ``align="onset"``: its onset is put at the trigger's
+    stamp; its bytes before the onset are skipped (``extra["skipped_bytes"]``), those from the
+    onset to now go out at once, and the ground truth carries the trigger's stamp. The next
+    trial is simulated while waiting for its trigger; ``on_ready`` is called each time it waits
+    (a trigger that comes earlier is played late). The other arguments are :func:`stream`'s.
 
     Raises:
         SceneError: Bad ``align`` or ``per_trigger``, the scene lacks the wire effect, or no
@@ -317,105 +254,69 @@ def stream_on_trigger(
     stop = stop or threading.Event()
     stats = StreamStats() if stats is None else stats
     _take_priority(priority, stats)
-    with _trials(scene, seed, stop, ahead) as plans, contextlib.suppress(_StoppedError):
-        _stream_on_trigger(
-            scene,
-            write,
-            triggers,
-            plans,
-            trials,
-            per_trigger,
-            period_s,
-            list(labels or []),
-            align,
-            on_onset,
-            on_ready,
-            stop,
-            clock,
-            sleep,
-            stats,
-        )
-    return stats
-
-
-def _stream_on_trigger(
-    scene: Scene,
-    write: Callable[[bytes], object],
-    triggers: queue.Queue[Trigger],
-    plans: Iterator[PlannedTrial],
-    trials: int,
-    per_trigger: int,
-    period_s: float,
-    labels: list[str],
-    align: str,
-    on_onset: Callable[[GroundTruth], None] | None,
-    on_ready: Callable[[], None] | None,
-    stop: threading.Event,
-    clock: Callable[[], int],
-    sleep: Callable[[float], None],
-    stats: StreamStats,
-) -> None:
+    labels = list(labels or [])
     period_ns = round(max(period_s, scene.trial_s) * 1e9)
     stats.extra.update(skipped_bytes=0, triggers=0)
     rod = scene.geometry.length_m if scene.geometry.kind == "rod" else float("nan")
     played = 0
-    line, bridge = _device_line(scene, write, clock, stats)
-    primed = False
-    while not stop.is_set() and not (trials and played >= trials):
-        # simulated before the trigger comes, so it can start at once
-        label = labels[stats.extra["triggers"] % len(labels)] if labels else ""
-        plan = _next_like(plans, label, scene)
-        if bridge is not None and not primed:
-            bridge.prime(b"".join(c[1] for c in plan.chunks[:4]))
-            primed = True
-        if on_ready is not None:
-            on_ready()
-        trigger = _wait_trigger(triggers, stop, line.idle)
-        if trigger is None:
-            break
-        stats.extra["triggers"] += 1
-        if trigger.label and trigger.label != plan.class_label:
-            plan = _next_like(plans, trigger.label, scene)  # simulated late: played late
-        t0 = trigger.stamp_ns - plan.onset_ns if align == "onset" else clock()
-        for j in range(per_trigger):
-            start = t0 + j * period_ns
-            now = clock()
-            if j and now > start:  # simulated late: it starts when ready (see stream)
-                stats.late_trials += now - start > LATE_WRITE_NS
-                t0 += now - start
-                start = now
-            onset_only = align == "onset" and j == 0
-            _play(
-                plan,
-                start,
-                line.write,
-                stats,
-                scene,
-                rod,
-                on_onset,
-                stop,
-                clock,
-                sleep,
-                skip_before_onset=onset_only,
-                truth_stamp_ns=trigger.stamp_ns if onset_only else None,
-            )
-            played += 1
-            stats.trials += 1
-            if stop.is_set() or (trials and played >= trials):
+    with _trials(scene, seed, stop, ahead) as plans, contextlib.suppress(_StoppedError):
+        line, bridge = _device_line(scene, write, clock, stats)
+        primed = False
+        while not stop.is_set() and not (trials and played >= trials):
+            # simulated before the trigger comes, so it can start at once
+            label = labels[stats.extra["triggers"] % len(labels)] if labels else ""
+            plan = _next_like(plans, label, scene)
+            if bridge is not None and not primed:
+                bridge.prime(b"".join(c[1] for c in plan.chunks[:4]))
+                primed = True
+            if on_ready is not None:
+                on_ready()
+            trigger = _wait_trigger(triggers, stop, line.idle)
+            if trigger is None:
                 break
-            if j + 1 < per_trigger:
-                # one grasp's trials share their class; simulated now, in the idle time before
-                # the next one is due (simulating it when due would send it late, in a burst)
-                same = labels or trigger.label
-                plan = _next_like(plans, plan.class_label if same else "", scene)
-                while not stop.is_set() and clock() < start + period_ns:
-                    line.idle()
-                    sleep(min(0.005, max(0.0, (start + period_ns - clock()) / 1e9)))
-    if bridge is not None and played:  # the last window closes on data (see stream)
-        end = clock() + period_ns
-        while not stop.is_set() and clock() < end:
-            line.idle()
-            sleep(0.005)
+            stats.extra["triggers"] += 1
+            if trigger.label and trigger.label != plan.class_label:
+                plan = _next_like(plans, trigger.label, scene)  # simulated late: played late
+            t0 = trigger.stamp_ns - plan.onset_ns if align == "onset" else clock()
+            for j in range(per_trigger):
+                start = t0 + j * period_ns
+                now = clock()
+                if j and now > start:  # simulated late: it starts when ready (see stream)
+                    stats.late_trials += now - start > LATE_WRITE_NS
+                    t0 += now - start
+                    start = now
+                onset_only = align == "onset" and j == 0
+                _play(
+                    plan,
+                    start,
+                    line.write,
+                    stats,
+                    scene,
+                    rod,
+                    on_onset,
+                    stop,
+                    clock,
+                    sleep,
+                    skip_before_onset=onset_only,
+                    truth_stamp_ns=trigger.stamp_ns if onset_only else None,
+                )
+                played += 1
+                stats.trials += 1
+                if stop.is_set() or (trials and played >= trials):
+                    break
+                if j + 1 < per_trigger:
+                    # one grasp's trials share their class; simulated in the idle time
+                    same = labels or trigger.label
+                    plan = _next_like(plans, plan.class_label if same else "", scene)
+                    while not stop.is_set() and clock() < start + period_ns:
+                        line.idle()
+                        sleep(min(0.005, max(0.0, (start + period_ns - clock()) / 1e9)))
+        if bridge is not None and played:  # the last window closes on data (see stream)
+            end = clock() + period_ns
+            while not stop.is_set() and clock() < end:
+                line.idle()
+                sleep(0.005)
+    return stats
 
 
 def _play(
