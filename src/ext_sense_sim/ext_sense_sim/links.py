@@ -17,18 +17,10 @@ from ext_sense_sim.errors import SceneError
 class PtyLink:
     """A pseudo-terminal in raw mode: the emulator writes the master, a driver opens the slave.
 
-    A pty buffers only about 4 KiB, less than a tap's burst of receiver words carries, so
-    writing straight into it lost up to half of a trial's words whenever the reader was a few
-    milliseconds late. Bytes therefore go through a device-side FIFO that a writer thread
-    drains into the pty as fast as the reader takes them (like a receiver's UART buffer). A
-    device does not wait forever: bytes older than ``max_backlog_s`` (nobody reading, e.g.
-    before a driver opens the port) are dropped and counted in ``dropped_bytes``.
-
-    Args:
-        link: Optional path of a symlink to create to the slave (replaced if present).
-        max_backlog_s: Oldest bytes the FIFO keeps, s.
-        priority: SCHED_FIFO priority of the writer thread (0: as it is); a receiver is
-            hardware, so a loaded host should not delay the emulated one's bytes.
+    A pty buffers only about 4 KiB, less than a tap's burst, so bytes go through a device-side
+    FIFO (like a receiver's UART buffer) that a writer thread, at SCHED_FIFO ``priority`` (0: as
+    it is), drains as fast as the reader takes them. Bytes older than ``max_backlog_s`` (nobody
+    reading) are dropped and counted in ``dropped_bytes``. ``link``: a symlink to the slave.
     """
 
     def __init__(
@@ -127,13 +119,7 @@ class PtyLink:
 def open_link(
     kind: str, *, link_path: str = "", can_channel: str = "", can_id: int = 0x100, priority: int = 0
 ):
-    """A pty (default) or a python-can virtual channel sink, each with ``write`` and ``close``.
-
-    ``priority``: the pty writer thread's SCHED_FIFO priority (see :class:`PtyLink`).
-
-    Raises:
-        SceneError: Unknown link kind.
-    """
+    """A pty (writer at ``priority``) or a python-can virtual channel sink: ``write``, ``close``."""
     if kind == "pty":
         return PtyLink(link_path or None, priority=priority)
     if kind == "can":

@@ -1,19 +1,14 @@
 """``sim_device``: an emulated NUSkin or BioTac streaming a scene's bytes in real time.
 
 Streams over a pty (with a symlink at ``port_link`` so a driver's ``port`` can name it before
-it exists) or a python-can virtual channel, from a thread, and publishes ``ground_truth``
-(``ext_sense_msgs/ContactGroundTruth``) stamped with the host time at which each trial's
-true onset bytes were written. The trials themselves are simulated ahead in a child process at
-low priority (:mod:`ext_sense_sim.trials_ahead`): a real sensor costs the robot's computer
-nothing, and the emulated world's bursts of CPU would otherwise land on the nodes it feeds.
+it exists) or a python-can virtual channel, from a thread, and publishes ``ground_truth`` stamped
+with the host time at which each trial's true onset bytes were written. The trials are
+simulated ahead in a low-priority child process (:mod:`ext_sense_sim.trials_ahead`).
 
-With ``mode`` = ``trigger`` the device is silent until a message on ``trigger``
-(``ContactGroundTruth``; only its stamp is used) asks for the next ``trials_per_trigger``
-trials (:func:`ext_sense_sim.streaming.stream_on_trigger`): a behaviour drives the scene, e.g.
-the food probe's ``motion_start`` (``align`` = ``onset``: the trial's motion start is put at
-the probe's) or the handover's ``handover/offer`` (``align`` = ``start``: the person grasps when
-the object is offered). ``labels`` schedules the classes of successive triggers; a trigger's
-own ``class_label``, when set, is the class of its trials instead.
+With ``mode`` = ``trigger`` the device is silent until a message on ``trigger`` (only its stamp
+and ``class_label`` are used) asks for the next ``trials_per_trigger`` trials
+(:func:`ext_sense_sim.streaming.stream_on_trigger`): e.g. the food probe's ``motion_start``
+(``align`` = ``onset``) or the handover's ``handover/offer`` (``align`` = ``start``).
 """
 
 from __future__ import annotations
@@ -22,6 +17,7 @@ import functools
 import queue
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from rclpy.node import Node
@@ -131,28 +127,38 @@ class SimDeviceNode(Node):
         self._ready = threading.Event()
         wait_ns = round(p.wait_for_listener_s * 1e9)
         self._listener_deadline_ns = time.monotonic_ns() + wait_ns if wait_ns else None
+        common = dict(
+            seed=p.seed,
+            trials=p.trials,
+            period_s=p.trial_period_s,
+            on_onset=self._publish,
+            stop=self._stop,
+            stats=self.stats,
+            ahead=True,
+            priority=DEVICE_PRIORITY,
+        )
         if p.mode == "trigger":
-            target, run_args = (
-                self._run_triggered,
-                (
-                    p.seed,
-                    p.trials,
-                    p.trial_period_s,
-                    p.trials_per_trigger,
-                    [x.strip() for x in p.labels.split(",") if x.strip()],
-                    p.align,
-                ),
+            run = functools.partial(
+                stream_on_trigger,
+                self.scene,
+                self.sink.write,
+                self.triggers,
+                per_trigger=p.trials_per_trigger,
+                labels=[x.strip() for x in p.labels.split(",") if x.strip()],
+                align=p.align,
+                on_ready=self._ready.set,
+                **common,
             )
         else:
-            target, run_args = self._run, (p.seed, p.trials, p.trial_period_s)
+            run = functools.partial(
+                stream, self.scene, self.sink.write, ready=self._listener_or_deadline, **common
+            )
         self._thread = threading.Thread(
-            target=target, args=run_args, name="sim_device", daemon=True
+            target=self._run, args=(run,), name="sim_device", daemon=True
         )
         self._thread.start()
         if p.mode == "trigger":
-            # Listen only once the first trial is simulated (a food trial takes about 0.4 s,
-            # more when labels skip some): a trigger before that would be played late, the
-            # start of its trial in one burst. Whoever triggers waits for this subscription.
+            # listen once the first trial is simulated: a trigger before would be played late
             if not self._ready.wait(timeout=120.0) and not self.error:
                 raise RuntimeError("sim_device: the first trial was not simulated within 120 s")
             self.create_subscription(
@@ -168,24 +174,14 @@ class SimDeviceNode(Node):
             )
         self.get_logger().info(f"streaming scene {self.scene.name} on {self.port}")
 
-    def _run(self, seed: int, trials: int, period: float) -> None:
+    def _run(self, run: Callable[[], object]) -> None:
         try:
-            stream(
-                self.scene,
-                self.sink.write,
-                seed=seed,
-                trials=trials,
-                period_s=period,
-                on_onset=self._publish,
-                stop=self._stop,
-                stats=self.stats,
-                ahead=True,
-                priority=DEVICE_PRIORITY,
-                ready=self._listener_or_deadline,
-            )
+            run()
         except Exception as err:
             self.error = repr(err)
             self.get_logger().error(f"stream stopped: {err!r}")
+        finally:
+            self._ready.set()  # the trigger subscription waits for it
 
     def _listener_or_deadline(self) -> bool:
         """Whether the first trial may start: ground truth has a listener, or the wait is over."""
@@ -199,39 +195,6 @@ class SimDeviceNode(Node):
             "no subscriber to ground_truth within wait_for_listener_s: streaming anyway"
         )
         return True
-
-    def _run_triggered(
-        self,
-        seed: int,
-        trials: int,
-        period: float,
-        per_trigger: int,
-        labels: list[str],
-        align: str,
-    ) -> None:
-        try:
-            stream_on_trigger(
-                self.scene,
-                self.sink.write,
-                self.triggers,
-                seed=seed,
-                trials=trials,
-                per_trigger=per_trigger,
-                period_s=period,
-                labels=labels,
-                align=align,
-                on_onset=self._publish,
-                on_ready=self._ready.set,
-                stop=self._stop,
-                stats=self.stats,
-                ahead=True,
-                priority=DEVICE_PRIORITY,
-            )
-        except Exception as err:
-            self.error = repr(err)
-            self.get_logger().error(f"stream stopped: {err!r}")
-        finally:
-            self._ready.set()
 
     def _publish(self, gt: GroundTruth) -> None:
         msg = ContactGroundTruth(
