@@ -28,16 +28,11 @@ def calibrate_scene(
     max_evaluations: int = 60,
     log: Callable[[str], None] = print,
 ) -> str:
-    """Run a scene's calibration stages in order and return the fitted scene as YAML text.
+    """Run a NUSkin tap or food scene's calibration stages and return the fitted scene's YAML.
 
-    Args:
-        scene: A NUSkin tap or food scene.
-        real: Real session folders (as for ``sim fidelity``).
-        stages: Stages to run (default: ``noise, taps`` for taps, ``food`` for food).
-        trials: Simulated trials per evaluation (default: the stage's).
-        seed: Seed of every evaluation.
-        max_evaluations: Simulations per stage at most.
-        log: Where progress lines go.
+    ``real`` are session folders as for ``sim fidelity``; ``stages`` default to ``noise, taps``
+    for taps, ``food`` for food; every evaluation simulates ``trials`` (default: the stage's)
+    with ``seed``, at most ``max_evaluations`` per stage.
 
     Raises:
         SceneError: An unknown stage, or one that does not fit the scene's task.

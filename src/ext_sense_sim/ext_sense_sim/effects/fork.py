@@ -1,21 +1,13 @@
 """Fork penetration into food, the arm descending at 1 cm/s and stopping on 10 N.
 
-Model. From the motion start (the trial's onset) the arm lowers the fork at ``speed``; the tines
-touch the food after a gap ``gap_m``. With ``d`` the depth reached, the vertical force on the
-tines is, per food (``FOODS``, order-of-magnitude texture values, each scaled per trial by
-``spread``):
-
-- before fracture, Hertz-like indentation ``F = k d^1.5``;
-- on reaching ``fracture_n`` the force drops to the cutting force ``cut_n``, and along further
-  travel micro-fractures occur as a Poisson process of ``crunch_per_mm`` events per millimetre,
-  each a quick drop and recovery of ``crunch_n``;
-- water: the meniscus snaps on at first touch (``cut_n``) and buoyancy grows ``rho g A d``;
-- ``empty``: no force at all.
-
-The arm stops at the depth ``travel_m`` or when the force reaches ``stop_n`` (the Cartesian
-collision threshold), holding its position after. The fork is tilted ``tilt_deg`` from the
-vertical: ``F sin(tilt)`` acts across the fork at its tip, ``F cos(tilt)`` along it. The signal
-``motion`` gives the per-trial motion start and stop (seconds).
+Model. From the motion start the arm lowers the fork at ``speed``; the tines touch the food
+after ``gap_m``. At depth ``d`` the vertical force is, per food (``FOODS``, texture values
+scaled per trial by ``spread``), a Hertz-like ``k d^1.5`` up to ``fracture_n``, then the cutting
+force ``cut_n`` with Poisson micro-fractures (``crunch_per_mm``, each a drop and recovery of
+``crunch_n``); water: the meniscus ``cut_n`` plus buoyancy ``rho g A d``; ``empty``: none. The
+arm stops at ``travel_m`` or when the force reaches ``stop_n`` (the collision threshold) and
+holds. The fork is tilted ``tilt_deg``: ``F sin(tilt)`` acts across it at its tip,
+``F cos(tilt)`` along it. The signal ``motion`` gives each trial's motion start and stop.
 """
 
 from __future__ import annotations

@@ -1,27 +1,19 @@
 """Transfer from the loads at the grasp to the pressure on each taxel of the two finger pads.
 
-Lattice. Each finger carries 40 taxels on an 8 x 5 lattice of pitch ``pitch_m``; ids 1-40 are
-the left finger, 41-80 the right, and within a finger ``id - 1 (mod 40)`` is row-major: row
-``r = i // 5`` runs along the object's axis (row 7 nearest the free span), column ``c = i % 5``
-across it. The pads press on opposite sides of the object (left pad normal +n, right pad -n).
-
-Model (a rigid object on a thin elastic pad, the Winkler foundation): the object touches each
-pad along a strip ``w(c) = exp(-(c - c0)^2 / (2 s^2))``, ``c0`` the object's lateral offset on
-that pad (drawn per trial and pad). With ``A = sum w a`` and ``I = sum w u^2 a`` (``a`` the
-taxel area, ``u`` the axial position from the pad centre), a finger of side ``s = +1`` (left) /
-``-1`` (right) feels
+Each finger has 40 taxels on an 8 x 5 lattice (ids 1-40 left, 41-80 right; ``id - 1 (mod 40)``
+row-major, rows along the object's axis, row 7 nearest the free span); the pads press on
+opposite sides of the object. Model (a rigid object on a Winkler pad): the object touches each
+pad along a strip ``w(c) = exp(-(c - c0)^2 / (2 s^2))``, ``c0`` its lateral offset there (drawn
+per trial and pad). With ``A = sum w a``, ``I = sum w u^2 a`` (``u`` axial from the pad centre),
+a finger of side ``s = +1`` (left) / ``-1`` (right) feels
 
 ``p = w * (F_grip / A + s (V_n / A + M_n u / I)
        + k_t (c - c0) / s_w (V_t / A + M_t u / I) + k_a (u / u_max) F_ax / A)``
 
-times a fixed per-taxel gain, and never below zero (unilateral contact). Loads along the pads
-and the axial force reach the piezoresistive layer only through the couplings ``k_t`` and
-``k_a``. A torque ``T`` about the object's axis (``clamp_load`` channel 5) is held by friction,
-``T / (2 r)`` on each pad in opposite directions, through ``k_t``.
-
-``finger_load_share``: each trial draws ``s`` from this ``[low, high]`` range of ``|s|`` with a
-random sign; the left pad's dynamic loads are scaled by ``1 + s``, the right pad's by ``1 - s``
-(the pads are never seated alike; docs/simulator.md).
+times a fixed per-taxel gain, never below zero (unilateral contact). A torque about the axis is
+held by friction, ``T / (2 r)`` on each pad in opposite directions, through ``k_t``.
+``finger_load_share`` scales the left pad's dynamic loads by ``1 + s`` and the right's by
+``1 - s``, ``|s|`` drawn per trial from its range with a random sign.
 """
 
 from __future__ import annotations

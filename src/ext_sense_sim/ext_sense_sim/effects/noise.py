@@ -1,16 +1,11 @@
 """Sensor noise on the taxel pressures and spurious events on the NUSkin event stream.
 
-Models. ``sensor_noise``: white Gaussian pressure noise of standard deviation ``white_pa`` at the
-simulation rate, independent per taxel, added before the sensor's front end; ``white_spread``
-scales each taxel's by a log-normal factor fixed per sensor. ``chatty_taxels`` taxels, chosen
-once per sensor (the scene's seed), get noise of ``chatty_pa * 0.9**i`` instead (the ``i``-th of
-them), as a real patch's few taxels whose readings sit on a count boundary. ``drift_pa``: noise
-low-passed at ``drift_hz`` (first order, standard deviation ``drift_pa`` after it) that moves a
-resting reading across its count boundaries a few times a second.
-
-``spurious_events``: a Poisson process of rate ``rate_hz`` per taxel of events with random
-polarity (line glitches the receiver still decodes); their value field is the value of the
-taxel's last real event, or ``value_counts`` when it had none.
+``sensor_noise``: white Gaussian pressure noise (``white_pa``, scaled per taxel by a fixed
+log-normal ``white_spread``) before the front end; ``chatty_taxels`` taxels fixed per sensor get
+``chatty_pa * 0.9**i`` instead (readings on a count boundary); ``drift_pa``: noise low-passed at
+``drift_hz`` that moves resting readings across count boundaries. ``spurious_events``: Poisson
+events per taxel at ``rate_hz`` with random polarity (line glitches the receiver still decodes),
+valued as the taxel's last real event or ``value_counts``.
 """
 
 from __future__ import annotations

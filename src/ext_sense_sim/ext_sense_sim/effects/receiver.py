@@ -22,14 +22,8 @@ from ext_sense_sim.trial_events import trial_bounds
 def drain_times(t_ns: np.ndarray, starts: np.ndarray, word_ns: float) -> np.ndarray:
     """When each event leaves a FIFO drained one word per ``word_ns``, per trial.
 
-    Args:
-        t_ns: Event times, ``(n,)`` int64, sorted within each trial.
-        starts: Index of each trial's first event, ``(n_trials + 1,)`` with the end last.
-        word_ns: Time one word takes on the link, ns.
-
-    Returns:
-        ``(n,)`` int64 departure times: ``d_k = max(t_k, d_{k-1} + word_ns)`` within a trial,
-        computed as ``k w + running max of (t_j - j w)`` (no loop over events).
+    ``starts`` bounds each trial's events (sorted times). ``d_k = max(t_k, d_{k-1} + word_ns)``
+    is computed as ``k w + running max of (t_j - j w)``, without a loop over events.
     """
     n = t_ns.size
     if n == 0:

@@ -1,18 +1,11 @@
 """``sim_arm``: a simulated Panda / FR3 behind franka_ros2's interfaces, for the food probe.
 
-Speaks exactly what a franka_ros2 robot offers the food behaviour's adapter
-(``ext_sense_behaviours.nodes.franka_adapter``), under franka_ros2's default names:
-
-- ``/franka_robot_state_broadcaster/robot_state`` (``franka_msgs/msg/FrankaRobotState``, at
-  ``rate_hz``): header, measured joints, ``o_t_ee``, external force ``o_f_ext_hat_k``, collision
-  indicators, robot mode (move, idle or reflex), current errors (``cartesian_reflex``);
-- ``/service_server/set_full_collision_behavior`` (``franka_msgs/srv/SetFullCollisionBehavior``);
-- ``/fr3_arm_controller/follow_joint_trajectory`` (``control_msgs/action/FollowJointTrajectory``,
-  as ``joint_trajectory_controller``: a new goal preempts the running one, a cancel holds the
-  position, a reflex aborts);
-- ``/action_server/error_recovery`` (``franka_msgs/action/ErrorRecovery``): leaves reflex mode.
-
-The physics is :class:`~ext_sense_sim.devices.franka_arm.SimFrankaArm`, stepped at ``rate_hz``.
+Offers what a franka_ros2 robot offers the food behaviour's adapter, under franka_ros2's default
+names: the robot state at ``rate_hz`` (joints, ``o_t_ee``, ``o_f_ext_hat_k``, collision
+indicators, robot mode, ``cartesian_reflex``), ``SetFullCollisionBehavior``, the
+``FollowJointTrajectory`` action of ``joint_trajectory_controller`` (a new goal preempts, a
+cancel holds, a reflex aborts) and ``ErrorRecovery``. The physics is
+:class:`~ext_sense_sim.devices.franka_arm.SimFrankaArm`.
 """
 
 from __future__ import annotations
