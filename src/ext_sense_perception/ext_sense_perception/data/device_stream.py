@@ -222,13 +222,10 @@ def window_set_from_stream(
     match_tolerance_ns: int = 300 * MS,
     source: str = "stream",
 ) -> tuple[WindowSet, StreamCounts]:
-    """A labelled training set cut from a raw stream exactly as the live graph cuts it.
+    """A labelled set and counts, cut from a raw stream exactly as the live graph cuts it.
 
     Arguments as :func:`cut_stream`'s; ``truths`` are stamped on the writes' clock, and a window is
-    labelled by the truth within ``match_tolerance_ns`` of its onset.
-
-    Returns:
-        The window set (one window per matched trial, ``groups`` the trial) and counts.
+    labelled by the truth within ``match_tolerance_ns`` of its onset (``groups``: the trial).
 
     Raises:
         PerceptionError: No window matched any truth, or bad arguments.

@@ -115,11 +115,9 @@ class WindowParameters:
 
 
 def window_config(p: WindowParameters, log: Log) -> tuple[WindowConfig, tuple[int, ...], str]:
-    """The window configuration: the model card's profile, else the task's.
+    """The window configuration (the model card's profile, else the task's), BioTac slots, source.
 
-    Returns:
-        The configuration, the BioTac slots joined into one window, and the profile's source (the
-            card's path, or ``"task"``).
+    The source is the card's path, or ``"task"``.
 
     Raises:
         ValueError: A bad task, sensor or stuck-taxel setting (the message names it).

@@ -267,15 +267,12 @@ def late_read_window_set(
     source: str = "stream",
     n_jobs: int = 1,
 ) -> tuple[WindowSet, StreamCounts]:
-    """A device stream cut as the live graph cuts it: with ideal reads, and again per late read.
+    """A device stream cut as the live graph cuts it, with ideal reads and again per late read.
 
     Each of the ``late_reads`` extra cuts reads the bytes as a late reader would (a fresh draw of
     ``delay``), so events, reads and detected onsets move as they do live, which :func:`augment`
     only approximates (docs/benchmarks.md, "Late-read training"). The reads are drawn first, so
-    ``n_jobs`` does not change the result.
-
-    Returns:
-        The windows of every cut, and the ideal cut's counts.
+    ``n_jobs`` does not change the result. Returns every cut's windows and the ideal cut's counts.
 
     Raises:
         PerceptionError: ``late_reads`` negative, or no window matched a truth.

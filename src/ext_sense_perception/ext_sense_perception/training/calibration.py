@@ -134,10 +134,9 @@ def calibrate(
     weight: int = DEFAULT_WEIGHT,
     seed: int = 0,
 ) -> ModelCard:
-    """Adapt ``bundle`` to the session of ``calib``, with ``weight`` repeats of each of its trials.
+    """The card (``calibration``, ``label_set`` set) of ``bundle`` adapted to ``calib``'s session.
 
-    Returns:
-        The new bundle's card (``calibration`` and ``label_set`` filled in).
+    Each calibration trial is repeated ``weight`` times in the refit; the bundle goes to ``out``.
 
     Raises:
         PerceptionError: a bundle without its training windows, or calibration windows that do not
@@ -194,10 +193,8 @@ def calibration_curve(
 
     Each held-out session gets ``draws`` random draws of that many trials per class added to the
     other sessions' windows, and is scored on its other windows of the shared classes, restricted
-    to its label set. Zero trials is the zero-shot score.
-
-    Returns:
-        ``{"trials", "sessions": {name: [mean per trials]}, "mean"}`` plus the settings, JSON-ready.
+    to its label set (zero trials: the zero-shot score). Returns ``{"trials", "sessions": {name:
+    [mean per trials]}, "mean"}`` and the settings, JSON-ready.
     """
     recipe = dataclasses.replace(recipe or Recipe(), anytime_post_ns=())
     rng = np.random.default_rng(seed)

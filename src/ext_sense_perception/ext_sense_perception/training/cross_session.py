@@ -22,11 +22,8 @@ from ext_sense_perception.training.scoring import score_classes, score_positions
 def fit_and_score(train: Any, test: Any, labels: tuple[str, ...], recipe: Recipe) -> dict:
     """Fit the recipe (no anytime models) on ``train`` and score ``test``.
 
-    ``labels`` is the test session's label set (empty: no restriction).
-
-    Returns:
-        ``{"restricted": score, "unrestricted": score}`` (:mod:`.scoring` records; the same MAE
-            record for positions).
+    ``labels`` is the test session's label set (empty: no restriction). Returns ``{"restricted",
+    "unrestricted"}`` :mod:`.scoring` records (the same MAE record for positions).
     """
     trained, _ = fit_recipe(train, dataclasses.replace(recipe, anytime_post_ns=()))
     X = test.X.reshape(len(test.X), -1)
@@ -60,11 +57,10 @@ def without_single_windows(ws: Any) -> tuple[Any, list[str]]:
 
 
 def cross_session(sessions: list[Session], recipe: Recipe | None = None) -> dict[str, Any]:
-    """Leave-one-session-out scores of the recipe (default: everything the task's own).
+    """Leave-one-session-out scores of the recipe (default: everything the task's own), JSON-ready.
 
-    Returns:
-        A JSON-ready record: a row per session (its scores, or why it was skipped), ``mean`` and
-            ``mean_unrestricted`` over the scored ones.
+    A row per session (its scores, or why it was skipped), ``mean`` and ``mean_unrestricted`` over
+    the scored ones.
 
     Raises:
         PerceptionError: fewer than two sessions, or sessions that cannot be pooled.

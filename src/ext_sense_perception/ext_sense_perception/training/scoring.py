@@ -42,11 +42,9 @@ def score_classes(
     """The classification figures of ``ext-sense score``.
 
     ``proba`` columns follow ``classes``; decisions are restricted to ``allowed`` (empty: all);
-    ``names`` name the windows of unknown classes (default: their index).
-
-    Returns:
-        ``metric``, ``value``, ``n_windows`` (scored), ``class_names``, ``confusion`` (rows true),
-            ``per_class``, ``calibration`` and ``unknown``.
+    ``names`` name the windows of unknown classes (default: their index). The record holds
+    ``metric``, ``value``, ``n_windows`` (scored), ``class_names``, ``confusion`` (rows true),
+    ``per_class``, ``calibration`` and ``unknown``.
     """
     y_true = np.asarray([str(v) for v in y_true])
     names = np.asarray(names if names is not None else np.arange(len(y_true))).astype(str)

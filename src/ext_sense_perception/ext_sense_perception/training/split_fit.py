@@ -136,12 +136,10 @@ def data_digest(X: np.ndarray, y: np.ndarray) -> str:
 def code_modules(
     estimator: Any, packages: tuple[str, ...] = PROJECT_PACKAGES
 ) -> tuple[list[str], list[str]]:
-    """The code a fit of ``estimator`` runs, beyond this module.
+    """The code a fit of ``estimator`` runs beyond this module: ``(modules, versions)``.
 
-    Returns:
-        ``(modules, versions)``: the modules of ``packages`` behind the pipeline's classes and what
-            they import, transitively (sorted); and ``name version`` of the other libraries
-            involved.
+    The modules of ``packages`` behind the pipeline's classes and what they import, transitively
+    (sorted); and ``name version`` of the other libraries involved.
     """
     objs = [estimator, *estimator.get_params(deep=True).values()]
     names = {type(o).__module__ for o in objs if hasattr(o, "get_params")}

@@ -157,11 +157,10 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
     def onnx_arrays(self) -> dict[str, Any]:
         """The fitted model as padded float64 arrays for one batched ONNX ``MatMul``.
 
-        The ridge weights are folded into the dual coefficients and intercepts.
-
-        Returns:
-            ``centre`` ``(n_channels, d)``, centred ``sv`` ``(n_channels, n_sv, d)``, ``coef``
-                ``(n_channels, n_sv)``, ``gamma`` ``(n_channels,)`` and the scalar ``intercept``.
+        ``centre`` ``(n_channels, d)``, centred ``sv`` ``(n_channels, n_sv, d)``, ``coef``
+        ``(n_channels, n_sv)`` (the ridge weights folded in), ``gamma`` ``(n_channels,)`` and the
+        scalar
+        ``intercept``.
 
         Raises:
             PerceptionError: when not fitted.
