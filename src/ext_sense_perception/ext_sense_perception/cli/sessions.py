@@ -64,8 +64,7 @@ def _bundle_sessions(args: argparse.Namespace, path: Path, card: Any) -> list[Se
     """The ``--data`` sessions cut as the bundle's windows were (its task, sensor, anchor).
 
     Raises:
-        PerceptionError: ``--task``/``--sensor`` or the data name another task or sensor than
-            the bundle's.
+        PerceptionError: ``--task``/``--sensor`` or the data name another kind than the bundle's.
     """
     from ext_sense_perception.cli.options import Wanted
 

@@ -234,8 +234,7 @@ def pooled(sessions: list[Session]) -> WindowSet:
     """The windows of several sessions as one set (trial groups kept apart per session).
 
     Raises:
-        PerceptionError: No sessions, two sessions of one name, or sessions whose task,
-            sensor, window geometry or anchor differ.
+        PerceptionError: No sessions, two of one name, or differing task, sensor, geometry, anchor.
     """
     if not sessions:
         raise PerceptionError("The 'sessions' parameter must name at least one session.")

@@ -171,8 +171,7 @@ def from_food_poking(
     ``anchor`` defaults to :func:`default_anchor`; ``rate_hz`` thins the events before binning.
 
     Raises:
-        PerceptionError: No trials, a missing bag for ``arm_motion``, a row breaking a rule, or no
-            trial with a detected contact.
+        PerceptionError: No trials, a missing ``arm_motion`` bag, a bad row, or no contact found.
     """
     anchor = default_anchor(directory) if anchor is None else Anchor.parse(anchor)
     recs, excluded = food_poking_trials(

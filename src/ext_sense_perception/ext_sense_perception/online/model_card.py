@@ -123,8 +123,7 @@ class ModelCard:
         anchor: What the training onsets were tied to (empty: the source's own).
         label_set: The classes decisions are restricted to (empty: all of ``class_names``).
         calibration: How ``ext-sense calibrate`` adapted the bundle to a session (empty: not).
-        held_object: The object the windows were felt through (None: unknown, accepted with a
-            warning).
+        held_object: The object the windows were felt through (None: unknown, warned about).
         id: Task, sensor, features, model and a hash of the rest.
     """
 

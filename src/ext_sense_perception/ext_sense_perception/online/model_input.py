@@ -31,8 +31,7 @@ def as_model_input(window: object, geometry: Geometry) -> np.ndarray:
     the model's is rebinned by summing (counts add exactly).
 
     Raises:
-        PerceptionError: on a window too short, with other channels or an incompatible sample
-            period, or holding NaN/inf.
+        PerceptionError: a window too short, of other channels or sample period, or not finite.
     """
     data = getattr(window, "data", window)
     x = np.asarray(data)

@@ -218,8 +218,7 @@ class Runner:
         """Score ``features`` + ``model`` on ``ws`` (K splits), or return the memoised result.
 
         Raises:
-            PerceptionError: the point cannot be evaluated, or one of its fits failed (each time it
-                is asked for).
+            PerceptionError: the point cannot be evaluated, or a fit failed (at every call).
         """
         params = self.feature_params(ws, features, params)
         grid = dict(default_feature_grid(ws.task, ws.sensor, features))

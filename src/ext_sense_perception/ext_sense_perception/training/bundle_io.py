@@ -149,8 +149,7 @@ def save_bundle(
     ``ext-sense calibrate``.
 
     Raises:
-        PerceptionError: when ONNX export fails (the rest is written, the card says ``"onnx":
-            null``).
+        PerceptionError: ONNX export failed (the rest is written; the card's ``onnx`` is null).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -34,8 +34,7 @@ def training_windows(bundle: str | Path, card: ModelCard | None = None) -> Windo
     """The windows a bundle was trained on, as a window set.
 
     Raises:
-        PerceptionError: a bundle without ``training_windows.npz`` or one that does not match its
-            card.
+        PerceptionError: no ``training_windows.npz``, or one that does not match the card.
     """
     card = card or read_card(bundle)
     path = Path(bundle) / TRAINING_WINDOWS_FILE
@@ -139,8 +138,7 @@ def calibrate(
     Each calibration trial is repeated ``weight`` times in the refit; the bundle goes to ``out``.
 
     Raises:
-        PerceptionError: a bundle without its training windows, or calibration windows that do not
-            fit it.
+        PerceptionError: a bundle without its training windows, or windows that do not fit it.
     """
     card = read_card(bundle)
     if card.anchor and calib.windows.anchor and calib.windows.anchor != card.anchor:

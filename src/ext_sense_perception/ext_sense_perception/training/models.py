@@ -93,8 +93,7 @@ def make_pipeline(
     """Features -> scaler -> model, and the grid with pipeline-prefixed keys.
 
     Raises:
-        PerceptionError: as :func:`make_estimator`, or ``taxel_svr`` on features that are not in
-            per-channel blocks.
+        PerceptionError: as :func:`make_estimator`, or ``taxel_svr`` on features not per channel.
     """
     est, grid = make_estimator(name, regression, seed)
     scaler = StandardScaler()

@@ -124,8 +124,7 @@ def train_bundle(
     """Train the recipe's model and anytime models on ``ws`` and save them as a bundle in ``out``.
 
     Raises:
-        PerceptionError: Too few windows or classes, an unknown feature set or model, or a failed
-            ONNX export.
+        PerceptionError: Too few windows or classes, unknown features or model, failed export.
     """
     trained, anytime = fit_recipe(ws, recipe)
     save_bundle(trained, out, anytime, windows=ws)
