@@ -53,15 +53,20 @@ class BridgeLine:
         if n == 0:
             return 0
         sensors = frames.sensor_id.astype(np.int64)
-        seq = np.empty(n, dtype=np.int64)
         for k, s in enumerate(sensors.tolist()):
-            seq[k] = self._next_seq.get(s, 0)
-            self._next_seq[s] = (seq[k] + 1) % SEQ_MODULO
             self._rest[s] = frames.words[k].copy()
-        out = encode_frames(seq, sensors, frames.words)
+        out = encode_frames(self._number(sensors), sensors, frames.words)
         self._write(out)
         self._last_step_ns = self._clock()
         return len(out)
+
+    def _number(self, sensors: np.ndarray) -> np.ndarray:
+        """The next sequence number of each frame's sensor, each sensor's running on."""
+        seq = np.empty(sensors.size, dtype=np.int64)
+        for k, s in enumerate(sensors.tolist()):
+            seq[k] = self._next_seq.get(s, 0)
+            self._next_seq[s] = (seq[k] + 1) % SEQ_MODULO
+        return seq
 
     def idle(self) -> int:
         """Write the rest frames due by now (each sensor's, every 10 ms); returns bytes written."""
@@ -78,12 +83,8 @@ class BridgeLine:
             steps = MAX_CATCH_UP_FRAMES
         sensors = sorted(self._rest)
         sid = np.tile(np.array(sensors, dtype=np.int64), steps)
-        seq = np.empty(sid.size, dtype=np.int64)
-        for k, s in enumerate(sid.tolist()):
-            seq[k] = self._next_seq.get(s, 0)
-            self._next_seq[s] = (seq[k] + 1) % SEQ_MODULO
         words = np.stack([self._rest[s] for s in sid.tolist()])
-        out = encode_frames(seq, sid, words)
+        out = encode_frames(self._number(sid), sid, words)
         self._write(out)
         self._last_step_ns += steps * FRAME_PERIOD_NS
         self.rest_frames += sid.size

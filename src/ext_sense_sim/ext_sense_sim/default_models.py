@@ -75,11 +75,7 @@ def _quiet(_line: str) -> None:
 
 
 def training_fingerprint(sensor: str, scene: str, trials: int, how: str = "") -> str:
-    """A hash of everything a default model is trained from.
-
-    The sources of the simulator and of the perception package outside their nodes, the scene,
-    how the set is made and the trial count.
-    """
+    """A hash of what a model is trained from: sim and perception sources (not nodes) and set."""
     digest = hashlib.sha256(f"{sensor}|{scene}|{how}|{trials}|{TRAIN_SEED}".encode())
     for root in (Path(__file__).parent, Path(ext_sense_perception.__file__).parent):
         for path in sorted(root.rglob("*")):
@@ -222,18 +218,9 @@ def ensure_model(
 
 
 def create_models(
-    out: Path,
-    sensor: str,
-    tasks: Sequence[str] = TASKS,
-    force: bool = False,
-    log: Log = _quiet,
+    out: Path, sensor: str, tasks: Sequence[str] = TASKS, force: bool = False, log: Log = _quiet
 ) -> None:
-    """Train the default model of each task into ``out/<task>_<sensor>`` unless current.
-
-    Raises:
-        PerceptionError: ``out`` is not writable or too full, or a training failed.
-        SceneError: A scene cannot be loaded.
-    """
+    """Train the default model of each task into ``out/<task>_<sensor>`` unless current."""
     jobs = [
         (t, out / default_name(t, sensor), TRIALS[(t, sensor)], DEFAULT_SCENES[(t, sensor)])
         for t in tasks

@@ -83,12 +83,7 @@ def section_properties(section: Mapping[str, Any]) -> tuple[float, float, float,
         if 2 * c >= min(w, t):
             raise SceneError(f"Section 'hollow_rect': 'wall_m' ({c}) must be < half of w and t.")
         wi, ti = w - 2 * c, t - 2 * c
-        return (
-            w * t - wi * ti,
-            (w * t**3 - wi * ti**3) / 12,
-            (t * w**3 - ti * wi**3) / 12,
-            w,
-        )
+        return (w * t - wi * ti, (w * t**3 - wi * ti**3) / 12, (t * w**3 - ti * wi**3) / 12, w)
     raise SceneError(
         f"Section 'shape' must be one of ['circle', 'rect', 'hollow_rect']. Got {shape!r} instead."
     )

@@ -92,11 +92,7 @@ class TrialsAhead(Iterator[PlannedTrial]):
     """
 
     def __init__(
-        self,
-        scene: Scene,
-        seed: int,
-        stop: threading.Event | None = None,
-        nice: int = WORLD_NICE,
+        self, scene: Scene, seed: int, stop: threading.Event | None = None, nice: int = WORLD_NICE
     ) -> None:
         self.stop = stop or threading.Event()
         self._proc = subprocess.Popen(

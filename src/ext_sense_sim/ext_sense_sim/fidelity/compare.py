@@ -76,10 +76,7 @@ def summarise(stats: dict[str, npt.NDArray[np.float64]]) -> dict[str, dict[str, 
 
 
 def two_sample_auc(
-    a: npt.NDArray[np.float64],
-    b: npt.NDArray[np.float64],
-    seed: int = 0,
-    repeats: int = REPEATS,
+    a: npt.NDArray[np.float64], b: npt.NDArray[np.float64], seed: int = 0, repeats: int = REPEATS
 ) -> float:
     """Cross-validated ROC AUC of a random forest telling the rows of ``a`` from those of ``b``.
 

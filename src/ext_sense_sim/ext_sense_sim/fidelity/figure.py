@@ -44,10 +44,12 @@ def draw(run: FidelityRun, path: str | Path) -> Path:
     return path
 
 
-def _colours(real: list[str]) -> dict[str, str]:
-    out = {name: f"C{i}" for i, name in enumerate(real)}
-    out[SIMULATED] = SIM_COLOUR
-    return out
+def _groups(run: FidelityRun) -> tuple:
+    """The run's result and tables, its real sessions, their short names, colours and order."""
+    real = run.result["sessions"]
+    colours = {name: f"C{i}" for i, name in enumerate(real)}
+    colours[SIMULATED] = SIM_COLOUR
+    return run.result, run.tables, real, short_names(real), colours, [*real, SIMULATED]
 
 
 def _band(ax, x, rows: np.ndarray, colour: str, label: str, width: float = 2.0) -> None:
@@ -69,11 +71,7 @@ def _boxes(ax, groups: list[np.ndarray], labels: list[str], colours: list[str]) 
 
 
 def _taps(plt, run: FidelityRun):
-    result, tables = run.result, run.tables
-    real = result["sessions"]
-    short = short_names(real)
-    colours = _colours(real)
-    order = [*real, SIMULATED]
+    result, tables, real, short, colours, order = _groups(run)
     fig = plt.figure(figsize=(16, 10))
     grid = fig.add_gridspec(3, 4)
     ax = fig.add_subplot(grid[0, :2])
@@ -135,11 +133,7 @@ def _taps(plt, run: FidelityRun):
 
 
 def _food(plt, run: FidelityRun):
-    result, tables = run.result, run.tables
-    real = result["sessions"]
-    short = short_names(real)
-    colours = _colours(real)
-    order = [*real, SIMULATED]
+    result, tables, _, short, colours, order = _groups(run)
     labels = [short.get(n, n) for n in order]
     fig, axes = plt.subplots(2, 2, figsize=(13, 8))
     ax = axes[0, 0]

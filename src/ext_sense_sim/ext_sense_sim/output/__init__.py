@@ -14,8 +14,7 @@ def write_outputs(
 ) -> list[Path]:
     """Write the requested outputs of one run into ``out``; returns the files written.
 
-    ``raw`` needs the scene to list a wire effect (else nothing is written for it);
-    ``bag`` is skipped (with a note in the summary) when ``ext_sense_bags`` is not installed.
+    ``raw`` needs a wire effect in the scene, ``bag`` the ``ext_sense_bags`` package.
     """
     from ext_sense_sim.output.paper import write_biotac_csv, write_tact
     from ext_sense_sim.output.raw import write_raw

@@ -18,12 +18,7 @@ BATCH_NS = 1_000_000
 
 def write_bag(arrays: dict[str, np.ndarray], folder: Path, trial_s: float) -> list[Path]:
     """Write the run's bag into ``folder`` (a new directory); returns the files written."""
-    from ext_sense_bags import (
-        BagWriter,
-        biotac_frame,
-        ground_truth,
-        taxel_event_batch,
-    )
+    from ext_sense_bags import BagWriter, biotac_frame, ground_truth, taxel_event_batch
 
     base = int(BASE_EPOCH_S * 1e9)
     trial_ns = round(trial_s * 1e9)
