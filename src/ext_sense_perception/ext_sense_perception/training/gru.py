@@ -56,37 +56,6 @@ class GRUNet(NamedTuple):
         """GRU cells."""
         return int(self.w_hh.shape[1])
 
-    def check(self) -> None:
-        """Raise a PerceptionError when an array has the wrong shape."""
-        h, c = self.hidden, self.n_channels
-        want = {
-            "w_ih": (3 * h, c),
-            "w_hh": (3 * h, h),
-            "b_ih": (3 * h,),
-            "b_hh": (3 * h,),
-        }
-        for name, shape in want.items():
-            got = tuple(np.shape(getattr(self, name)))
-            if got != shape:
-                raise PerceptionError(
-                    f"The GRU weight {name!r} must have shape {shape}. Got {got} instead."
-                )
-        n_in = h
-        for i, (w, b) in enumerate(self.layers):
-            if np.ndim(w) != 2 or np.shape(w)[1] != n_in or np.shape(b) != (np.shape(w)[0],):
-                raise PerceptionError(
-                    f"MLP layer {i} must be (out, {n_in}) with bias (out,). Got "
-                    f"{np.shape(w)} and {np.shape(b)} instead."
-                )
-            n_in = np.shape(w)[0]
-        if not self.layers:
-            raise PerceptionError("The 'layers' of a GRUNet must hold at least one layer.")
-        if self.classes is not None and len(self.classes) != n_in:
-            raise PerceptionError(
-                f"The last layer must have one output per class ({len(self.classes)}). "
-                f"Got {n_in} instead."
-            )
-
 
 def require_torch() -> Any:
     """The torch module, imported lazily.

@@ -88,9 +88,41 @@ def reference_forward(net: GRUNet, x: np.ndarray) -> np.ndarray:
     return y
 
 
+def check_net(net: GRUNet) -> None:
+    """Raise a PerceptionError when an array of ``net`` has the wrong shape."""
+    h, c = net.hidden, net.n_channels
+    want = {
+        "w_ih": (3 * h, c),
+        "w_hh": (3 * h, h),
+        "b_ih": (3 * h,),
+        "b_hh": (3 * h,),
+    }
+    for name, shape in want.items():
+        got = tuple(np.shape(getattr(net, name)))
+        if got != shape:
+            raise PerceptionError(
+                f"The GRU weight {name!r} must have shape {shape}. Got {got} instead."
+            )
+    n_in = h
+    for i, (w, b) in enumerate(net.layers):
+        if np.ndim(w) != 2 or np.shape(w)[1] != n_in or np.shape(b) != (np.shape(w)[0],):
+            raise PerceptionError(
+                f"MLP layer {i} must be (out, {n_in}) with bias (out,). Got "
+                f"{np.shape(w)} and {np.shape(b)} instead."
+            )
+        n_in = np.shape(w)[0]
+    if not net.layers:
+        raise PerceptionError("The 'layers' of a GRUNet must hold at least one layer.")
+    if net.classes is not None and len(net.classes) != n_in:
+        raise PerceptionError(
+            f"The last layer must have one output per class ({len(net.classes)}). "
+            f"Got {n_in} instead."
+        )
+
+
 def from_net(net: GRUNet) -> GRUEstimator:
     """A fitted estimator from given weights."""
-    net.check()
+    check_net(net)
     est = GRUEstimator(
         regression=net.classes is None,
         n_channels=int(net.n_channels),
@@ -185,9 +217,9 @@ def test_pipeline_export_chains_features_scaler_and_gru():
 def test_net_shape_errors_are_clear():
     net = random_net(0)
     with pytest.raises(PerceptionError, match="'w_hh' must have shape"):
-        net._replace(w_hh=net.w_hh[:10]).check()
+        check_net(net._replace(w_hh=net.w_hh[:10]))
     with pytest.raises(PerceptionError, match="one output per class"):
-        net._replace(classes=np.array(["a", "b"])).check()
+        check_net(net._replace(classes=np.array(["a", "b"])))
     est = GRUEstimator(n_channels=7)
     with pytest.raises(PerceptionError, match="'n_channels' parameter"):
         est._check_params(20)
