@@ -1,10 +1,8 @@
 """The default model of each task, trained on the scene simulator (``ext-sense models create``).
 
-Each model is trained by the perception package's one recipe
-(``ext_sense_perception.training.recipe.train_bundle``) on the windows the live graph would cut
-from the task's default scene (:data:`~ext_sense_sim.scene.DEFAULT_SCENES`), and kept while the
-fingerprint of its inputs (:func:`training_fingerprint`) is current. Bundles are staged beside
-their place and renamed into it under a lock (``ext_sense_perception.training.bundle_io``).
+Each is trained by perception's one recipe (``train_bundle``) on the windows the live graph
+would cut from the task's default scene, kept while the fingerprint of its inputs is current,
+and staged beside its place and renamed into it under a lock (``training.bundle_io``).
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """NUSkin events of a batch of trials: the runtime ``EventBlock`` plus the trial of each event.
 
-The simulator's ``events`` signal is the pair ``(trial, events)`` (:data:`TrialEvents`): an
-``int32`` trial index per event (batch-local in the effects, run-wide in the dataset) and the
-events, times from each trial's origin, sorted by trial then time, so one trial's events are a
-contiguous slice (:func:`trial_bounds`).
+The ``events`` signal is the pair ``(trial, events)`` (:data:`TrialEvents`), sorted by trial
+then time, so one trial's events are a contiguous slice (:func:`trial_bounds`); trial indices
+are batch-local in the effects, run-wide in the dataset.
 """
 
 from __future__ import annotations

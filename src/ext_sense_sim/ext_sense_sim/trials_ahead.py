@@ -1,16 +1,11 @@
 """Trials simulated ahead in a child process at low priority: the emulated world off the hot path.
 
-A real sensor costs the robot's computer nothing to make its signal; simulated in the device's
-own process, each trial's burst of CPU fell on the driver, window and inference nodes.
-:class:`TrialsAhead` runs :func:`~ext_sense_sim.trial_plan.plan_trials` in a child process at
-``nice`` +10 and hands the same trials, in the same order, over a pipe, up to
-:data:`AHEAD_TRIALS` ahead: a graph that asks for one class (a handover's grasps) skips the
-others, so one trigger can need many draws at once (docs/benchmarks.md, "The emulator's
-look-ahead").
-
-The child runs in a session of its own (``python -m ext_sense_sim.trials_ahead``), so a Ctrl-C
-to the graph's process group reaches only the device node, which ends the child; the child also
-ends when the device's end of the pipe closes, so a killed device leaves no orphan.
+A real sensor costs the robot's computer nothing; simulated in the device's own process, each
+trial's burst of CPU fell on the nodes it feeds. :class:`TrialsAhead` runs ``plan_trials`` in a
+child process at ``nice`` +10 and hands the same trials over a pipe, up to :data:`AHEAD_TRIALS`
+ahead, as one trigger of a class can skip many trials of the others (docs/benchmarks.md, "The
+emulator's look-ahead"). The child runs in a session of its own, so the graph's Ctrl-C reaches
+only the device, which ends it; it also ends when the pipe closes, so it is never orphaned.
 """
 
 from __future__ import annotations

@@ -1,11 +1,9 @@
 """What each calibration stage fits, to which real statistics, and how it measures a scene.
 
-``noise``: a NUSkin tap scene's white and chatty-taxel noise against the quiet stretch before
-each real tap. ``taps``: its tap, rod damping, finger load share and contact strip against the
-real tap windows (the fidelity statistics). ``food``: the food scene's noise, resting readings,
-contact strip and grip against the real food trials after the motion start. Each stage's
-tolerances are about the real sessions' spread, or issue 30's targets where it sets one
-(docs/simulator.md, "Calibration against the real sensor").
+``noise``: a NUSkin tap scene's noise against the quiet stretch before each real tap; ``taps``:
+its tap, rod damping, load share and contact strip against the real tap windows; ``food``: the
+food scene's noise, resting readings, strip and grip against the real trials' motion. The
+tolerances: docs/simulator.md, "Calibration against the real sensor".
 """
 
 from __future__ import annotations
@@ -135,13 +133,8 @@ def quiet_stats(captures: Sequence[Any], onsets_ns: Sequence[int]) -> dict[str, 
         seconds = end_bin * BIN_NS / 1e9
         counts = np.bincount(cap.taxel[quiet].astype(np.intp), minlength=81)
         total = counts.sum()
-        rows.append(
-            (
-                total / seconds,
-                counts.max() / total if total else 0.0,
-                np.count_nonzero(counts) / seconds,
-            )
-        )
+        busiest = counts.max() / total if total else 0.0
+        rows.append((total / seconds, busiest, np.count_nonzero(counts) / seconds))
     med = np.median(np.array(rows), axis=0) if rows else np.full(3, np.nan)
     return dict(zip(NOISE_TOLERANCES, map(float, med), strict=True))
 
@@ -158,11 +151,7 @@ def real_quiet_stats(captures: Sequence[Any]) -> dict[str, float]:
 
 
 def noise_measure(trials: int, seed: int, seconds: float = 1.0) -> Measure:
-    """Simulate ``trials`` untapped trials of ``seconds`` and return their quiet statistics.
-
-    The scene's tap is silenced (no force, no impact) and its trials lengthened, so every
-    event is the sensor's own: the real captures' quiet stretch is about 0.8 s.
-    """
+    """Simulate ``trials`` untapped trials of ``seconds`` (silenced taps) and their quiet stats."""
     silent = (
         FreeParameter("contact_impulse", "force_n", 0.0, 0.0),
         FreeParameter("contact_impulse", "impact_force_n", 0.0, 0.0),

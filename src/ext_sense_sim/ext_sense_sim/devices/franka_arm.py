@@ -114,12 +114,7 @@ class SimFrankaArm:
         times_s, points = np.asarray(times_s, dtype=np.float64), np.asarray(points, np.float64)
         if self.reflex:
             return "the robot is in reflex mode: error recovery first"
-        if (
-            points.ndim != 2
-            or points.shape[1] != 7
-            or len(times_s) != len(points)
-            or not len(times_s)
-        ):
+        if not (points.ndim == 2 and points.shape[1] == 7 and 0 < len(times_s) == len(points)):
             return f"expected (n, 7) positions with n times; got {points.shape} and {len(times_s)}"
         if not (times_s[0] > 0 and np.all(np.diff(times_s) > 0)):
             return "time_from_start must be positive and increasing"

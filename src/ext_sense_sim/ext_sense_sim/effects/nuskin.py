@@ -1,21 +1,15 @@
 """NUSkin transduction: taxel pressure to positive and negative events.
 
-Model. The graphene piezoresistive layer and its amplifier pass pressure up to
-``bandwidth_hz`` (a second-order Butterworth low-pass). The taxel's reading is
-``offset_counts + p / pa_per_count`` (10 bits); each taxel is a level-crossing (send-on-delta)
-encoder on that reading: it emits a positive event when the reading has risen by
-``threshold_pa`` since its reference, a negative one when it has fallen by as much. With
-``reference: reset`` (default) the reference then jumps to the reading, so one event reports one
-detected change whatever its size; with ``reference: step`` it moves one threshold toward the
-reading (a change of ``n`` thresholds gives ``n`` events). After an event the taxel is
-refractory for ``refractory_s`` (the ACES signature length, hence at most 4 kHz per taxel). The
-value field is the reading at the event, clipped to 0..1023. Event times fall uniformly inside
-their simulation sample, never closer than the refractory period.
-
-``offset_spread`` multiplies each taxel's resting reading by a log-normal factor, fixed per
-sensor. With ``clip_reading: true`` the encoder sees the reading clipped to 0..1023, so a taxel
-pressed past full scale stops firing. Why these choices and the calibrated values:
-docs/simulator.md.
+Model. The piezoresistive layer and its amplifier pass pressure up to ``bandwidth_hz`` (a
+second-order Butterworth low-pass); the taxel's 10-bit reading is ``offset_counts + p /
+pa_per_count``. Each taxel is a send-on-delta encoder on it: an event when the reading has moved
+``threshold_pa`` from its reference, which then jumps to the reading (``reference: reset``: one
+event per change, whatever its size) or steps one threshold (``step``: ``n`` events for ``n``
+thresholds); then the taxel is refractory for ``refractory_s`` (the ACES signature length). The
+value field is the reading at the event (0..1023); event times fall uniformly inside their
+sample, never closer than the refractory period. ``offset_spread`` spreads the resting readings
+(log-normal, fixed per sensor); ``clip_reading`` clips the reading the encoder sees to 0..1023.
+Why these choices and the calibrated values: docs/simulator.md.
 """
 
 from __future__ import annotations

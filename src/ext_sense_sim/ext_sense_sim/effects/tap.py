@@ -1,12 +1,10 @@
 """Contact impulse: a tap on the held rod.
 
-Model: a half-sine force pulse of peak ``force_n`` and length ``duration_s`` (impulse
-``2 F tau / pi``), acting across the rod at ``position_m`` (from the held end; the label) in a
-direction ``angle_deg`` from the pad normal. The contact time decides how hard the rod's upper
-modes ring (a pulse of length ``tau`` drives little above ``1 / tau``), the force how many counts
-the pads see. ``impact_force_n`` (default 0: none) adds a second, short half-sine of
-``impact_duration_s`` at the same onset: a fingertip's nail and bone striking before the pulp's
-longer push. The scenes' values and their fit: docs/simulator.md.
+Model: a half-sine force pulse of peak ``force_n`` and length ``duration_s`` across the rod at a
+random position (the label) and ``angle_deg`` from the pad normal; the contact time decides how
+hard the upper modes ring (little above ``1 / tau``). ``impact_force_n`` (default 0) adds a
+short half-sine of ``impact_duration_s`` at the same onset: a fingertip's nail and bone striking
+before the pulp's longer push. The scenes' values and their fit: docs/simulator.md.
 """
 
 from __future__ import annotations

@@ -36,9 +36,8 @@ FOOD_FILES = "*_zero_*.tact"
 class Capture(NamedTuple):
     """One real capture or simulated trial, event times as 10 ms bins from its first (0).
 
-    ``label`` is the food class (``""`` for taps); ``span_bins`` the bins it covers (real: to
-    its last event); ``mark_bin`` the bin of a known instant: a simulated tap's true onset, a
-    food trial's motion start, -1 when unknown.
+    ``mark_bin`` is a known instant's bin (a simulated tap's onset, a food trial's motion
+    start; -1: unknown); ``label`` the food class (``""`` for taps).
     """
 
     name: str
@@ -80,11 +79,7 @@ def rod_cm(scene: Scene) -> int:
 
 
 def tap_folder(path: str | Path, rod: int) -> tuple[str, Path]:
-    """The session name and the folder of ``rod`` cm captures of one ``--real`` folder.
-
-    ``path`` is a day's folder holding ``rodNN/`` folders, or one ``rodNN/`` folder itself; a
-    missing folder, one of another rod or one without captures raises :class:`FidelityError`.
-    """
+    """The session name and folder of ``rod`` cm captures of a day's or a ``rodNN/`` folder."""
     path = Path(path)
     if not path.is_dir():
         raise FidelityError(f"The --real folder {str(path)!r} does not exist.")

@@ -62,8 +62,6 @@ def run_fidelity(
 ) -> FidelityRun:
     """Compare a NUSkin tap or food scene with the real captures under each folder of ``real``.
 
-    ``trials`` defaults to :data:`DEFAULT_TRIALS`, ``seed`` to the scene's.
-
     Raises:
         FidelityError: No or unreadable real folders, two folders of one session, a session
             with no usable capture, or a scene without real kin.

@@ -1,10 +1,8 @@
 """Summaries, the issue's targets and a classifier two-sample test.
 
-The two-sample test asks a random forest to tell two sets of windows apart from their
-statistics; its cross-validated ROC AUC is 0.5 when it cannot, 1.0 when it always can. Real
-sessions of one rod already differ (another day, another grip), so the yardstick is the AUC
-between two real sessions: a scene passes when the forest separates it from the real windows
-no better than that, plus a margin.
+A random forest tries to tell two sets of windows apart from their statistics (cross-validated
+ROC AUC 0.5: it cannot, 1.0: always). Real sessions of one rod already differ, so a scene passes
+when it is told from the real windows no better than two real sessions are, plus a margin.
 """
 
 from __future__ import annotations
