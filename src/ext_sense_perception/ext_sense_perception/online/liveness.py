@@ -7,7 +7,7 @@ across it misses signal while every status says OK. No ROS; the clock is injecta
   goes) beyond ``warn_ns`` (WARN), then ``error_ns`` (ERROR), kept as stream time.
 - A *late packet*: ``late_ns`` over the stream's usual delay; counted only, since the stream is
   in order and a late packet is still in its window.
-- *Lost input*: the driver's word count ran ahead of the events received, or ``seq`` gaps.
+- *Lost input*: packets missing by their ``seq``.
 
 Windows overlapping a fault are published ``degraded`` (:meth:`StreamLiveness.fault_in`); lost
 input no window covered that could hold an onset is a lost contact.
@@ -37,14 +37,13 @@ MARGIN_NS = 100_000
 class Fault:
     """A stall (``start_ns`` to ``end_ns``, stream time) or lost input.
 
-    ``lost_words`` is what a lost-input gap misses (0 for a stall); a gap that ``may_hold_contact``
-    and no window ``covered`` is a lost contact once settled.
+    A lost-input gap that ``may_hold_contact`` and no window ``covered`` is a lost contact once
+    settled.
     """
 
     start_ns: int
     end_ns: int | None
     reason: str
-    lost_words: int = 0
     may_hold_contact: bool = False
     covered: bool = False
 
@@ -77,22 +76,18 @@ class StreamLiveness(StallCounts):
     last_stamp_ns: int | None = None
     faults: list[Fault] = field(default_factory=list)
     words_lost: int = 0
+    """Always 0 (kept on /diagnostics): packets carry no word count, their loss is by ``seq``."""
     packets_lost: int = 0
     """Packets missing by their ``seq`` (raw packets input, :meth:`on_lost_packets`)."""
     contact_words: int = 0
-    """Lost words (or packets) that could hold an onset: the onset detector's activity
-    threshold; 0: lost input is not counted as contacts."""
+    """Lost packets that could hold an onset: the onset detector's activity threshold; 0: lost
+    input is not counted as contacts."""
     contact_horizon_ns: int = 0
     """Stream time after a gap by which any window covering it has been cut, ns."""
     debounce_ns: int = 0
     """Shortest time between two onsets: lost gaps closer than this are one contact, ns."""
     last_loss_ns: int | None = None
     """Monotonic time input was last found lost (WARN for :data:`RECENT_NS` after)."""
-    _count_base: int | None = None
-    _last_total: int | None = None
-    _events_seen: int = 0
-    _count_stamp_ns: int = 0
-    _before_count_ns: int = 0
     _delays: deque[int] = field(default_factory=lambda: deque(maxlen=BASELINE_MESSAGES))
     _unsettled: list[Fault] = field(default_factory=list)
     _last_lost_contact_ns: int | None = None
@@ -131,44 +126,6 @@ class StreamLiveness(StallCounts):
         self.faults = [  # no window reaches back to older faults
             f for f in self.faults if f.end_ns is None or stamp_ns - f.end_ns < KEEP_FAULTS_NS
         ]
-
-    def on_counts(self, stamp_ns: int, words_total: int, bad_words: int, n_events: int) -> None:
-        """Check the driver's running count of good words against the events received (NUSkin).
-
-        Batches split from one drain share their count, so a shortfall is judged once the count
-        moves on.
-        """
-        good = int(words_total) - int(bad_words)
-        last = self._last_total
-        if last is not None and good < last:  # the driver restarted its count
-            self._count_base = None
-        elif last is not None and good != last:
-            if self._count_base is None:  # the first complete count: the check starts here
-                self._count_base, self._events_seen = last, 0
-            else:
-                short = last - self._count_base - self._events_seen
-                if short > 0:
-                    self.words_lost += short
-                    self.last_loss_ns = self.clock()
-                    self._add_gap(
-                        Fault(
-                            self._before_count_ns,  # from the batch before the short count
-                            self._count_stamp_ns,  # to its last batch
-                            "lost input",
-                            lost_words=short,
-                            may_hold_contact=bool(self.contact_words)
-                            and short >= self.contact_words,
-                        )
-                    )
-                self._count_base += max(short, 0)
-                if short < 0:  # more events than words: not a one-event-per-word stream
-                    self._count_base, self._events_seen = last, 0
-        if self._count_base is not None:
-            self._events_seen += int(n_events)
-        if good != last:
-            self._before_count_ns = self._count_stamp_ns
-        self._last_total = good
-        self._count_stamp_ns = stamp_ns
 
     def on_lost_packets(self, before_ns: int, stamp_ns: int, n: int) -> None:
         """``n`` packets are missing between the packet stamped ``before_ns`` and this one.
@@ -259,14 +216,7 @@ class StreamLiveness(StallCounts):
         self.contacts_degraded += int(final)
         for f in inside:
             f.covered = True
-        reasons = list(dict.fromkeys(f.reason for f in inside if not f.lost_words))
-        lost = [f.lost_words for f in inside if f.lost_words]
-        if lost:
-            reasons.append(
-                f"lost input: {sum(lost)} words the driver decoded never reached this node "
-                f"({len(lost)} gap(s))"
-            )
-        return "; ".join(reasons)
+        return "; ".join(dict.fromkeys(f.reason for f in inside))
 
     def check(self) -> tuple[Level, str, dict[str, object]]:
         """The diagnostics check: ERROR or WARN during a stall (naming the stream), else OK."""
@@ -294,12 +244,8 @@ class StreamLiveness(StallCounts):
             )
             return level, f"stall: no input on {self.stream} for {silent / MS:.0f} ms{hit}", values
         if self.last_loss_ns is not None and self.clock() - self.last_loss_ns < RECENT_NS:
-            if self.packets_lost:
-                what = f"{self.packets_lost} packets (seq gaps)"
-                if self.words_lost:
-                    what += f", {self.words_lost} words"
-                return Level.WARN, f"lost input: {what} on {self.stream}", values
-            return Level.WARN, f"lost input: {self.words_lost} words on {self.stream}", values
+            what = f"{self.packets_lost} packets (seq gaps)"  # input is lost only by seq gaps
+            return Level.WARN, f"lost input: {what} on {self.stream}", values
         if self.last_arrival_ns is None:
             return Level.OK, f"waiting for {self.stream}", values
         return Level.OK, "streaming", values

@@ -93,41 +93,6 @@ def test_a_late_packet_is_counted_but_degrades_no_window_and_a_constant_offset_i
     assert live.check()[2]["max_late_ms"] == "250"
 
 
-def test_words_the_driver_counted_but_never_arrived_degrade_the_windows_across_them():
-    live, clock = _liveness()
-    t0 = 10**18
-    total = 0
-    for i in range(10):  # 5 events per batch, the count moving with them
-        total += 5
-        live.on_counts(t0 + i * MS, total, 0, 5)
-    # one drain split in two messages: the count leads the first part, no loss
-    total += 8
-    live.on_counts(t0 + 10 * MS, total, 0, 4)
-    live.on_counts(t0 + 10 * MS, total, 0, 4)
-    total += 5
-    live.on_counts(t0 + 11 * MS, total, 0, 5)
-    assert live.words_lost == 0
-    # 3 batches (15 words) dropped on the way, 2 bad words counted by the driver
-    total += 15 + 2 + 5
-    live.on_counts(t0 + 15 * MS, total, 2, 5)
-    total += 5
-    live.on_counts(t0 + 16 * MS, total, 2, 5)
-    assert live.words_lost == 15
-    reason = live.fault_in(t0 + 12 * MS, t0 + 14 * MS)
-    assert reason == "lost input: 15 words the driver decoded never reached this node (1 gap(s))"
-    assert live.fault_in(t0, t0 + 10 * MS) == ""
-    level, message, values = live.check()
-    assert (level, message) == (Level.WARN, "lost input: 15 words on /extsense/nuskin/events")
-    assert values["words_lost"] == 15
-    live.on_counts(t0 + 17 * MS, 5, 0, 5)  # a restarted driver counts from 0 again
-    live.on_counts(t0 + 18 * MS, 10, 0, 5)
-    live.on_counts(t0 + 19 * MS, 15, 0, 5)
-    assert live.words_lost == 15
-    clock.ns += 10_001 * MS
-    live.on_message(t0 + 20 * MS, t0 + 22 * MS)
-    assert live.check()[0] == Level.OK
-
-
 def _tap_liveness() -> tuple[StreamLiveness, FakeClock]:
     live, clock = _liveness()
     live.contact_words = 8  # the onset detector's activity_min_events
