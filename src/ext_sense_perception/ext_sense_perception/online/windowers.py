@@ -63,18 +63,8 @@ class WindowerBase:
         """Counters since construction."""
         return WindowerCounters(**self._counts)
 
-    @property
-    def now_ns(self) -> int | None:
-        """Stream time: the end of the newest data seen, ns (None before any data)."""
-        return self._now_ns
-
-    @property
-    def first_ns(self) -> int | None:
-        """Stream time of the first data fed, ns (None before any)."""
-        return self._first_ns
-
     def _joined(self, t_ns: int) -> None:
-        """Note that data from ``t_ns`` on was fed (the first call fixes :attr:`first_ns`)."""
+        """Note that data from ``t_ns`` on was fed (the first call fixes ``_first_ns``)."""
         if self._first_ns is None:
             self._first_ns = int(t_ns)
 

@@ -351,7 +351,7 @@ def test_a_window_reaching_back_before_the_first_input_is_degraded_as_joined_mid
     assert all(x.degraded for x in out if x.onset_ns == late.onset_ns)  # provisional ones too
     assert not whole.degraded
     assert whole.degraded_reason == ""
-    assert w.first_ns == int(t2[joined][0])
+    assert w._first_ns == int(t2[joined][0])
     assert w.counters.joined_mid_stream_windows == 5  # 4 provisional and the final
 
     # from the stream's start, the same contacts give whole windows
