@@ -1,9 +1,8 @@
 """The emulated BioTac bridge between trials: every sensor's frame every 10 ms, always.
 
-A real bridge streams each sensor's frame at 100 Hz whatever touches the finger, so the window
-node closes a BioTac window with the frames that follow it and takes silence for a stopped
-device. :class:`BridgeLine` writes a trial's frames renumbered so that each sensor's sequence
-runs on, and in between rest frames (each sensor's last reply words again) on the same cadence.
+A real bridge streams at 100 Hz whatever touches the finger, so the window node closes a BioTac
+window with the frames after it and takes silence for a stopped device. :class:`BridgeLine`
+writes a trial's frames renumbered so each sensor's sequence runs on, and rest frames between.
 """
 
 from __future__ import annotations

@@ -16,6 +16,9 @@ from ext_sense_sim.engine import Simulator
 from ext_sense_sim.errors import SceneError
 from ext_sense_sim.scene import Scene
 
+KEPT_SIGNALS = ("labels", "events", "biotac", "wire")
+"""What the writers need of each batch (the big intermediate arrays are dropped)."""
+
 
 def run_scene(
     scene: Scene,
@@ -45,7 +48,7 @@ def run_scene(
     batches = []
     for tb, signals in sim.batches(trials, seed):
         collector.add(tb, signals)
-        batches.append((tb, _keep(signals)))
+        batches.append((tb, {k: v for k, v in signals.items() if k in KEPT_SIGNALS}))
     sim_s = time.perf_counter() - start
     written = write_outputs(scene, out, collector, batches, formats)
     summary = {
@@ -58,8 +61,3 @@ def run_scene(
     }
     (out / "run.json").write_text(json.dumps(summary, indent=2))
     return summary
-
-
-def _keep(signals: dict) -> dict:
-    """Drop the big intermediate arrays; keep what the writers need."""
-    return {k: v for k, v in signals.items() if k in ("labels", "events", "biotac", "wire")}

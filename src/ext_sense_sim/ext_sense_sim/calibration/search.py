@@ -1,10 +1,9 @@
 """Fitting a scene's free physical parameters to statistics of real captures.
 
-:func:`fit` runs a deterministic coordinate search in log space: each :class:`FreeParameter` in
-turn is multiplied and divided by a step, a change is kept when it lowers the loss, and the step
-halves (in log) when a round keeps nothing. Every evaluation simulates the same trials with the
-same seed, so a change of loss is the parameter's doing, and a rerun gives the same fit. The
-loss is the mean squared miss of each :class:`Target` in units of its tolerance.
+:func:`fit` is a deterministic coordinate search in log space: each :class:`FreeParameter` in
+turn is multiplied and divided by a step, a change kept when it lowers the loss (the mean squared
+miss of each :class:`Target` in tolerance units), the step halved (in log) when a round keeps
+nothing. Every evaluation simulates the same trials and seed, so a rerun gives the same fit.
 """
 
 from __future__ import annotations

@@ -163,12 +163,9 @@ class GripperModel:
         """The status registers as they read now."""
         go_to = self.command.activate and self.command.go_to
         holding = self.object == ObjectStatus.DETECTED_CLOSING
-        if self._moving:
-            current = 20
-        elif holding:
+        current = 20 if self._moving else 0
+        if holding and not self._moving:
             current = max(1, self.command.force // 4)
-        else:
-            current = 0
         return GripperStatus(
             activated=self.command.activate,
             go_to=go_to,
@@ -372,27 +369,6 @@ class PtyGripper:
         self.stop()
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of ``ext-sense sim serve robotiq`` (for the simulator's CLI to reuse)."""
-    parser.add_argument("--slave", type=int, default=DEFAULT_SLAVE_ID, help="Modbus slave id")
-    parser.add_argument(
-        "--object-position",
-        type=int,
-        default=DEMO_OBJECT_POSITION,
-        help="finger position 0..255 where an object stops the closing fingers; -1: no object "
-        f"(default {DEMO_OBJECT_POSITION}: an object in the hand, as the handover demo needs)",
-    )
-    parser.add_argument(
-        "--activation-s", type=float, default=0.3, help="activation duration, seconds"
-    )
-    parser.add_argument(
-        "--fault",
-        choices=[f.name.lower() for f in LinkFault],
-        default="none",
-        help="inject a fault from the start",
-    )
-
-
 def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt  # SIGTERM ends the server as cleanly as Ctrl-C
 
@@ -400,8 +376,8 @@ def _interrupt(signum: int, frame: object) -> None:
 def serve(args: argparse.Namespace) -> int:
     """Open the emulated gripper on a pty, print its path, serve until Ctrl-C or SIGTERM.
 
-    Options missing from ``args`` (see :func:`add_arguments`) take their defaults; ``args.link``
-    also gets a symlink to the pty, removed at exit.
+    ``args`` may set ``object_position`` (-1: none), ``activation_s``, ``fault`` (a
+    :class:`LinkFault` name), ``slave`` and ``link`` (a symlink to the pty, removed at exit).
     """
     object_position = int(getattr(args, "object_position", DEMO_OBJECT_POSITION))
     model = GripperModel(

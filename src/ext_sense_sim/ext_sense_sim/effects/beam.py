@@ -76,14 +76,11 @@ def _sigma(bl: np.ndarray) -> np.ndarray:
     return (1.0 + decay**2 + 2.0 * np.cos(bl) * decay) / (1.0 - decay**2 + 2.0 * np.sin(bl) * decay)
 
 
-def zoh_filters(
-    omega: np.ndarray, zeta: np.ndarray, dt: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def zoh_filters(omega: np.ndarray, zeta: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
     """Exact zero-order-hold discretisation of ``q'' + 2 zeta w q' + w^2 q = f``.
 
-    Returns:
-        ``(b_q, b_v, a)``, each ``(n_modes, 3)``: the numerators giving displacement and
-        velocity from the force, and their shared denominator.
+    Returns ``(b_q, b_v, a)``, each ``(n_modes, 3)``: the numerators giving displacement and
+    velocity from the force, and their shared denominator.
     """
     n = len(omega)
     b_q, b_v, a = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
@@ -102,11 +99,7 @@ def zoh_filters(
 
 
 class BeamModel:
-    """Modal model of one bending plane of a clamped-free beam (see module docstring).
-
-    Arguments in SI units; ``zeta`` is scalar or per mode; the modes below ``max_freq_hz`` are
-    kept (at least one, at most ``max_modes``).
-    """
+    """One bending plane of a clamped-free beam (SI units), its modes below ``max_freq_hz``."""
 
     def __init__(
         self,

@@ -1,12 +1,10 @@
 """The NUSkin receiver's link to the host: a first-in first-out queue drained at its word rate.
 
-Model. The receiver sends every decoded event to the host as one 4-byte word over a serial link
-of at most ``words_per_s`` words a second. Word ``k`` leaves at ``d_k = max(t_k, d_{k-1} + 1 /
-words_per_s)``: a burst faster than the link piles up and drains at the link's rate after the
-contact has quietened, so the host sees a flat ceiling and a tail, as in the real rod taps
-(docs/simulator.md). Event times become the departure times (what a host stamps);
-``words_per_s: 0`` (default) is an unlimited link. Words still queued at the trial's end are
-left out (counted in ``dropped``), so trials laid back to back never overlap.
+Model. Each decoded event goes to the host as one 4-byte word, at most ``words_per_s`` a second
+(0: unlimited): word ``k`` leaves at ``d_k = max(t_k, d_{k-1} + 1 / words_per_s)``, so a burst
+faster than the link drains at its rate, a flat ceiling and a tail as in the real rod taps.
+Event times become the departure times (what a host stamps); words still queued at the trial's
+end are left out (``dropped``), so trials laid back to back never overlap.
 """
 
 from __future__ import annotations

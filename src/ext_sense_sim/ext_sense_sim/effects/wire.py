@@ -1,13 +1,11 @@
 """The wire: NUSkin receiver words, the ACES line, BioTac bridge frames, and wire faults.
 
-Models, each on the drivers' own codecs. ``nuskin_wire``: each event as one 4-byte receiver
-word (flag bit 0), written ``latency_s`` after it. ``aces_line``: every event's taxel signature
-summed onto the shared line with line noise and decoded back by the receiver, so collisions
-cost what they really cost; recovered events take the value of the nearest sent event of their
-taxel. ``biotac_wire``: one bridge frame per sensor per 10 ms, written when its last PAC sample
-was taken, the sensors of one step sharing their number. ``wire_faults``: each byte is lost,
-flipped (one random bit) or followed by an extra random byte with the given probabilities.
-The signal ``wire`` is a list, per trial, of :class:`WireStream`.
+Each on the drivers' own codecs. ``nuskin_wire``: one 4-byte receiver word per event (flag bit
+0), written ``latency_s`` after it. ``aces_line``: every event's signature summed onto the
+shared line with noise and decoded back, so collisions cost what they really cost (recovered
+events take the value of the nearest sent event of their taxel). ``biotac_wire``: one bridge
+frame per sensor per 10 ms, at its last PAC sample. ``wire_faults``: each byte lost, flipped or
+followed by an extra byte with the given probabilities. ``wire``: a :class:`WireStream` per trial.
 """
 
 from __future__ import annotations
