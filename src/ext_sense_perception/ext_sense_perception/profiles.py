@@ -112,11 +112,7 @@ class TaskProfile:
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> TaskProfile:
-        """A profile from :meth:`to_dict` values.
-
-        Raises:
-            PerceptionError: A field is missing, unknown or out of range.
-        """
+        """A profile from :meth:`to_dict` values (PerceptionError: bad or missing fields)."""
         names = {f for f in cls.__dataclass_fields__}
         if not isinstance(values, dict) or set(values) != names:
             got = sorted(values) if isinstance(values, dict) else type(values).__name__
@@ -203,11 +199,7 @@ class Anchor(str, Enum):
 
     @classmethod
     def parse(cls, value: object) -> Anchor:
-        """The anchor named ``value``.
-
-        Raises:
-            PerceptionError: An unknown name.
-        """
+        """The anchor named ``value`` (a PerceptionError for an unknown name)."""
         try:
             return cls(value)
         except ValueError as err:
@@ -247,9 +239,5 @@ def capture_profile(anchor: Anchor | str) -> TaskProfile:
 
 
 def profile_for(task: Task | str) -> TaskProfile:
-    """The task's profile.
-
-    Raises:
-        PerceptionError: An unknown task name.
-    """
+    """The task's profile (a PerceptionError for an unknown task)."""
     return PROFILES[Task.parse(task, PerceptionError)]

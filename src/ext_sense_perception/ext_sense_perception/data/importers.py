@@ -120,11 +120,7 @@ def read_capture_tact(path: str | Path, policy: InputPolicy | None = None) -> Ev
 
 
 def read_csv_columns(path: str | Path) -> dict[str, np.ndarray]:
-    """A CSV with a header line as columns (numbers where every value parses, else strings).
-
-    Raises:
-        PerceptionError: when the file is missing or empty.
-    """
+    """A CSV with a header as columns, numbers where all parse (PerceptionError: none/empty)."""
     path = _existing_file(path)
     with path.open(newline="") as fh:
         reader = csv.reader(fh)
@@ -232,11 +228,7 @@ class Recording(NamedTuple):
 
 
 def capture_start_ns(path: str | Path, events: EventBlock) -> int:
-    """The host time of a capture's ``1 1 1 t`` start marker (else of its first event), ns.
-
-    Raises:
-        PerceptionError: when the file has neither a marker nor an event.
-    """
+    """A capture's ``1 1 1 t`` marker time, else its first event's, ns (else PerceptionError)."""
     with open(path, encoding="ascii", errors="replace") as fh:
         first = fh.readline().split()
     if len(first) == 4 and first[:3] == ["1", "1", "1"]:
@@ -320,11 +312,7 @@ def _no_trials(directory: Path, excluded: list[str]) -> str:
 
 
 def load_sim_dataset(path: str | Path) -> dict[str, np.ndarray]:
-    """The simulator's ``dataset.npz`` as a dict of arrays, strings as ``str``.
-
-    Raises:
-        PerceptionError: when the file is missing or lacks the common fields.
-    """
+    """The simulator's ``dataset.npz`` as arrays, strings as ``str`` (PerceptionError: bad)."""
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as z:

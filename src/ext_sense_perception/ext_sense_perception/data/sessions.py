@@ -68,11 +68,7 @@ def metadata_file(path: str | Path) -> Path:
 
 
 def read_info(path: str | Path) -> SessionInfo | None:
-    """The metadata file of the session at ``path`` (None: there is none).
-
-    Raises:
-        PerceptionError: A file that is not JSON or breaks :data:`SESSION_SCHEMA`.
-    """
+    """The checked ``session.json`` at ``path`` (None: none; PerceptionError: bad)."""
     meta = metadata_file(path)
     if not meta.is_file():
         return None

@@ -27,11 +27,7 @@ class FeatureKind(IntEnum):
 
     @classmethod
     def parse(cls, value: str | int | FeatureKind) -> FeatureKind:
-        """Kind from its name.
-
-        Raises:
-            PerceptionError: when the name is unknown.
-        """
+        """Kind from its name or alias (a PerceptionError for an unknown one)."""
         if isinstance(value, FeatureKind):
             return value
         if isinstance(value, int):

@@ -36,11 +36,7 @@ def window_fields(win: ContactWindow) -> dict[str, Any]:
 
 
 def window_from_msg(msg: Any) -> ContactWindow:
-    """Rebuild a window from a ``ContactWindow`` message.
-
-    Raises:
-        PerceptionError: ``shape`` does not match ``data`` or ``channels``.
-    """
+    """A window from a ``ContactWindow`` message (PerceptionError: shape and data disagree)."""
     shape = tuple(int(s) for s in np.asarray(msg.shape).reshape(-1))
     data = np.asarray(msg.data, dtype=np.float32)
     channels = np.asarray(msg.channels, dtype=np.uint16)

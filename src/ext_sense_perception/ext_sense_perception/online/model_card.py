@@ -195,11 +195,7 @@ class ModelCard:
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> ModelCard:
-        """A card from :meth:`to_dict` values.
-
-        Raises:
-            PerceptionError: A field is missing, unknown or of the wrong kind.
-        """
+        """A card from :meth:`to_dict` values (PerceptionError: bad or missing fields)."""
         if not isinstance(values, dict):
             raise PerceptionError(f"A model card must be a JSON object. Got {type(values)}.")
         names = {f.name for f in fields(cls)}
@@ -410,11 +406,7 @@ def jsonable(v: Any) -> Any:
 
 
 def read_card(directory: str | Path) -> ModelCard:
-    """The card of a bundle directory: the one place cards are read.
-
-    Raises:
-        PerceptionError: The card is missing, not JSON, or not a valid card.
-    """
+    """The card of a bundle, the one place cards are read (PerceptionError: bad or missing)."""
     path = Path(directory) / CARD_FILE
     if not path.is_file():
         raise PerceptionError(f"Model card missing: {str(path)!r} does not exist.")

@@ -37,11 +37,7 @@ class SearchPlace(NamedTuple):
 
 
 def default_name(task: str, sensor: str) -> str:
-    """The name of a task's default model: ``<task>_<sensor>`` (e.g. ``tap_localization_nuskin``).
-
-    Raises:
-        PerceptionError: An unknown task or sensor.
-    """
+    """A task's default model name, ``<task>_<sensor>`` (a PerceptionError for an unknown one)."""
     task_label = Task.parse(task, PerceptionError).label
     return f"{task_label}_{Sensor.parse(sensor, PerceptionError).label}"
 

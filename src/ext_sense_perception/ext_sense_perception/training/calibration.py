@@ -92,7 +92,7 @@ def with_calibration(base: WindowSet, calib: WindowSet, weight: int) -> WindowSe
     """``base`` and ``calib`` pooled, each calibration window repeated ``weight`` times.
 
     Raises:
-        PerceptionError: windows of another task, sensor, geometry or anchor, or a weight < 1.
+        PerceptionError: windows of another task, sensor or geometry, or a weight < 1.
     """
     if weight < 1:
         raise PerceptionError(f"The 'weight' parameter must be >= 1. Got {weight} instead.")

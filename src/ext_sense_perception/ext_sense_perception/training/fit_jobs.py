@@ -225,11 +225,7 @@ class FitRunner:
 
 
 def check(results: list[Any]) -> None:
-    """Raise when a job's results hold a failed fit.
-
-    Raises:
-        PerceptionError: naming how many fits failed and the first failure.
-    """
+    """Raise a PerceptionError naming how many of ``results`` failed and the first failure."""
     errors = [r.error for r in results if isinstance(r, FitFailure)]
     if errors:
         raise PerceptionError(

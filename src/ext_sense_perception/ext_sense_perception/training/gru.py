@@ -58,11 +58,7 @@ class GRUNet(NamedTuple):
 
 
 def require_torch() -> Any:
-    """The torch module, imported lazily.
-
-    Raises:
-        PerceptionError: torch is not installed.
-    """
+    """The torch module, imported lazily (a PerceptionError when it is not installed)."""
     try:
         import torch
     except ImportError as err:
