@@ -98,6 +98,16 @@ def _pixels(client: FoxgloveClient, item: Received) -> tuple[int, int, bytes]:
     return image.width, image.height, bytes(image.data)
 
 
+def _all_recorded_served(client: FoxgloveClient, recorded: dict[str, list[bytes]]) -> bool:
+    """Whether the client got as many messages as the bag holds on each recorded topic, and
+    every recorded ``/diagnostics`` message."""
+    counts = Counter(m.topic for m in client.messages())
+    if any(counts[topic] < len(recorded[topic]) for topic in RECORDED):
+        return False
+    served = {_cdr(m.payload) for m in client.messages(TOPIC_DIAGNOSTICS)}
+    return set(recorded[TOPIC_DIAGNOSTICS]) <= served
+
+
 def _cdr(payload: bytes) -> bytes:
     """A CDR payload as the wire carries it: padded with zeros to a multiple of 4 bytes.
 
@@ -115,12 +125,6 @@ def _from_first_common(live: list[bytes], recorded: set[bytes]) -> list[bytes]:
 
 
 @pytest.mark.timeout(400)
-@pytest.mark.xfail(
-    strict=False,
-    reason="flaky since the view decodes only while a client watches (issue 31): in 3 of 7 runs "
-    "on 28 November the replayed view drew 1-2 of the 4 estimates the live one drew, one of them "
-    "1 ms off the live onset; quarantined until that is understood (see the issue 31 note)",
-)
 def test_live_and_replayed_views_serve_the_same_channels_and_data(tap_model, tmp_path):
     bag = tmp_path / "tap_run"
     wanted = set(ch.view_channels("nuskin"))
@@ -185,9 +189,11 @@ def test_live_and_replayed_views_serve_the_same_channels_and_data(tap_model, tmp
         )
         assert played, replay.output()[-3000:]
         assert replay.proc.poll() is None, replay.output()[-3000:]
-        assert wait_for(lambda: _every_channel_heard(again, wanted), timeout=10), Counter(
-            m.topic for m in again.messages()
-        )
+        # the player is done; the view may still be passing its last messages on under load
+        assert wait_for(
+            lambda: _every_channel_heard(again, wanted) and _all_recorded_served(again, recorded),
+            timeout=30,
+        ), Counter(m.topic for m in again.messages())
     finally:
         if again is not None:
             again.close()
