@@ -105,9 +105,8 @@ def training_set(
 ) -> tuple[WindowSet, Recipe]:
     """The windows a default model is trained on, and the recipe that trains it.
 
-    NUSkin taps and handovers: the scene's trials as the emulated device streams them, cut by the
-    ``contact_window`` node's own core (the handover's also by late readers); the rest: a
-    simulated dataset.
+    NUSkin taps and handovers: the device stream cut as the live graph cuts it (handovers also
+    by late readers); the rest: a simulated dataset.
     """
     how = _how(task, sensor)
     if how == "dataset":
@@ -174,8 +173,7 @@ def _ensure_all(
 ) -> bool:
     """Train each ``(task, model_dir, trials, scene)`` job unless its model is current.
 
-    When some must be trained, ``place`` is checked writable with room for them first and
-    locked while they are made (a second run waits, then keeps what the first made).
+    ``place`` is first checked for room and locked while models are made (a second run waits).
     """
     todo = []
     for task, model_dir, trials, scene in jobs:

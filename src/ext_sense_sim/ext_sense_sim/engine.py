@@ -1,8 +1,7 @@
 """Running a scene: build the listed effects, check their chain, simulate trials in batches.
 
-Only the effects a scene lists are built and run, each counting its calls and time
-(:attr:`Simulator.stats`); a chain that misses a signal fails before anything runs, naming the
-effect that would give it.
+Only the listed effects are built and run, each counting its calls and time; a chain that misses
+a signal fails before anything runs, naming the effect that would give it.
 """
 
 from __future__ import annotations

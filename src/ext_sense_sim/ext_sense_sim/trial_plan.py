@@ -1,10 +1,7 @@
-"""Trial planning for the emulated devices: trials simulated one by one, or laid out at once.
+"""Trials for the emulated devices: simulated one by one, or laid out at once.
 
-:func:`plan_trials` simulates a scene's trials one at a time, each with its wire chunks and its
-ground truth, for :mod:`~ext_sense_sim.streaming` to send in real time; :func:`lay_out_stream`
-lays a run of trials on one stream clock without waiting (the bytes a model is trained on).
-The simulator (and SciPy) is imported only where trials are simulated: ``sim_device``'s own
-process only paces bytes while a child simulates.
+:func:`plan_trials` feeds real-time streaming; :func:`lay_out_stream` lays trials on one stream
+clock to train on. SciPy is imported only where trials are simulated.
 """
 
 from __future__ import annotations

@@ -1,10 +1,7 @@
 """A Robotiq 2F gripper emulator that answers Modbus RTU on a pty like the real one.
 
-:class:`GripperModel` is the gripper (activation, finger motion, object detection, gFLT faults)
-on an injected clock; :class:`RobotiqEmulator` the Modbus RTU server in front of it, with
-injectable link and gripper faults; :class:`RtuFramer` cuts a byte stream into requests;
-:class:`PtyGripper` serves an emulator on a pseudo-terminal (:func:`serve`: ``ext-sense sim
-serve robotiq``).
+:class:`GripperModel` behind :class:`RobotiqEmulator` (the Modbus server, with injectable link
+and gripper faults); :class:`RtuFramer` cuts requests; :class:`PtyGripper` serves on a pty.
 """
 
 from __future__ import annotations

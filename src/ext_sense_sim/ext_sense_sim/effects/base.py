@@ -1,8 +1,7 @@
-"""What every effect shares: its declared inputs and outputs, parameters and per-trial draws.
+"""What every effect shares: declared inputs and outputs, parameters and per-trial draws.
 
-An effect reads named signals from a :class:`Signals` board and writes the signals it gives;
-the engine checks before running anything that an effect listed earlier gives each signal an
-effect needs. Signals carry a leading batch axis: one row per trial of the batch.
+Effects read named signals from a :class:`Signals` board and write what they give; every signal
+carries a leading batch axis (one row per trial).
 """
 
 from __future__ import annotations

@@ -1,13 +1,11 @@
 """BioTac transduction: finger pressure to PAC at 2200 Hz and the slow channels at 100 Hz.
 
-Model. The fluid averages the pressure over the fingertip: each finger's fluid pressure is the
-mean of its 40 taxel pressures. PAC is that pressure through a second-order band-pass of
-``pac_band_hz``, ``pac_counts_per_pa`` about ``pac_mid``, plus white noise, sampled at 2200 Hz
-(the simulation rate must be a multiple) and quantised to 12 bits. PDC is the fluid pressure
-through a 10 Hz low-pass above ``pdc_rest``; TAC and TDC are rest temperatures plus noise (TDC
-drifting); each of the 19 electrodes reads ``electrode_rest`` minus a gain times the pressure
-around its place (a Gaussian average over the taxel lattice). The slow channels are sampled at
-each 10 ms frame's first PAC sample; the frame grid starts at a random PAC phase.
+Model. Each finger's fluid pressure is the mean of its 40 taxel pressures. PAC: that pressure
+through a second-order band-pass of ``pac_band_hz`` about ``pac_mid``, plus noise, sampled at
+2200 Hz (the simulation rate a multiple) and 12-bit. PDC: the pressure through a 10 Hz low-pass;
+TAC and TDC: rest temperatures plus noise (TDC drifting); each of the 19 electrodes: a rest value
+minus a gain times the Gaussian-weighted pressure around its place. The slow channels are sampled
+at each 10 ms frame's first PAC sample; the frame grid starts at a random PAC phase.
 """
 
 from __future__ import annotations

@@ -1,13 +1,11 @@
 """The human grasp of a robot-to-human handover: settling when stable, stick-slip when not.
 
 Model. At the onset the hand touches the object at ``position`` (a fraction of the free span)
-with a short half-sine across-force. The hand's pull along the object reaches the pads as an
-axial force: when stable, a second-order settling to ``pull_force_n`` (``settle_hz``,
-``settle_zeta``); when not, spring-block stick-slip: the skin (stiffness ``skin_k``) is dragged
-at ``pull_speed``, friction rises at ``k v`` from ``mu_k N`` to ``mu_s N`` and slips back
-within ``slip_tau_s``, a stick period of ``(mu_s - mu_k) N / (k v)`` jittered 15% per cycle;
-each slip knocks the object across its axis with ``slip_kick`` of the force drop. Each trial is
-stable with probability ``p_stable`` (label ``"stable"`` or ``"unstable"``).
+with a short half-sine; its pull along the object reaches the pads as an axial force: when
+stable (probability ``p_stable``) a second-order settling to ``pull_force_n``; when not,
+spring-block stick-slip (skin ``skin_k`` dragged at ``pull_speed``, friction rising from
+``mu_k N`` to ``mu_s N`` and slipping back within ``slip_tau_s``, the stick period jittered 15%),
+each slip knocking the object across its axis with ``slip_kick`` of the force drop.
 """
 
 from __future__ import annotations

@@ -1,8 +1,7 @@
 """Real captures and simulated trials, both at the host's 10 ms time resolution.
 
-The lab's host wrote each event's arrival time with two decimals, so a real capture only tells
-which 10 ms bin an event fell in. A simulated trial is reduced to the same: its event times are
-shifted by a random phase within one bin and floored to 10 ms bins.
+The lab's host wrote each event's time with two decimals, so a simulated trial is reduced to the
+same: its event times shifted by a random phase within one bin and floored to 10 ms bins.
 """
 
 from __future__ import annotations

@@ -1,8 +1,6 @@
-"""Raw device byte streams of a run, as the device would have written them.
+"""Raw device byte streams of a run: ``raw/<device>.bin`` and when each write happened.
 
-``raw/<device>.bin`` holds every trial's bytes back to back, ``raw/<device>_chunks.csv`` when each
-write happened (``offset,length,t_ns,trial``); replaying the ``.bin`` at those times reproduces
-the link.
+Replaying the ``.bin`` at the times of ``raw/<device>_chunks.csv`` reproduces the link.
 """
 
 from __future__ import annotations
