@@ -150,11 +150,7 @@ def _load_one(
 
 
 def _check_kind(path: Path, ws: WindowSet, args: argparse.Namespace, wanted: Wanted | None) -> None:
-    """The windows of ``path`` are of the task and sensor asked for.
-
-    Raises:
-        PerceptionError: They are not; the message names the data, what it holds and who asks.
-    """
+    """Raise a PerceptionError (naming who asks) unless ``ws`` is of the kind asked for."""
     from ext_sense_runtime.enums import Sensor, Task
 
     asks = []

@@ -71,11 +71,7 @@ class WindowSet(NamedTuple):
         )
 
     def crop(self, post_ns: int) -> WindowSet:
-        """The same windows cut shorter after the onset (decision-latency studies).
-
-        Raises:
-            PerceptionError: when ``post_ns`` is longer than the windows.
-        """
+        """The same windows cut shorter after the onset (PerceptionError: ``post_ns`` too long)."""
         g = self.geometry
         n = int((g.pre_ns + post_ns) // g.period_ns)
         if not 0 < n <= g.n_samples:

@@ -31,11 +31,7 @@ trial be calibrated (2 windows per class); 2, 5 and 10 measured alike.
 
 
 def training_windows(bundle: str | Path, card: ModelCard | None = None) -> WindowSet:
-    """The windows a bundle was trained on, as a window set.
-
-    Raises:
-        PerceptionError: no ``training_windows.npz``, or one that does not match the card.
-    """
+    """The windows a bundle was trained on (PerceptionError: none kept, or not the card's)."""
     card = card or read_card(bundle)
     path = Path(bundle) / TRAINING_WINDOWS_FILE
     if not path.is_file():

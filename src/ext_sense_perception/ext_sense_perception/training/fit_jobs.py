@@ -133,11 +133,7 @@ class FitRunner:
     def map(
         self, fn: Callable[..., Any], tasks: list[Any], keys: list[str], **data: Any
     ) -> list[Any]:
-        """``fn(task, **data)`` for every task, in task order.
-
-        Raises:
-            PerceptionError: when any fit failed (the others are cached), naming the first failure.
-        """
+        """``fn(task, **data)`` for every task, in order (PerceptionError: the first failed fit)."""
         results = self.run_jobs([FitJob(fn, tasks, keys, data)])[0]
         check(results)
         return results

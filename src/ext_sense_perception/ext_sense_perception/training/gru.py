@@ -194,11 +194,7 @@ class GRUEstimator(BaseEstimator):
         return mean, scale
 
     def fit(self, X: np.ndarray, y: np.ndarray) -> GRUEstimator:
-        """Train on flattened features ``(n, n_channels * n_steps)``.
-
-        Raises:
-            PerceptionError: without torch, on bad parameters or non-finite input.
-        """
+        """Train on features ``(n, n_channels * n_steps)`` (PerceptionError: no torch or bad X)."""
         torch = require_torch()
         X, y = validated(self, X, y, reset=True, dtype=np.float32, y_numeric=self.regression)
         if not self.regression:
