@@ -17,7 +17,7 @@ from ext_sense_perception.training import fit as fit_module
 from ext_sense_perception.training.fit import TrainedModel, fit_model
 from ext_sense_perception.training.models import make_pipeline
 from ext_sense_perception.training.protocol import features_for
-from ext_sense_perception.training.split_fit import code_digest
+from ext_sense_perception.training.split_fit import code_digest, code_text
 
 DEPLOYED_STORE = "deployed"
 """The fit cache's subdirectory of deployed models: up to tens of MB each, so kept apart from
@@ -77,6 +77,6 @@ def deployed_key(task: DeployedTask, ws: WindowSet, data: str) -> str:
     h.update(config.encode())
     h.update(data.encode())
     h.update(code_digest(pipe).encode())
-    h.update(Path(fit_module.__file__).read_bytes())
-    h.update(Path(__file__).read_bytes())
+    h.update(code_text(Path(fit_module.__file__)))
+    h.update(code_text(Path(__file__)))
     return h.hexdigest()

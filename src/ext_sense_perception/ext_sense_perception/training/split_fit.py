@@ -163,6 +163,29 @@ def _source_path(module: str) -> Path | None:
     return Path(origin) if origin and origin.endswith(".py") else None
 
 
+def code_text(path: Path) -> bytes:
+    """A module's code as a fit runs it: no docstrings, comments or layout.
+
+    Editing those keeps the cached fits.
+    """
+    tree = ast.parse(path.read_bytes())
+    for node in ast.walk(tree):
+        for field in ("body", "orelse", "finalbody"):
+            body = getattr(node, field, None)
+            if isinstance(body, list) and body:
+                kept = [s for s in body if not _is_docstring(s)]
+                setattr(node, field, kept or [ast.Pass()])
+    return ast.dump(tree).encode()
+
+
+def _is_docstring(statement: ast.AST) -> bool:
+    return (
+        isinstance(statement, ast.Expr)
+        and isinstance(statement.value, ast.Constant)
+        and isinstance(statement.value.value, str)
+    )
+
+
 def _imports(module: str) -> list[str]:
     """Names a module imports, anywhere in it (``from a.b import c``: ``a.b`` and ``a.b.c``)."""
     path = _source_path(module)
@@ -199,11 +222,11 @@ def code_digest(estimator: Any, packages: tuple[str, ...] = PROJECT_PACKAGES) ->
     """
     modules, versions = code_modules(estimator, packages)
     h = hashlib.blake2b(digest_size=8)
-    h.update(Path(__file__).read_bytes())
+    h.update(code_text(Path(__file__)))
     for name in modules:
         path = _source_path(name)
         h.update(name.encode())
-        h.update(path.read_bytes() if path is not None else b"")
+        h.update(code_text(path) if path is not None else b"")
     h.update(repr(versions).encode())
     return h.hexdigest()
 

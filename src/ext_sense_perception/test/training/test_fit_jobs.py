@@ -245,7 +245,9 @@ def test_code_digest_covers_the_model_modules_only(tmp_path, monkeypatch):
     changed = code_digest(pipe, ("es18pkg",))
     assert changed != before
     model = tmp_path / "es18pkg" / "model.py"
-    model.write_text(model.read_text() + "# the model's own module\n")
+    model.write_text('"""The model."""\n' + model.read_text() + "# a comment\n")
+    assert code_digest(pipe, ("es18pkg",)) == changed  # docstrings and comments: same code
+    model.write_text(model.read_text() + "LIMIT = 3\n")
     assert code_digest(pipe, ("es18pkg",)) not in (before, changed)
 
 
