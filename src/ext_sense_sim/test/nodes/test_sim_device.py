@@ -7,39 +7,54 @@ import pytest
 pytestmark = pytest.mark.ros
 
 
-def test_node_streams_bytes_and_publishes_ground_truth(tmp_path):
+@contextlib.contextmanager
+def _device_and_listener(**params):
+    """A ``sim_device`` with ``params`` and a ground-truth listener node (created by the caller
+    through the returned ``listen``), torn down with their context."""
     rclpy = pytest.importorskip("rclpy")
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
     from ext_sense_msgs.msg import ContactGroundTruth
     from ext_sense_runtime.qos import GROUND_TRUTH_QOS
-    from ext_sense_runtime.stamps import stamp_to_ns
     from ext_sense_sim.nodes.sim_device import SimDeviceNode
 
     context = rclpy.Context()
     rclpy.init(context=context)
-    link = tmp_path / "nuskin_port"
-    node = listener = None
+    nodes = []
     try:
-        node = SimDeviceNode(
-            context=context,
-            parameter_overrides=[
-                Parameter("scene", value="tap_rod20_nuskin"),
-                Parameter("port_link", value=str(link)),
-                Parameter("trials", value=0),
-                Parameter("trial_period_s", value=0.5),
-            ],
-        )
-        listener = rclpy.create_node("gt_listener", context=context)
-        got = []
-        listener.create_subscription(
-            ContactGroundTruth, "ground_truth", got.append, GROUND_TRUTH_QOS
-        )
-        fd = os.open(link, os.O_RDONLY | os.O_NONBLOCK)
+        overrides = [Parameter(k, value=v) for k, v in params.items()]
+        node = SimDeviceNode(context=context, parameter_overrides=overrides)
+        nodes.append(node)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
-        executor.add_node(listener)
+        got: list = []
+
+        def listen() -> None:
+            listener = rclpy.create_node("gt_listener", context=context)
+            nodes.append(listener)
+            listener.create_subscription(
+                ContactGroundTruth, "ground_truth", got.append, GROUND_TRUTH_QOS
+            )
+            executor.add_node(listener)
+
+        yield node, executor, listen, got
+    finally:
+        for n in nodes:
+            n.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_node_streams_bytes_and_publishes_ground_truth(tmp_path):
+    from ext_sense_runtime.stamps import stamp_to_ns
+
+    link = tmp_path / "nuskin_port"
+    device = _device_and_listener(
+        scene="tap_rod20_nuskin", port_link=str(link), trials=0, trial_period_s=0.5
+    )
+    with device as (_node, executor, listen, got):
+        listen()
+        fd = os.open(link, os.O_RDONLY | os.O_NONBLOCK)
         data = b""
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline and len(got) < 2:
@@ -62,56 +77,25 @@ def test_node_streams_bytes_and_publishes_ground_truth(tmp_path):
         assert words.taxel.size > 100  # the taps' receiver words arrived on the pty
         assert words.taxel.min() >= 1
         assert words.taxel.max() <= 80
-    finally:
-        for n in (node, listener):
-            if n is not None:
-                n.destroy_node()
-        rclpy.try_shutdown(context=context)
     assert not link.exists()
 
 
 def test_with_wait_for_listener_the_first_trial_waits_for_a_ground_truth_subscriber(tmp_path):
     """No trial before someone listens: trial 0 is the first the listener hears."""
-    rclpy = pytest.importorskip("rclpy")
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-
-    from ext_sense_msgs.msg import ContactGroundTruth
-    from ext_sense_runtime.qos import GROUND_TRUTH_QOS
-    from ext_sense_sim.nodes.sim_device import SimDeviceNode
-
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = listener = None
-    try:
-        node = SimDeviceNode(
-            context=context,
-            parameter_overrides=[
-                Parameter("scene", value="tap_rod20_nuskin"),
-                Parameter("port_link", value=str(tmp_path / "nuskin_port")),
-                Parameter("trial_period_s", value=0.4),
-                Parameter("wait_for_listener_s", value=60.0),
-            ],
-        )
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
+    device = _device_and_listener(
+        scene="tap_rod20_nuskin",
+        port_link=str(tmp_path / "nuskin_port"),
+        trial_period_s=0.4,
+        wait_for_listener_s=60.0,
+    )
+    with device as (node, executor, listen, got):
         deadline = time.monotonic() + 5.0  # the first trial is simulated in about 1.5 s
         while time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
         assert node.played == 0  # nobody listens: nothing streamed
         assert node.stats.writes == 0
-        listener = rclpy.create_node("gt_listener", context=context)
-        got = []
-        listener.create_subscription(
-            ContactGroundTruth, "ground_truth", got.append, GROUND_TRUTH_QOS
-        )
-        executor.add_node(listener)
+        listen()
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline and not got:
             executor.spin_once(timeout_sec=0.05)
         assert [m.trial for m in got][:1] == [0]
-    finally:
-        for n in (node, listener):
-            if n is not None:
-                n.destroy_node()
-        rclpy.try_shutdown(context=context)
