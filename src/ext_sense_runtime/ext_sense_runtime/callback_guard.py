@@ -1,14 +1,9 @@
 """One guard for every node callback: an exception is caught, counted, logged once, diagnosed.
 
 An exception escaping a callback ends the node's spin, and with it the graph: one malformed
-message would stop a session. Guarded, it is counted per callback, logged once per callback and
-type with where it was raised, and shown on ``/diagnostics`` (ERROR while recent, then WARN).
-No rclpy: the node hands in its logger's ``error``. Usage in a node::
-
-    self.guard = CallbackGuard(self.get_logger().error)
-    self.create_subscription(Msg, "topic", self.guard(self._on_msg), qos)
-    self.create_timer(0.1, self.guard(self._tick))
-    self.guard.attach(self.updater)  # a "callbacks" status on /diagnostics
+message would stop a session. Guarded (``self.guard(self._on_msg)``), it is counted per
+callback, logged once per callback and type, and shown on ``/diagnostics`` (ERROR while
+recent, then WARN). No rclpy: the node hands in its logger's ``error``.
 """
 
 from __future__ import annotations
@@ -31,11 +26,7 @@ RECENT_NS = 10_000_000_000
 
 
 class CallbackGuard:
-    """Wraps callbacks so that an exception is caught, counted, logged once and diagnosed.
-
-    ``log`` gets the first exception of each (callback, type), e.g. a node logger's
-    ``error``; ``clock`` is monotonic ns (injectable); the status stays ERROR ``recent_ns``.
-    """
+    """``log`` gets the first exception of each (callback, type); ``clock``: monotonic ns."""
 
     def __init__(
         self,

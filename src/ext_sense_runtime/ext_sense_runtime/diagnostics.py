@@ -133,9 +133,7 @@ class Updater:
         self, name: str, check: Callable[[], tuple[Level, str, dict[str, object]]]
     ) -> StatusTask:
         """Register a function as a task."""
-        task = StatusTask(name, check)
-        self.tasks.append(task)
-        return task
+        return self.add(StatusTask(name, check))  # type: ignore[return-value]
 
     def due(self) -> bool:
         """Whether ``period_ns`` has passed since the last update."""

@@ -1,15 +1,12 @@
 """Intra-process delivery between nodes of one process, as rclcpp's intra-process comms.
 
-rclpy has none, so in the hot path's one process each hop would be a serialisation, a loopback
-delivery and an executor wake-up (docs/benchmarks.md, run 8). After :func:`enable`, an
-:class:`IntraProcessPublisher` hands each message straight to this process's subscriptions on
-that topic, in the publishing callback (driver -> window -> estimate in one callback), then
-publishes its bytes once. The subscriptions still take the middleware's messages (a bag replay,
-another process), raw, and drop the byte-identical copies of what was handed over: matching
-bytes, because rclpy's ``EventsExecutor`` cannot pass a ``MessageInfo`` (Kilted).
-
-Delivery is synchronous, so both nodes must share one single-threaded executor. The message
-object itself is handed over: a subscriber must not change it, nor a publisher reuse it.
+rclpy has none (each hop a serialisation, a loopback delivery and a wake-up: docs/benchmarks.md,
+run 8). After :func:`enable`, an :class:`IntraProcessPublisher` hands each message straight to
+this process's subscriptions in the publishing callback, then publishes its bytes once; the
+subscriptions drop the byte-identical middleware copies (rclpy's ``EventsExecutor`` cannot pass
+a ``MessageInfo``). Delivery is synchronous: both nodes share one single-threaded executor, and
+the message object itself is handed over (a subscriber must not change it, nor a publisher
+reuse it).
 """
 
 from __future__ import annotations
@@ -48,10 +45,7 @@ def _topic(node: Node, name: str) -> list[IntraProcessSubscription]:
 
 
 class IntraProcessPublisher:
-    """A publisher that also hands messages straight to this process's subscriptions.
-
-    Other attributes are the rclpy publisher's.
-    """
+    """A publisher that also hands messages straight to this process's subscriptions."""
 
     def __init__(self, node: Node, publisher: Publisher) -> None:
         self.publisher = publisher

@@ -1,15 +1,9 @@
 """The spin-and-signal helper of every rclpy entry point: init, spin, one clean teardown.
 
-Node executables (``run_node``, ``run_nodes``), ``ext-sense record``, ``replay`` and ``collect``
-all go through :class:`RosSession`. A stop signal (:data:`~ext_sense_runtime.stop.STOP_SIGNALS`,
-often twice) or a node shutting its context down ends the process with 0, no abort and no
-traceback, after its nodes are destroyed and its context shut down *and destroyed*, so its
-middleware participant leaves the graph at once.
-
-rclpy's own handlers are not used: they raise ``KeyboardInterrupt`` wherever the main thread is,
-which aborts the process inside a callback the executor's C++ called or inside a pybind11 call.
-Here the handlers only record the stop; the spin loop notices it within its poll period and
-tears down from the main thread, outside any callback, once.
+A stop signal or a node shutting its context down ends the process with 0 after its nodes are
+destroyed and its context shut down and destroyed (its participant leaves the graph at once).
+rclpy's own handlers are not used: their ``KeyboardInterrupt`` aborts the process inside a
+callback the executor's C++ called; here the handlers only record the stop (:mod:`.stop`).
 """
 
 from __future__ import annotations
@@ -39,16 +33,9 @@ BACKGROUND_JOIN_S = 5.0
 
 
 class RosSession:
-    """``rclpy.init`` with the stop handlers, one executor, and one clean teardown.
+    """``rclpy.init`` with the stop handlers, one executor, one teardown (:meth:`close`) on exit.
 
-    Use as a context manager::
-
-        with RosSession(args=[]) as ros:
-            node = ros.add(MyNode())
-            ros.spin(until=lambda: node.done)
-
-    On the way out (also on an exception) everything is torn down once (:meth:`close`). Off
-    the main thread (a test process) rclpy's own handlers are kept. ``args`` go to
+    Off the main thread (a test process) rclpy's own handlers are kept. ``args`` go to
     ``rclpy.init`` (``None``: ``sys.argv``); with ``interrupt`` the first stop signal also
     raises ``KeyboardInterrupt`` in a main thread waiting on an operator.
     """
@@ -102,15 +89,12 @@ class RosSession:
 
     def spin_in_background(self, timeout_s: float = 0.05) -> None:
         """Run callbacks in a thread of their own until the teardown (:meth:`close`)."""
-
-        def spin() -> None:
-            try:
-                while not self._background_done.is_set() and self.context.ok():
-                    self.executor.spin_once(timeout_sec=timeout_s)
-            except ExternalShutdownException:
-                pass
-
-        self._background = threading.Thread(target=spin, name="ros_spin", daemon=True)
+        self._background = threading.Thread(
+            target=spin_until_shutdown,
+            args=(self.executor, self.context, timeout_s, self._background_done.is_set),
+            name="ros_spin",
+            daemon=True,
+        )
         self._background.start()
 
     def close(self) -> None:
@@ -159,15 +143,10 @@ def run_nodes(factories: Sequence[Callable[[], Node]], args: Sequence[str] | Non
             if not ros.running():  # Ctrl-C while the nodes were being built
                 break
             ros.add(factory())
-        freeze_startup_objects()
+        gc.collect()  # then frozen: full collections skip the start-up objects (ms on the hot path)
+        gc.freeze()
         ros.spin()
     return 0
-
-
-def freeze_startup_objects() -> None:
-    """``gc.freeze`` start-up objects: full collections then skip them (ms on the hot path)."""
-    gc.collect()
-    gc.freeze()
 
 
 def run_node(factory: Callable[[], Node], args: Sequence[str] | None = None) -> int:

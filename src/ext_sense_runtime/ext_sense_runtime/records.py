@@ -39,12 +39,7 @@ class EventBlock(NamedTuple):
     @classmethod
     def empty(cls) -> EventBlock:
         """A block with no events."""
-        return cls(
-            np.empty(0, np.int64),
-            np.empty(0, np.uint16),
-            np.empty(0, np.int8),
-            np.empty(0, np.uint16),
-        )
+        return cls.of(np.empty(0, np.int64), np.empty(0, np.uint16))
 
     @classmethod
     def of(

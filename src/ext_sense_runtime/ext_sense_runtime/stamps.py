@@ -17,8 +17,7 @@ US = 1_000
 
 def split_ns(ns: int) -> tuple[int, int]:
     """``builtin_interfaces`` ``(sec, nanosec)`` of integer ns (negative too), ``nanosec >= 0``."""
-    sec, nanosec = divmod(int(ns), S)
-    return sec, nanosec
+    return divmod(int(ns), S)
 
 
 def join_ns(sec: int, nanosec: int) -> int:

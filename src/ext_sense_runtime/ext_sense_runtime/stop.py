@@ -42,10 +42,7 @@ class StopRequest:
         self.interrupt = False
 
     def install(self, interrupt: bool = False) -> bool:
-        """Install the handlers for :data:`STOP_SIGNALS` once; whether they are (main thread).
-
-        ``interrupt``: also raise ``KeyboardInterrupt`` at the first signal (see the class).
-        """
+        """Install the handlers for :data:`STOP_SIGNALS` once; whether they are (main thread)."""
         self.interrupt = self.interrupt or interrupt
         if not self.installed and threading.current_thread() is threading.main_thread():
             for signum in STOP_SIGNALS:
