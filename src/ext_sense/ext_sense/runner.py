@@ -122,11 +122,6 @@ def spawn_node(spec: NodeSpec, use_sim_time: bool) -> subprocess.Popen[bytes]:
     return _spawn(json.dumps({"spec": asdict(spec), "use_sim_time": use_sim_time}))
 
 
-def spawn_group(specs: Sequence[NodeSpec], use_sim_time: bool) -> subprocess.Popen[bytes]:
-    """Start one process running ``specs`` on one executor (see :func:`spawn_node`)."""
-    return _spawn(group_payload(specs, use_sim_time))
-
-
 def group_payload(specs: Sequence[NodeSpec], use_sim_time: bool) -> str:
     """The JSON argument of ``node_group`` (and of ``python -m ext_sense.runner``)."""
     return json.dumps({"specs": [asdict(s) for s in specs], "use_sim_time": use_sim_time})
@@ -199,7 +194,7 @@ def run_graph(
                 procs[name] = spawn_node(spec, use_sim_time)
                 print(f"[run] started {spec.name} ({spec.package}/{spec.executable})", file=log)
             else:
-                procs[name] = spawn_group(specs, use_sim_time)
+                procs[name] = _spawn(group_payload(specs, use_sim_time))
                 held = " ".join(s.name for s in specs)
                 print(f"[run] started {name}: {held} in one process (node_group)", file=log)
         required = {name for name, specs in process_groups(nodes) if any(s.required for s in specs)}

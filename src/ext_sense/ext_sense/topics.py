@@ -21,12 +21,6 @@ TOPIC_DIAGNOSTICS = "/diagnostics"
 TOPIC_NUSKIN_PACKETS = f"{NS}/nuskin/packets"
 TOPIC_BIOTAC_PACKETS = f"{NS}/biotac/packets"
 
-SENSOR_STREAMS: dict[str, tuple[str, str]] = {
-    "nuskin": ("events", TOPIC_EVENTS),
-    "biotac": ("frames", TOPIC_FRAMES),
-}
-"""Sensor -> the driver's relative output topic and its absolute name."""
-
 SENSOR_PACKETS: dict[str, str] = {"nuskin": TOPIC_NUSKIN_PACKETS, "biotac": TOPIC_BIOTAC_PACKETS}
 """Sensor -> its driver's raw packets (``SensorPacket``, relative ``packets``)."""
 

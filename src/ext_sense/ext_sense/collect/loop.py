@@ -8,7 +8,6 @@ lies between the two. A grasp without a window is not asked about.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import queue
 import time
@@ -65,15 +64,10 @@ class Collector(Protocol):
 class TrialLoop:
     """One session's loop for its task (:meth:`tap`, :meth:`handover`, :meth:`food`).
 
-    Args:
-        node: The collector node (spun elsewhere).
-        state: The session's state, saved after every answer into ``out``.
-        out: The session directory.
-        answers: The script or the terminal.
-        truth_mode: Tap labels from ``prompt``, ``sim`` or ``mocap``.
-        args: The command's arguments (``classes``).
-        sim_trigger: Collect triggers each simulated grasp.
-        food_note: Why a food probe may have no live estimate (``session.window_note``).
+    ``state`` is saved into the session directory ``out`` after every answer; tap labels come
+    from ``truth_mode`` (``prompt``, ``sim`` or ``mocap``); ``classes`` are food's; ``sim``: the
+    source is the simulator; with ``sim_trigger`` collect triggers each simulated grasp;
+    ``food_note`` says why a food probe may have no live estimate.
     """
 
     def __init__(
@@ -83,12 +77,13 @@ class TrialLoop:
         out: Path,
         answers: Answers,
         truth_mode: str,
-        args: argparse.Namespace,
+        classes: tuple[str, ...] = FOOD_CLASSES,
+        sim: bool = False,
         sim_trigger: bool = False,
         food_note: str = "",
     ) -> None:
         self.node, self.state, self.out = node, state, out
-        self.answers, self.truth_mode, self.args = answers, truth_mode, args
+        self.answers, self.truth_mode, self.classes, self.sim = answers, truth_mode, classes, sim
         self.sim_trigger, self.food_note = sim_trigger, food_note
         self.truths: list[tuple[int, str]] = []
         self.windows: list[int] = []
@@ -259,12 +254,11 @@ class TrialLoop:
     def food(self) -> None:
         """Food: the operator names the food, the behaviour lowers the fork, the window is kept."""
         st = self.state
-        classes = tuple(c for c in self.args.classes.split(",") if c) or FOOD_CLASSES
         # the window node and (source sim) the simulated device hear each motion start before
         # the first probe (by name: other nodes of the graph may listen too)
-        need = {"contact_window", "sim_device"} if self.args.source_is_sim else {"contact_window"}
+        need = {"contact_window", "sim_device"} if self.sim else {"contact_window"}
         self._wait_for("/extsense/motion_start", need)
-        if self.args.source_is_sim:
+        if self.sim:
             # and the recording hears the simulator's truth of the first probe (it was lost
             # when the first probe started before the collector had found the simulator)
             self._wait_for_publisher("/extsense/sim/ground_truth", "sim_device")
@@ -285,7 +279,7 @@ class TrialLoop:
                 self._status()
                 continue
             try:
-                food = parse_class(text, classes)
+                food = parse_class(text, self.classes)
             except CollectError as err:
                 print(f"  {err}")
                 continue

@@ -227,7 +227,7 @@ def _replay(args: argparse.Namespace) -> int:
 def _replay_view(args: argparse.Namespace) -> NodeSpec | None:
     """The ``foxglove_view`` node that ``view:=true`` asks for, else ``None``."""
     from ext_sense.graph import GraphError, as_bool, parse_assignments
-    from ext_sense.topics import SENSOR_STREAMS
+    from ext_sense.topics import SENSOR_PACKETS
     from ext_sense.view.graph import replay_view_graph
 
     overrides = parse_assignments(args.assignments)
@@ -235,20 +235,9 @@ def _replay_view(args: argparse.Namespace) -> NodeSpec | None:
     if not as_bool(replay_view_graph("nuskin").resolve(overrides)["view"]):
         return None
     sensor = args.sensor or bag_task_sensor(args.bag)[1]
-    if sensor not in SENSOR_STREAMS:
-        raise GraphError(f"--sensor must be one of {', '.join(SENSOR_STREAMS)}. Got '{sensor}'.")
+    if sensor not in SENSOR_PACKETS:
+        raise GraphError(f"--sensor must be one of {', '.join(SENSOR_PACKETS)}. Got '{sensor}'.")
     return replay_view_graph(sensor).nodes(overrides)[0]
-
-
-def _view_inputs(bag: Path, sensor: str) -> list[str]:
-    """What to play for the view: the bag's packets (BagError: none) and the topics passed."""
-    from ext_sense.offline_replay import packet_topic
-    from ext_sense.view.channels import view_inputs
-    from ext_sense_bags import BagReader
-
-    with BagReader(bag) as reader:
-        packet_topic(reader.topics, bag, sensor)
-    return list(view_inputs(sensor))
 
 
 def _replay_live(args: argparse.Namespace, view: NodeSpec | None = None) -> int:
@@ -258,7 +247,10 @@ def _replay_live(args: argparse.Namespace, view: NodeSpec | None = None) -> int:
     from rclpy.parameter import Parameter
 
     from ext_sense.nodes.bag_player import BagPlayerNode
+    from ext_sense.offline_replay import packet_topic
     from ext_sense.runner import exit_status, spawn_node, stop_nodes
+    from ext_sense.view.channels import view_inputs
+    from ext_sense_bags import BagReader
     from ext_sense_runtime.node_main import RosSession
 
     rate = 0.0 if args.flat_out else float(args.rate)
@@ -269,7 +261,10 @@ def _replay_live(args: argparse.Namespace, view: NodeSpec | None = None) -> int:
     ]
     topics = list(args.topics or ())
     if view is not None and not topics:  # what the view reads: the session as recorded
-        topics = _view_inputs(args.bag, str(view.parameters["sensor"]))
+        sensor = str(view.parameters["sensor"])
+        with BagReader(args.bag) as reader:
+            packet_topic(reader.topics, args.bag, sensor)  # BagError: no packets to decode
+        topics = list(view_inputs(sensor))
     if topics:
         overrides.append(Parameter("topics", value=topics))
     procs: dict[str, subprocess.Popen[bytes]] = {}

@@ -164,7 +164,6 @@ def _run(args: argparse.Namespace) -> int:
     source, nodes = graph.source, graph.nodes
     truth_mode = args.truth or ("mocap" if args.mocap_topic else "sim" if source == "sim" else "")
     truth_mode = truth_mode or "prompt"
-    args.source_is_sim = source == "sim"
     sensor = next(s.parameters.get("sensor") for s in nodes if "sensor" in s.parameters)
     stream = SENSOR_PACKETS[str(sensor)]
     try:
@@ -192,7 +191,8 @@ def _run(args: argparse.Namespace) -> int:
             out,
             Answers(scripted),
             truth_mode,
-            args,
+            classes,
+            sim=source == "sim",
             sim_trigger=graph.sim_trigger,
             food_note=_food_note(graph),
         )

@@ -129,24 +129,16 @@ class Scoreboard:
     def summary(self) -> str:
         """The last line of the main job (see the module docstring)."""
         lat = np.asarray(self.latencies_ns, dtype=np.float64) / MS
-        p50 = float(np.percentile(lat, 50)) if lat.size else float("nan")
-        p99 = float(np.percentile(lat, 99)) if lat.size else float("nan")
+        p50, p99 = np.percentile(lat, [50, 99]) if lat.size else (float("nan"), float("nan"))
+        compute = f"compute_p50_ms={p50:.2f} compute_p99_ms={p99:.2f}"
         if not self.ground_truth:
-            return (
-                f"summary: estimates={self.unscored} degraded={len(self.degraded)} "
-                f"compute_p50_ms={p50:.2f} compute_p99_ms={p99:.2f} (no ground truth)"
-            )
+            counted = f"estimates={self.unscored} degraded={len(self.degraded)}"
+            return f"summary: {counted} {compute} (no ground truth)"
         if self.is_regression:
             mae = float(np.mean(self.errors_m)) * 100 if self.errors_m else float("nan")
-            return (
-                f"summary: taps={self.scored} mae_cm={mae:.2f} "
-                f"compute_p50_ms={p50:.2f} compute_p99_ms={p99:.2f}"
-            )
+            return f"summary: taps={self.scored} mae_cm={mae:.2f} {compute}"
         acc = float(np.mean(self.correct)) if self.correct else float("nan")
-        return (
-            f"summary: trials={self.scored} accuracy={acc:.3f} "
-            f"compute_p50_ms={p50:.2f} compute_p99_ms={p99:.2f}"
-        )
+        return f"summary: trials={self.scored} accuracy={acc:.3f} {compute}"
 
 
 def _label(est: Estimate) -> str:

@@ -37,16 +37,11 @@ def _x(value: float, full: float) -> int:
 def estimate_image(
     est: Estimate, truth: GroundTruth | None = None, rod_length_m: float = math.nan
 ) -> Image:
-    """Draw one estimate (and its trial's truth when known).
+    """Draw one estimate, and in green its trial's truth when known.
 
-    Top band yellow (provisional), blue (final) or red (degraded); a tap on the grey rod in
-    orange with its +-1 std band; one bar per class, the chosen orange; P(stable) as a bar.
-    The truth is green.
-
-    Args:
-        est: The estimate.
-        truth: Its trial's ground truth, if known.
-        rod_length_m: Rod length, m (NaN: the truth's, else 0.3 m).
+    Top band yellow (provisional), blue (final) or red (degraded); a tap on the grey rod
+    (``rod_length_m``; NaN: the truth's, else 0.3 m) in orange with its +-1 std band; one bar
+    per class, the chosen orange; P(stable) as a bar.
     """
     rod = rod_length_m if math.isfinite(rod_length_m) else DEFAULT_ROD_M
     if truth is not None and math.isfinite(truth.rod_length_m):
@@ -115,10 +110,8 @@ def estimate_message(est: Estimate, truth: GroundTruth | None = None) -> dict[st
     return msg
 
 
-def matching_truth(
-    est: Estimate, truths: Iterable[GroundTruth], tolerance_ns: int
-) -> GroundTruth | None:
-    """The truth whose onset is nearest the estimate's, within ``tolerance_ns``; else None."""
+def matching_truth(est: Estimate, truths: Iterable[Any], tolerance_ns: int) -> Any:
+    """The truth (or any record) with the onset nearest the estimate's, within ``tolerance_ns``."""
     best = min(truths, key=lambda t: abs(t.onset_ns - est.onset_ns), default=None)
     if best is None or abs(best.onset_ns - est.onset_ns) > tolerance_ns:
         return None
@@ -129,11 +122,7 @@ LEVEL_NAMES = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
 
 
 def diagnostics_message(statuses: dict[str, tuple[int, str]]) -> dict[str, Any]:
-    """The diagnostics summary: worst level over all statuses, and each status's line.
-
-    Args:
-        statuses: Status name (``node: check``) -> (level 0..3, message), the latest of each.
-    """
+    """The summary of ``statuses`` (name -> latest (level 0..3, message)): worst level, lines."""
     worst = max((lvl for lvl, _ in statuses.values()), default=0)
     return {
         "worst_level": int(worst),

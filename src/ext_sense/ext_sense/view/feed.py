@@ -100,10 +100,14 @@ class SensorFeed:
         self.last_lost_packets = decoded.lost_packets
         self._counts["lost_packets"] += decoded.lost_packets
         if self.sensor == "nuskin":
-            self._draw_events(decoded.events.taxel)
-        else:
-            for frame in decoded.frames:
-                self._draw_frame(frame.sensor_id, frame.electrodes, frame.pac)
+            ids = np.asarray(decoded.events.taxel, dtype=np.int64)
+            self._counts["events"] += ids.size
+            self.taxels.add(ids)
+            return
+        for frame in decoded.frames:
+            self._counts["frames"] += 1
+            self.electrodes.add(int(frame.sensor_id), np.asarray(frame.electrodes))
+            self.pac.add(int(frame.sensor_id), np.asarray(frame.pac))
 
     def _decoder_for(self, msg: Any) -> Any:
         """The decoder of the packet's stream, made on its first packet (or a PacketError)."""
@@ -127,18 +131,6 @@ class SensorFeed:
             self._retired_failures += old.counters.decode_failures
         return decoder
 
-    def _draw_events(self, taxel: Any) -> None:
-        ids = np.asarray(taxel, dtype=np.int64)
-        self._counts["events"] += ids.size
-        self.taxels.add(ids)
-
-    def _draw_frame(self, sensor_id: Any, electrodes: Any, pac: Any) -> None:
-        self._counts["frames"] += 1
-        self.electrodes.add(int(sensor_id), np.asarray(electrodes))
-        self.pac.add(int(sensor_id), np.asarray(pac))
-
-    # -- diagnostics -----------------------------------------------------------------------
-
     def status(self) -> tuple[Level, str, dict[str, object]]:
         """The input's part of the view's status: WARN once a packet was refused, else OK."""
         c = self.counters
@@ -149,10 +141,7 @@ class SensorFeed:
             "decode_failures": c.decode_failures,
         }
         if c.bad_packets:
-            return (
-                Level.WARN,
-                f"dropped {c.bad_packets} bad packet(s): {self.last_packet_error}",
-                values,
-            )
+            why = f"dropped {c.bad_packets} bad packet(s): {self.last_packet_error}"
+            return Level.WARN, why, values
         reading = "reading packets" if c.packets else "waiting for packets"
         return Level.OK, reading, values

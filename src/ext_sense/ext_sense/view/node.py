@@ -175,7 +175,7 @@ class FoxgloveViewNode(Node):
         self.json = {
             t: Channel(
                 t,
-                schema=Schema(name=name, encoding="jsonschema", data=_json_bytes(schema)),
+                schema=Schema(name=name, encoding="jsonschema", data=json.dumps(schema).encode()),
                 message_encoding="json",
                 context=self.context_fg,
             )
@@ -389,10 +389,6 @@ def _lower_priority(nice: int) -> None:
             os.setpriority(os.PRIO_PROCESS, tid, max(os.getpriority(os.PRIO_PROCESS, tid), nice))
         except OSError:
             continue
-
-
-def _json_bytes(schema: dict[str, Any]) -> bytes:
-    return json.dumps(schema).encode()
 
 
 def main(args: list[str] | None = None) -> int:

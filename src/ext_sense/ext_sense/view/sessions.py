@@ -128,9 +128,7 @@ def from_bag(path: Path) -> PlotSession:
     contacts = []
     for k, (onset, start, end) in enumerate(sorted(spans)):
         probe = Estimate(task, onset)
-        est = min(estimates, key=lambda e: abs(e.onset_ns - onset), default=None)
-        if est is not None and abs(est.onset_ns - onset) > MATCH_NS:
-            est = None
+        est = matching_truth(probe, estimates, MATCH_NS)  # the nearest estimate, as a truth
         truth = matching_truth(probe, truths, MATCH_NS)
         name = f"trial {truth.trial}" if truth is not None else f"contact {k + 1}"
         contacts.append(Contact(onset, start, end, name, est, truth))

@@ -92,17 +92,10 @@ def nuskin_grid(
     top_hz: float = 4000.0,
     cell: int = 24,
 ) -> Image:
-    """Both fingers' taxels on their 8 x 5 lattices, left finger on the left.
+    """Both fingers' 8 x 5 lattices, left finger on the left, ``cell`` pixels a taxel.
 
-    ``rate_hz``, ``dead`` and ``saturated`` are of taxels 1..80, shape ``(80,)``; dead ones are
-    crossed out, saturated ones framed; ``top_hz`` tops the log colour scale; ``cell`` is a
-    taxel's side, pixels.
-
-    Returns:
-        ``(8 * cell + 2 * margin, 10 * cell + gap + 2 * margin, 3)`` RGB image.
-
-    Raises:
-        ViewError: An array is not of shape ``(80,)``.
+    ``rate_hz``, ``dead`` and ``saturated`` are of taxels 1..80, shape ``(80,)`` (else
+    ViewError); dead ones are crossed out, saturated ones framed; ``top_hz`` tops the log scale.
     """
     rate, dead_, sat = (np.asarray(a) for a in (rate_hz, dead, saturated))
     if any(a.shape != (N_TAXELS,) for a in (rate, dead_, sat)):
@@ -140,11 +133,7 @@ class ElectrodeActivity:
         self._n: dict[int, int] = {}
 
     def add(self, sensor_id: int, electrodes: npt.ArrayLike) -> None:
-        """Take one frame's 19 electrode values.
-
-        Raises:
-            ViewError: Not 19 values.
-        """
+        """Take one frame's 19 electrode values (ViewError: not 19)."""
         e = np.asarray(electrodes, dtype=np.float64)
         if e.shape != (N_ELECTRODES,):
             raise ViewError(
