@@ -112,21 +112,19 @@ class FoodConfig:
     invalid_force_limit: int = 3
 
     def __post_init__(self) -> None:
-        for name in ("speed_mps", "contact_threshold_n", "retract_speed_mps"):
-            value = getattr(self, name)
-            if not (value > 0 and math.isfinite(value)):
-                raise BehaviourError(f"The '{name}' parameter must be > 0. Got {value!r} instead.")
         for name in (
+            "speed_mps",
+            "contact_threshold_n",
+            "retract_speed_mps",
             "window_end_ns",
             "classify_timeout_ns",
             "max_lowering_ns",
             "max_retract_ns",
             "state_timeout_ns",
         ):
-            if getattr(self, name) <= 0:
-                raise BehaviourError(
-                    f"The '{name}' parameter must be > 0. Got {getattr(self, name)!r} instead."
-                )
+            value = getattr(self, name)
+            if not (value > 0 and math.isfinite(value)):
+                raise BehaviourError(f"The '{name}' parameter must be > 0. Got {value!r} instead.")
         if self.invalid_force_limit < 1:
             raise BehaviourError(
                 f"The 'invalid_force_limit' parameter must be >= 1. Got "
@@ -186,6 +184,9 @@ class FoodMachine:
         self.state = state
         return self.log.record(now_ns, state, action, reason)
 
+    def _note(self, now_ns: int, reason: str) -> Decision:
+        return self.log.record(now_ns, self.state, FoodAction.NONE, reason)
+
     def start(self, arm: ArmState, now_ns: int | None = None) -> Decision:
         """Begin a probe from the arm's current state: lower the fork.
 
@@ -193,9 +194,7 @@ class FoodMachine:
         state's stamp); the arm-state stall check counts from it.
         """
         if self.state not in (FoodState.IDLE, FoodState.DONE):
-            return self._decide(
-                arm.stamp_ns, self.state, FoodAction.NONE, f"start ignored in {self.state.name}"
-            )
+            return self._note(arm.stamp_ns, f"start ignored in {self.state.name}")
         cfg = self.config
         self.detector = ForceContactDetector(cfg.contact_threshold_n, cfg.contact_consecutive)
         self.motion_start_ns = arm.stamp_ns
@@ -263,9 +262,7 @@ class FoodMachine:
     def on_arm_failure(self, reason: str, now_ns: int) -> Decision:
         """The arm's motion failed (the adapter's report): a moving probe stops and holds."""
         if self.state not in (FoodState.LOWERING, FoodState.RETRACTING):
-            return self._decide(
-                now_ns, self.state, FoodAction.NONE, f"arm failure while not moving: {reason}"
-            )
+            return self._note(now_ns, f"arm failure while not moving: {reason}")
         return self._fault(now_ns, f"arm failure while {self.state.name.lower()}: {reason}")
 
     def _fault(self, now_ns: int, text: str) -> Decision:
@@ -308,12 +305,9 @@ class FoodMachine:
             self.state == FoodState.CLASSIFYING
             and now_ns - self._window_done_ns >= cfg.classify_timeout_ns
         ):
-            self._store(None)
-            self._plan_retract(now_ns)
-            return self._decide(
+            return self._retract(
                 now_ns,
-                FoodState.RETRACTING,
-                FoodAction.RETRACT,
+                None,
                 f"no food estimate within {cfg.classify_timeout_ns / 1e9:.1f} s: retract "
                 "without a class",
             )
@@ -325,60 +319,45 @@ class FoodMachine:
         if self.state not in (FoodState.COLLECTING, FoodState.CLASSIFYING):
             return None
         if estimate.task != FOOD_TASK:
-            return self._decide(
-                now_ns,
-                self.state,
-                FoodAction.NONE,
-                f"estimate ignored: task '{estimate.task}', expected '{FOOD_TASK}'",
+            return self._note(
+                now_ns, f"estimate ignored: task '{estimate.task}', expected '{FOOD_TASK}'"
             )
         if abs(estimate.onset_ns - self.motion_start_ns) > cfg.stamp_tolerance_ns:
-            return self._decide(
+            return self._note(
                 now_ns,
-                self.state,
-                FoodAction.NONE,
                 f"estimate ignored: stamp {estimate.onset_ns} is not this probe's motion start "
                 f"{self.motion_start_ns}",
             )
         if estimate.provisional and not cfg.accept_provisional:
-            return self._decide(
+            return self._note(
                 now_ns,
-                self.state,
-                FoodAction.NONE,
                 f"provisional estimate '{estimate.class_label}' noted; waiting for the final one",
             )
-        self._store(estimate)
-        self._plan_retract(now_ns)
-        return self._decide(
+        return self._retract(
             now_ns,
-            FoodState.RETRACTING,
-            FoodAction.RETRACT,
+            estimate,
             f"classified as '{estimate.class_label}': retract to z={self.retract_height_m:.4f} m",
         )
 
-    def _plan_retract(self, now_ns: int) -> None:
-        """Set when the retract must be done: its planned duration plus ``max_retract_ns``.
+    def _retract(self, now_ns: int, estimate: Estimate | None, text: str) -> Decision:
+        """Store the result and retract, due by its planned duration plus ``max_retract_ns``.
 
         Planned from where the fork stopped to the retract height at ``retract_speed_mps``.
         """
         cfg = self.config
-        stop_z = self._stop[2] if self._stop is not None else math.nan
-        distance = self.retract_height_m - stop_z
-        planned_ns = round(distance / cfg.retract_speed_mps * 1e9) if distance > 0 else 0
-        self._retract_due_ns = now_ns + planned_ns + cfg.max_retract_ns
-
-    def _store(self, estimate: Estimate | None) -> None:
         stop_ns, reason, z, force, index = self._stop or _NO_STOP
         contact = index if reason == StopReason.CONTACT else -1
         self.result = FoodResult(self.motion_start_ns, stop_ns, reason, z, force, contact, estimate)
+        distance = self.retract_height_m - z
+        planned_ns = round(distance / cfg.retract_speed_mps * 1e9) if distance > 0 else 0
+        self._retract_due_ns = now_ns + planned_ns + cfg.max_retract_ns
+        return self._decide(now_ns, FoodState.RETRACTING, FoodAction.RETRACT, text)
 
     def _finish(self, now_ns: int) -> Decision:
-        if self.result is not None and self.result.estimate is not None:
+        estimate = self.result.estimate if self.result is not None else None
+        if estimate is None:
             return self._decide(
-                now_ns,
-                FoodState.DONE,
-                FoodAction.PUBLISH,
-                f"retracted: publish '{self.result.estimate.class_label}'",
+                now_ns, FoodState.DONE, FoodAction.NONE, "retracted: no class to publish"
             )
-        return self._decide(
-            now_ns, FoodState.DONE, FoodAction.NONE, "retracted: no class to publish"
-        )
+        text = f"retracted: publish '{estimate.class_label}'"
+        return self._decide(now_ns, FoodState.DONE, FoodAction.PUBLISH, text)

@@ -109,12 +109,13 @@ class HandoverMachine:
         self.state = state
         return self.log.record(now_ns, state, action, reason)
 
+    def _note(self, now_ns: int, reason: str) -> Decision:
+        return self.log.record(now_ns, self.state, HandoverAction.NONE, reason)
+
     def start(self, now_ns: int) -> Decision:
         """The object is grasped and offered: start waiting for a stable human grasp."""
         if self.state not in (HandoverState.IDLE, HandoverState.RELEASED, HandoverState.TIMED_OUT):
-            return self._decide(
-                now_ns, self.state, HandoverAction.NONE, f"start ignored in state {self.state.name}"
-            )
+            return self._note(now_ns, f"start ignored in state {self.state.name}")
         self.streak = 0
         self._hold_since_ns = now_ns
         self._open_sent = False
@@ -130,51 +131,34 @@ class HandoverMachine:
         """Count one stability estimate; returns OPEN_GRIPPER when the streak completes."""
         cfg = self.config
         if self.state != HandoverState.HOLDING:
-            return self._decide(
-                now_ns,
-                self.state,
-                HandoverAction.NONE,
-                f"estimate ignored: not holding (state {self.state.name})",
-            )
+            return self._note(now_ns, f"estimate ignored: not holding (state {self.state.name})")
         if estimate.task != HANDOVER_TASK:
-            return self._decide(
-                now_ns,
-                self.state,
-                HandoverAction.NONE,
-                f"estimate ignored: task '{estimate.task}', expected '{HANDOVER_TASK}'",
+            return self._note(
+                now_ns, f"estimate ignored: task '{estimate.task}', expected '{HANDOVER_TASK}'"
             )
         p = float(estimate.stability_probability)
         if estimate.provisional and not cfg.accept_provisional:
-            return self._decide(
+            return self._note(
                 now_ns,
-                self.state,
-                HandoverAction.NONE,
                 f"provisional estimate P(stable)={p:.3f} ignored (accept_provisional is false); "
                 f"streak stays {self.streak}/{cfg.consecutive}",
             )
         if math.isnan(p) or not 0.0 <= p <= 1.0:
             self.streak = 0
-            return self._decide(
-                now_ns,
-                self.state,
-                HandoverAction.NONE,
-                f"invalid P(stable)={p!r}: streak reset to 0/{cfg.consecutive}",
+            return self._note(
+                now_ns, f"invalid P(stable)={p!r}: streak reset to 0/{cfg.consecutive}"
             )
         if p < cfg.threshold:
             self.streak = 0
-            return self._decide(
+            return self._note(
                 now_ns,
-                self.state,
-                HandoverAction.NONE,
                 f"P(stable)={p:.3f} < {cfg.threshold:.2f}: unstable grasp, streak reset to "
                 f"0/{cfg.consecutive}",
             )
         self.streak += 1
         if self.streak < cfg.consecutive:
-            return self._decide(
+            return self._note(
                 now_ns,
-                self.state,
-                HandoverAction.NONE,
                 f"P(stable)={p:.3f} >= {cfg.threshold:.2f}: streak {self.streak}/{cfg.consecutive}",
             )
         self._release_since_ns = now_ns
@@ -206,9 +190,7 @@ class HandoverMachine:
         the real finger state once the link answers.
         """
         if self.state in (HandoverState.RELEASED, HandoverState.FAULT):
-            return self._decide(
-                now_ns, self.state, HandoverAction.NONE, f"fault after the end: {reason}"
-            )
+            return self._note(now_ns, f"fault after the end: {reason}")
         self.awaiting_status = True
         if self._open_sent:
             text = (

@@ -203,18 +203,15 @@ class HandoverBehaviourNode(Node):
             )
         self._grasp_retry_ns = self._now() + S
 
-    def _ready_for_next(self, now: int) -> bool:
+    def _prepare_next(self, now: int) -> None:
+        """Grasp the object, then start the handover once it is held (from the tick)."""
         state = self.machine.state
-        return state == HandoverState.IDLE or (
+        if state != HandoverState.IDLE and not (
             state in (HandoverState.RELEASED, HandoverState.TIMED_OUT)
             and self.p.regrasp_s > 0
             and self._ended_ns is not None
             and now - self._ended_ns >= round(self.p.regrasp_s * S)
-        )
-
-    def _prepare_next(self, now: int) -> None:
-        """Grasp the object, then start the handover once it is held (from the tick)."""
-        if not self._ready_for_next(now):
+        ):
             return
         if self._object_held:
             if (
@@ -260,10 +257,8 @@ class HandoverBehaviourNode(Node):
                         is_open(status), settled(status), describe_position(status), now
                     )
             return
-        if level == Level.ERROR:
-            if state in (HandoverState.HOLDING, HandoverState.RELEASING):
-                self._act(self.machine.on_fault(msg.message, now))
-            return
+        if level == Level.ERROR and state in (HandoverState.HOLDING, HandoverState.RELEASING):
+            self._act(self.machine.on_fault(msg.message, now))
 
     def _on_tick(self) -> None:
         now = self._now()
