@@ -38,10 +38,9 @@ class Migration(NamedTuple):
 
 
 def migrate_bag(src: Path, out: Path) -> Migration:
-    """Rewrite the bag ``src`` with its decoded arrays as packets, into the new bag ``out``.
+    """Rewrite the bag ``src`` with its decoded arrays as packets into the new bag ``out``.
 
-    Raises:
-        BagError: ``src`` cannot be read or holds no decoded arrays, or ``out`` exists.
+    Raises BagError when ``src`` cannot be read or holds no decoded arrays, or ``out`` exists.
     """
     src, out = Path(src), Path(out)
     if out.exists():

@@ -1,8 +1,4 @@
-"""The shape of a node-graph description, shared by the launch files and ``ext-sense run``.
-
-A :class:`GraphSpec` lists its launch arguments and a function from their string values to the
-nodes to start; both front ends call it, so they cannot drift apart. No ``launch``, no rclpy.
-"""
+"""The node-graph description both front ends (launch files, ``ext-sense run``) build from."""
 
 from __future__ import annotations
 
@@ -21,11 +17,7 @@ class GraphError(ValueError):
 
 @dataclass(frozen=True)
 class ArgumentSpec:
-    """One launch argument: ``name:=value`` on the command line of both front ends.
-
-    Values arrive as strings, checked by :meth:`check` before any node starts: they must parse
-    as ``kind`` and lie in the inclusive ``[low, high]`` (``None``: unbounded).
-    """
+    """One launch argument ``name:=value``: a string parsed as ``kind`` in ``[low, high]``."""
 
     name: str
     default: str
@@ -50,11 +42,7 @@ class ArgumentSpec:
         return what
 
     def check(self, value: str) -> None:
-        """Refuse a value that is not of the argument's kind, range or choices.
-
-        Raises:
-            GraphError: ``The 'trials' argument must be an integer >= 0. Got '-1' instead.``
-        """
+        """Refuse (GraphError) a value not of the argument's kind, range or choices."""
         wrong = GraphError(
             f"The '{self.name}' argument must be {self.expected()}. Got '{value}' instead."
         )
@@ -124,12 +112,7 @@ class GraphSpec:
     """Checks that the files the arguments name exist (bag, pty directory, scene file)."""
 
     def resolve(self, overrides: Mapping[str, str] | None = None) -> dict[str, str]:
-        """Argument values: defaults updated with ``overrides``, each checked by its spec.
-
-        Raises:
-            GraphError: An unknown argument, or a value not of its argument's kind, range or
-                choices.
-        """
+        """Defaults updated with ``overrides``, each checked (GraphError: unknown or refused)."""
         values = {a.name: a.default for a in self.arguments}
         known = {a.name: a for a in self.arguments}
         for key, value in (overrides or {}).items():
@@ -144,11 +127,7 @@ class GraphSpec:
         return values
 
     def check_files(self, values: Mapping[str, str]) -> None:
-        """Refuse, before any node starts, resolved values naming files the graph cannot use.
-
-        Raises:
-            GraphError: One line naming the argument and what is wrong with its file.
-        """
+        """Refuse (GraphError) resolved values naming files the graph cannot use."""
         if self.files is not None:
             self.files(values)
 
@@ -162,11 +141,7 @@ def _number(x: float | None) -> str:
 
 
 def parse_assignments(items: list[str]) -> dict[str, str]:
-    """Parse ``name:=value`` items as ``ros2 launch`` does.
-
-    Raises:
-        GraphError: An item without ``:=``.
-    """
+    """Parse ``name:=value`` items as ``ros2 launch`` does (GraphError: no ``:=``)."""
     out = {}
     for item in items:
         key, sep, value = item.partition(":=")
@@ -190,11 +165,7 @@ def launch_node_kwargs(spec: NodeSpec, use_sim_time: bool) -> dict[str, Any]:
 
 
 def as_bool(value: str) -> bool:
-    """Interpret a launch-argument string as a bool (``true``/``false``, ``1``/``0``).
-
-    Raises:
-        GraphError: Anything else.
-    """
+    """A launch-argument string as a bool (``true``/``false``, ``1``/``0``; else GraphError)."""
     lowered = value.strip().lower()
     if lowered in ("true", "1", "yes", "on"):
         return True

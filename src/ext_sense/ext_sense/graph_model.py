@@ -1,10 +1,7 @@
-"""The model a graph will load, found before any of its nodes starts (both front ends).
+"""The model a graph will load, found and checked before any of its nodes starts.
 
-:func:`with_model` looks the ``model`` argument up along the model search path, checks its card
-against the graph's task, sensor and held object (a model of a 20 cm rod places every tap on
-the 30 cm scene wrong), and hands the absolute bundle directory to both perception nodes. With
-no usable model the graph refuses to start with one line naming the places searched and the
-command that creates the default models. No ``launch``, no rclpy.
+A model of another task, sensor or held object (a 20 cm rod's places every tap on the 30 cm
+scene wrong) is refused with one line naming what was searched and what to run.
 """
 
 from __future__ import annotations
@@ -28,12 +25,8 @@ class ModelMissingError(GraphError):
 def with_model(graph: GraphSpec, overrides: Mapping[str, str]) -> dict[str, str]:
     """``overrides`` with ``model`` set to the absolute bundle directory the graph will load.
 
-    ``held_object`` is set too when known and worth checking: named, recorded by the card, or a
-    tap's rod; the inference node checks a model it loads later against it.
-
-    Raises:
-        GraphError: Bad arguments.
-        ModelMissingError: No usable model (one line: what was searched, what to run).
+    ``held_object`` is set too when named, recorded by the card, or a tap's rod. Raises
+    GraphError (bad arguments) or ModelMissingError (no usable model).
     """
     values = graph.resolve(overrides)
     inference = [n for n in graph.build(values) if n.executable == INFERENCE_EXECUTABLE]
@@ -68,11 +61,7 @@ def with_model(graph: GraphSpec, overrides: Mapping[str, str]) -> dict[str, str]
 
 
 def held_object_of_graph(values: Mapping[str, str], task: str, sensor: str) -> HeldObject | None:
-    """The object a graph holds: its ``held_object`` argument, else the simulator scene's.
-
-    Raises:
-        GraphError: A malformed ``held_object``, or a scene that cannot be read.
-    """
+    """The graph's ``held_object``, else the simulator scene's (GraphError: unreadable)."""
     try:
         named = HeldObject.parse(values.get("held_object", ""))
     except PerceptionError as err:

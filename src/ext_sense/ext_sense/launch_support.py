@@ -18,12 +18,9 @@ from ext_sense.runner import group_payload
 def generate_launch_description_for(graph_name: str) -> Any:
     """The ``LaunchDescription`` of one graph: its arguments, then its nodes.
 
-    Nodes are built in an ``OpaqueFunction`` by the same ``GraphSpec.build`` as ``ext-sense
-    run``, after the same argument, file and model checks: a failing one fails the launch
-    before any process starts, with the line ``ext-sense run`` prints. A ``required`` node
-    shuts the launch down when it exits. A lifecycle node of its own process is configured at
-    once and activated once inactive (unless ``manage_drivers:=false``); one in a process
-    group (:func:`group_node_kwargs`) is managed by that process, as ``ext-sense run`` does.
+    Nodes are built in an ``OpaqueFunction`` after the checks of ``ext-sense run`` (a failing
+    one fails the launch before any process starts). A lifecycle node of its own process is
+    configured and activated here (unless ``manage_drivers:=false``), one in a group by it.
     """
     from launch import LaunchDescription
     from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
@@ -65,11 +62,7 @@ def generate_launch_description_for(graph_name: str) -> Any:
 
 
 def group_node_kwargs(name: str, specs: tuple[NodeSpec, ...], use_sim_time: bool) -> dict[str, Any]:
-    """Keyword arguments of ``launch_ros.actions.Node`` for a process group.
-
-    Names, parameters and remappings go in the JSON argument (at the action they would apply
-    to every node of the process alike).
-    """
+    """``launch_ros.actions.Node`` keyword arguments of a group (each node's own in the JSON)."""
     from launch.actions import Shutdown
 
     kwargs: dict[str, Any] = {

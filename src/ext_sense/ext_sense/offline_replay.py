@@ -16,11 +16,7 @@ if TYPE_CHECKING:  # heavy: imported by the functions, so ``ext-sense --help`` s
 
 
 def bag_task_sensor(path: Path) -> tuple[str, str]:
-    """Task and sensor of a bag: its ``custom_data``, else its stream topics and first truth.
-
-    Raises:
-        BagError: Neither can be told.
-    """
+    """Task and sensor of a bag: its ``custom_data``, else its topics and first truth (BagError)."""
     from ext_sense_bags import BagError, BagReader
 
     with BagReader(path) as bag:
@@ -42,11 +38,7 @@ def bag_task_sensor(path: Path) -> tuple[str, str]:
 
 
 def packet_topic(topics: Mapping[str, Any], path: Path, sensor: str) -> str:
-    """The bag's topic of ``sensor``'s packets, given the bag's ``topics``.
-
-    Raises:
-        BagError: The bag holds none (one of decoded arrays is migrated first).
-    """
+    """The bag's topic of ``sensor``'s packets (BagError: none, e.g. a bag to migrate)."""
     from ext_sense.topics import SENSOR_PACKETS
     from ext_sense_bags import BagError
 
@@ -64,13 +56,8 @@ def offline_estimates(
 ) -> Iterator[tuple[str, Any]]:
     """Run the graph's core on a bag: yields ``(kind, item)``, kind estimate, truth or rejected.
 
-    Packets feed :class:`~ext_sense_perception.online.stage.WindowStage` (windows of
-    ``config``), each window ``model.predict``; only the compute latency differs between runs.
     For food the truth stamps are the motion starts. ``from_seq`` replays as a consumer that
     joined at that packet; after the last one, pending windows close as at a stream's end.
-
-    Raises:
-        BagError: The bag holds no packets of the sensor (:func:`packet_topic`).
     """
     from ext_sense_bags import BagReader
     from ext_sense_perception.errors import PerceptionError

@@ -38,11 +38,7 @@ def graph_nodes() -> list[tuple[NodeSpec, dict[str, list[object]]]]:
 
 
 def schema_of(spec: NodeSpec) -> tuple[ParamSpec, ...]:
-    """The parameters the node declares, from its class's ``PARAMETERS`` schema.
-
-    Raises:
-        TypeError: The node class names no schema.
-    """
+    """The parameters the node declares: its class's ``PARAMETERS`` schema (else TypeError)."""
     cls = spec.node_class()
     schema = getattr(cls, "PARAMETERS", None)
     if schema is None:

@@ -1,11 +1,9 @@
 """Running a node graph without ``ros2 launch``: the node specs the launch files use.
 
-Each node, or each group of nodes sharing a process (:mod:`ext_sense.graph_process`), runs in a
-child ``python -m ext_sense.runner JSON`` (also the ``node_group`` console script). The runner
-forwards any stop signal as one SIGINT, stops the graph when a ``required`` node exits, kills a
-child not gone ``STOP_GRACE_S`` after the SIGINT, and prints every child's exit code. Children
-get SIGTERM from the kernel should the runner die (``PR_SET_PDEATHSIG``). ``--in-process`` runs
-every node on one executor here, for debugging.
+Each node, or each process group (:mod:`ext_sense.graph_process`), runs in a child ``python -m
+ext_sense.runner JSON`` (the ``node_group`` console script). A stop signal is forwarded as one
+SIGINT; a child not gone ``STOP_GRACE_S`` later is killed; children get SIGTERM should the
+runner die (``PR_SET_PDEATHSIG``).
 """
 
 from __future__ import annotations
@@ -32,8 +30,7 @@ from ext_sense_runtime.stop import (
 
 STOP_GRACE_S = 5.0
 STACKS_WAIT_S = 0.5
-"""Time a node that did not stop is given to print its threads' stacks (``node_main``'s
-``STACKS_SIGNAL``) before it is killed."""
+"""Time a node that did not stop is given to print its threads' stacks before it is killed."""
 SUPERVISOR_ENV = "EXT_SENSE_SUPERVISOR_PID"
 """Set in a child's environment to the pid of the process that started it (the runner)."""
 _PR_SET_PDEATHSIG = 1
@@ -55,10 +52,7 @@ def _node_kwargs(spec: NodeSpec, use_sim_time: bool, context: Any = None) -> dic
 
 
 def _make_node(spec: NodeSpec, node_class: type, use_sim_time: bool, context: Any = None) -> Any:
-    """Construct the node; a managed lifecycle node is then configured and activated.
-
-    A failed transition leaves the node where it is, reachable on ``<node>/change_state``.
-    """
+    """Construct the node; a managed lifecycle node is then configured and activated."""
     node = node_class(**_node_kwargs(spec, use_sim_time, context))
     if spec.lifecycle and spec.manage:
         from rclpy.lifecycle import TransitionCallbackReturn
@@ -79,11 +73,7 @@ def run_one(spec: NodeSpec, use_sim_time: bool) -> int:
 
 
 def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence[str] = ()) -> int:
-    """Every node on one executor in this process, stopped as a node process is.
-
-    ``args`` are process-wide ROS arguments (``--ros-args ...``, as ``ros2 launch`` appends
-    them); each node's own name and remappings are its node arguments.
-    """
+    """Every node on one executor in this process; ``args``: process-wide ``--ros-args ...``."""
     from ext_sense_runtime import intra_process
     from ext_sense_runtime.node_main import run_nodes
 
@@ -98,10 +88,7 @@ def run_in_process(nodes: Sequence[NodeSpec], use_sim_time: bool, args: Sequence
 
 
 def _stopped_while_starting() -> bool:
-    """Install a node process's stop handlers; whether a stop came while it started.
-
-    A process whose supervisor dies is stopped too (``PR_SET_PDEATHSIG``).
-    """
+    """Install a node process's stop handlers; whether a stop came while it started."""
     stop = install_stop_handlers()
     supervisor = os.environ.pop(SUPERVISOR_ENV, "")  # not for processes this one starts
     if supervisor.isdigit():
@@ -115,10 +102,7 @@ def _stopped_while_starting() -> bool:
 
 
 def spawn_node(spec: NodeSpec, use_sim_time: bool) -> subprocess.Popen[bytes]:
-    """Start a node process with the stop signals blocked until it installs its handlers.
-
-    Pair it with :func:`stop_nodes`.
-    """
+    """Start a node process with the stop signals blocked until it installs its handlers."""
     return _spawn(json.dumps({"spec": asdict(spec), "use_sim_time": use_sim_time}))
 
 
@@ -136,8 +120,7 @@ def _spawn(payload: str) -> subprocess.Popen[bytes]:
 def stop_nodes(procs: dict[str, subprocess.Popen[bytes]], log: Any) -> dict[str, int]:
     """SIGINT to every child still running, SIGKILL to any not gone after ``STOP_GRACE_S``.
 
-    Returns:
-        Every child's exit code (negative: the signal that ended it).
+    Returns every child's exit code (negative: the signal that ended it).
     """
     for proc in procs.values():
         if proc.poll() is None:
@@ -170,10 +153,8 @@ def run_graph(
 ) -> int:
     """Start every node of ``graph`` and supervise them until done.
 
-    Returns:
-        0 when every node exited with 0, stopped by a signal or after the required nodes
-        finished; otherwise the exit status (:func:`exit_status`) of the first node that failed
-        while running or, failing that, of the first that did not exit with 0 when stopped.
+    Returns 0 when every node exited with 0; else the exit status of the first node that failed
+    while running or, failing that, of the first that did not exit with 0 when stopped.
     """
     values = graph.resolve(overrides)
     nodes = graph.build(values)
@@ -229,10 +210,7 @@ def _spec_from_json(raw: dict[str, Any]) -> NodeSpec:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Child entry point: ``python -m ext_sense.runner NODE_JSON|GROUP_JSON [--ros-args ...]``.
-
-    Also the ``node_group`` console script (``launch_ros`` appends ``--ros-args ...``).
-    """
+    """Child entry point and ``node_group``: ``NODE_JSON|GROUP_JSON [--ros-args ...]``."""
     argv = list(sys.argv[1:] if argv is None else argv)
     payload = json.loads(argv[0])
     use_sim_time = bool(payload["use_sim_time"])

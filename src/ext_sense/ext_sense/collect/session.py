@@ -1,9 +1,4 @@
-"""The functional core of ``ext-sense collect``: prompts, trial sequences and session state.
-
-Plain Python: what to ask next, what an answer means, which trials are kept, and the state file
-(``collect.json``, beside the bag's files and ``session.json``) that lets a session resume; a
-whole session can be replayed from a list of answers (``--answers``).
-"""
+"""``ext-sense collect``'s core (no ROS): prompts, answers, kept trials, ``collect.json``."""
 
 from __future__ import annotations
 
@@ -75,11 +70,7 @@ class Trial:
 
 @dataclass
 class CollectState:
-    """A session's progress, written to ``collect.json`` after every change (resume).
-
-    ``planned`` is the prompt sequence (tap positions in m as text, or classes); ``attempts``
-    counts trials played, kept or not (the simulator's schedule).
-    """
+    """A session's progress, saved after every change; ``attempts``: trials played, kept or not."""
 
     task: str
     planned: list[str]
@@ -134,11 +125,7 @@ class CollectState:
 
     @classmethod
     def load(cls, directory: Path) -> CollectState:
-        """The state of an interrupted session.
-
-        Raises:
-            CollectError: No state file, or one that does not parse.
-        """
+        """The state of an interrupted session (CollectError: none, or one that does not parse)."""
         path = directory / STATE_FILE
         try:
             raw = json.loads(path.read_text())
@@ -158,11 +145,7 @@ def parse_command(text: str) -> str:
 
 
 def parse_class(text: str, classes: Sequence[str]) -> str:
-    """A class answer: the name or its 1-based number in ``classes``.
-
-    Raises:
-        CollectError: Neither.
-    """
+    """A class answer: the name or its 1-based number in ``classes`` (CollectError: neither)."""
     word = text.strip().lower().replace(" ", "_")
     if word.isdigit() and 1 <= int(word) <= len(classes):
         return classes[int(word) - 1]
@@ -208,11 +191,7 @@ class Answers:
 
 
 def sim_schedule(task: str, answers: Sequence[str], classes: Sequence[str]) -> list[str]:
-    """The simulator's ``labels`` for a scripted food session: each named food, in order.
-
-    Other tasks are not scheduled ahead (a handover grasp is played as :func:`grasp_class`
-    says when offered; see docs/collect.md).
-    """
+    """The simulator's ``labels`` for a scripted food session: each named food, in order."""
     if task != "food_identification":
         return []
     schedule: list[str] = []
@@ -236,11 +215,7 @@ def grasp_class(answer: str | None, classes: Sequence[str]) -> str:
 
 
 def parse_decision(text: str) -> tuple[int, str]:
-    """``(stamp_ns, state)`` of a behaviour decision as published (``[stamp] STATE: ...``).
-
-    Raises:
-        CollectError: Not in that form.
-    """
+    """``(stamp_ns, state)`` of a decision published ``[stamp] STATE: ...`` (else CollectError)."""
     try:
         stamp, rest = text.split("] ", 1)
         return int(stamp.lstrip("[")), rest.split(":", 1)[0]

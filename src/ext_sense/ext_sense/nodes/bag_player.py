@@ -32,11 +32,7 @@ DEFAULT_TOPICS = [TOPIC_NUSKIN_PACKETS, TOPIC_BIOTAC_PACKETS, TOPIC_GROUND_TRUTH
 
 
 def message_class(msgtype: str) -> type:
-    """The rclpy message class of ``"pkg/msg/Name"``.
-
-    Raises:
-        BagError: The interface package is not importable here.
-    """
+    """The rclpy message class of ``"pkg/msg/Name"`` (BagError: not importable here)."""
     pkg, _, name = msgtype.rpartition("/")
     module = pkg.replace("/", ".")
     try:

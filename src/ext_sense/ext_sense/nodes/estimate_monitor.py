@@ -1,9 +1,7 @@
 """``estimate_monitor`` node: prints each estimate beside the simulator's ground truth.
 
-Every final estimate matched to a trial prints a line; after ``expected`` scored estimates (or,
-once ``expected`` trials were seen, ``idle_timeout_s`` without news) it prints the summary and
-shuts its context down, which ends the graph. With ``ground_truth`` false every final estimate
-is printed unscored (:class:`~ext_sense.nodes.scoreboard.Scoreboard`).
+After ``expected`` scored estimates (or ``idle_timeout_s`` without news once ``expected``
+trials were seen) it prints the summary and shuts its context down, which ends the graph.
 
 The monitor subscribes to ``ground_truth`` only once it hears an estimate publisher: a trial it
 takes is one whose estimate it can hear. The simulated device waits for that subscriber before
@@ -125,12 +123,8 @@ class EstimateMonitorNode(Node):
         self._last_news = time.monotonic_ns()
         est = estimate_of(msg)
         if est.provisional and self.show_provisional:
-            self._print(
-                [
-                    f"  provisional @{est.post_contact_used_ns / 1e6:.0f} ms: "
-                    f"{est.tap_position_m * 100:.2f} cm {est.class_label}"
-                ]
-            )
+            what = f"{est.tap_position_m * 100:.2f} cm {est.class_label}"
+            print(f"  provisional @{est.post_contact_used_ns / 1e6:.0f} ms: {what}", flush=True)
         self._print(self.board.add_estimate(est))
         self._maybe_finish()
 
