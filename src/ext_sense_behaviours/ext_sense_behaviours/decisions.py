@@ -9,14 +9,7 @@ from enum import IntEnum
 
 @dataclass(frozen=True)
 class Decision:
-    """One decision of a state machine.
-
-    Attributes:
-        stamp_ns: When it was taken, integer ns.
-        state: Name of the state after the decision.
-        action: Name of what the caller must do now (``"NONE"`` for nothing).
-        reason: Why, in words a person reading the log understands.
-    """
+    """One decision: the state after it, the caller's action (``"NONE"``: nothing), and why."""
 
     stamp_ns: int
     state: str

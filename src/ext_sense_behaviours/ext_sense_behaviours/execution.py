@@ -20,14 +20,8 @@ from ext_sense_runtime.records import Estimate
 class FoodProbe:
     """Runs one food probe on an arm.
 
-    Args:
-        machine: The state machine.
-        arm: The arm adapter.
-        on_motion_start: Called with the motion start (ns) when lowering begins (the node
-            publishes it for the ``contact_window`` node).
-        on_request: Called with ``(window_start_ns, window_end_ns)`` when the window is complete.
-        on_publish: Called with the result once retracted.
-        on_state: Called with every arm state read while probing (e.g. to publish it).
+    Calls back with the motion start (ns, as lowering begins), the complete window ``(start_ns,
+    end_ns)``, the result once retracted, and every arm state read while probing.
     """
 
     def __init__(

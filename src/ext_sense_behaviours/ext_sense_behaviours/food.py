@@ -155,12 +155,7 @@ class FoodResult(NamedTuple):
 
 
 class FoodMachine:
-    """The food-probing state machine; feed it events, act on the decisions it returns.
-
-    Args:
-        config: Probe parameters.
-        sink: Called with every decision (e.g. a node logger).
-    """
+    """The food-probing state machine; feed it events, act on its decisions (``sink`` too)."""
 
     def __init__(
         self, config: FoodConfig | None = None, sink: Callable[[Decision], None] | None = None

@@ -44,13 +44,9 @@ StatusCallback = Callable[[GripperStatus | None, RobotiqError | None], None]
 class GripperWorker:
     """Runs a Robotiq client in its own thread.
 
-    Args:
-        connect: Opens the port and returns a client (raises RobotiqError when it cannot).
-        on_status: Called from the worker thread with ``(status, None)`` after each poll, or
-            ``(last_status, error)`` when an exchange failed.
-        poll_period_s: Time between status polls.
-        auto_activate: Activate the gripper after connecting when it is not active.
-        reconnect_s: Wait before trying to reopen a lost port.
+    ``connect`` opens the port and returns a client (RobotiqError when it cannot);
+    ``on_status`` is called from the worker thread with ``(status, None)`` after each poll, or
+    ``(last_status, error)`` when an exchange failed.
     """
 
     def __init__(

@@ -50,15 +50,7 @@ class HandoverAction(IntEnum):
 
 @dataclass(frozen=True)
 class HandoverConfig:
-    """Parameters of the handover decision.
-
-    Attributes:
-        threshold: P(stable) at or above which an estimate counts, in (0, 1].
-        consecutive: Estimates in a row needed before opening, >= 1.
-        accept_provisional: Let provisional (anytime) estimates count.
-        timeout_ns: Longest wait in HOLDING before giving up (keep holding), ns.
-        release_timeout_ns: Longest wait for the gripper to report open, ns.
-    """
+    """Parameters of the handover decision (as ``handover_behaviour``'s, durations in ns)."""
 
     threshold: float = 0.8
     consecutive: int = 3
@@ -83,12 +75,7 @@ class HandoverConfig:
 
 
 class HandoverMachine:
-    """The handover state machine; feed it events, act on the decisions it returns.
-
-    Args:
-        config: Decision parameters.
-        sink: Called with every decision as it is taken (e.g. a node logger).
-    """
+    """The handover state machine; feed it events, act on its decisions (``sink`` too)."""
 
     def __init__(
         self, config: HandoverConfig | None = None, sink: Callable[[Decision], None] | None = None
@@ -206,16 +193,9 @@ class HandoverMachine:
     ) -> Decision | None:
         """Record where the fingers really are after a fault, from a fresh status read.
 
-        Args:
-            opened: The fingers have finished opening (see ``gripper.is_open``).
-            settled: The fingers are not moving (motion done, or stopped by a fault).
-            description: The status in words (position, object, fault), for the log.
-            now_ns: Now, integer ns.
-
-        Returns:
-            ``None`` when no read is awaited or the fingers are still moving (read again);
-            otherwise the decision: RELEASED when the open command was carried out, else
-            FAULT (still holding; only an operator reset leaves it).
+        ``opened`` as ``gripper.is_open``; ``settled``: not moving (motion done, or stopped by a
+        fault). ``None`` when no read is awaited or the fingers still move (read again); else
+        RELEASED when the open command was carried out, or FAULT (held until an operator reset).
         """
         if self.state != HandoverState.FAULT or not self.awaiting_status:
             return None

@@ -14,12 +14,7 @@ from rclpy.node import Node
 
 
 class Deadline:
-    """A one-shot timer that can be re-armed or disarmed.
-
-    Args:
-        node: The node whose executor runs the expiry.
-        guard: Wraps the expiry callback (a node's :class:`CallbackGuard`); identity if ``None``.
-    """
+    """A one-shot timer on ``node`` that can be re-armed or disarmed (``guard`` wraps it)."""
 
     def __init__(
         self, node: Node, guard: Callable[[Callable[..., Any]], Callable[..., Any]] | None = None

@@ -56,18 +56,10 @@ def _duration(seconds: float) -> Duration:
 class FrankaArmAdapter:
     """A Panda / FR3 under franka_ros2 as an :class:`~ext_sense_behaviours.arm.ArmAdapter`.
 
-    Args:
-        node: The node that owns the subscription, clients and timer.
-        names: Topic, service and action names.
-        collision_force_n, collision_torque_nm, joint_torque_nm: Reflex thresholds (collision;
-            contact flags at half these).
-        max_descent_m: Length of the planned descent, m (the behaviour stops it earlier).
-        guard: Wraps each callback (the node's :class:`CallbackGuard`); identity when ``None``.
-        accept_timeout_s: Deadline of a trajectory goal's acceptance, s.
-        result_margin_s: Deadline of its result beyond the trajectory's planned duration, s.
-
-    Raises:
-        BehaviourError: franka_msgs is not installed, or a threshold is not positive.
+    ``node`` owns the subscription, clients and timer; ``guard`` wraps each callback. The
+    reflex thresholds are the collision ones (contact flags at half these); ``max_descent_m``
+    is the planned descent, m (the behaviour stops it earlier). BehaviourError when franka_msgs
+    is not installed or a threshold is not positive.
     """
 
     def __init__(
@@ -210,10 +202,14 @@ class FrankaArmAdapter:
 
     def retract(self, height_m: float, speed_mps: float) -> None:
         """Plan straight up to ``height_m`` at ``speed_mps`` (nothing when already there)."""
-        reading = self._reading()
-        dz = float(height_m) - reading.state.z_m
+        dz = float(height_m) - self._reading().state.z_m
         if dz > 1e-5:
             self._line(dz, speed_mps)
+
+    def _reading(self) -> RobotReading:
+        if self.reading is None:
+            raise BehaviourError("no robot state yet: cannot plan a motion")
+        return self.reading
 
     def take_failure(self) -> str | None:
         """Why the newest motion failed, once (``None``: it did not, or it was taken).
@@ -233,11 +229,6 @@ class FrankaArmAdapter:
         if goal is not None:
             goal.cancel_goal_async()
 
-    def _reading(self) -> RobotReading:
-        if self.reading is None:
-            raise BehaviourError("no robot state yet: cannot plan a motion")
-        return self.reading
-
     def _line(self, dz_m: float, speed_mps: float) -> None:
         """Send a vertical line of ``dz_m`` from the measured joints as a trajectory goal."""
         self.stop()
@@ -250,10 +241,8 @@ class FrankaArmAdapter:
             point = JointTrajectoryPoint(
                 positions=positions[i].tolist(), time_from_start=_duration(float(t))
             )
-            if velocities is not None and i < len(times) - 1:
-                point.velocities = velocities[i].tolist()
-            elif velocities is not None:
-                point.velocities = [0.0] * 7
+            if velocities is not None:  # at rest at the end
+                point.velocities = velocities[i].tolist() if i < len(times) - 1 else [0.0] * 7
             goal.trajectory.points.append(point)
         if not self._trajectory.server_is_ready():
             self.counters["goals_failed"] += 1
@@ -328,13 +317,11 @@ class FrankaArmAdapter:
         if outcome is None or outcome.status == GoalStatus.STATUS_SUCCEEDED:
             return
         if outcome.status == GoalStatus.STATUS_CANCELED:  # ours clear ``_goal`` first: not ours
-            self._fail("goals_failed", "trajectory goal canceled by the controller")
-            return
-        self._fail(
-            "goals_failed",
-            f"trajectory goal ended with status {outcome.status}: "
-            f"{outcome.result.error_string or outcome.result.error_code}",
-        )
+            why = "canceled by the controller"
+        else:
+            why = f"ended with status {outcome.status}: "
+            why += str(outcome.result.error_string or outcome.result.error_code)
+        self._fail("goals_failed", f"trajectory goal {why}")
 
     def status(self) -> dict[str, object]:
         """Key-values for ``/diagnostics``."""

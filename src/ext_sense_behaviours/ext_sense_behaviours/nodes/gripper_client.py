@@ -21,15 +21,9 @@ from ext_sense_behaviours.nodes.deadline import Deadline
 
 
 class GripperReply(NamedTuple):
-    """How a goal ended.
+    """How a goal ended: the result (``position_m`` NaN without one) and ``reason``.
 
-    Attributes:
-        succeeded: The server reported success.
-        position_m: Final finger gap, metres (NaN when the server sent no result).
-        stalled: The fingers stopped on an object (object detected).
-        reached_goal: The fingers reached the commanded gap.
-        reason: ``succeeded``, ``aborted``, ``canceled``, ``rejected``, ``no server``,
-            ``unanswered`` or ``timed out``.
+    ``reason``: succeeded, aborted, canceled, rejected, no server, unanswered or timed out.
     """
 
     succeeded: bool
@@ -53,14 +47,7 @@ RESULT_TIMEOUT_S = 15.0
 
 
 class GripperClient:
-    """Sends gripper goals, one at a time, and reports each outcome to a callback.
-
-    Args:
-        node: The node that owns the client (its timers keep the deadlines).
-        action_name: Full action name (``/robotiq_gripper_controller/gripper_cmd``).
-        accept_timeout_s: Deadline of a goal's acceptance, s.
-        result_timeout_s: Deadline of a goal's result after its acceptance, s.
-    """
+    """Sends gripper goals on ``action_name``, one at a time; a callback gets each outcome."""
 
     def __init__(
         self,
@@ -134,14 +121,13 @@ class GripperClient:
 
         def no_result(handle: Any) -> None:
             handle.cancel_goal_async()
-            self.timed_out += 1
-            finish(GripperReply(False, float("nan"), False, False, "timed out"))
+            no_answer("timed out")
 
-        def no_goal_response() -> None:
+        def no_answer(reason: str) -> None:
             self.timed_out += 1
-            finish(GripperReply(False, float("nan"), False, False, "unanswered"))
+            finish(GripperReply(False, float("nan"), False, False, reason))
 
-        self._deadline.arm(self.accept_timeout_s, no_goal_response)
+        self._deadline.arm(self.accept_timeout_s, lambda: no_answer("unanswered"))
         self._client.send_goal_async(goal).add_done_callback(_on_goal)
 
     def destroy(self) -> None:

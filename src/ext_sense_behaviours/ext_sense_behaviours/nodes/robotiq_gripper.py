@@ -148,7 +148,6 @@ class RobotiqGripperNode(LifecycleNode):
         self.status_pub = self.create_publisher(DiagnosticStatus, "gripper/status", COMMAND_QOS)
         self.joint_pub = self.create_publisher(JointState, "joint_states", COMMAND_QOS)
         self.create_subscription(Bool, "gripper/activate", self._on_activate, COMMAND_QOS)
-        cancel = self._on_cancel
         self.active = False
         self.gripper_server = ActionServer(
             self,
@@ -156,7 +155,7 @@ class RobotiqGripperNode(LifecycleNode):
             f"{controller.rstrip('/')}/gripper_cmd",
             self._execute_gripper_command,
             goal_callback=self._on_goal_request,
-            cancel_callback=cancel,
+            cancel_callback=lambda _: CancelResponse.ACCEPT,
         )
         self.parallel_server = ActionServer(
             self,
@@ -164,7 +163,7 @@ class RobotiqGripperNode(LifecycleNode):
             f"{parallel.rstrip('/')}/gripper_cmd",
             self._execute_parallel_command,
             goal_callback=self._on_goal_request,
-            cancel_callback=cancel,
+            cancel_callback=lambda _: CancelResponse.ACCEPT,
         )
 
         self.worker: GripperWorker | None = None
@@ -219,21 +218,17 @@ class RobotiqGripperNode(LifecycleNode):
 
     def on_cleanup(self, state: State) -> TransitionCallbackReturn:
         """Close the link (the worker thread stops and closes the port)."""
-        self._release()
-        return TransitionCallbackReturn.SUCCESS
-
-    def on_shutdown(self, state: State) -> TransitionCallbackReturn:
-        """Close the link on the way out from any state."""
-        self.on_deactivate(state)
-        self._release()
-        return TransitionCallbackReturn.SUCCESS
-
-    def _release(self) -> None:
         worker, self.worker = self.worker, None
         if worker is not None:
             worker.stop()
         with self._lock:
             self.status = None
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: State) -> TransitionCallbackReturn:
+        """Close the link on the way out from any state."""
+        self.on_deactivate(state)
+        return self.on_cleanup(state)
 
     def _on_goal_request(self, request: Any) -> GoalResponse:
         why = goal_problem(self.scale, request) if self.active else "the node is not active"
@@ -245,9 +240,6 @@ class RobotiqGripperNode(LifecycleNode):
 
     def _on_change(self, new: RobotiqParameters) -> None:
         self.p = new
-
-    def _on_cancel(self, _goal_handle: ServerGoalHandle) -> CancelResponse:
-        return CancelResponse.ACCEPT
 
     async def _execute_gripper_command(self, goal_handle: ServerGoalHandle) -> Any:
         command = goal_handle.request.command
@@ -343,8 +335,7 @@ class RobotiqGripperNode(LifecycleNode):
 
     def _submit(self, goal: _Goal) -> None:
         if self.worker is None or not self.worker.submit(goal.move):
-            gap = self._current_gap()
-            goal.finish(failed(gap, "command queue full"))
+            goal.finish(failed(self._current_gap(), "command queue full"))
 
     def _advance(
         self, goal: _Goal, status: GripperStatus | None, error: RobotiqError | None
@@ -411,7 +402,7 @@ class RobotiqGripperNode(LifecycleNode):
 
     def destroy_node(self) -> None:
         """Stop the worker, close the port, destroy the action servers (rclpy's leaves them)."""
-        self._release()
+        self.on_cleanup(None)
         self.gripper_server.destroy()
         self.parallel_server.destroy()
         super().destroy_node()
