@@ -8,7 +8,6 @@ No rclpy: messages are read duck-typed (rclpy or rosbags).
 from ext_sense_drivers.packets.decoders import (
     BioTacPacketDecoder,
     DecodedFrame,
-    DecodedFrames,
     NuskinPacketDecoder,
     make_decoder,
 )
@@ -35,7 +34,6 @@ __all__ = [
     "QUIET_PACKETS_PERIOD_S",
     "BioTacPacketDecoder",
     "DecodedFrame",
-    "DecodedFrames",
     "NuskinPacketDecoder",
     "Packet",
     "PacketError",

@@ -1,6 +1,6 @@
 """Robotiq 2F gripper over Modbus RTU: CRC, frame codec, register map and a pyserial client."""
 
-from ext_sense_drivers.robotiq.client import RobotiqClient, open_serial
+from ext_sense_drivers.robotiq.client import RobotiqClient
 from ext_sense_drivers.robotiq.crc import append_crc, crc16_modbus, crc_ok
 from ext_sense_drivers.robotiq.errors import FaultKind, RobotiqError
 from ext_sense_drivers.robotiq.registers import (
@@ -23,5 +23,4 @@ __all__ = [
     "append_crc",
     "crc16_modbus",
     "crc_ok",
-    "open_serial",
 ]
