@@ -30,8 +30,8 @@ if TYPE_CHECKING:  # the handlers import these lazily: ``ext-sense --help`` stay
     from ext_sense_perception.training.recipe import Recipe
 
 
-def _common(p: argparse.ArgumentParser, *, need_task: bool = True) -> None:
-    add_data_options(p, need_task=need_task)
+def _common(p: argparse.ArgumentParser) -> None:
+    add_data_options(p)
     p.add_argument(
         "--features",
         default=None,
@@ -59,7 +59,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "features", help="compute a feature set from a recording or dataset into an .npy"
     )
-    _common(p, need_task=False)
+    _common(p)
     p.add_argument(
         "--essentials",
         default=None,
@@ -75,7 +75,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "train", help="train a deployable model bundle (model.onnx, model.joblib, model_card.json)"
     )
-    _common(p, need_task=False)
+    _common(p)
     p.add_argument("--out", required=True, help="bundle directory")
     p.add_argument(
         "--anytime-ms",
@@ -97,7 +97,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "evaluate", help="the paper's protocol (K random 90/10 splits, 4-fold grid search)"
     )
-    _common(p, need_task=False)
+    _common(p)
     p.add_argument(
         "--k", type=int, default=None, help="splits (default: 5 for tap and RNNs, else 20)"
     )
@@ -400,8 +400,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
         return fail(err)
     if plan is not None:
         _print_plan(plan, cache)
-        return 0
-    print(f"report written to {path}")
+    else:
+        print(f"report written to {path}")
     return 0
 
 

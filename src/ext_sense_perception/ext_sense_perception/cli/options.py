@@ -20,15 +20,14 @@ if TYPE_CHECKING:
     from ext_sense_perception.data.window_set import WindowSet
 
 
-def add_data_options(p: argparse.ArgumentParser, *, need_task: bool = False) -> None:
+def add_data_options(p: argparse.ArgumentParser) -> None:
     """Options naming the sessions and how their windows are cut (see :func:`load_sessions`)."""
     p.add_argument(
         "--task",
-        required=need_task,
         help="tap_localization, handover_stability or food_identification (a bag, a "
         "simulator dataset or a bundle names its own)",
     )
-    p.add_argument("--sensor", required=need_task, help="nuskin or biotac")
+    p.add_argument("--sensor", help="nuskin or biotac")
     p.add_argument(
         "--data",
         action="append",

@@ -146,7 +146,15 @@ class ContactWindowNode(Node):
             )
         previous_ns = self.liveness.last_stamp_ns
         self._stream_going = not msg.end_of_stream
-        self._arrived(msg)
+        self.rate.tick()
+        lost = self.liveness.contacts_lost
+        self.liveness.on_message(stamp_to_ns(msg.header.stamp), time.time_ns())
+        if self.liveness.contacts_lost > lost:  # a gap no window covered, now settled
+            self.get_logger().warning(
+                f"lost input may have held a whole contact: no window covered it "
+                f"({self._contacts_said()})"
+            )
+        self._report_stall_change()
         bad = self.stage.counters.bad_packets
         windows = self.stage.on_packet(msg)
         if self.stage.counters.bad_packets > bad:
@@ -173,17 +181,6 @@ class ContactWindowNode(Node):
         """The contacts faults cost so far: lost (no window came) and degraded (windowed)."""
         live = self.liveness
         return f"{live.contacts_lost} contact(s) lost, {live.contacts_degraded} degraded"
-
-    def _arrived(self, msg: SensorPacket) -> None:
-        self.rate.tick()
-        lost = self.liveness.contacts_lost
-        self.liveness.on_message(stamp_to_ns(msg.header.stamp), time.time_ns())
-        if self.liveness.contacts_lost > lost:  # a gap no window covered, now settled
-            self.get_logger().warning(
-                f"lost input may have held a whole contact: no window covered it "
-                f"({self._contacts_said()})"
-            )
-        self._report_stall_change()
 
     def _streaming(self) -> bool:
         """Whether input must be arriving now: BioTac always, NUSkin until ``end_of_stream``."""

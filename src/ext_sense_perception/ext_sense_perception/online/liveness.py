@@ -137,19 +137,15 @@ class StreamLiveness(StallCounts):
             return
         self.packets_lost += int(n)
         self.last_loss_ns = self.clock()
-        self._add_gap(
-            Fault(
-                int(before_ns),
-                int(stamp_ns),
-                f"lost input: {n} packet(s) missing on {self.stream} (seq gap)",
-                may_hold_contact=bool(self.contact_words) and n >= self.contact_words,
-            )
+        gap = Fault(
+            int(before_ns),
+            int(stamp_ns),
+            f"lost input: {n} packet(s) missing on {self.stream} (seq gap)",
+            may_hold_contact=bool(self.contact_words) and n >= self.contact_words,
         )
-
-    def _add_gap(self, fault: Fault) -> None:
-        self.faults.append(fault)
-        if fault.may_hold_contact:
-            self._unsettled.append(fault)
+        self.faults.append(gap)
+        if gap.may_hold_contact:
+            self._unsettled.append(gap)
 
     def _settle(self, now_stamp_ns: int) -> None:
         """Count the lost contacts of the gaps the stream is ``contact_horizon_ns`` past."""

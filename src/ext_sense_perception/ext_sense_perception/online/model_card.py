@@ -83,13 +83,9 @@ def object_mismatch(trained: HeldObject | None, held: HeldObject | None) -> str:
     """
     if trained is None or held is None:
         return ""
-    if trained.kind != held.kind:
-        return f"it was trained on a {trained}, and the graph holds a {held}"
-    if (
-        trained.length_m is not None
-        and held.length_m is not None
-        and abs(trained.length_m - held.length_m) > LENGTH_TOLERANCE_M
-    ):
+    lengths = (trained.length_m, held.length_m)
+    other_length = None not in lengths and abs(lengths[0] - lengths[1]) > LENGTH_TOLERANCE_M
+    if trained.kind != held.kind or other_length:
         return f"it was trained on a {trained}, and the graph holds a {held}"
     return ""
 
@@ -312,11 +308,8 @@ def _check_types(values: dict[str, Any]) -> None:
                 f"null}}. Got {held!r} instead."
             )
         length = held.get("length_m")
-        if length is not None and (
-            isinstance(length, bool)
-            or not isinstance(length, (int, float))
-            or not (math.isfinite(length) and length > 0)
-        ):
+        number = isinstance(length, (int, float)) and not isinstance(length, bool)
+        if length is not None and not (number and math.isfinite(length) and length > 0):
             raise PerceptionError(
                 "The model card's 'held_object.length_m' must be a positive number of metres "
                 f"or null. Got {length!r} instead."

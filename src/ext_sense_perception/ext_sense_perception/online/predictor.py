@@ -108,10 +108,7 @@ class ModelBundle:
         Raises:
             PerceptionError: on NaN/inf, or a window that does not fit any model.
         """
-        chosen = self.model_for(window)
-        if chosen is not self:
-            return chosen._predict_one(window)
-        return self._predict_one(window)
+        return self.model_for(window)._predict_one(window)
 
     def _predict_one(self, window: Any) -> Estimate:
         t0 = time.perf_counter_ns()
@@ -141,18 +138,14 @@ class ModelBundle:
         if self.card.label_set:  # a calibrated bundle decides among its session's classes
             p = restrict(p[None, :], self.class_names, self.card.label_set)[0]
         idx = int(np.argmax(p))
-        stab = (
-            float(p[self.class_names.index("stable")])
-            if "stable" in self.class_names
-            else float("nan")
-        )
+        stable = dict(zip(self.class_names, p, strict=True)).get("stable", float("nan"))
         return Estimate(
             **common,
             class_index=idx,
             class_label=self.class_names[idx],
             class_names=self.class_names,
             class_probabilities=tuple(float(v) for v in p),
-            stability_probability=stab,
+            stability_probability=float(stable),
         )
 
 

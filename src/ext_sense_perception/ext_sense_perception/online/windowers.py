@@ -169,14 +169,12 @@ class WindowerBase:
         # found may be the tail of a contact already under way (measured: +184 ms, 14 cm off).
         head_missing = self._first_ns is not None and start < self._first_ns
         self._counts["joined_mid_stream_windows"] += int(head_missing)
-        reasons = (
-            [
-                f"joined mid-stream: the window begins {(self._first_ns - start) / MS:.0f} ms "
-                "before the first input"
-            ]
-            if head_missing
-            else []
-        )
+        reasons = []
+        if head_missing:
+            ahead = (self._first_ns - start) / MS
+            reasons.append(
+                f"joined mid-stream: the window begins {ahead:.0f} ms before the first input"
+            )
         stuck = self._stuck_ids()
         if stuck:  # the model never saw a taxel at its ceiling: not a normal estimate
             self._counts["stuck_taxel_windows"] += 1

@@ -28,7 +28,6 @@ from ext_sense_perception.reporting.deployed import (
     deployed_key,
     fit_deployed,
 )
-from ext_sense_perception.training.fit import TrainedModel
 from ext_sense_perception.training.fit_jobs import FitFailure, FitJob, FitRunner, check
 from ext_sense_perception.training.models import MODEL_NAMES, default_feature_grid
 from ext_sense_perception.training.protocol import (
@@ -367,16 +366,12 @@ class Runner:
         ]
         outcomes = self.executor.run_jobs(jobs)
         for (key, (_, ws)), (trained,) in zip(pending, outcomes, strict=True):
-            self._latency[key] = self._timed(trained, ws)
-
-    @staticmethod
-    def _timed(
-        trained: TrainedModel | FitFailure, ws: WindowSet
-    ) -> tuple[float, float] | PerceptionError:
-        if isinstance(trained, FitFailure):
-            return PerceptionError(f"the deployed model's fit failed: {trained.error}")
-        t = measure_inference(trained, ws, n=100)
-        return t["infer_p50_ms_onnx"], t["infer_p99_ms_onnx"]
+            if isinstance(trained, FitFailure):
+                error = f"the deployed model's fit failed: {trained.error}"
+                self._latency[key] = PerceptionError(error)
+                continue
+            t = measure_inference(trained, ws, n=100)
+            self._latency[key] = t["infer_p50_ms_onnx"], t["infer_p99_ms_onnx"]
 
     def infer_ms(
         self,

@@ -60,23 +60,11 @@ def evaluation_record(
     if timing:
         trained = fit_model(ws, features, model, params, grid, seed=seed, rate_hz=rate_hz)
         t = measure_inference(trained, ws)
-        rec.update(
-            {
-                "infer_p50_ms": {
-                    "sklearn": t["infer_p50_ms_sklearn"],
-                    "onnx": t["infer_p50_ms_onnx"],
-                },
-                "infer_p99_ms": {
-                    "sklearn": t["infer_p99_ms_sklearn"],
-                    "onnx": t["infer_p99_ms_onnx"],
-                },
-                "infer_p50_ms_sklearn": t["infer_p50_ms_sklearn"],
-                "infer_p99_ms_sklearn": t["infer_p99_ms_sklearn"],
-                "infer_p50_ms_onnx": t["infer_p50_ms_onnx"],
-                "infer_p99_ms_onnx": t["infer_p99_ms_onnx"],
-                "decision_latency_ms": res.post_ns / MS + t["infer_p99_ms_onnx"],
-                "model_id": trained.card.id,
-                "final_train_s": trained.card.train_s,
-            }
-        )
+        for q in ("p50", "p99"):
+            rec[f"infer_{q}_ms"] = {b: t[f"infer_{q}_ms_{b}"] for b in ("sklearn", "onnx")}
+        for b in ("sklearn", "onnx"):
+            rec.update({f"infer_{q}_ms_{b}": t[f"infer_{q}_ms_{b}"] for q in ("p50", "p99")})
+        rec["decision_latency_ms"] = res.post_ns / MS + t["infer_p99_ms_onnx"]
+        rec["model_id"] = trained.card.id
+        rec["final_train_s"] = trained.card.train_s
     return rec

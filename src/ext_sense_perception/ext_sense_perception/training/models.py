@@ -44,12 +44,11 @@ def make_estimator(
     c_grid = [c * c_scale for c in C_GRID]
     if name in ("svm_linear", "svm_rbf", "svm"):
         kernels = {"svm_linear": ["linear"], "svm_rbf": ["rbf"], "svm": ["linear", "rbf"]}[name]
-        if regression:
-            return SVR(kernel=kernels[0], epsilon=REGRESSION_EPSILON_M, cache_size=1000), {
-                "C": c_grid,
-                "kernel": kernels,
-            }
-        est = SVC(kernel=kernels[0], random_state=seed, cache_size=1000)
+        est = (
+            SVR(kernel=kernels[0], epsilon=REGRESSION_EPSILON_M, cache_size=1000)
+            if regression
+            else SVC(kernel=kernels[0], random_state=seed, cache_size=1000)
+        )
         return est, {"C": c_grid, "kernel": kernels}
     if name == "mlp":
         kw = {
@@ -66,9 +65,8 @@ def make_estimator(
             raise PerceptionError(
                 "The 'model' parameter 'random_forest' is for classification only."
             )
-        return RandomForestClassifier(n_estimators=200, random_state=seed), {
-            "max_features": ["sqrt"]
-        }
+        est = RandomForestClassifier(n_estimators=200, random_state=seed)
+        return est, {"max_features": ["sqrt"]}
     if name == "taxel_svr":
         if not regression:
             raise PerceptionError(
