@@ -39,6 +39,26 @@ def time_predict(model: ModelBundle, windows: list, repeat: int) -> tuple[float,
     return pct(out)
 
 
+def backend_latencies(
+    trained: TrainedModel, rows: list, fine: list, repeat: int, backends: tuple[str, ...]
+) -> dict[tuple[str, str], tuple[float, float]]:
+    """p50/p99 ms of one window (a training row, an online window) per backend of the bundle."""
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        save_bundle(trained, tmp)
+        for backend in backends:
+            m = load_model(tmp, backend)
+            results[backend, "row"] = time_predict(m, rows, repeat)
+            results[backend, "online"] = time_predict(m, fine, repeat)
+            if backend == "sklearn" and trained.card.model == "gru":
+                # torch's OpenMP pool and threaded BLAS (the NumPy features) contend on 2 cores
+                from threadpoolctl import threadpool_limits
+
+                with threadpool_limits(limits=1):
+                    results[backend, "row, BLAS 1 thread"] = time_predict(m, rows, repeat)
+    return results
+
+
 def gru_model(ws: WindowSet, quick: bool) -> tuple[TrainedModel, str]:
     """A GRU bundle trained with torch (its ONNX graph is torch's export of the trained net)."""
     sub = ws.subset(np.arange(min(len(ws.y), 200)))
@@ -56,20 +76,7 @@ def bench_gru(ws: WindowSet, rows: list, fine: list, repeat: int, quick: bool) -
         print("GRU (16) + MLP: skipped, torch is not installed (requirements/train.txt)")
         return
     trained, how = gru_model(ws, quick)
-    backends = ("sklearn", "onnx")
-    results = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        save_bundle(trained, tmp)
-        for backend in backends:
-            m = load_model(tmp, backend)
-            results[backend, "row"] = time_predict(m, rows, repeat)
-            results[backend, "online"] = time_predict(m, fine, repeat)
-            if backend == "sklearn":
-                # torch's OpenMP pool and threaded BLAS (the NumPy features) contend on 2 cores
-                from threadpoolctl import threadpool_limits
-
-                with threadpool_limits(limits=1):
-                    results[backend, "row, BLAS 1 thread"] = time_predict(m, rows, repeat)
+    results = backend_latencies(trained, rows, fine, repeat, ("sklearn", "onnx"))
     print(f"GRU (16) + MLP, baseline 5 ms bins, {how}")
     print(f"{'one window, features + GRU':34s} {'p50 ms':>8s} {'p99 ms':>8s}")
     for (backend, kind), (p50, p99) in results.items():
@@ -110,13 +117,7 @@ def main() -> int:
             )
         )
     rows = [ws.X[i] for i in range(64)]
-    with tempfile.TemporaryDirectory() as tmp:
-        save_bundle(trained, tmp)
-        results = {}
-        for backend in ("sklearn", "onnx"):
-            m = load_model(tmp, backend)
-            results[backend, "row"] = time_predict(m, rows, repeat)
-            results[backend, "online"] = time_predict(m, fine, repeat)
+    results = backend_latencies(trained, rows, fine, repeat, ("sklearn", "onnx"))
     print(f"{'one window, features + model':34s} {'p50 ms':>8s} {'p99 ms':>8s}")
     for (backend, kind), (p50, p99) in results.items():
         print(f"  {backend:8s} {kind:24s} {p50:8.3f} {p99:8.3f}")

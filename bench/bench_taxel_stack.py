@@ -16,10 +16,8 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 # a sibling script: ``python bench/bench_taxel_stack.py`` puts bench/ first on sys.path
-from common import synthetic_taps
+from common import pct, synthetic_taps
 
 from ext_sense_perception.data.sources import from_sim_dataset
 from ext_sense_perception.online.model_card import ONNX_FILE, SKLEARN_FILE
@@ -75,7 +73,7 @@ def main() -> int:
                     t0 = time.perf_counter_ns()
                     loaded[m][backend].predict(w)
                     times[m].append((time.perf_counter_ns() - t0) / 1e6)
-            p = {m: (np.percentile(times[m], 50), np.percentile(times[m], 99)) for m in MODELS}
+            p = {m: pct(times[m]) for m in MODELS}
             for m in MODELS:
                 target = " (target p99 <= 2 ms)" if backend == "onnx" else ""
                 print(

@@ -35,10 +35,6 @@ class BioTacDriverConfig(LinkConfig):
                 f"Got {list(self.expected_sensors)} instead."
             )
 
-    def frame_id(self, sensor_id: int) -> str:
-        """``header.frame_id`` of a sensor slot."""
-        return f"{self.frame_id_prefix}{int(sensor_id)}"
-
     @property
     def lead_ns(self) -> int:
         """First sample to least-delayed arrival: frame span + serial transmission + latency."""

@@ -149,18 +149,17 @@ class ManagedLink:
         return TransitionCallbackReturn.SUCCESS
 
     def on_cleanup(self: Any, state: Any) -> Any:
-        """Release the device (the reader thread stops and closes it)."""
+        """Release the device (the reader thread stops and closes it); also on shutdown."""
         from rclpy.lifecycle import TransitionCallbackReturn
 
-        self._release()
+        self._stop_streaming()
+        if self._watch_timer is not None:
+            self.destroy_timer(self._watch_timer)
+            self._watch_timer = None
+        self.reader.stop()
         return TransitionCallbackReturn.SUCCESS
 
-    def on_shutdown(self: Any, state: Any) -> Any:
-        """Release the device on the way out from any state."""
-        from rclpy.lifecycle import TransitionCallbackReturn
-
-        self._release()
-        return TransitionCallbackReturn.SUCCESS
+    on_shutdown = on_cleanup
 
     def _stop_streaming(self: Any) -> None:
         self.reader.on_data = None
@@ -197,13 +196,6 @@ class ManagedLink:
                     executor.wake()
         except Exception:  # the timer or executor went away with a deactivate or a shutdown
             pass
-
-    def _release(self: Any) -> None:
-        self._stop_streaming()
-        if self._watch_timer is not None:
-            self.destroy_timer(self._watch_timer)
-            self._watch_timer = None
-        self.reader.stop()
 
     def _check_liveness(self: Any) -> None:
         """Streaming is active with the link connected; publish diagnostics when the level moves."""

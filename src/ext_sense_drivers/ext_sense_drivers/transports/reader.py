@@ -118,9 +118,8 @@ class StreamReader:
         if self._thread is not None:
             return
         if self.priority > 0:
-            got = raise_thread_priority(max(1, self.priority - DRAINER_STEP))
-            self.drainer_scheduling = got
-            self._report("draining thread", got)
+            self.drainer_scheduling = raise_thread_priority(max(1, self.priority - DRAINER_STEP))
+            self._report("draining thread", self.drainer_scheduling)
         self._stop.clear()
         self._thread = threading.Thread(
             target=self._run, name=f"reader {self.description}", daemon=True
@@ -159,7 +158,8 @@ class StreamReader:
         return self._thread is not None and self._thread.is_alive()
 
     def _run(self) -> None:
-        self._schedule()
+        self.scheduling = raise_thread_priority(self.priority)  # in the thread itself
+        self._report("reader thread", self.scheduling)
         while not self._stop.is_set():
             self.state = LinkState.CONNECTING
             try:
@@ -182,12 +182,6 @@ class StreamReader:
                 self.state = LinkState.EXHAUSTED
                 return
         self.transport.close()
-
-    def _schedule(self) -> None:
-        """Take the scheduling asked for, in the thread itself; log a refusal once."""
-        got = raise_thread_priority(self.priority)
-        self.scheduling = got
-        self._report("reader thread", got)
 
     def _report(self, which: str, got: Scheduling) -> None:
         if got.requested and not got.granted:

@@ -32,7 +32,6 @@ def test_defaults_and_hardware_ids():
     c = BioTacDriverConfig()
     assert c.transport_kind == TransportKind.SERIAL
     assert c.hardware_id == "/dev/ttyACM0"
-    assert c.frame_id(3) == "biotac_3"
     # 10 ms frame span + 96 bytes at 1 Mbaud 8N1.
     assert c.lead_ns == FRAME_PERIOD_NS + 960_000
     can = BioTacDriverConfig(transport="can", can_channel="vcan0", can_arbitration_id=0x201)
