@@ -1,13 +1,11 @@
 """ACES line decoding: recall, precision, timing error and speed at 10%, 30% and 60% occupancy,
 at tap bursts and on a saturated line.
 
-Events arrive as a Poisson process at the rate giving the occupancy (the busy fraction of the
-line, measured and printed beside the target), at most one per taxel per signature; the line
-gets white noise (``--noise``), goes through the int16 wire format and is decoded in 1 ms
-chunks. Speed is line time over the decoder's CPU time (one core's work), wall speed beside it;
-the onset decoder side by side with the full matched filter. Tap bursts and a saturated line
-(12 signatures deep) follow: there the decoder must withhold what it cannot separate
-(precision stays high) rather than invent events.
+Poisson events at the rate giving the occupancy (measured beside the target), at most one per
+taxel per signature, plus white noise (``--noise``), through the int16 wire format, decoded in
+1 ms chunks. Speed is line time over the decoder's CPU time (wall beside it), onset decoder
+beside the full matched filter. On tap bursts and a saturated line (12 signatures deep) the
+decoder must withhold what it cannot separate (precision stays high), not invent events.
 
     python bench/bench_aces.py            # 10 s of line per occupancy
     python bench/bench_aces.py --quick    # 1 s per occupancy, a few seconds in all

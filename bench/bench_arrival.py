@@ -1,14 +1,13 @@
 """The NUSkin arrival clock under load: stamp error of the real reader, quiet and with a CPU hog.
 
-The receiver's words carry no time: the driver's reader stamps each read when it returns, so a
-reader running late stamps a whole chunk at once (issue #16). An emitter process plays a stream
-on a pty at the times the simulator gives each word (SCHED_FIFO when allowed); this process
-reads it with the driver's ``StreamReader`` and ``WordStream`` drained every 1 ms, and compares
-each word's stamp with its due time. Streams ``4k`` (80 taxels x 4 kHz) and ``taps`` (the tap
-scene's trials), quiet and ``hog`` (a busy loop per core), each with the scheduling ``default``,
-``reader`` (the reader at SCHED_FIFO 50) and ``best`` (``reader_priority`` 50 as the driver
-takes it: drainer at 40 too). Printed per run: read intervals, stamp error, words in the wrong
-1 ms bin (after the median offset), reads more than 2 ms late, and the emitter's own lag.
+The reader stamps each read when it returns, so a late reader stamps a whole chunk at once
+(issue #16). An emitter process plays a stream on a pty at the simulator's word times; this
+process reads it with the driver's ``StreamReader`` and ``WordStream``, drained every 1 ms, and
+compares each stamp with its due time. Streams ``4k`` (80 taxels x 4 kHz) and ``taps``, quiet
+and ``hog``, each with the scheduling ``default``, ``reader`` (the reader at SCHED_FIFO 50) and
+``best`` (``reader_priority`` 50 as the driver takes it: drainer at 40 too). Printed per run:
+read intervals, stamp error, words in the wrong 1 ms bin (after the median offset), reads more
+than 2 ms late, and the emitter's own lag.
 
     python bench/bench_arrival.py              # 8 s per run, both streams (about 3 min)
     python bench/bench_arrival.py --quick      # 2 s per run (about 1 min)

@@ -3,10 +3,9 @@
 Usage: python bench/bench_behaviours.py [--quick]
 
 - CRC-16/Modbus: table-driven ``crc16_modbus`` vs the bitwise definition, per status reply.
-- One status poll (request + reply) through the real client: over an in-memory link to the
-  emulator vs over the pty (``PtyGripper``, pyserial), p50 / p99 latency and polls per second.
-  The real gripper at 115200 baud adds about 1.3 ms of wire time per poll (19 bytes).
-  Target: a 10 Hz poll uses well under 10% of the link's time.
+- One status poll through the real client, in memory vs over the pty (``PtyGripper``): p50 /
+  p99 and polls/s (a real 2F at 115200 baud adds 1.3 ms of wire time per poll). Target: a
+  10 Hz poll uses well under 10% of the link's time.
 - Food contact decision: time per arm state through ``FoodMachine.on_arm_state`` (the Panda
   state arrives at about 30 Hz, so the decision budget is 33 ms).
 """

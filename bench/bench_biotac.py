@@ -2,11 +2,9 @@
 
 Usage: python bench/bench_biotac.py [--quick]
 
-Target: 50,000 frames/s on one core = 100 x (5 sensors x 100 frames/s). Times are CPU time of
-this process (``time.process_time``), so the figures mean "on one core" even when the machine's
-cores are shared with other work. Both decoders read the same stream (5 sensors round robin,
-1% of frames damaged by a bit flip) cut into the same chunks; the figures are printed side by
-side with their ratio, and the two decoders' counters are checked to be equal.
+Target: 50,000 frames/s on one core = 100 x (5 sensors x 100 frames/s), in CPU time of this
+process (so "on one core" on a shared machine). Both decoders read the same stream (5 sensors
+round robin, 1% of frames with a bit flip) in the same chunks; their counters must be equal.
 """
 
 from __future__ import annotations

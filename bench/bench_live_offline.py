@@ -5,21 +5,17 @@
     python bench/bench_live_offline.py --json out.json --models DIR
 
 Issue #16's target: live within 10% of offline on a quiet machine, 25% with both cores loaded.
-Per condition (``quiet``, ``loaded``: a busy loop per core, ``loaded+priority``:
-``reader_priority:=50``; ``+one_process`` for ``hot_path:=one_process``) it runs ``ext-sense
-run tap_localization`` and ``ext-sense run handover behaviours:=true`` (the Robotiq emulator
-served from here) on the simulator beside ``ext-sense record``, then scores the same trials:
+Per condition (``quiet``, ``loaded``: a busy loop per core, ``+priority``: ``reader_priority:=50``,
+``+one_process``: ``hot_path:=one_process``) it runs ``ext-sense run tap_localization`` and
+``ext-sense run handover behaviours:=true`` (the Robotiq emulator served from here) on the
+simulator beside ``ext-sense record``, then scores the same trials ``live`` (as published),
+``bag`` (``ext-sense replay --offline``'s core on the recorded packets: what the live graph
+loses) and ``plan`` (simulated again from the seed, cut with ideal reads as models are trained:
+adds what the arrival clock does).
 
-- ``live``: the estimates the graph published;
-- ``bag``: ``ext-sense replay --offline``'s core on the recorded packets (what the live graph
-  itself loses);
-- ``plan``: the same trials simulated again from the seed and cut with ideal reads, as models
-  are trained (adds what the host's arrival clock does to the stamps).
-
-MAE and accuracy as the estimate monitor's ``Scoreboard`` computes them; the release-rule
-fraction is the share of stable grasps on which ``HandoverMachine``'s rule opens. Ratios are
-below 1 when live is worse. Each run's line ends with the emulated sensor's late writes: the
-live figures measure the graph only if the device wrote on time. ``--keep`` keeps the bags.
+MAE and accuracy as the monitor's ``Scoreboard``; the release-rule fraction is the share of
+stable grasps on which ``HandoverMachine``'s rule opens. Ratios below 1: live is worse. Each
+run's line ends with the emulated sensor's late writes (the figures hold if it wrote on time).
 """
 
 from __future__ import annotations

@@ -6,13 +6,11 @@
 The ``tap_localization`` graph's nodes are started as ``ext-sense run`` starts them, without
 the ones this process stands in for.
 
-1. Latency: this process is the NUSkin driver (its packer and message code, one packet per 1 ms
-   drain) playing synthetic taps at real-time pace into ``contact_window`` and
-   ``contact_inference``. Per final estimate: window end -> estimate received, beside the
-   model's own compute on the same windows. Targets (#16): p50 <= compute + 1 ms, p99 <= 5 ms
-   quiet, <= 25 ms with both cores loaded. Every ``--load``, ``--hot-path`` and ``--baseline``
-   tree is measured in turn and printed side by side, then the floor of a hot path with no
-   work (``bench_hop_floor.py``). ``--hops`` splits the latency into its hops.
+1. Latency: this process is the NUSkin driver (one packet per 1 ms drain) playing synthetic taps
+   in real time into ``contact_window`` and ``contact_inference``; per final estimate, window
+   end -> estimate received beside the model's own compute. Targets (#16): p50 <= compute +
+   1 ms, p99 <= 5 ms quiet, <= 25 ms loaded. Every ``--load``, ``--hot-path`` and ``--baseline``
+   is measured side by side, then the floor of a hot path with no work (``bench_hop_floor.py``).
 2. Worst case: 80 taxels at 4 kHz as receiver words over a pty into ``nuskin_driver`` and
    ``contact_window``: events sent against events counted, packets lost by ``seq``.
 3. Replay: a bag of worst-case packets played by ``ext-sense replay --flat-out``.

@@ -1,10 +1,9 @@
 """Sweep benchmark: the same small grid of protocol fits in one process and on local Dask clusters.
 
-Prints the wall time of one grid (feature sets x models x K splits on synthetic taps) in this
-process and with ``--workers 2`` (the cluster's start and stop timed, as ``ext-sense report
---workers N``), the speed-up, that every run gives identical scores, and with 2 workers also
-point by point (each point's fits awaited before the next) to show what submitting together
-gains. No cache. The load average is printed: rerun on a quiet machine.
+Wall time of one grid (feature sets x models x K splits on synthetic taps) here and with
+``--workers 2`` (cluster start and stop included), the speed-up, that the scores are identical,
+and point by point with 2 workers (what submitting together gains). No cache; the load average
+is printed.
 
     python bench/bench_sweep.py          # 300 taps, fft, baseline, est x svm_linear, svm_rbf, K 4
     python bench/bench_sweep.py --quick  # 120 taps, fft x svm_rbf + svm_linear, K 2

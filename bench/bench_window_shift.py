@@ -1,13 +1,11 @@
 """Window shift: how far the default tap model's estimate moves when a window's onset moves.
 
-A real serial link's arrival clock moves a tap window's detected onset by up to about 2 ms. The
-default NUSkin tap model (trained here, or ``--model DIR``) is scored on fresh taps of another
-seed, cut as the live graph cuts them from ideal reads (``fresh``) and from a late reader's
-reads with the delays ``bench_arrival.py`` measured (``late reads``). Each fresh window is cut
-again with its onset moved by +-0.5, +-1 and +-2 ms: the estimate's move, median and p90
-(issue 30: at most 0.3 cm and 1 cm up to 2 ms), beside the CV MAE and the fresh-tap MAE with
-its standard error. Without ``--quick`` or ``--model`` a model on the paper's box bins is
-trained beside the default (Gaussian bins), for the choice.
+A serial link's arrival clock moves a tap window's onset by up to about 2 ms. The default NUSkin
+tap model (trained here, or ``--model DIR``) is scored on fresh taps of another seed, cut from
+ideal reads (``fresh``) and from reads late by ``bench_arrival.py``'s delays (``late reads``);
+each fresh window is cut again with its onset moved +-0.5, +-1 and +-2 ms: the estimate's move,
+median and p90 (issue 30: at most 0.3 cm and 1 cm up to 2 ms), beside the CV and fresh-tap MAE.
+Without ``--quick`` or ``--model`` a model on the paper's box bins is trained beside it.
 
     python bench/bench_window_shift.py            # 300 training taps, 200 fresh taps
     python bench/bench_window_shift.py --quick    # 100 / 60

@@ -27,12 +27,8 @@ MIN_INTERVALS = 3
 class StreamWatch(StallCounts):
     """The silence of one stream that must keep arriving while the link is up.
 
-    Args:
-        stream: What is silent, in messages ("receiver words from /dev/ttyACM0").
-        expected_rate_hz: Least rate while streaming, items/s; 0 disables the check.
-        warn_ns: Silence while streaming that is a stall (WARN).
-        error_ns: Silence while streaming that is an ERROR.
-        clock: Monotonic integer nanoseconds; injectable so tests never sleep.
+    ``stream`` names it in messages ("receiver words from /dev/ttyACM0"); ``expected_rate_hz``
+    0 disables the check; silence past ``warn_ns`` is a WARN, past ``error_ns`` an ERROR.
     """
 
     stream: str
@@ -109,11 +105,7 @@ class StreamWatch(StallCounts):
 
 
 class DriverLiveness:
-    """A driver's watches as one ``liveness`` diagnostics status.
-
-    Args:
-        watches: One per stream the device must keep sending.
-    """
+    """A driver's watches (one per stream) as one ``liveness`` diagnostics status."""
 
     def __init__(self, watches: Sequence[StreamWatch]) -> None:
         self.watches = list(watches)

@@ -41,20 +41,12 @@ _FEED_SLICE = 1 << 20
 
 
 class LineDecoder:
-    """Decode a stream of ACES line samples into taxel events.
+    """Decode a stream of ACES line samples into taxel events (AcesError for a bad parameter).
 
-    Args:
-        bank: Signature bank the line was encoded with (default: the default version).
-        threshold: Detection threshold, fraction of a full match, in (0, 1).
-        amplitude: Nominal chip amplitude of one signature on the line, line units (> 0).
-        window: Samples per pass, at least ``4 * chips``; larger windows cost less per sample
-            and delay events more.
-        t0_ns: Time of sample 0, added to every event time.
-        mode: :attr:`DecodeMode.ONSET` (default) or :attr:`DecodeMode.MATCHED_FILTER`.
-        track_amplitude: Follow the chip amplitude measured on the line after every pass.
-
-    Raises:
-        AcesError: A parameter out of range.
+    ``threshold``: fraction of a full match, in (0, 1); ``amplitude``: nominal chip amplitude,
+    line units; ``window``: samples per pass, >= ``4 * chips`` (larger costs less per sample and
+    delays events more); ``t0_ns`` is added to every event time; ``track_amplitude`` follows the
+    chip amplitude measured on the line after every pass.
     """
 
     def __init__(

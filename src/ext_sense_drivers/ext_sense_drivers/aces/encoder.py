@@ -78,15 +78,9 @@ def encode_line(
 ) -> EncodedLine:
     """Sum the signatures of events into line samples (AcesError for a bad argument).
 
-    Args:
-        t_ns: Event times ``(n,)``, integer ns since the line's sample 0.
-        taxel: Taxel ids 1..80, ``(n,)``.
-        polarity: +1 or -1, ``(n,)``.
-        bank: Signature bank (default: the default version).
-        n_samples: Line length; default just long enough for the last signature.
-        amplitude: Chip amplitude of one signature, line units.
-        noise_std: Standard deviation of white Gaussian noise added, line units.
-        rng: Random generator for the noise (default: a fresh unseeded one).
+    Events are ``(n,)`` arrays: ``t_ns`` since the line's sample 0, taxel 1..80, polarity +-1.
+    ``n_samples`` defaults to just past the last signature; ``amplitude`` (per chip) and
+    ``noise_std`` (white Gaussian, from ``rng``, default unseeded) are in line units.
     """
     bank = bank if bank is not None else load_bank()
     t, k, p = _check_events(t_ns, taxel, polarity, bank.n_taxels)

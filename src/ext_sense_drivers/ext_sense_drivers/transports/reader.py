@@ -56,17 +56,11 @@ class StreamReader:
     retries until :meth:`stop`; an exhausted file ends it in :attr:`LinkState.EXHAUSTED`. Past
     ``max_pending_bytes`` queued the oldest chunks are dropped (:attr:`dropped_bytes`).
 
-    Args:
-        transport: The byte source; only this thread touches it once started.
-        backoff: Reconnect delays.
-        read_timeout_s: Longest single read: how late :meth:`stop` acts and how often a
-            silent link wakes the thread.
-        max_pending_bytes: Queue bound in bytes.
-        on_data: Called from the thread after each queued chunk; quick, never raising.
-        priority: SCHED_FIFO priority asked for (0: leave as is; refused, a raised nice or
-            nothing, see :attr:`scheduling`): how soon the thread runs after a read is the
-            stamp's error. The thread calling :meth:`start` is raised :data:`DRAINER_STEP`
-            lower, since a preempted drainer holding the GIL would stall the reader.
+    ``read_timeout_s`` bounds how late :meth:`stop` acts; ``on_data`` is called from the thread
+    after each queued chunk (quick, never raising). ``priority``: SCHED_FIFO asked for (0: leave
+    as is; refused, a raised nice or nothing, see :attr:`scheduling`), as how soon the thread
+    runs after a read is the stamp's error; the thread calling :meth:`start` is raised
+    :data:`DRAINER_STEP` lower, since a preempted drainer holding the GIL would stall the reader.
     """
 
     def __init__(
