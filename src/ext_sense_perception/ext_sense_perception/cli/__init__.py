@@ -1,8 +1,4 @@
-"""The perception commands of ``ext-sense``.
-
-Learning (:mod:`.learning`: ``features``, ``train``, ``evaluate``, ``report``) and sessions
-(:mod:`.sessions`: ``score``, ``calibrate``, the cross-session protocol).
-"""
+"""The perception commands of ``ext-sense``: :mod:`.learning` and :mod:`.sessions`."""
 
 from __future__ import annotations
 

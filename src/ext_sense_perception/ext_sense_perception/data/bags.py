@@ -177,11 +177,9 @@ def window_set_from_bag(
     topic; ``onsets`` is ``truth``, ``detected`` or ``auto`` (truth when the bag has any).
     ``rate_hz`` thins NUSkin events (BioTac decimates in the features); ``sensor_ids`` are the
     BioTac sensors joined into one window (default: those among the first frames).
-    ``match_tolerance_ns`` bounds a detected onset's distance to its label's truth.
-
-    Raises:
-        PerceptionError: An unreadable or empty bag, a missing or mistyped topic, an unknown task or
-            sensor, food without ground truth, or no labelled window when ``require_labels``.
+    ``match_tolerance_ns`` bounds a detected onset's distance to its label's truth. PerceptionError:
+    an unreadable or empty bag, a missing or mistyped topic, an unknown task or sensor, food without
+    ground truth, or no labelled window when ``require_labels``.
     """
     path = Path(path)
     if onsets not in ONSET_MODES:

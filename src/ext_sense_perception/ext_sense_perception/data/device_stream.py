@@ -66,10 +66,8 @@ def cut_stream(
     ``writes`` are ``(t_ns, bytes)`` per write to the link, in time order; ``config`` defaults to
     the ``contact_window`` node's for taps; ``baud`` is what the arrival clock assumes. Writes
     within one ``read_period_ns`` tick are read together; ``read_jitter`` makes each tick last
-    ``read_period_ns * U(1 - j, 1 + j)`` (seeded by ``seed``), as live reads vary.
-
-    Raises:
-        PerceptionError: A BioTac configuration, or a read period or jitter out of range.
+    ``read_period_ns * U(1 - j, 1 + j)`` (seeded by ``seed``), as live reads vary. PerceptionError:
+    a BioTac configuration, or a read period or jitter out of range.
     """
     config = config or WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.NUSKIN)
     if config.sensor is not Sensor.NUSKIN:
@@ -152,11 +150,9 @@ def recut(
 ) -> np.ndarray:
     """Windows ``(n, n_taxels, n_samples)`` of ``events`` cut again with each onset shifted.
 
-    With no shift this is the window the ``contact_window`` node cut at that onset.
-    ``shifts_ns`` is one shift or one per onset (positive: the window starts later).
-
-    Raises:
-        PerceptionError: A BioTac configuration, or shifts of another length than the onsets.
+    With no shift this is the window the ``contact_window`` node cut at that onset. ``shifts_ns`` is
+    one shift or one per onset (positive: the window starts later). PerceptionError: a BioTac
+    configuration, or shifts of another length than the onsets.
     """
     if config.sensor is not Sensor.NUSKIN:
         raise PerceptionError(
@@ -226,9 +222,7 @@ def window_set_from_stream(
 
     Arguments as :func:`cut_stream`'s; ``truths`` are stamped on the writes' clock, and a window is
     labelled by the truth within ``match_tolerance_ns`` of its onset (``groups``: the trial).
-
-    Raises:
-        PerceptionError: No window matched any truth, or bad arguments.
+    PerceptionError: no window matched any truth, or bad arguments.
     """
     config = config or WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.NUSKIN)
     h = hashlib.sha256()

@@ -73,10 +73,8 @@ def read_paper_tact(
     """The paper's NUSkin ``.tact`` (``isPos taxel removable t``), polarity +1 / -1, in time order.
 
     ``markers``: the first and last lines are markers (the paper's files), not events (the lab's
-    rod-tap captures, REFERENCE.md section 2).
-
-    Raises:
-        PerceptionError: when the file is missing or malformed, or a row breaks a rule.
+    rod-tap captures, REFERENCE.md section 2). PerceptionError: a missing or malformed file, or a
+    row breaking a rule.
     """
     rows = _load_rows(Path(path), 4)
     rows = rows[1:-1] if markers else rows
@@ -96,10 +94,7 @@ def read_capture_tact(path: str | Path, policy: InputPolicy | None = None) -> Ev
     """A real food-poking capture ``.tact``: ``col0 taxel value t`` between marker lines.
 
     The markers (``1 1 1 t`` first, ``2 2 2 t`` last) are dropped; ``col0`` (0 in these captures)
-    becomes polarity 0, which counts +1 in windows.
-
-    Raises:
-        PerceptionError: when the file is missing or malformed, or a row breaks a rule.
+    becomes polarity 0, which counts +1 in windows. PerceptionError: as :func:`read_paper_tact`.
     """
     rows = _load_rows(Path(path), 4)
     first = 1
@@ -144,10 +139,8 @@ def read_csv_columns(path: str | Path) -> dict[str, np.ndarray]:
 def read_biotac_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """The paper's BioTac CSV (columns ``pac``, ``t``) as ``(pac (n,) float64, t_ns (n,) int64)``.
 
-    A bad row is always an error: dropping a sample would shift every later one.
-
-    Raises:
-        PerceptionError: when a column is missing, or a row breaks a rule.
+    A missing column or any bad row is a PerceptionError: dropping a sample would shift every later
+    one.
     """
     cols = read_csv_columns(path)
     for name in ("pac", "t"):
@@ -172,8 +165,7 @@ def read_biotac_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
 def load_preprocessed_npz(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """The paper's preprocessed ``.npz``: ``(signals (n, n_channels, n_samples) float32, labels)``.
 
-    Raises:
-        PerceptionError: when the file is missing or lacks the arrays.
+    PerceptionError: a missing file, or one without the arrays.
     """
     path = Path(path)
     try:
@@ -191,9 +183,7 @@ def read_arm_motion(bag: str | Path, speed_threshold: float = 0.05) -> ArmMotion
     """Start and stop of the arm's motion from a ROS 1 bag of ``franka_msgs/msg/FrankaState``.
 
     Motion is where the sum of absolute joint velocities exceeds ``speed_threshold`` rad/s.
-
-    Raises:
-        PerceptionError: when the bag is missing, unreadable, or the arm never moves.
+    PerceptionError: a missing or unreadable bag, or an arm that never moves.
     """
     bag = _existing_file(bag, "bag")
     try:
@@ -253,10 +243,7 @@ def food_poking_trials(
 
     The single ``empty`` trial is excluded unless ``include_empty`` (one trial cannot be split);
     a lenient ``policy`` excludes a trial with no valid event. ``arm_motion`` reads each trial's
-    arm bag (a missing one is then an error).
-
-    Raises:
-        PerceptionError: when the directory has no trials or a trial's bag is missing.
+    arm bag. PerceptionError: no trials, or a trial's bag missing.
     """
     directory = Path(directory)
     if not directory.is_dir():

@@ -35,9 +35,7 @@ def from_recording(
     Onsets come from the paper's ``essentials`` CSV (``t`` / ``tapped_time`` epoch seconds, or
     BioTac ``orignal_index``), or for a capture without essentials from the arm bag beside it.
     Labels: ``label_y`` (cm, to metres), ``isPos`` (stable/unstable), or the capture's food name.
-
-    Raises:
-        PerceptionError: when onsets cannot be found.
+    PerceptionError: when onsets cannot be found.
     """
     path = Path(path)
     task_e, sensor_e = Task.parse(task, PerceptionError), Sensor.parse(sensor, PerceptionError)

@@ -10,10 +10,7 @@ from ext_sense_perception.errors import PerceptionError
 def refractory_mask(t_ns: np.ndarray, taxel: np.ndarray, rate_hz: float) -> np.ndarray:
     """Events kept when each taxel drops any spike closer than ``1/rate_hz`` to its last kept one.
 
-    ``t_ns`` sorted int64 ns, ``taxel`` of the same length.
-
-    Raises:
-        PerceptionError: when the rate is not positive.
+    ``t_ns`` sorted int64 ns, ``taxel`` of the same length (PerceptionError: a rate not positive).
     """
     if not rate_hz > 0:
         raise PerceptionError(f"The 'rate_hz' parameter must be > 0. Got {rate_hz!r} instead.")

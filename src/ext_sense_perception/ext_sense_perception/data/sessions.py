@@ -93,11 +93,7 @@ SESSION_SCHEMA: dict[str, str] = {
 
 
 def info_from_json(values: object, meta: str | Path, default_name: str) -> SessionInfo:
-    """The metadata of a ``session.json``'s parsed ``values``, checked against the schema.
-
-    Raises:
-        PerceptionError: The first field that breaks :data:`SESSION_SCHEMA`.
-    """
+    """The metadata of a ``session.json``'s parsed ``values`` (PerceptionError: a field is bad)."""
     if not isinstance(values, dict) or not set(values) <= set(SESSION_SCHEMA):
         got = (
             f"the unknown fields {sorted(set(values) - set(SESSION_SCHEMA))}"
@@ -203,8 +199,7 @@ def load_session(
 ) -> Session:
     """One session's windows and metadata (arguments as :func:`~.sources.load_window_set`'s).
 
-    Raises:
-        PerceptionError: Unreadable data or metadata, or metadata naming another sensor.
+    PerceptionError: unreadable data or metadata, or metadata naming another sensor.
     """
     ws = load_window_set(path, task, sensor, rate_hz=rate_hz, policy=policy, anchor=anchor)
     return as_session(path, ws)
@@ -213,8 +208,7 @@ def load_session(
 def as_session(path: str | Path, ws: WindowSet) -> Session:
     """The session of the windows ``ws`` loaded from ``path``, each window named by the session.
 
-    Raises:
-        PerceptionError: Metadata that breaks the schema, or names another sensor than the data's.
+    PerceptionError: metadata that breaks the schema, or names another sensor than the data's.
     """
     info = read_info(path) or infer_info(path, ws)
     if info.sensor and info.sensor != ws.sensor:
@@ -229,8 +223,7 @@ def as_session(path: str | Path, ws: WindowSet) -> Session:
 def pooled(sessions: list[Session]) -> WindowSet:
     """The windows of several sessions as one set (trial groups kept apart per session).
 
-    Raises:
-        PerceptionError: No sessions, two of one name, or differing task, sensor, geometry, anchor.
+    PerceptionError: no sessions, two of one name, or differing task, sensor, geometry, anchor.
     """
     if not sessions:
         raise PerceptionError("The 'sessions' parameter must name at least one session.")

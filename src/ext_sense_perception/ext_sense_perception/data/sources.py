@@ -52,13 +52,10 @@ def from_sim_dataset(
     rate_hz: float | None = None,
     policy: InputPolicy | None = None,
 ) -> WindowSet:
-    """Windows of the simulator's ``dataset.npz`` at each trial's onset.
+    """Windows of the simulator's ``dataset.npz`` at each trial's onset (PerceptionError: bad file).
 
     ``config`` defaults to the task profile's; ``rate_hz`` thins NUSkin events before binning; a
     lenient ``policy`` drops and counts bad events and trials.
-
-    Raises:
-        PerceptionError: when the file is malformed.
     """
     d = load_sim_dataset(path)
     task, sensor = (
@@ -169,9 +166,7 @@ def from_food_poking(
     """Windows of one session of real NUSkin food-poking captures (:func:`food_capture_config`).
 
     ``anchor`` defaults to :func:`default_anchor`; ``rate_hz`` thins the events before binning.
-
-    Raises:
-        PerceptionError: No trials, a missing ``arm_motion`` bag, a bad row, or no contact found.
+    PerceptionError: no trials, a missing ``arm_motion`` bag, a bad row, or no contact found.
     """
     anchor = default_anchor(directory) if anchor is None else Anchor.parse(anchor)
     recs, excluded = food_poking_trials(
@@ -227,11 +222,8 @@ def from_preprocessed_npz(
     """The paper's preprocessed ``.npz`` as a window set (handover: ``isPos`` as stable/unstable).
 
     NUSkin: 5 ms bins from 50 ms before contact (handover v2 and food: from 0). BioTac: 2200 Hz (or
-    ``frequency_hz``) from 100 samples before contact.
-
-    Raises:
-        PerceptionError: a NUSkin ``rate_hz`` (the file holds bin counts, not events), a malformed
-            file, or a window breaking a rule.
+    ``frequency_hz``) from 100 samples before contact. PerceptionError: a NUSkin ``rate_hz`` (the
+    file holds bin counts, not events), a malformed file, or a window breaking a rule.
     """
     task_e, sensor_e = Task.parse(task, PerceptionError), Sensor.parse(sensor, PerceptionError)
     if rate_hz is not None and sensor_e is Sensor.NUSKIN:
@@ -305,10 +297,8 @@ def load_window_set(
     """Any supported source as a window set, chosen by what ``data`` is.
 
     A bag, a food-poking directory, a simulator ``dataset.npz`` or a preprocessed ``.npz`` (which
-    needs ``task`` and ``sensor``). ``anchor`` applies to capture folders only.
-
-    Raises:
-        PerceptionError: an unrecognised source, or an anchor for a source with its own onsets.
+    needs ``task`` and ``sensor``). ``anchor`` applies to capture folders only. PerceptionError: an
+    unrecognised source, or an anchor for a source with its own onsets.
     """
     path = Path(data)
     if anchor is not None and not (path.is_dir() and not is_bag(path)):

@@ -40,12 +40,9 @@ class InputPolicy:
     dropped: Counter[str] = field(default_factory=Counter)
 
     def keep(self, bad: np.ndarray, rule: str, where: str, shown: np.ndarray | None = None) -> None:
-        """Raise on the first ``bad`` row breaking ``rule`` (strict), or count them (lenient).
+        """Raise a PerceptionError at the first ``bad`` row (strict), or count them (lenient).
 
         ``where`` names the file (and trial), ``shown`` the offending values for the message.
-
-        Raises:
-            PerceptionError: Strict, and a row breaks the rule.
         """
         idx = np.flatnonzero(bad)
         if not idx.size:

@@ -1,18 +1,12 @@
 """``contact_inference`` node: contact windows in, contact estimates out.
 
-Subscribes ``window``, runs the model bundle (``backend`` onnx or sklearn, ``model_path``) and
-publishes each contact's final estimate on ``contact_estimate`` and its anytime ones on
-``contact_estimate/provisional`` (``publish_provisional``).
-
-Faults never stop the node: a bundle that is missing, corrupt, for another task, sensor or
-``held_object``, or not what its card says, is refused (ERROR on ``/diagnostics``, windows counted
-as dropped) and retried every ``reload_period_s``; a bundle whose files change is loaded again; one
-whose files vanish is served on with a WARN until a valid one appears. A rejected window is counted
-and reported.
-
-An estimate is ``degraded`` (with the reason) when its window was, or when it is ready more than
-``deadline_ms`` after its window ended. ``compute_latency`` runs from the window's end on the host
-clock to the estimate, or, for a window not on the host clock (a replayed bag), from its arrival.
+Subscribes ``window`` and publishes each contact's final estimate on ``contact_estimate``, its
+anytime ones on ``contact_estimate/provisional`` (``publish_provisional``). Faults never stop the
+node: a bundle missing, corrupt, for another task, sensor or ``held_object``, or unlike its card is
+refused (ERROR, windows dropped) and retried every ``reload_period_s``; changed files are loaded
+again; vanished files leave the loaded model served with a WARN. An estimate is ``degraded`` when
+its window was, or when it is ready more than ``deadline_ms`` after the window ended (host clock;
+a replayed bag's windows from their arrival).
 """
 
 from __future__ import annotations

@@ -1,18 +1,13 @@
 """``contact_window`` node: sensor packets in, contact windows (provisional and final) out.
 
-Subscribes ``packets`` (``SensorPacket``) and, for food, ``motion_start``
-(``ContactGroundTruth``, stamped at the arm's motion start); publishes ``window``. The windowing
-and its one time rule are :class:`~ext_sense_perception.online.stage.WindowStage`'s, with the
-profile from :mod:`.window_parameters`; the node has no clock of its own for windows, so a
-replay of its packets cuts exactly its windows. Its one timer is for liveness, armed only while
-a stall could start or turn ERROR.
-
-Liveness (:mod:`ext_sense_perception.online.liveness`): silence while streaming beyond
-``stall_warn_ms`` is WARN on ``/diagnostics`` (``liveness``), beyond ``stall_error_ms`` ERROR,
-published at once; windows across a stall or lost input (``seq`` gaps) go out degraded.
-Lateness (``late_ms``) is counted only. QoS deadlines are not used: the drivers' publishers
-offer none. Stuck taxels (:mod:`ext_sense_perception.online.stuck_taxels`) are masked from
-onset detection, reported at once (``taxels``) and degrade the windows cut meanwhile.
+Subscribes ``packets`` (``SensorPacket``) and, for food, ``motion_start`` (``ContactGroundTruth``
+at the arm's motion start); publishes ``window``. Windows are cut by
+:class:`~ext_sense_perception.online.stage.WindowStage` on stream time only, so a replay of the
+packets cuts exactly these windows; the node's one timer is for liveness. Stalls
+(``stall_warn_ms`` WARN, ``stall_error_ms`` ERROR) and lost input (``seq`` gaps) are published on
+``/diagnostics`` at once and degrade the windows across them; late packets are only counted (the
+drivers offer no QoS deadlines). Stuck taxels are masked from onset detection, reported at once
+(``taxels``) and degrade the windows cut meanwhile.
 """
 
 from __future__ import annotations

@@ -13,8 +13,7 @@ from ext_sense_perception.errors import PerceptionError
 def restrict(proba: np.ndarray, classes: tuple[str, ...], allowed: tuple[str, ...]) -> np.ndarray:
     """A copy of ``proba`` with the classes outside ``allowed`` (empty: all) at 0, renormalised.
 
-    Raises:
-        PerceptionError: when no allowed class is one of the model's.
+    PerceptionError: no allowed class is one of the model's.
     """
     p = np.array(proba, dtype=np.float64, copy=True)
     if not allowed:

@@ -1,16 +1,11 @@
 """Liveness of the window node's input stream: stalls, lost input, and the windows they spoil.
 
-A stopped driver or blocked link looks downstream like silence then a burst, and a window cut
-across it misses signal while every status says OK. No ROS; the clock is injectable.
-
-- A *stall*: silence while input must arrive (BioTac always, NUSkin while the driver's stream
-  goes) beyond ``warn_ns`` (WARN), then ``error_ns`` (ERROR), kept as stream time.
-- A *late packet*: ``late_ns`` over the stream's usual delay; counted only, since the stream is
-  in order and a late packet is still in its window.
-- *Lost input*: packets missing by their ``seq``.
-
-Windows overlapping a fault are published ``degraded`` (:meth:`StreamLiveness.fault_in`); lost
-input no window covered that could hold an onset is a lost contact.
+A stopped driver or blocked link looks downstream like silence then a burst. A *stall* is silence
+while input must arrive (BioTac always, NUSkin while the driver streams) beyond ``warn_ns``
+(WARN), then ``error_ns`` (ERROR); a *late packet* comes ``late_ns`` over the usual delay (only
+counted: it is still in its window); *lost input* is packets missing by ``seq``. Windows
+overlapping a fault are ``degraded`` (:meth:`StreamLiveness.fault_in`); lost input no window
+covered that could hold an onset is a lost contact. No ROS; the clock is injectable.
 """
 
 from __future__ import annotations

@@ -45,8 +45,7 @@ class HeldObject(NamedTuple):
     def parse(cls, text: str) -> HeldObject | None:
         """``"rod:0.30"`` (kind, length in m) or ``"rod"``; ``""``: None (no object named).
 
-        Raises:
-            PerceptionError: A kind that is no word, or a length that is no positive number.
+        PerceptionError: a kind that is no word, or a length that is no positive number.
         """
         text = text.strip()
         if not text:

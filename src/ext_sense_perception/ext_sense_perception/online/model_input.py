@@ -28,10 +28,8 @@ def as_model_input(window: object, geometry: Geometry) -> np.ndarray:
     """One window (or ``(n_channels, n_samples)`` array) as a flat float32 row for a model.
 
     A longer window is cropped to the model's (same onset); a NUSkin window at a finer bin dividing
-    the model's is rebinned by summing (counts add exactly).
-
-    Raises:
-        PerceptionError: a window too short, of other channels or sample period, or not finite.
+    the model's is rebinned by summing (counts add exactly). PerceptionError: a window too short, of
+    other channels or sample period, or not finite.
     """
     data = getattr(window, "data", window)
     x = np.asarray(data)

@@ -141,10 +141,8 @@ def describe(place: SearchPlace) -> str:
 def find_model(name_or_path: str | Path, task: str, sensor: str) -> Path:
     """The bundle directory of a model named or given by path (``""``: the task's default).
 
-    Raises:
-        ModelNotFoundError: No bundle there; for a name, the one-line message lists every place
-            searched and the command that creates the default models.
-        PerceptionError: An unknown task or sensor.
+    ModelNotFoundError: no bundle there (for a name, the one-line message lists every place searched
+    and the command that creates the default models). PerceptionError: an unknown task or sensor.
     """
     hint = create_hint(sensor)
     if is_path(name_or_path) and str(name_or_path):
@@ -168,11 +166,7 @@ def find_model(name_or_path: str | Path, task: str, sensor: str) -> Path:
 
 
 def locate_model(name_or_path: str | Path, task: str, sensor: str) -> Path:
-    """As :func:`find_model`, but a path is returned unchecked (the nodes retry it and say why).
-
-    Raises:
-        ModelNotFoundError: A name (or the default) found nowhere.
-    """
+    """As :func:`find_model`, but a path is returned unchecked (the nodes retry it and say why)."""
     if str(name_or_path) and is_path(name_or_path):
         return Path(name_or_path).expanduser()
     return find_model(name_or_path, task, sensor)

@@ -58,11 +58,7 @@ class PacWindower(WindowerBase):
         """Add PAC samples, ``(n,)`` or ``(n_sensors, n)`` raw counts; the windows that became due.
 
         ``period_ns`` is fixed for the stream's life; samples ``valid`` marks False hold the
-        previous
-        value.
-
-        Raises:
-            PerceptionError: on a wrong shape, NaN/inf, or a changed sample period.
+        previous value. PerceptionError: a wrong shape, NaN/inf, or a changed sample period.
         """
         x = np.asarray(pac, dtype=np.float64)
         if x.ndim == 1:

@@ -58,11 +58,7 @@ class ModelBundle:
         return self.geometry.post_ns
 
     def prepare(self, window: Any) -> np.ndarray:
-        """A window as the model's flat float32 input row (cropping / rebinning to fit).
-
-        Raises:
-            PerceptionError: on NaN/inf or a window too short or with other channels.
-        """
+        """A window as the model's flat float32 input row (:func:`as_model_input`)."""
         return as_model_input(window, self.geometry)
 
     def raw_predict(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -85,8 +81,7 @@ class ModelBundle:
     def model_for(self, window: Any) -> ModelBundle:
         """This model, or for a shorter (provisional) window the longest anytime model that fits.
 
-        Raises:
-            PerceptionError: when no model fits the window's post-onset length.
+        PerceptionError: no model fits the window's post-onset length.
         """
         post = getattr(window, "post_onset_ns", None)
         if post is None or int(post) >= self.post_onset_ns:
@@ -103,10 +98,8 @@ class ModelBundle:
     def predict(self, window: Any) -> Estimate:
         """The estimate for one window or ``(n_channels, n_samples)`` array.
 
-        ``compute_latency_ns`` covers input checks, features and the model.
-
-        Raises:
-            PerceptionError: on NaN/inf, or a window that does not fit any model.
+        ``compute_latency_ns`` covers input checks, features and the model. PerceptionError:
+        NaN/inf, or a window that does not fit any model.
         """
         return self.model_for(window)._predict_one(window)
 
@@ -158,11 +151,9 @@ def load_model(
     """Load a bundle with its anytime models, checked before use rather than at the first window.
 
     ``backend`` is ``onnx`` (ONNX Runtime, CPU, one thread) or ``sklearn``; ``task`` and ``sensor``
-    (None: any) are what the caller serves.
-
-    Raises:
-        PerceptionError: a missing or corrupt file, an invalid card, a card for another task or
-            sensor or that does not describe the model, or an unknown backend.
+    (None: any) are what the caller serves. PerceptionError: a missing or corrupt file, an invalid
+    card, a card for another task or sensor or that does not describe the model, or an unknown
+    backend.
     """
     d = Path(directory)
     if backend not in BACKENDS:
@@ -220,10 +211,8 @@ def check_outputs(card: ModelCard, backend: str, runner: Any, path: Path) -> Non
     """The model answers two all-zero windows as its card says: regression or the card's classes.
 
     A classifier's labels and ``classes_`` must be the card's ``class_names`` in order, since the
-    estimate's class index is read from them.
-
-    Raises:
-        PerceptionError: naming the model file, what the card says and what the model gave.
+    estimate's class index is read from them. A PerceptionError names the model file, what the card
+    says and what the model gave.
     """
     n_inputs = card.window.n_channels * card.window.n_samples
     where = f"The model {str(path)!r}"

@@ -1,13 +1,10 @@
-"""The window node's core, with no rclpy import: sensor messages in, contact windows out.
+"""The window node's core without rclpy: sensor messages in, contact windows out.
 
-The node only moves messages, so the offline replay, training from bags and device streams run
-the same code. Messages are duck-typed (rclpy and rosbags share field names); packets are
-decoded with the drivers' :func:`~ext_sense_drivers.packets.make_decoder`.
-
-The one time rule, live and in replay: a window closes when the stream passes its end, and only
-packets move the stream (their events, or the time the driver had read everything up to); an
-``end_of_stream`` packet closes every pending window, ``truncated``. No consumer clock enters,
-so a replay of the packets a live node got cuts exactly its windows.
+The node, the offline replay, training from bags and device streams all run this code. Messages
+are duck-typed (rclpy and rosbags share field names). A window closes when the stream passes its
+end, and only packets move the stream (their events, or the time the driver had read up to); an
+``end_of_stream`` packet closes every pending window, ``truncated``. No consumer clock enters, so a
+replay of the packets a live node got cuts exactly its windows.
 """
 
 from __future__ import annotations
@@ -45,11 +42,7 @@ class StageCounters(NamedTuple):
 
 
 class WindowStage:
-    """Sensor messages in, contact windows out (``sensor_ids``: BioTac slots joined in one).
-
-    Raises:
-        PerceptionError: An empty ``sensor_ids`` for BioTac.
-    """
+    """Sensor messages in, contact windows out (``sensor_ids``: the BioTac slots, not empty)."""
 
     def __init__(self, config: WindowConfig, sensor_ids: tuple[int, ...] = (0,)) -> None:
         self.config = config

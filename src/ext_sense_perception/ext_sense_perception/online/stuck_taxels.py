@@ -21,10 +21,8 @@ class StuckTaxels:
     """Which taxels (ids ``1..n_taxels``) fire at their ceiling for too long.
 
     A taxel at ``rate_hz`` or more, counted over ``bucket_ns`` of stream time, for longer than
-    ``after_ns`` (longer than any contact) is stuck.
-
-    Raises:
-        PerceptionError: A non-positive rate, time or bucket.
+    ``after_ns`` (longer than any contact) is stuck. PerceptionError: a non-positive rate, time or
+    bucket.
     """
 
     def __init__(

@@ -111,11 +111,7 @@ class WindowConfig:
     def for_task(
         cls, task: str | Task, sensor: str | Sensor, **profile_changes: Any
     ) -> WindowConfig:
-        """The task's profile for a sensor, with ``profile_changes`` applied to its fields.
-
-        Raises:
-            PerceptionError: An unknown task or sensor, or a change out of range.
-        """
+        """The task's profile for a sensor with ``profile_changes`` (PerceptionError: a bad one)."""
         profile = profile_for(task)
         if profile_changes:
             try:
@@ -217,10 +213,8 @@ def window_from_recording(
 ) -> ContactWindow:
     """Cut one final window offline from a whole recording at a known onset, as the windowers do.
 
-    NUSkin needs ``events``; BioTac ``pac`` ``(n_sensors, n_samples)`` from ``pac_t0_ns``.
-
-    Raises:
-        PerceptionError: when the sensor's arrays are missing.
+    NUSkin needs ``events``; BioTac ``pac`` ``(n_sensors, n_samples)`` from ``pac_t0_ns``
+    (PerceptionError: the sensor's arrays missing).
     """
     period = config.period_ns
     n = config.n_samples()

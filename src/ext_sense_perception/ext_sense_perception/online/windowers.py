@@ -237,11 +237,8 @@ class EventWindower(WindowerBase):
         """Add a block of events (arrival order, one clock) and return the windows that became due.
 
         Taxel ids outside 1..n_taxels are counted in ``bad_taxel_events`` and dropped; ``now_ns`` is
-        the
-        stream time after the block (default: the newest event).
-
-        Raises:
-            PerceptionError: The block's arrays differ in length or its times are not integers.
+        the stream time after the block (default: the newest event). PerceptionError: the block's
+        arrays differ in length or its times are not integers.
         """
         n = events.t_ns.shape
         if any(np.shape(a) != n for a in events) or len(n) != 1:
