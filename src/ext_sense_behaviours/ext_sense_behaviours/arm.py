@@ -47,16 +47,9 @@ class SimulatedArm:
 
     Below ``surface_z_m`` the surface pushes back with ``stiffness_n_per_m`` times the
     penetration (a spring: food under a fork), plus a constant ``force_bias_n`` and Gaussian
-    noise of ``noise_n`` per axis, as the Panda's external-force estimate has both.
-
-    Args:
-        start_z_m: Initial height, metres.
-        surface_z_m: Height of the surface; ``None`` for no surface (nothing to touch).
-        stiffness_n_per_m: Surface stiffness, N/m.
-        force_bias_n: Constant bias added to the force (x, y, z), newtons.
-        noise_n: Standard deviation of per-axis force noise, newtons.
-        clock_ns: Monotonic time source, integer ns (injectable for tests).
-        seed: Noise seed.
+    noise of ``noise_n`` per axis, as the Panda's external-force estimate has both. Heights in
+    metres (``surface_z_m`` ``None``: nothing to touch), forces in newtons; ``clock_ns``:
+    monotonic integer ns, injectable for tests.
     """
 
     def __init__(
@@ -95,13 +88,16 @@ class SimulatedArm:
         self.z_m = z
         return now
 
-    def move_down(self, speed_mps: float) -> None:
-        """Start moving down at ``speed_mps``."""
+    def _advance_at(self, speed_mps: float) -> int:
         if not speed_mps > 0:
             raise BehaviourError(
                 f"The 'speed_mps' argument must be > 0. Got {speed_mps!r} instead."
             )
-        now = self._advance()
+        return self._advance()
+
+    def move_down(self, speed_mps: float) -> None:
+        """Start moving down at ``speed_mps``."""
+        now = self._advance_at(speed_mps)
         self._velocity, self._target_z = -float(speed_mps), None
         self.commands.append((now, f"move_down {speed_mps:.4f}"))
 
@@ -113,11 +109,7 @@ class SimulatedArm:
 
     def retract(self, height_m: float, speed_mps: float) -> None:
         """Move up to ``height_m``."""
-        if not speed_mps > 0:
-            raise BehaviourError(
-                f"The 'speed_mps' argument must be > 0. Got {speed_mps!r} instead."
-            )
-        now = self._advance()
+        now = self._advance_at(speed_mps)
         if height_m > self.z_m:
             self._velocity, self._target_z = float(speed_mps), float(height_m)
         self.commands.append((now, f"retract {height_m:.4f}"))

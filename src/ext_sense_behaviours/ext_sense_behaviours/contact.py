@@ -15,14 +15,9 @@ from ext_sense_behaviours.errors import BehaviourError
 class ForceContactDetector:
     """Fires when ``|F|`` >= ``threshold_n`` on ``consecutive`` samples in a row.
 
-    Args:
-        threshold_n: Force norm that means contact, newtons (> 0).
-        consecutive: Samples in a row over the threshold, >= 1 (more rejects single spikes at
-            the cost of one state period each).
-
-    Attributes:
-        samples: Samples seen. invalid_samples: samples with a NaN/inf component (counted,
-            never contact). fired_at: index of the sample that fired, or ``None``.
+    More ``consecutive`` samples reject single spikes at the cost of one state period each.
+    A sample with a NaN/inf component is counted in ``invalid_samples``, never contact;
+    ``fired_at`` is the index of the sample that fired, or ``None``.
     """
 
     def __init__(self, threshold_n: float = 10.0, consecutive: int = 1) -> None:

@@ -33,12 +33,7 @@ class FrankaNames:
 
 
 def import_franka_msgs() -> ModuleType:
-    """Import ``franka_msgs`` on demand.
-
-    Raises:
-        BehaviourError: franka_msgs is not installed (it is not on PyPI: build franka_ros2 in
-            a colcon workspace and source it).
-    """
+    """Import ``franka_msgs`` on demand (BehaviourError when it is not installed)."""
     try:
         import franka_msgs.msg  # type: ignore[import-not-found]
         import franka_msgs.srv  # type: ignore[import-not-found]

@@ -85,11 +85,7 @@ def status_to_values(status: GripperStatus) -> list[tuple[str, str]]:
 
 
 def status_from_values(values: Mapping[str, str] | Sequence[tuple[str, str]]) -> GripperStatus:
-    """Rebuild a status from :func:`status_to_values` pairs.
-
-    Raises:
-        BehaviourError: A key is missing or not an integer.
-    """
+    """Rebuild a status from :func:`status_to_values` pairs (BehaviourError: a bad key)."""
     pairs = dict(values)
     try:
         v = {k: int(pairs[k]) for k in STATUS_KEYS}

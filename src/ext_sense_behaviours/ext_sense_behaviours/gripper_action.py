@@ -72,14 +72,8 @@ class GripperScale:
 class GoalOutcome(NamedTuple):
     """A finished goal, in the fields both gripper actions report.
 
-    Attributes:
-        succeeded: The fingers stopped at the target or on an object.
-        position_m: Finger gap at the end, metres.
-        effort_n: The force the fingers exert: the requested force while stopped on an object
-            (the Robotiq holds with it), 0 otherwise (the 2F reports no force).
-        stalled: Stopped on an object (gOBJ 1 or 2).
-        reached_goal: At the requested position (gOBJ 3).
-        reason: Why, in words (a fault's name when it failed).
+    ``effort_n`` is the requested force while stopped on an object (the Robotiq holds with it),
+    else 0 (the 2F reports no force); ``stalled``: gOBJ 1 or 2, ``reached_goal``: gOBJ 3.
     """
 
     succeeded: bool
@@ -102,17 +96,10 @@ def command_problem(
     velocity_m_s: float | None = None,
     fields: tuple[str, str, str] = ("command.position", "command.max_effort", ""),
 ) -> str:
-    """Why a gripper goal cannot be carried out as asked; empty when it can.
+    """Why a gripper goal cannot be carried out as asked, in one line; ``""`` when it can.
 
-    Args:
-        scale: The gripper's units.
-        gap_m: The commanded finger gap, m.
-        effort_n: The commanded force, N (0 or less: the node's default force).
-        velocity_m_s: The commanded finger speed, m/s; ``None`` when the action has none.
-        fields: The goal's names of the gap, effort and speed, for the message.
-
-    Returns:
-        One line naming the field, what it must be and what arrived; ``""`` for a good goal.
+    ``fields`` names the gap, effort and speed in the goal, for the message; ``velocity_m_s`` is
+    ``None`` when the action has none.
     """
     gap_name, effort_name, speed_name = fields
     for name, value in ((gap_name, gap_m), (effort_name, effort_n), (speed_name, velocity_m_s)):
@@ -145,11 +132,9 @@ def goal_problem(scale: GripperScale, goal: Any) -> str:
 def goal_outcome(
     status: GripperStatus, target: int, scale: GripperScale, force_n: float
 ) -> GoalOutcome | None:
-    """Whether the goal to position count ``target`` has finished, judged from one status.
+    """The outcome of the goal to position count ``target`` judged from one status, or ``None``.
 
-    Returns:
-        ``None`` while the gripper has not taken up the target (gPR differs: an older status
-        read before the command was written) or is still moving; else the outcome.
+    ``None`` while the fingers move or gPR differs (a status read before the command was written).
     """
     position_m = scale.gap_m(status.position)
     if status.fault:

@@ -133,17 +133,9 @@ def vertical_line(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint waypoints moving the end effector straight up (``dz_m`` > 0) or down, orientation held.
 
-    Args:
-        q0: Joint positions at the start, (7,).
-        dz_m: Vertical travel, metres (negative: down).
-        speed_mps: Cartesian speed along the line, m/s (> 0).
-        step_s: Time between waypoints, s.
-
-    Returns:
-        ``(times_s, positions)``: (n,) seconds from the start (first > 0) and (n, 7) radians.
-
-    Raises:
-        BehaviourError: A bad argument, or a waypoint out of reach.
+    Returns ``(times_s, positions)``: (n,) seconds from the start (first > 0) and (n, 7)
+    radians, from ``q0`` (7,) at ``speed_mps`` (> 0). BehaviourError for a bad argument or a
+    waypoint out of reach.
     """
     if not (speed_mps > 0 and np.isfinite(speed_mps)) or not np.isfinite(dz_m) or dz_m == 0:
         raise BehaviourError(

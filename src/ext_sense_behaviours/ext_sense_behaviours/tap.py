@@ -31,13 +31,8 @@ ROD_RGBA = (0.7, 0.7, 0.75, 0.5)
 class MarkerSpec(NamedTuple):
     """Everything a ``visualization_msgs/Marker`` needs, without ROS types.
 
-    Attributes:
-        position: Centre, metres, in the rod frame.
-        orientation: Quaternion (x, y, z, w).
-        scale: Size per axis, metres.
-        rgba: Colour, 0..1.
-        text: Label (shown by a text marker, kept in the log).
-        clamped: The estimate lay outside the rod and was clamped onto it.
+    Metres in the rod frame, quaternion (x, y, z, w), colour 0..1; ``clamped``: the estimate
+    lay outside the rod and was clamped onto it.
     """
 
     position: tuple[float, float, float]
@@ -59,12 +54,7 @@ def _axis(axis: str) -> tuple[float, float, float]:
 def tap_marker(
     estimate: Estimate, rod_length_m: float, axis: str = "x", min_diameter_m: float = 0.01
 ) -> MarkerSpec:
-    """The sphere marking a tap estimate.
-
-    Raises:
-        BehaviourError: The estimate is not a tap estimate, its position is NaN, or the rod
-            length is not positive.
-    """
+    """The sphere marking a tap estimate (BehaviourError: not a tap, NaN, or a bad rod)."""
     if not rod_length_m > 0:
         raise BehaviourError(
             f"The 'rod_length_m' parameter must be > 0. Got {rod_length_m!r} instead."
