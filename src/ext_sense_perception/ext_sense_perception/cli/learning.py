@@ -264,11 +264,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
 def _anytime_posts(text: str | None, ws: WindowSet) -> tuple[int, ...] | None:
     """``--anytime-ms``: None for the task profile's times, ``()`` for none.
 
-    Each time must cut an anytime window out of the training windows: at least one sample
-    after the onset and shorter than the windows' post-onset span (:func:`anytime_range_ns`).
-
-    Raises:
-        PerceptionError: A value that is not a number or lies outside that range.
+    Each time must cut an anytime window out of the training windows: at least one sample after the
+    onset and shorter than the windows' post-onset span (:func:`anytime_range_ns`), else a
+    PerceptionError.
     """
     if text is None:
         return None

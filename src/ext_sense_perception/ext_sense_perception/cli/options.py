@@ -174,12 +174,9 @@ def load_sessions(
 ) -> list[Session]:
     """Every ``--data`` as a session: its windows (cropped by ``--post-ms``) and metadata.
 
-    ``need_labels``: bags must hold ground truth; ``wanted``: the windows a bundle takes
-    (``score``, ``calibrate``).
-
-    Raises:
-        PerceptionError: Unreadable data, ``session.json`` breaking its schema or naming another
-            sensor, or data of another task or sensor than asked for.
+    ``need_labels``: bags must hold ground truth; ``wanted``: the windows a bundle takes (``score``,
+    ``calibrate``). PerceptionError: unreadable data, ``session.json`` breaking its schema or naming
+    another sensor, or data of another task or sensor than asked for.
     """
     from ext_sense_perception.data.sessions import as_session
 

@@ -63,8 +63,7 @@ def _bundle_path(args: argparse.Namespace) -> Path:
 def _bundle_sessions(args: argparse.Namespace, path: Path, card: Any) -> list[Session]:
     """The ``--data`` sessions cut as the bundle's windows were (its task, sensor, anchor).
 
-    Raises:
-        PerceptionError: ``--task``/``--sensor`` or the data name another kind than the bundle's.
+    PerceptionError: ``--task``/``--sensor`` or the data name another kind than the bundle's.
     """
     from ext_sense_perception.cli.options import Wanted
 

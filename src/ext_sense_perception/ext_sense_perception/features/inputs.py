@@ -18,9 +18,8 @@ from ext_sense_perception.errors import PerceptionError
 def dense_array(X: Any, **kwargs: Any) -> np.ndarray:
     """``X`` through ``sklearn.utils.check_array`` (``kwargs`` are its options).
 
-    Raises:
-        PerceptionError: scikit-learn's message (complex, empty, NaN/inf).
-        TypeError: sparse input, or objects that are not numbers.
+    Bad values (complex, empty, NaN/inf) raise a PerceptionError with scikit-learn's message; sparse
+    input or objects that are not numbers stay scikit-learn's TypeError.
     """
     try:
         return check_array(X, **kwargs)
@@ -31,11 +30,8 @@ def dense_array(X: Any, **kwargs: Any) -> np.ndarray:
 def validated(estimator: Any, X: Any, y: Any = "no_validation", *, reset: bool, **kwargs: Any):
     """``sklearn.utils.validation.validate_data``: ``X`` (and ``y``) as in :func:`dense_array`.
 
-    ``reset=True`` (``fit``) records ``n_features_in_``; ``reset=False`` checks it.
-
-    Raises:
-        PerceptionError: scikit-learn's message (bad values, columns or target).
-        TypeError: sparse input, or objects that are not numbers.
+    ``reset=True`` (``fit``) records ``n_features_in_``; ``reset=False`` checks it. Errors as
+    :func:`dense_array`'s (bad columns or target too).
     """
     try:
         return validate_data(estimator, X, y, reset=reset, **kwargs)

@@ -46,13 +46,10 @@ class FeatureKind(IntEnum):
 
 
 def select_channels(selection: str | None, n_channels: int) -> np.ndarray:
-    """Row indices of a channel selection.
+    """Row indices of a channel selection (PerceptionError: unknown, or ids out of range).
 
     ``selection``: ``None``/``"all"``, ``"left"`` (taxels 1..40), ``"right"`` (41..80),
     ``"taxel:N"`` (1-based) or ``"ids:1,2,5"``.
-
-    Raises:
-        PerceptionError: on an unknown selection or ids out of range.
     """
     if selection is None or selection == "all":
         return np.arange(n_channels)

@@ -103,8 +103,7 @@ class WindowFeatures(TransformerMixin, BaseEstimator):
     def fit(self, X: np.ndarray, y: np.ndarray | None = None) -> WindowFeatures:
         """Build the maps for the geometry (and learn what the family learns from ``X``).
 
-        Raises:
-            PerceptionError: A parameter out of range, or windows of another shape or not finite.
+        PerceptionError: a parameter out of range, or windows of another shape or not finite.
         """
         self._check_params()
         self.kind_ = FeatureKind.parse(self.kind)
@@ -154,9 +153,7 @@ class WindowFeatures(TransformerMixin, BaseEstimator):
     def transform(self, X: np.ndarray) -> np.ndarray:
         """Features ``(n_windows, n_features)`` float64 of flattened (or 3-D) windows.
 
-        Raises:
-            NotFittedError: :meth:`fit` was not called.
-            PerceptionError: on a wrong shape or NaN/inf in the windows.
+        NotFittedError before :meth:`fit`; PerceptionError on a wrong shape or NaN/inf.
         """
         check_is_fitted(self, "time_maps_")
         return self._features(self._selected(self._validate(X)))
@@ -425,8 +422,7 @@ FAMILIES: dict[FeatureKind, type[WindowFeatures]] = {
 def make_features(kind: str | FeatureKind, **params: Any) -> WindowFeatures:
     """The feature family named ``kind`` (aliases such as ``raw`` allowed) with ``params``.
 
-    Raises:
-        PerceptionError: An unknown family, or a parameter the family does not have.
+    PerceptionError: an unknown family, or a parameter the family does not have.
     """
     family = FAMILIES[FeatureKind.parse(kind)]
     unknown = set(params) - set(family._get_param_names())

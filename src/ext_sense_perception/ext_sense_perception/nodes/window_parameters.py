@@ -117,10 +117,8 @@ class WindowParameters:
 def window_config(p: WindowParameters, log: Log) -> tuple[WindowConfig, tuple[int, ...], str]:
     """The window configuration (the model card's profile, else the task's), BioTac slots, source.
 
-    The source is the card's path, or ``"task"``.
-
-    Raises:
-        ValueError: A bad task, sensor or stuck-taxel setting (the message names it).
+    The source is the card's path, or ``"task"``. A bad task, sensor or stuck-taxel setting is a
+    ValueError naming it.
     """
     try:
         config = WindowConfig.for_task(p.task, p.sensor)

@@ -33,8 +33,7 @@ SECTION_HEADING = re.compile(r"^## (\w+), (\w+) \(\d+ windows; `([^`]+)`")
 def read_report(out: Path) -> ReportParts:
     """The data-set sections of ``out/report.md`` (told by their headings) and report.json's rows.
 
-    Raises:
-        PerceptionError: report.json is not a list of rows.
+    PerceptionError: report.json is not a list of rows.
     """
     md, js = out / "report.md", out / "report.json"
     if not md.exists() and not js.exists():

@@ -218,11 +218,8 @@ def build_report(
     estimator, ``features`` / ``models`` the tables' columns. With ``plan`` (a list) nothing is
     fitted or written: each data set's :meth:`Runner.listed` counts are appended to it.
     ``sim_commit`` is recorded in the simulator data sets' rows; ``update`` keeps the former
-    report's data sets this run does not evaluate.
-
-    Raises:
-        PerceptionError: an unknown feature set or model (before anything runs), unreadable data, or
-            (``update``) an unreadable former report.
+    report's data sets this run does not evaluate. PerceptionError: an unknown feature set or model
+    (before anything runs), unreadable data, or (``update``) an unreadable former report.
     """
     features, models = check_choices(features, models)
     if full:

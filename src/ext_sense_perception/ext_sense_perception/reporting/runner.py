@@ -69,10 +69,8 @@ def check_choices(
 ) -> tuple[tuple[str, ...] | None, tuple[str, ...] | None]:
     """Canonical feature-set and model names for the features x models tables, duplicates dropped.
 
-    None stays None (the defaults); ``gru`` is no model here, it has its own row.
-
-    Raises:
-        PerceptionError: on an empty list or an unknown name.
+    None stays None (the defaults); ``gru`` is no model here, it has its own row. PerceptionError:
+    an empty list or an unknown name.
     """
     out_f = None
     if features is not None:
@@ -216,8 +214,7 @@ class Runner:
     ) -> EvalResult:
         """Score ``features`` + ``model`` on ``ws`` (K splits), or return the memoised result.
 
-        Raises:
-            PerceptionError: the point cannot be evaluated, or a fit failed (at every call).
+        PerceptionError: the point cannot be evaluated, or a fit failed (at every call).
         """
         params = self.feature_params(ws, features, params)
         grid = dict(default_feature_grid(ws.task, ws.sensor, features))
@@ -296,13 +293,10 @@ class Runner:
             self._memo[key] = res
 
     def row(self, res: EvalResult, study: Study, **fields: Any) -> None:
-        """List an evaluated point in report.json under ``study`` (on the final pass only).
+        """List a result of this runner in report.json under ``study`` (on the final pass only).
 
         ``fields`` are the row's parameters: ``post_ms`` (default: the result's window), ``rate_hz``
         (None: not resampled), ``channels`` (default ``all``) and any study-specific ones.
-
-        Raises:
-            PerceptionError: ``res`` is not a result of this runner.
         """
         if self.planning or self.deploying:
             return
@@ -385,10 +379,7 @@ class Runner:
 
         It is trained on every window with the hyper-parameters chosen in most splits (a cached
         one-candidate fit, :mod:`.deployed`). While planning it gives NaN; a model not listed
-        beforehand is fitted now.
-
-        Raises:
-            PerceptionError: its fit failed (the same error each time it is asked for).
+        beforehand is fitted now. A failed fit raises the same PerceptionError each time.
         """
         if self.planning:
             self.final_fits += 1

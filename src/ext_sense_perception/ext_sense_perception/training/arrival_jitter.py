@@ -165,13 +165,10 @@ def jitter_window(
 def augment(
     ws: WindowSet, fraction: float, seed: int = 0, delay: ReadDelay = MEASURED_READ_DELAY
 ) -> WindowSet:
-    """The set with ``fraction`` of its NUSkin windows re-stamped in place by :func:`jitter_window`.
+    """The set with ``fraction`` (0..1) of its NUSkin windows re-stamped by :func:`jitter_window`.
 
     In place, since copies of one trial in different folds would leak. BioTac windows (stamped by
     the sensor's own clock) are returned as they are.
-
-    Raises:
-        PerceptionError: ``fraction`` not in [0, 1].
     """
     if not 0.0 <= float(fraction) <= 1.0:
         raise PerceptionError(
@@ -223,13 +220,10 @@ def shift_window(x: np.ndarray, shift_ns: int, period_ns: int) -> np.ndarray:
 def onset_shifted(
     ws: WindowSet, copies: int, max_shift_ns: int = ONSET_SHIFT_NS, seed: int = 0
 ) -> WindowSet:
-    """The set and ``copies`` more of each NUSkin window, onsets moved by ``U(-max, +max)``.
+    """The set and ``copies`` (>= 0) more of each NUSkin window, onsets moved by ``U(-max, +max)``.
 
     Copies keep their trial's ``groups`` entry, so folds keep a trial whole. BioTac windows and
     external onsets (stamped by the arm) are returned as they are.
-
-    Raises:
-        PerceptionError: ``copies`` negative or ``max_shift_ns`` not positive.
     """
     if copies < 0:
         raise PerceptionError(f"The 'onset_shifts' parameter must be >= 0. Got {copies} instead.")
@@ -272,10 +266,8 @@ def late_read_window_set(
     Each of the ``late_reads`` extra cuts reads the bytes as a late reader would (a fresh draw of
     ``delay``), so events, reads and detected onsets move as they do live, which :func:`augment`
     only approximates (docs/benchmarks.md, "Late-read training"). The reads are drawn first, so
-    ``n_jobs`` does not change the result. Returns every cut's windows and the ideal cut's counts.
-
-    Raises:
-        PerceptionError: ``late_reads`` negative, or no window matched a truth.
+    ``n_jobs`` does not change the result. Returns every cut's windows and the ideal cut's counts
+    (PerceptionError: no window matched a truth).
     """
     if late_reads < 0:
         raise PerceptionError(

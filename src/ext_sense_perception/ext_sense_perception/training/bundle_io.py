@@ -35,11 +35,7 @@ LOCK_FILE = ".ext_sense_models.lock"
 
 
 def check_place(place: Path, need_bytes: int) -> None:
-    """Make sure ``place`` is writable, with ``need_bytes`` free, before anything is trained for it.
-
-    Raises:
-        PerceptionError: One line naming the place and what is wrong.
-    """
+    """Check ``place`` is writable with ``need_bytes`` free (else a one-line PerceptionError)."""
     try:
         place.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=place, prefix=".ext_sense_probe_"):
@@ -56,10 +52,9 @@ def check_place(place: Path, need_bytes: int) -> None:
 
 @contextlib.contextmanager
 def place_lock(place: Path, log: Callable[[str], None] | None = None) -> Iterator[None]:
-    """Hold the exclusive ``flock`` of ``place``, waiting (and telling ``log``) for another holder.
+    """Hold the exclusive ``flock`` of ``place``, waiting (and telling ``log``) for any holder.
 
-    Raises:
-        PerceptionError: The lock file cannot be opened.
+    PerceptionError: the lock file cannot be opened.
     """
     try:
         fd = os.open(place / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
@@ -84,10 +79,8 @@ def staged_bundle(target: Path) -> Iterator[Path]:
     """A fresh directory beside ``target`` to write a bundle into, renamed to ``target`` at the end.
 
     A bundle at ``target`` is replaced only once the new one is complete, and kept if the block
-    fails. What a killed writer left is cleared first, so writers must hold :func:`place_lock`.
-
-    Raises:
-        PerceptionError: A file could not be written or renamed.
+    fails (PerceptionError: a file could not be written or renamed). What a killed writer left is
+    cleared first, so writers must hold :func:`place_lock`.
     """
     tag = f"{os.getpid()}_{secrets.token_hex(4)}"
     staged = target.parent / f".{target.name}.new_{tag}"
@@ -146,10 +139,8 @@ def save_bundle(
     """Write ``model.onnx``, ``model.joblib`` and ``model_card.json`` into ``out_dir``.
 
     Anytime models become bundles in ``out_dir/anytime/post_<ms>ms/``; ``windows`` are kept for
-    ``ext-sense calibrate``.
-
-    Raises:
-        PerceptionError: ONNX export failed (the rest is written; the card's ``onnx`` is null).
+    ``ext-sense calibrate``. A failed ONNX export is raised once the rest is written (the card's
+    ``onnx`` null).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

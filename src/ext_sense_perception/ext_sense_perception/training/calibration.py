@@ -85,10 +85,9 @@ def recipe_of(card: ModelCard, seed: int = 0) -> Recipe:
 
 
 def with_calibration(base: WindowSet, calib: WindowSet, weight: int) -> WindowSet:
-    """``base`` and ``calib`` pooled, each calibration window repeated ``weight`` times.
+    """``base`` and ``calib`` pooled, each calibration window repeated ``weight`` (>= 1) times.
 
-    Raises:
-        PerceptionError: windows of another task, sensor or geometry, or a weight < 1.
+    PerceptionError: windows of another task, sensor or geometry.
     """
     if weight < 1:
         raise PerceptionError(f"The 'weight' parameter must be >= 1. Got {weight} instead.")
@@ -132,9 +131,7 @@ def calibrate(
     """The card (``calibration``, ``label_set`` set) of ``bundle`` adapted to ``calib``'s session.
 
     Each calibration trial is repeated ``weight`` times in the refit; the bundle goes to ``out``.
-
-    Raises:
-        PerceptionError: a bundle without its training windows, or windows that do not fit it.
+    PerceptionError: a bundle without its training windows, or windows that do not fit it.
     """
     card = read_card(bundle)
     if card.anchor and calib.windows.anchor and calib.windows.anchor != card.anchor:

@@ -60,10 +60,7 @@ def cross_session(sessions: list[Session], recipe: Recipe | None = None) -> dict
     """Leave-one-session-out scores of the recipe (default: everything the task's own), JSON-ready.
 
     A row per session (its scores, or why it was skipped), ``mean`` and ``mean_unrestricted`` over
-    the scored ones.
-
-    Raises:
-        PerceptionError: fewer than two sessions, or sessions that cannot be pooled.
+    the scored ones. PerceptionError: fewer than two sessions, or sessions that cannot be pooled.
     """
     if len(sessions) < 2:
         raise PerceptionError(

@@ -239,8 +239,7 @@ def fit_runner(
 ) -> Iterator[FitRunner]:
     """The runner asked for: an existing ``scheduler``, a local cluster of ``workers``, or here.
 
-    Raises:
-        PerceptionError: both options, a bad worker count, or an unreachable scheduler.
+    PerceptionError: both options, a bad worker count, or an unreachable scheduler.
     """
     if scheduler and workers:
         raise PerceptionError("Give '--scheduler' or '--workers', not both.")

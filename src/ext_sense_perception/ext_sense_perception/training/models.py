@@ -36,9 +36,8 @@ def make_estimator(
 ) -> tuple[BaseEstimator, dict[str, list[Any]]]:
     """The final estimator of a pipeline and its grid (keys without the ``model__`` prefix).
 
-    Raises:
-        PerceptionError: on an unknown name, ``gru`` without torch, ``random_forest`` for regression
-            or ``taxel_svr`` for classification.
+    PerceptionError: an unknown name, ``gru`` without torch, ``random_forest`` for regression or
+    ``taxel_svr`` for classification.
     """
     c_scale = 0.01 if regression else 1.0
     c_grid = [c * c_scale for c in C_GRID]
@@ -90,8 +89,7 @@ def make_pipeline(
 ) -> tuple[Pipeline, dict[str, list[Any]]]:
     """Features -> scaler -> model, and the grid with pipeline-prefixed keys.
 
-    Raises:
-        PerceptionError: as :func:`make_estimator`, or ``taxel_svr`` on features not per channel.
+    PerceptionError: as :func:`make_estimator`, or ``taxel_svr`` on features not per channel.
     """
     est, grid = make_estimator(name, regression, seed)
     scaler = StandardScaler()

@@ -326,9 +326,7 @@ def to_onnx_bytes(pipeline: Pipeline, n_inputs: int) -> bytes:
     """Serialized ONNX model of a fitted pipeline that starts with :class:`WindowFeatures`.
 
     Classifiers output ``label`` and ``probabilities`` (no ZipMap); regressors ``variable``.
-
-    Raises:
-        PerceptionError: when skl2onnx cannot convert the model.
+    PerceptionError: skl2onnx cannot convert the model.
     """
     register_converters()
     from skl2onnx import convert_sklearn

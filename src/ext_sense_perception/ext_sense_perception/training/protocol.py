@@ -78,10 +78,8 @@ class EvalResult(NamedTuple):
 def features_for(ws: WindowSet, kind: str, **params: Any) -> WindowFeatures:
     """The unfitted feature family ``kind`` for a window set's geometry.
 
-    NUSkin families get the task profile's feature bin unless ``params`` name one.
-
-    Raises:
-        PerceptionError: An unknown family or a parameter it does not have.
+    NUSkin families get the task profile's feature bin unless ``params`` name one. PerceptionError:
+    an unknown family or a parameter it does not have.
     """
     g = ws.geometry
     family = FAMILIES[FeatureKind.parse(kind)]
@@ -188,8 +186,7 @@ def plan_evaluation(
 ) -> EvalPlan:
     """The point's K split tasks (arguments as :func:`evaluate`'s); nothing is fitted yet.
 
-    Raises:
-        PerceptionError: when there are too few windows or classes.
+    PerceptionError: too few windows or classes.
     """
     n = len(ws.y)
     if n < 8:
@@ -286,10 +283,7 @@ def evaluate(
     ``feature_grid`` parameters (``features__<param>``) are searched too, recomputing the features
     in every fold; ``model_params`` are fixed (e.g. ``{"max_epochs": 20}`` for the GRU).
     ``executor`` runs and caches the split fits (default: here, uncached); the result does not
-    depend on it.
-
-    Raises:
-        PerceptionError: when there are too few windows or classes, or a fit failed.
+    depend on it. PerceptionError: too few windows or classes, or a fit failed.
     """
     plan = plan_evaluation(
         ws, features, model, k, test_size, seed, n_jobs, feature_grid, model_params

@@ -123,8 +123,7 @@ def train_bundle(
 ) -> ModelCard:
     """Train the recipe's model and anytime models on ``ws`` and save them as a bundle in ``out``.
 
-    Raises:
-        PerceptionError: Too few windows or classes, unknown features or model, failed export.
+    PerceptionError: too few windows or classes, unknown features or model, failed export.
     """
     trained, anytime = fit_recipe(ws, recipe)
     save_bundle(trained, out, anytime, windows=ws)

@@ -71,8 +71,7 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
     def fit(self, X: np.ndarray, y: np.ndarray) -> TaxelStackSVR:
         """Fit the combiner on out-of-fold channel predictions, then every channel on all of X.
 
-        Raises:
-            PerceptionError: on bad shapes, NaN/inf, or fewer windows than inner folds.
+        PerceptionError: bad shapes, NaN/inf, or fewer windows than inner folds.
         """
         x, target = validated(
             self, X, y, reset=True, dtype=np.float64, y_numeric=True, ensure_min_samples=2
@@ -123,12 +122,9 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
     def channel_predictions(self, X: np.ndarray) -> np.ndarray:
         """Every channel's SVR prediction, ``(n_windows, n_channels)``.
 
-        All channels at once on the packed support vectors (one ``SVR.predict`` per channel took
-        21 ms a window), the same kernel sums on inputs centred per block.
-
-        Raises:
-            NotFittedError: when not fitted.
-            PerceptionError: on bad shapes or NaN/inf.
+        All channels at once on the packed support vectors (one ``SVR.predict`` per channel took 21
+        ms a window), the same kernel sums on inputs centred per block. NotFittedError before
+        :meth:`fit`; PerceptionError on bad shapes or NaN/inf.
         """
         check_is_fitted(self, "packed_")
         p = self.packed_
@@ -146,12 +142,7 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
         return out
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        """Combined predictions, ``(n_windows,)``.
-
-        Raises:
-            NotFittedError: when not fitted.
-            PerceptionError: on bad shapes or NaN/inf.
-        """
+        """Combined predictions, ``(n_windows,)`` (errors as :meth:`channel_predictions`)."""
         return self.channel_predictions(X) @ self.coef_ + self.intercept_
 
     def onnx_arrays(self) -> dict[str, Any]:
@@ -159,11 +150,7 @@ class TaxelStackSVR(RegressorMixin, BaseEstimator):
 
         ``centre`` ``(n_channels, d)``, centred ``sv`` ``(n_channels, n_sv, d)``, ``coef``
         ``(n_channels, n_sv)`` (the ridge weights folded in), ``gamma`` ``(n_channels,)`` and the
-        scalar
-        ``intercept``.
-
-        Raises:
-            PerceptionError: when not fitted.
+        scalar ``intercept``.
         """
         check_is_fitted(self, "packed_")
         p = self.packed_
