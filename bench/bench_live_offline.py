@@ -113,15 +113,6 @@ class RunResult:
 
 
 # ------------------------------------------------------------------------------ environment
-def child_env(domain: int) -> dict[str, str]:
-    """The children's environment: their own ROS domain, discovery on this host only."""
-    env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(domain)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env["PYTHONUNBUFFERED"] = "1"
-    return env
-
-
 def loadavg() -> str:
     """/proc/loadavg as it reads (the machine is shared: every run says what it ran beside)."""
     return Path("/proc/loadavg").read_text().strip()
@@ -596,7 +587,8 @@ def main() -> int:
         conditions = [c for c in args.conditions.split(",") if c]
     for condition in conditions:
         check_condition(condition)
-    env = child_env(args.domain)
+    env = dict(os.environ, ROS_DOMAIN_ID=str(args.domain), PYTHONUNBUFFERED="1")
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # the children's traffic stays here
     tmp = Path(tempfile.mkdtemp(prefix="bench_live_offline_"))
     print(
         f"[live-offline] {taps} taps, {grasps} grasps of {GRASP_TRIALS} trials, seed "

@@ -21,8 +21,15 @@ import tempfile
 import time
 from pathlib import Path
 
-import psutil
-from common import local_ros_domain, process_name, stop_group, tap_model
+from common import (
+    children,
+    cpu_percent,
+    cpu_ticks,
+    local_ros_domain,
+    process_name,
+    stop_group,
+    tap_model,
+)
 
 local_ros_domain()
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))  # foxglove_client
@@ -36,17 +43,6 @@ def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
-
-
-def _cpu(procs: list[psutil.Process]) -> dict[int, float]:
-    out = {}
-    for p in procs:
-        try:
-            t = p.cpu_times()
-            out[p.pid] = t.user + t.system
-        except psutil.Error:
-            continue
-    return out
 
 
 def measure(model: Path, tmp: Path, view: bool, client: bool, warm_s: float, span_s: float) -> dict:
@@ -65,13 +61,11 @@ def measure(model: Path, tmp: Path, view: bool, client: bool, warm_s: float, spa
 
             fg = FoxgloveClient(f"ws://127.0.0.1:{port}", connect_timeout_s=60)
         time.sleep(warm_s)
-        root = psutil.Process(proc.pid)
-        procs = [root, *root.children(recursive=True)]
-        names = {p.pid: process_name(p.pid) for p in procs}
+        names = {p: process_name(p) for p in (proc.pid, *children(proc.pid))}
         n0 = len(fg.messages()) if fg else 0
-        c0, t0 = _cpu(procs), time.monotonic()
+        c0, t0 = {p: cpu_ticks(p) for p in names}, time.monotonic()
         time.sleep(span_s)
-        c1, t1 = _cpu(procs), time.monotonic()
+        c1, t1 = {p: cpu_ticks(p) for p in names}, time.monotonic()
         n1 = len(fg.messages()) if fg else 0
     finally:
         if fg is not None:
@@ -81,7 +75,7 @@ def measure(model: Path, tmp: Path, view: bool, client: bool, warm_s: float, spa
     text = log.read()
     log.close()
     wall = t1 - t0
-    per = {names[p]: 100 * (c1[p] - c0[p]) / wall for p in c1 if p in c0}
+    per = {names[p]: v for p, v in cpu_percent(c0, c1, wall).items() if v == v}
     return {
         "graph_pct": sum(per.values()),
         "view_pct": per.get("foxglove_view", 0.0),
