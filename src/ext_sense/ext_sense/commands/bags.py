@@ -1,12 +1,4 @@
-"""``ext-sense record``, ``replay`` and ``bag recover|migrate``: rosbag2 without the ``ros2`` CLI.
-
-``record`` writes a bag with the built interfaces' type hashes, to the disk at least every
-``--flush-period``; ``bag recover`` rewrites what a killed recorder left as a complete bag;
-``bag migrate`` turns a bag of decoded arrays into a packet bag (:mod:`ext_sense.bag_migrate`);
-``replay`` publishes a bag's graph inputs (with ``view:=true`` also the live view, kept up
-until Ctrl-C), or with ``--offline`` runs the graph's core on it deterministically
-(:mod:`ext_sense.offline_replay`).
-"""
+"""``ext-sense record``, ``replay``, ``bag recover|migrate``: rosbag2 without the ``ros2`` CLI."""
 
 from __future__ import annotations
 

@@ -1,14 +1,9 @@
 """``foxglove_view`` node: a live Foxglove view of the sensor, the windows and the estimates.
 
-Runs a Foxglove WebSocket server and sends, at ``display_rate_hz``, the taxel grid, the rates
-or PAC trace, the latest window raster and estimate, and a diagnostics summary; estimates,
-ground truths, windows and ``/diagnostics`` pass through as CDR (:mod:`.channels`). The sensor
-comes from the driver's raw packets, decoded here (:mod:`.feed`).
-
-It costs nothing unwatched: packets are subscribed only while a client watches a sensor
-channel, and a tick with no client does nothing. It runs in a process of its own at a lower
-priority (``nice``), best effort on the raw stream, so it never starves perception. The
-protocol has no authentication: anyone who reaches ``host:port`` sees every channel.
+It sends its pictures at ``display_rate_hz`` and passes the graph's low-rate topics through
+(:mod:`.channels`). Unwatched it costs nothing: packets are subscribed only while a client
+watches a sensor channel. It runs in a process of its own at a lower priority (``nice``), so it
+never starves perception. The protocol has no authentication.
 """
 
 from __future__ import annotations
