@@ -46,9 +46,6 @@ from ext_sense_runtime.parameters import declare_all, param
 class BioTacParameters(LinkParameters):
     """``biotac_driver``'s parameters; reconnect_max_s changes live, the rest are read-only."""
 
-    port: str = link_field(
-        "port", BioTacDriverConfig.port, "Serial device of the bridge or pyserial URL."
-    )
     baud: int = link_field(
         "baud",
         BioTacDriverConfig.baud,
@@ -59,12 +56,6 @@ class BioTacParameters(LinkParameters):
         "can_arbitration_id",
         BioTacDriverConfig.can_arbitration_id,
         "Arbitration id of the CAN frames carrying the bridge stream.",
-    )
-    can_extended_id: bool = link_field(
-        "can_extended_id", BioTacDriverConfig.can_extended_id, "29-bit extended CAN id."
-    )
-    file_path: str = link_field(
-        "file_path", BioTacDriverConfig.file_path, "Recorded bridge stream (transport file)."
     )
     file_bytes_per_s: float = link_field(
         "file_bytes_per_s",

@@ -62,13 +62,6 @@ class NuskinParameters(LinkParameters):
         DriverConfig.file_bytes_per_s,
         "File replay rate, bytes/s; 0 uses file_pace.",
     )
-    reconnect_initial_s: float = param(
-        0.1,
-        "First reconnect delay after the port vanished, s (doubles per failure).",
-        low=0.001,
-        high=60.0,
-        read_only=True,
-    )
     expected_rate_hz: float = param(
         float(NUSKIN_IDLE_WORDS_PER_S),
         "Least rate of the receiver's words while the link is up, words/s (default 540: a "
