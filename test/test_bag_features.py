@@ -1,7 +1,6 @@
 """A packet bag played through the graph into ``RecorderNode``: the same windows as the bag itself.
 
-The simulator's dataset bag holds decoded arrays; migrated once (``ext-sense bag migrate``) it
-is the packet bag the graphs play, and playing and recording it must lose nothing.
+The simulator's bag is the packet bag the graphs play; playing and recording it must lose nothing.
 """
 
 from __future__ import annotations
@@ -20,7 +19,6 @@ TRUTH = "/extsense/ground_truth"
 def test_recorded_bag_windows_equal_the_dataset_windows(tmp_path):
     from rclpy.parameter import Parameter
 
-    from ext_sense.bag_migrate import migrate_bag
     from ext_sense.nodes.bag_player import BagPlayerNode
     from ext_sense.nodes.recorder import RecorderNode
     from ext_sense_bags import BagReader
@@ -31,8 +29,7 @@ def test_recorded_bag_windows_equal_the_dataset_windows(tmp_path):
     # trials 0.6 s apart, so no neighbouring trial reaches a window and the match is exact
     scene = dataclasses.replace(load_scene("tap_rod30_nuskin"), trial_s=0.6)
     run_scene(scene, tmp_path / "sim", trials=3, formats=("npz", "bag"))
-    packets = tmp_path / "packets"
-    migrate_bag(tmp_path / "sim" / "bag", packets)
+    packets = tmp_path / "sim" / "bag"
     with BagReader(packets) as bag:
         sent = {t: s.count for t, s in bag.topics.items() if t in (PACKETS, TRUTH)}
     recorded = tmp_path / "recorded"

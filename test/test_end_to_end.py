@@ -13,6 +13,7 @@ import re
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 from sim_models import cli as _cli
 from sim_models import finish_graph, spawn, train_sim_model
@@ -123,16 +124,12 @@ def test_food_identification_over_pty(models):
 
 @pytest.mark.parametrize("task", sorted(TRAIN))
 def test_bag_replay_offline_every_task(models, task, tmp_path):
-    from ext_sense_bags.dataset import dataset_to_bag
-
-    from ext_sense.bag_migrate import migrate_bag
+    from ext_sense_sim.output.bag import write_bag
 
     model, npz = models(task)
     bag = tmp_path / "bag"
     period = 12 * 10**9 if task == "food_identification" else 10**9
-    # a dataset's bag holds decoded arrays: migrated into the packet bag the replay reads
-    dataset_to_bag(npz, tmp_path / "arrays", trial_period_ns=period, trials=6)
-    migrate_bag(tmp_path / "arrays", bag)
+    write_bag(np.load(npz), bag, trial_period_ns=period, trials=6)
     runs = []
     for name in ("a.json", "b.json"):
         out = _cli(
@@ -155,13 +152,10 @@ def test_bag_replay_offline_every_task(models, task, tmp_path):
 
 
 def test_tap_bag_replay_through_the_graph(models, tmp_path):
-    from ext_sense_bags.dataset import dataset_to_bag
-
-    from ext_sense.bag_migrate import migrate_bag
+    from ext_sense_sim.output.bag import write_bag
 
     model, npz = models("tap_localization")
     bag = tmp_path / "bag"
-    dataset_to_bag(npz, tmp_path / "arrays", trials=4)
-    migrate_bag(tmp_path / "arrays", bag)  # the graphs replay packets
+    write_bag(np.load(npz), bag, trial_period_ns=10**9, trials=4)
     out, lines = _run_graph("tap_localization", model, 4, "source:=bag", f"bag:={bag}")
     _check_summary(out, lines, SUMMARY_TAP, 4)

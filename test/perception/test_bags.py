@@ -15,10 +15,13 @@ from ext_sense_perception.data.sources import from_sim_dataset, load_window_set
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.profiles import PAC_PERIOD_NS
 from ext_sense_runtime.records import EventBlock
-from ext_sense_runtime.stamps import MS
+from ext_sense_runtime.stamps import MS, S
+from ext_sense_sim.output.bag import write_bag
 
 T0 = 1_700_000_000_000_000_000
 EVENTS = "/extsense/nuskin/events"
+PACKETS = "/extsense/nuskin/packets"
+PACKET_TYPE = "ext_sense_msgs/msg/SensorPacket"
 TRUTH = "/extsense/ground_truth"
 
 
@@ -115,12 +118,12 @@ def _cli(cli_module, argv: list[str]) -> int:
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_recorded_bag_gives_the_dataset_features_exactly(nuskin_run, tmp_path, storage):
     """A recorder-style bag (log time = arrival, truth before its data), both storages."""
-    from ext_sense_bags.dataset import dataset_to_bag
-
     from ext_sense_perception import cli
 
     bag = tmp_path / "rec"
-    dataset_to_bag(nuskin_run / "dataset.npz", bag, t0_ns=T0, storage=storage)
+    write_bag(
+        np.load(nuskin_run / "dataset.npz"), bag, t0_ns=T0, trial_period_ns=S, storage=storage
+    )
     assert is_bag(bag)
     ws, counts = window_set_from_bag(bag)
     ref = from_sim_dataset(nuskin_run / "dataset.npz")
@@ -136,9 +139,7 @@ def test_recorded_bag_gives_the_dataset_features_exactly(nuskin_run, tmp_path, s
 
 
 def test_rate_reduction_on_a_bag_equals_the_dataset_path(nuskin_run, tmp_path):
-    from ext_sense_bags.dataset import dataset_to_bag
-
-    dataset_to_bag(nuskin_run / "dataset.npz", tmp_path / "rec", t0_ns=T0)
+    write_bag(np.load(nuskin_run / "dataset.npz"), tmp_path / "rec", t0_ns=T0, trial_period_ns=S)
     ws, _ = window_set_from_bag(tmp_path / "rec", rate_hz=500.0)
     ref = from_sim_dataset(nuskin_run / "dataset.npz", rate_hz=500.0)
     full = from_sim_dataset(nuskin_run / "dataset.npz")
@@ -147,9 +148,7 @@ def test_rate_reduction_on_a_bag_equals_the_dataset_path(nuskin_run, tmp_path):
 
 
 def test_detected_onsets_are_labelled_by_the_nearest_truth(nuskin_run, tmp_path):
-    from ext_sense_bags.dataset import dataset_to_bag
-
-    dataset_to_bag(nuskin_run / "dataset.npz", tmp_path / "rec", t0_ns=T0)
+    write_bag(np.load(nuskin_run / "dataset.npz"), tmp_path / "rec", t0_ns=T0, trial_period_ns=S)
     ws, counts = window_set_from_bag(tmp_path / "rec", onsets="detected")
     ref = from_sim_dataset(nuskin_run / "dataset.npz")
     assert counts.labelled == len(ws.y) >= 4
@@ -160,8 +159,6 @@ def test_detected_onsets_are_labelled_by_the_nearest_truth(nuskin_run, tmp_path)
 def test_biotac_bags_match_the_dataset(biotac_run, tmp_path):
     """Two sensors joined by sequence; the live windower puts every frame on one 2200 Hz grid,
     so a trial the simulator starts on another phase may be cut one sample (0.45 ms) apart."""
-    from ext_sense_bags.dataset import dataset_to_bag
-
     ref = from_sim_dataset(biotac_run / "dataset.npz")
     d = dict(np.load(biotac_run / "dataset.npz"))
     ws, counts = window_set_from_bag(biotac_run / "bag")
@@ -177,7 +174,7 @@ def test_biotac_bags_match_the_dataset(biotac_run, tmp_path):
     # on a grid-aligned timeline (trials 2200 samples apart, PAC from the origin) it is exact
     aligned = tmp_path / "aligned.npz"
     np.savez(aligned, **{**d, "pac_t0_ns": np.zeros(len(d["y"]), np.int64)})
-    dataset_to_bag(aligned, tmp_path / "bb", t0_ns=T0, trial_period_ns=2200 * PAC_PERIOD_NS)
+    write_bag(np.load(aligned), tmp_path / "bb", t0_ns=T0, trial_period_ns=2200 * PAC_PERIOD_NS)
     ws2, _ = window_set_from_bag(tmp_path / "bb")
     ref2 = from_sim_dataset(aligned)
     for i in range(4):
@@ -242,25 +239,24 @@ def test_a_bag_whose_sensor_messages_all_fail_to_decode_is_refused(tmp_path):
 
 
 def test_bad_messages_are_counted_and_dropped(nuskin_run, tmp_path):
-    from ext_sense_bags.dataset import dataset_to_bag
-
     from ext_sense_bags import BagReader, BagWriter, make_message
 
     src = tmp_path / "src"
-    dataset_to_bag(nuskin_run / "dataset.npz", src, t0_ns=T0)
+    write_bag(np.load(nuskin_run / "dataset.npz"), src, t0_ns=T0, trial_period_ns=S)
     out = tmp_path / "bad"
     with BagReader(src) as a, BagWriter(out) as b:
         for rec in a.records():
             b.write_raw(rec.topic, rec.log_time_ns, rec.data, rec.msgtype)
-        b.write_raw(EVENTS, T0 + 1, b"\x00\x01\x00\x00garbage")  # does not decode
-        b.write(  # arrays of different lengths: the window stage drops it
-            EVENTS,
+        good = next(msg for _, msg in a.messages([PACKETS]))
+        b.write_raw(PACKETS, T0 + 1, b"\x00\x01\x00\x00garbage", PACKET_TYPE)  # does not decode
+        b.write(  # a read's end but no return time: the window stage drops it
+            PACKETS,
             T0 + 2,
             make_message(
-                "ext_sense_msgs/msg/TaxelEventBatch",
-                taxel=np.array([1, 2], np.uint16),
-                polarity=np.array([1], np.int8),
-                offset_ns=np.array([0, 1], np.int64),
+                PACKET_TYPE,
+                encoding=good.encoding,
+                encoding_options=good.encoding_options,
+                read_end=np.array([0], np.uint32),
             ),
         )
     ws, counts = window_set_from_bag(out)
@@ -275,7 +271,7 @@ def test_food_needs_truth_and_unlabelled_windows_for_features(nuskin_run, tmp_pa
 
     out = tmp_path / "no_truth"
     with BagReader(nuskin_run / "bag") as a, BagWriter(out) as b:
-        for rec in a.records([EVENTS]):
+        for rec in a.records([PACKETS]):
             b.write_raw(rec.topic, rec.log_time_ns, rec.data, rec.msgtype)
     with pytest.raises(PerceptionError, match="give --task"):
         window_set_from_bag(out)
@@ -332,7 +328,7 @@ def test_cli_train_and_evaluate_read_bags_and_need_labels(nuskin_run, tmp_path):
     out = tmp_path / "no_truth"
     with BagReader(nuskin_run / "bag") as a, BagWriter(out) as b:
         b.set_custom_data("task", "tap_localization")
-        for rec in a.records([EVENTS]):
+        for rec in a.records([PACKETS]):
             b.write_raw(rec.topic, rec.log_time_ns, rec.data, rec.msgtype)
     for command in ("evaluate", "train"):
         argv = [command, "--data", str(out), "--onsets", "detected", "--out", str(tmp_path / "m")]

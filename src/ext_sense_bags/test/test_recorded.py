@@ -28,6 +28,7 @@ from ext_sense_bags import (
     make_message,
     make_typestore,
     recover_bag,
+    taxel_event_batch,
     type_hash,
 )
 
@@ -245,27 +246,37 @@ def test_a_bag_with_an_unparsable_definition_gives_a_clear_error(tmp_path, old_s
 
 
 def test_an_old_simulator_bag_gives_the_same_windows(tmp_path, old_store):
-    """Training data: an old bag windows exactly as its current-definition twin."""
+    """Training data: an old bag windows exactly as its current-definition twin (the simulator's
+    packets decoded into batches, as a driver publishing decoded arrays sent them)."""
+    from ext_sense_drivers.packets import make_decoder
     from ext_sense_perception.data.bags import window_set_from_bag
     from ext_sense_sim.run import run_scene
     from ext_sense_sim.scene import load_scene
 
     run_scene(load_scene("tap_rod30_nuskin"), tmp_path / "sim", trials=3, formats=("bag",))
-    new = tmp_path / "sim" / "bag"
-    old = tmp_path / "old"
-    with BagReader(new) as src, BagWriter(old) as dst:
+    new, old, decoder = tmp_path / "new", tmp_path / "old", None
+    with BagReader(tmp_path / "sim" / "bag") as src, BagWriter(new) as cur, BagWriter(old) as dst:
         for key, value in src.custom_data.items():
+            cur.set_custom_data(key, value)
             dst.set_custom_data(key, value)
         _register_old(dst, old_store)
         for rec, msg in src.messages():
-            if rec.msgtype == BATCH:
-                fields = {n: getattr(msg, n) for n, _ in old_store.fielddefs[BATCH][1]}
-                data = old_store.serialize_cdr(old_store.types[BATCH](**fields), BATCH)
-                dst.write_raw(rec.topic, rec.log_time_ns, data)
-            else:
+            if rec.topic == TRUTH:
+                cur.write_raw(rec.topic, rec.log_time_ns, rec.data, rec.msgtype)
                 dst.write_raw(rec.topic, rec.log_time_ns, rec.data, rec.msgtype)
+                continue
+            decoder = decoder or make_decoder(str(msg.encoding), str(msg.encoding_options))
+            e = decoder.decode(msg).events
+            if e.size:
+                first = int(e.t_ns[0])
+                batch = taxel_event_batch(first, e.taxel, e.polarity, e.value, e.t_ns - first)
+                cur.write(EVENTS, rec.log_time_ns, batch)
+                fields = {n: getattr(batch, n) for n, _ in old_store.fielddefs[BATCH][1]}
+                data = old_store.serialize_cdr(old_store.types[BATCH](**fields), BATCH)
+                dst.write_raw(EVENTS, rec.log_time_ns, data)
     with BagReader(old) as bag:
         assert bag.topics[EVENTS].type_hash != type_hash(BATCH)
+        assert bag.topics[EVENTS].count > 100
     ws_new, counts_new = window_set_from_bag(new)
     ws_old, counts_old = window_set_from_bag(old)
     assert counts_old == counts_new

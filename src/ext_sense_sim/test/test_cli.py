@@ -109,7 +109,7 @@ def test_run_reports_a_bad_scene(tmp_path, capsys):
     assert "nuskin_transduction" in capsys.readouterr().err
 
 
-def test_bag_holds_events_and_ground_truth(tmp_path):
+def test_bag_holds_packets_and_ground_truth(tmp_path):
     pytest = __import__("pytest")
     bags = pytest.importorskip("ext_sense_bags")
     out = tmp_path / "run"
@@ -129,16 +129,19 @@ def test_bag_holds_events_and_ground_truth(tmp_path):
         )
         == 0
     )
+    from ext_sense_drivers.packets import make_decoder
+
     d = np.load(out / "dataset.npz")
-    n_events, truths = 0, []
+    n_events, truths, decoder = 0, [], None
     with bags.BagReader(out / "bag") as reader:
         for record, msg in reader.messages():
-            if record.topic == "/extsense/nuskin/events":
-                n_events += len(msg.taxel)
-                assert msg.offset_ns.min() >= 0
+            if record.topic == "/extsense/nuskin/packets":
+                decoder = decoder or make_decoder(str(msg.encoding), str(msg.encoding_options))
+                n_events += decoder.decode(msg).events.size
             else:
                 truths.append(msg)
     assert n_events == d["ev_t_ns"].size
+    assert decoder.counters.lost_packets == 0
     assert [t.trial for t in truths] == [0, 1]
     np.testing.assert_allclose([t.tap_position_m for t in truths], d["y"])
 

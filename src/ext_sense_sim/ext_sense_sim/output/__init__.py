@@ -36,7 +36,7 @@ def write_outputs(
         try:
             from ext_sense_sim.output.bag import write_bag
 
-            written += write_bag(arrays, out / "bag", scene.trial_s)
+            written += write_bag(arrays, out / "bag")
         except ModuleNotFoundError as err:
             if err.name != "ext_sense_bags":
                 raise
