@@ -1,10 +1,7 @@
 """What the behaviours need from an arm, and a simulated arm that provides it.
 
-:class:`ArmAdapter` is the whole interface: move down at a set Cartesian speed, stop, retract
-to a height, read the latest state (height and external force). Implementations:
-:class:`SimulatedArm` (here, for tests and demos), the franka_ros2 adapter in
-``ext_sense_behaviours.nodes.franka_adapter``, and in the tests ``ReplayArm`` (recorded Panda
-states from the real food-poking bags, ``test/franka_replay.py``).
+Implementations of :class:`ArmAdapter`: :class:`SimulatedArm` (tests and demos), the franka_ros2
+adapter (``nodes/franka_adapter.py``), and the tests' ``ReplayArm`` (recorded Panda states).
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """A thread that owns the Robotiq link: connects, polls the status, carries out commands.
 
-The serial exchanges block for up to ``timeout_s`` x (``retries`` + 1), so they never run on a
-ROS executor: the ``robotiq_gripper`` node hands commands to this worker and gets every status
-(or error) back through a callback. Safe state: after a lost link or a gripper fault, motion
-commands are dropped (counted) until the link is back and the gripper is (re)activated; the
-gripper itself keeps its last command, so a held object stays held.
+Exchanges block for up to ``timeout_s`` x (``retries`` + 1), so never on an executor. After a
+lost link or a fault, motion commands are dropped (counted) until the gripper is active again;
+it keeps its last command meanwhile, so a held object stays held.
 """
 
 from __future__ import annotations

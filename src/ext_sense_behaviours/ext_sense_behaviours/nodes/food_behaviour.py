@@ -1,12 +1,10 @@
 """``food_behaviour`` node: lower the fork, stop on contact, classify, retract, publish.
 
-Runs :class:`~ext_sense_behaviours.food.FoodMachine` on an arm adapter (``arm`` sim: simulated
-in the node; franka: :class:`~ext_sense_behaviours.nodes.franka_adapter.FrankaArmAdapter`) from
-a timer at ``control_rate_hz``. Publishes ``motion_start`` (``ContactGroundTruth``) so the
-``contact_window`` node cuts the food window, takes the food estimate for that motion start and
-republishes it on ``food/result`` once retracted. Decisions go to ``food/decision`` and the log,
-arm states read while probing to ``arm/state`` (JointState ``ee_z``: z, vertical velocity, force
-norm). A probe starts on ``food/start`` or with ``auto_start``, again ``repeat_s`` after one ends.
+Runs :class:`~ext_sense_behaviours.food.FoodMachine` on the ``arm`` (sim, or franka) at
+``control_rate_hz``. Publishes ``motion_start`` (``ContactGroundTruth``) for the
+``contact_window`` node and republishes the food estimate for it on ``food/result`` once
+retracted; decisions on ``food/decision``, arm states on ``arm/state`` (JointState ``ee_z``: z,
+vertical velocity, force norm). A probe starts on ``food/start`` or with ``auto_start``.
 """
 
 from __future__ import annotations

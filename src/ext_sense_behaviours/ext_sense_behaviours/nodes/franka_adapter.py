@@ -1,16 +1,11 @@
 """The franka_ros2 arm adapter: the food probe's arm on a Panda / FR3 under franka_ros2.
 
-Implements :class:`~ext_sense_behaviours.arm.ArmAdapter` on a node, through franka_ros2's
-interfaces (names in :class:`~ext_sense_behaviours.franka.FrankaNames`): it reads
-``FrankaRobotState`` (force, height, joints, collision flags, mode), sets the collision reflex
-(``SetFullCollisionBehavior``, asynchronously) as a safety net behind the 10 N software stop,
-moves through the ``joint_trajectory_controller``'s ``FollowJointTrajectory`` (vertical lines
-as joint waypoints; ``stop`` cancels the goal), stops the descent itself on a contact or
-collision flag or reflex mode, and offers ``ErrorRecovery``.
-
-Every motion goal ends: one not accepted within ``accept_timeout_s`` or without a result within
-its planned duration plus ``result_margin_s`` is canceled and reported once through
-:meth:`FrankaArmAdapter.take_failure`, so the behaviour stops and holds. The simulated arm
+Reads ``FrankaRobotState``, sets the collision reflex (``SetFullCollisionBehavior``) as a
+safety net behind the 10 N software stop, moves through ``FollowJointTrajectory`` (vertical
+lines as joint waypoints), stops the descent itself on a contact or collision flag or reflex
+mode, and offers ``ErrorRecovery``. A goal not accepted within ``accept_timeout_s``, or without
+a result within its planned duration plus ``result_margin_s``, is canceled and reported once
+(:meth:`FrankaArmAdapter.take_failure`), so the behaviour stops and holds.
 ``ext_sense_sim.nodes.sim_arm`` speaks the same interfaces.
 """
 

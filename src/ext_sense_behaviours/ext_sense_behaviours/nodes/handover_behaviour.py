@@ -1,13 +1,11 @@
 """``handover_behaviour`` node: open the gripper once the person's grasp is stable.
 
-Feeds ``contact_estimate`` (provisional ones only with ``accept_provisional``) to
-:class:`~ext_sense_behaviours.handover.HandoverMachine` and commands the gripper through
-``control_msgs/action/GripperCommand`` on ``gripper_action``, so a ``GripperActionController``
-works as well as our ``robotiq_gripper``. It first grasps the object (``grasp_on_start``); the
-handover starts when the grasp stalls on it (``auto_start``) or on ``handover/start``, and with
-``regrasp_s`` > 0 again after each release or timeout. Publishes each decision on
-``handover/decision`` and ``handover/offer`` when the object is offered. Any gripper error keeps
-the object held; the first status read after it (``gripper/status``) logs where the fingers are.
+Feeds ``contact_estimate`` to :class:`~ext_sense_behaviours.handover.HandoverMachine` and
+commands the gripper through ``GripperCommand`` on ``gripper_action`` (ours or a
+``GripperActionController``). It first grasps the object (``grasp_on_start``); the handover
+starts when the grasp stalls on it (``auto_start``) or on ``handover/start``. Publishes
+``handover/decision`` and ``handover/offer``. A gripper error keeps the object held; the next
+``gripper/status`` read logs where the fingers are.
 """
 
 from __future__ import annotations

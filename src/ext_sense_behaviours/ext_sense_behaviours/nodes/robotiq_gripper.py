@@ -1,21 +1,14 @@
 """``robotiq_gripper`` node: a Robotiq 2F over Modbus RTU behind the standard gripper actions.
 
-It serves what MoveIt and ``ros2_control`` gripper controllers serve, so code written for
-PickNik's ``ros2_robotiq_gripper`` works unchanged: ``/<controller_name>/gripper_cmd``
-(``GripperCommand``: gap in m, ``max_effort`` in N) and ``/<parallel_controller_name>/gripper_cmd``
-(``ParallelGripperCommand``). Results carry the final gap, ``stalled`` (gOBJ 1 or 2) and
-``reached_goal`` (gOBJ 3), both a success. A goal outside the stroke or not finite is rejected
-before anything moves; a goal fails on a link error, a fault, an inactive gripper or after
-``goal_timeout_s``; a newer goal preempts the running one; a cancel stops the fingers.
-
-Publishes ``joint_states`` (the finger gap) and ``gripper/status`` (``DiagnosticStatus`` with
-the register fields and ``link`` ok / error) every poll; ``gripper/activate`` (Bool) resets and
-activates (true) or resets (false).
-
-A lifecycle node like the sensor drivers: configure opens the link, activate serves goals,
-deactivate aborts a running goal and keeps the link, cleanup closes it; ``autostart`` does the
-first two at start-up. The serial link lives in a
-:class:`~ext_sense_behaviours.gripper_worker.GripperWorker` thread, so the executor never blocks.
+Serves ``/<controller_name>/gripper_cmd`` (``GripperCommand``: gap in m, ``max_effort`` in N)
+and ``/<parallel_controller_name>/gripper_cmd`` (``ParallelGripperCommand``), as MoveIt and
+``ros2_control`` controllers do (code for PickNik's ``ros2_robotiq_gripper`` works unchanged).
+``stalled`` (gOBJ 1 or 2) and ``reached_goal`` (gOBJ 3) are both a success. A goal outside the
+stroke or not finite is rejected before anything moves; a newer goal preempts the running one;
+a cancel stops the fingers. Every poll publishes ``joint_states`` (the gap) and
+``gripper/status`` (register fields, ``link`` ok / error); ``gripper/activate`` (Bool) resets
+and activates (true) or resets (false). A lifecycle node like the drivers; the serial link
+lives in a :class:`~ext_sense_behaviours.gripper_worker.GripperWorker` thread.
 """
 
 from __future__ import annotations
