@@ -28,16 +28,7 @@ SIGNATURE_NS = 250_000
 
 
 class BankSpec(NamedTuple):
-    """What defines one bank version.
-
-    Attributes:
-        version: Bank version number.
-        degree: LFSR degree ``n``; codes have ``2**n - 1`` chips.
-        poly_u: First polynomial of the Gold preferred pair (bit mask).
-        poly_v: Second polynomial (bit mask).
-        n_taxels: Codes kept, one per taxel.
-        signature_ns: Signature duration, integer ns; chip rate = chips / duration.
-    """
+    """One bank version (Gold pair polynomials as bit masks; ``2**degree - 1`` chips)."""
 
     version: int
     degree: int
@@ -103,11 +94,8 @@ class SignatureBank:
 class CorrelationStats(NamedTuple):
     """Worst correlations of a bank, as fractions of the code length (1.0 = full match).
 
-    Attributes:
-        periodic_cross: Max ``|periodic cross-correlation|`` over pairs of distinct codes.
-        aperiodic_cross: Max ``|aperiodic cross-correlation|`` at any offset.
-        aperiodic_auto: Max aperiodic autocorrelation sidelobe.
-        rms_cross: RMS aperiodic cross-correlation over all pairs and offsets.
+    Maxima of ``|cross-correlation|`` (periodic, aperiodic) over distinct codes and of the
+    autocorrelation sidelobes, and the RMS aperiodic cross-correlation.
     """
 
     periodic_cross: float

@@ -16,14 +16,10 @@ _BATCH = 65_536
 
 
 class EncodedLine(NamedTuple):
-    """A line and where each event landed on it.
+    """Line samples (line units) and each event's start sample (rounded).
 
-    Attributes:
-        samples: Line samples in line units, shape ``(n_samples,)`` float64.
-        start: Start sample of each event's signature, ``(n_events,)`` int64 (rounded).
-        n_truncated: Events whose signature runs past ``n_samples``.
-        n_self_overlaps: Events less than one signature after the previous one of their
-            taxel (indistinguishable on the line; a real NUSkin never sends them).
+    ``n_truncated`` events run past the line's end; ``n_self_overlaps`` come less than one
+    signature after their taxel's previous one (indistinguishable; a real NUSkin never sends them).
     """
 
     samples: npt.NDArray[np.float64]

@@ -20,12 +20,7 @@ MAX_SUSTAINED_DEPTH = 7.0
 
 
 class Blanked(NamedTuple):
-    """What the overload gate took out of a window.
-
-    Attributes:
-        samples: Indices of the blanked samples, ``(n,)`` int64, ascending.
-        signatures: Their energy before blanking in units of one signature's energy.
-    """
+    """The blanked samples of a window (ascending), and their energy in signatures' energies."""
 
     samples: npt.NDArray[np.int64]
     signatures: float

@@ -23,12 +23,7 @@ COUNTS_PER_UNIT = 4096
 
 
 class Quantised(NamedTuple):
-    """Line samples as wire bytes.
-
-    Attributes:
-        data: ``2 * n`` bytes, int16 little-endian.
-        n_clipped: Samples that fell outside the int16 range and were clipped.
-    """
+    """Line samples as wire bytes (int16 little-endian), and how many were clipped to fit."""
 
     data: bytes
     n_clipped: int

@@ -18,16 +18,7 @@ RAW_SUFFIX = "_raw.tact"
 
 
 class TactFile(NamedTuple):
-    """A decoded ``.tact`` file without its marker lines.
-
-    Attributes:
-        flag: First column per word, ``(n,)`` uint8.
-        taxel: ``(n,)`` uint16.
-        value: ``(n,)`` uint16.
-        t_s: Host epoch seconds per word (10 ms resolution), ``(n,)`` float64.
-        start_s: Time of the start marker, epoch seconds.
-        stop_s: Time of the stop marker, epoch seconds.
-    """
+    """A decoded ``.tact`` file: ``(n,)`` columns, ``t_s`` and the markers in epoch seconds."""
 
     flag: npt.NDArray[np.uint8]
     taxel: npt.NDArray[np.uint16]

@@ -39,14 +39,10 @@ class PacketCounters(NamedTuple):
 
 
 class DecodedEvents(NamedTuple):
-    """The events of one NUSkin packet.
+    """The events of one NUSkin packet, stamped in ROS time, and the packets lost before it.
 
-    Attributes:
-        events: Events stamped in ROS time, ns.
-        flag: ``(n,)`` uint8 flag bit per event (receiver words), ``None`` for the ACES line.
-        complete_ns: Stream time up to which every event has been decoded (the last read's
-            return); ``None`` for the ACES line, whose events come out late.
-        lost_packets: Packets missing just before this one (its ``seq`` gap).
+    ``flag`` (the word's flag bit) and ``complete_ns`` (stream time up to which every event is
+    decoded: the last read's return) are ``None`` for the ACES line, whose events come out late.
     """
 
     events: EventBlock

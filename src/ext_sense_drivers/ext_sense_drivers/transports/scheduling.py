@@ -21,13 +21,9 @@ MAX_FIFO_PRIORITY = 99
 
 
 class Scheduling(NamedTuple):
-    """What a thread got.
+    """What a thread got: ``policy`` fifo, nice or default, and why it is not what was asked.
 
-    Attributes:
-        policy: ``"fifo"``, ``"nice"`` (SCHED_OTHER, lowered nice) or ``"default"``.
-        value: The FIFO priority (1-99), the nice value, or 0.
-        requested: The FIFO priority asked for (0: nothing asked).
-        reason: Why the policy is not the one asked for ("" when it is).
+    ``value``: the FIFO priority (1-99), the nice value, or 0; ``requested``: 0 when none was.
     """
 
     policy: str
