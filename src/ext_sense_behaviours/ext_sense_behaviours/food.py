@@ -73,27 +73,12 @@ _NO_STOP = (0, StopReason.TIMEOUT, math.nan, math.nan, -1)
 
 @dataclass(frozen=True)
 class FoodConfig:
-    """Parameters of the probing.
+    """Parameters of the probing, as ``food_behaviour``'s (durations in ns).
 
-    Attributes:
-        speed_mps: Lowering speed, m/s (the paper: 0.01).
-        contact_threshold_n: External force norm that means contact, N (the paper: 10).
-        contact_consecutive: Samples in a row over the threshold.
-        stop_height_m: Preset height at which lowering stops without contact, metres.
-        window_end_ns: The window is complete this long after the motion start, ns.
-        classify_timeout_ns: Longest wait for a class once the window is complete, ns.
-        max_lowering_ns: Safety limit on the lowering time, ns.
-        max_retract_ns: How much longer than planned (distance / ``retract_speed_mps``) the
-            retract may take before the probe gives up and holds, ns.
-        state_timeout_ns: Longest gap between arm states while the arm moves, ns: without
-            state the behaviour cannot see contact nor the height (the robot publishes at
-            30 Hz to 1 kHz).
-        retract_height_m: Height to retract to; NaN: the height the motion started from.
-        retract_speed_mps: Retract speed, m/s.
-        accept_provisional: Accept a provisional food estimate as the result.
-        stamp_tolerance_ns: An estimate belongs to this probe when its stamp is within this of
-            the motion start, ns.
-        invalid_force_limit: Invalid (NaN) force samples in a row that stop the arm (fault).
+    The paper lowers at 0.01 m/s and stops at 10 N. Without arm states (30 Hz to 1 kHz) the
+    behaviour sees neither contact nor height: ``state_timeout_ns``. ``retract_height_m`` NaN:
+    where the motion started. An estimate belongs to the probe within ``stamp_tolerance_ns`` of
+    its motion start; ``invalid_force_limit`` NaN force samples in a row stop the arm (fault).
     """
 
     speed_mps: float = 0.01
@@ -133,16 +118,10 @@ class FoodConfig:
 
 
 class FoodResult(NamedTuple):
-    """What one probe found.
+    """What one probe found: where and why lowering stopped, and the estimate (or ``None``).
 
-    Attributes:
-        motion_start_ns: When lowering started (the window's onset), ns.
-        stop_ns: When lowering stopped, ns.
-        stop_reason: Contact, preset height, timeout or invalid force.
-        stop_z_m: Height where it stopped, metres.
-        stop_force_n: Force norm at the stop, N.
-        contact_sample: Index of the arm state sample that declared contact (-1: none).
-        estimate: The food estimate, or ``None`` when none arrived in time.
+    ``motion_start_ns`` is the window's onset; ``contact_sample`` the index of the arm state that
+    declared contact (-1: none).
     """
 
     motion_start_ns: int

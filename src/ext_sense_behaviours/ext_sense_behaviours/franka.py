@@ -57,13 +57,8 @@ exceeded) and takes no motion until error recovery."""
 class RobotReading(NamedTuple):
     """What the adapter takes from one ``FrankaRobotState``.
 
-    Attributes:
-        state: Height, external force and vertical velocity for the behaviours.
-        joint_names: Names of the measured joints (the trajectory goal's joint names).
-        q: Measured joint positions, (7,) radians (the start of a planned line).
-        contact: A Cartesian linear contact flag is raised (force over the lower threshold).
-        collision: A Cartesian linear collision flag is raised (over the upper threshold).
-        reflex: The robot is in reflex mode (stopped by its own collision reflex).
+    ``q``: measured joint positions (7,), radians; ``contact`` / ``collision``: a Cartesian
+    linear flag over the lower / upper threshold; ``reflex``: stopped by its own reflex.
     """
 
     state: ArmState

@@ -23,13 +23,9 @@ COUNTS = 255
 
 @dataclass(frozen=True)
 class GripperScale:
-    """Register counts <-> SI units for one gripper model.
+    """Register counts <-> SI units for one gripper model (defaults: the 2F-85).
 
-    Attributes:
-        stroke_m: Finger gap when fully open (gPO 0), metres; 0.085 for the 2F-85, 0.140 for
-            the 2F-140. gPO 255 is a gap of 0.
-        max_force_n: Grip force at rFR 255, newtons (2F-85: 235 N).
-        max_speed_m_s: Finger speed at rSP 255, metres per second (2F-85: 0.15 m/s).
+    ``stroke_m`` is the gap at gPO 0 (2F-140: 0.140 m; gPO 255 is 0); the maxima at rFR and rSP 255.
     """
 
     stroke_m: float = 0.085

@@ -12,14 +12,10 @@ from typing import NamedTuple
 
 
 class ArmState(NamedTuple):
-    """One state sample of the arm.
+    """One state sample of the arm: end-effector height and external force in the base frame.
 
-    Attributes:
-        stamp_ns: Time of the sample, integer ns.
-        z_m: End-effector height in the base frame, metres.
-        force_n: External force on the end effector in the base frame (x, y, z), newtons
-            (franka: the first three components of ``O_F_ext_hat_K``).
-        velocity_z_mps: End-effector vertical velocity, m/s (negative going down).
+    ``force_n`` (x, y, z) is franka's first three components of ``O_F_ext_hat_K``;
+    ``velocity_z_mps`` is negative going down.
     """
 
     stamp_ns: int

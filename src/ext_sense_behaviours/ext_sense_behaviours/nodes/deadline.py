@@ -1,8 +1,7 @@
 """One deadline at a time on a node's executor: how long an action client waits for an answer.
 
-The middleware can lose an action's goal response or result, so the behaviours' action clients
-arm a :class:`Deadline` while they wait and end the goal themselves when it expires. A one-shot
-timer on the node's executor, so the expiry never runs concurrently with the node's callbacks.
+The middleware can lose an action's answer, so the action clients end the goal themselves when
+it expires; on the node's executor, the expiry never runs beside the node's callbacks.
 """
 
 from __future__ import annotations
