@@ -18,7 +18,6 @@ from ext_sense_perception.cli.options import (
     cache_dir,
     fail,
     load_pooled,
-    load_sessions,
     write_json,
 )
 from ext_sense_perception.errors import PerceptionError
@@ -309,11 +308,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     if args.protocol == "cross-session":
         from ext_sense_perception.cli.sessions import cross_session_command
 
-        try:
-            sessions = load_sessions(args)
-        except PerceptionError as err:
-            return fail(err)
-        return cross_session_command(args, sessions, _recipe(args))
+        return cross_session_command(args, _recipe(args))
     try:
         ws = load_pooled(args)
         recipe = _recipe(args)

@@ -126,13 +126,8 @@ def _load_one(
                 f"The '--task' and '--sensor' options are needed for a recording ({path.name}). "
                 "Got none."
             )
-        ws = from_recording(
-            path,
-            task,
-            sensor,
-            essentials=getattr(args, "essentials", None),
-            policy=policy,
-        )
+        essentials = getattr(args, "essentials", None)  # a features option
+        ws = from_recording(path, task, sensor, essentials, policy=policy)
     elif names_own_kind(path):
         anchor = args.anchor
         if anchor is None and wanted and wanted.anchor and path.is_dir():

@@ -184,12 +184,13 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-def cross_session_command(args: argparse.Namespace, sessions: list[Session], recipe: Recipe) -> int:
+def cross_session_command(args: argparse.Namespace, recipe: Recipe) -> int:
     """``ext-sense evaluate --protocol cross-session``: the table, and the JSON with ``--json``."""
     from ext_sense_perception.training.calibration import DEFAULT_WEIGHT, calibration_curve
     from ext_sense_perception.training.cross_session import cross_session
 
     try:
+        sessions = load_sessions(args)
         result = cross_session(sessions, recipe)
         if args.calibration_trials:
             trials = _int_list(args.calibration_trials, "--calibration-trials")

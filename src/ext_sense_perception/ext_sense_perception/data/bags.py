@@ -246,8 +246,8 @@ def window_set_from_bag(
         # truth onsets are marked just ahead of their data: a few pending windows, not all
         marks = np.sort([g.onset_ns - config.pre_ns for g in truths]) if mode == "truth" else []
         next_mark = 0
-        nuskin_rate = rate_hz if sensor_e is Sensor.NUSKIN else None
-        thin = _Refractory(nuskin_rate, config.n_taxels) if nuskin_rate is not None else None
+        nuskin_rate = rate_hz is not None and sensor_e is Sensor.NUSKIN
+        thin = _Refractory(rate_hz, config.n_taxels) if nuskin_rate else None
         windows: list[ContactWindow] = []
         n_msgs = 0
         for msg in _decoded(bag, stream, drops):

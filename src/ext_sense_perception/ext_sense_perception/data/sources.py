@@ -68,6 +68,7 @@ def from_sim_dataset(
     n = len(onsets)
     labels = np.asarray(d["y"])
     keep_trial = np.ones(n, dtype=bool)
+    trials = np.asarray(d.get("trial", np.arange(n)))
     if task.is_regression:
         y = labels.astype(np.float64)
         keep_trial = np.isfinite(y)
@@ -77,7 +78,6 @@ def from_sim_dataset(
         for key in ("ev_trial", "ev_t_ns", "ev_taxel"):
             if key not in d:
                 raise PerceptionError(f"NUSkin dataset {str(path)!r} must hold {key!r}.")
-        trial_ids = np.asarray(d["trial"]) if "trial" in d else np.arange(n)
         ev_trial = np.asarray(d["ev_trial"])
         order = np.argsort(ev_trial, kind="stable")
         ev_trial = ev_trial[order]
@@ -90,8 +90,8 @@ def from_sim_dataset(
             np.asarray(d.get("ev_polarity", np.ones(len(order), np.int8)))[order],
         ).select(ok)
         ev_trial = ev_trial[ok]
-        starts = np.searchsorted(ev_trial, trial_ids, side="left")
-        ends = np.searchsorted(ev_trial, trial_ids, side="right")
+        starts = np.searchsorted(ev_trial, trials, side="left")
+        ends = np.searchsorted(ev_trial, trials, side="right")
         for i in range(n):
             events = everything.select(slice(starts[i], ends[i])).sorted_by_time()
             windows.append(
@@ -112,7 +112,6 @@ def from_sim_dataset(
             f"Dataset {str(path)!r} has label_kind {kind!r}, which task {task.label!r} does not "
             "have."
         )
-    trials = np.asarray(d.get("trial", np.arange(n)))
     rods = np.asarray(d.get("rod_length_m", np.full(n, np.nan)), dtype=np.float64)
     held = None
     if "object_kind" in d:  # the scene's object (older datasets: told from rod_length_m)

@@ -289,11 +289,11 @@ class ContactInferenceNode(Node):
             "last_error": self.last_window_error,
             **self.qos_events.as_values(),
             **intra_process.delivery_values(self.window_subscription, "windows"),
+            "estimates_degraded": self.degraded_out,
         }
         recent = self.last_reject_ns is not None and (
             time.monotonic_ns() - self.last_reject_ns < 10_000 * MS
         )
-        values["estimates_degraded"] = self.degraded_out
         if recent:
             return Level.WARN, f"windows rejected: {self.last_window_error}", values
         if self.last_degraded and time.monotonic_ns() - self.last_degraded[0] < 10_000 * MS:

@@ -99,7 +99,7 @@ class ContactWindowNode(Node):
             self.stage.windower if isinstance(self.stage.windower, EventWindower) else None
         )
         if self.event_windower is not None:
-            self.updater.add_check("taxels", self._check_taxels)
+            self.updater.add_check("taxels", self.event_windower.stuck_status)
         self.guard.attach(self.updater)
         self.diagnostics = DiagnosticsPublisher(self, self.updater)
         self.get_logger().info(
@@ -193,18 +193,12 @@ class ContactWindowNode(Node):
         """Log and publish diagnostics at once when a taxel turns stuck or quiets again."""
         if self.event_windower is None or not self.event_windower.stuck_changed:
             return
-        level, message, _ = self._check_taxels()
+        level, message, _ = self.event_windower.stuck_status()
         if level is Level.OK:
             self.get_logger().info("no taxel stuck any more: every taxel detects onsets again")
         else:
             self.get_logger().warning(message)
         self.diagnostics.publish()
-
-    def _check_taxels(self) -> tuple[Level, str, dict[str, object]]:
-        """Taxels stuck at their ceiling (NUSkin): WARN naming them while any is."""
-        if self.event_windower is None:  # not added for BioTac
-            return Level.OK, "no taxels", {}
-        return self.event_windower.stuck_status()
 
     def _on_motion_start(self, msg: ContactGroundTruth) -> None:
         if self.stage.on_motion_start(stamp_to_ns(msg.header.stamp)):

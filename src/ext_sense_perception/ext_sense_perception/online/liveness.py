@@ -45,11 +45,10 @@ class Fault:
 
 @dataclass
 class StreamLiveness(StallCounts):
-    """Tracks one input stream's arrivals and says when it stalls or runs late.
+    """One input stream's arrivals (``stream`` names it): when it stalls, runs late or loses input.
 
-    ``stream`` names it in messages; silence while streaming beyond ``warn_ns`` is a stall, beyond
-    ``error_ns`` an ERROR; a packet ``late_ns`` over the usual delay is late. ``clock`` (monotonic
-    ns) is injectable so tests never sleep.
+    Thresholds as in the module docstring; ``clock`` (monotonic ns) is injectable so tests never
+    sleep.
     """
 
     stream: str

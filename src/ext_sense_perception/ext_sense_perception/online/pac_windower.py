@@ -14,8 +14,7 @@ from ext_sense_runtime.enums import Sensor, Task
 class PacWindower(WindowerBase):
     """Contact windows from BioTac PAC samples (one or more sensors, 2200 Hz).
 
-    Onset: the RMS deviation of PAC from its tracked baseline over ``pac_energy_window_ns``,
-    averaged over sensors, exceeds ``max(pac_min_rms, pac_threshold_sigma * noise_rms)``, the noise
+    Onset rule: :class:`~.window.WindowConfig`, the deviation averaged over sensors, the noise
     tracked while no window is pending. Gaps and invalid samples hold the last value (counted).
     """
 

@@ -182,10 +182,6 @@ class WindowStage:
         """Declare the stream complete up to ``now_ns`` (no more data before it will come)."""
         return self.windower.advance(int(now_ns))
 
-    def next_due_ns(self) -> int | None:
-        """Stream time at which the next pending window becomes due, ns (None: none pending)."""
-        return self.windower.next_due_ns
-
     def flush(self) -> list[ContactWindow]:
         """Close every pending window (the stream stopped); tails are zero-padded."""
         return self.windower.flush()

@@ -18,11 +18,9 @@ BUCKET_NS = 100 * MS
 
 
 class StuckTaxels:
-    """Which taxels (ids ``1..n_taxels``) fire at their ceiling for too long.
+    """Which taxels (ids ``1..n_taxels``) are stuck, rates counted over ``bucket_ns`` (see module).
 
-    A taxel at ``rate_hz`` or more, counted over ``bucket_ns`` of stream time, for longer than
-    ``after_ns`` (longer than any contact) is stuck. PerceptionError: a non-positive rate, time or
-    bucket.
+    PerceptionError: a non-positive rate, time or bucket.
     """
 
     def __init__(

@@ -73,17 +73,6 @@ class WindowerBase:
         """Onsets whose final window is not yet emitted, ns."""
         return tuple(p.onset_ns for p in self._pending)
 
-    @property
-    def next_due_ns(self) -> int | None:
-        """Stream time at which the next window becomes due, ns (None: none pending)."""
-        due = [
-            p.onset_ns + post
-            for p in self._pending
-            for post in (*self.config.anytime_post_ns, self.config.post_ns)
-            if post not in p.done
-        ]
-        return min(due) if due else None
-
     def mark_onset(self, onset_ns: int) -> bool:
         """Start a window at an onset known from outside; False if debounced."""
         return self._add_onset(int(onset_ns))
@@ -209,10 +198,9 @@ class WindowerBase:
 
 
 class EventWindower(WindowerBase):
-    """Contact windows from a NUSkin event stream.
+    """Contact windows from a NUSkin event stream (onset rule: :class:`~.window.WindowConfig`).
 
-    Onset: the first event of the first burst of ``activity_min_events`` events from at least
-    ``activity_min_taxels`` taxels within ``activity_window_ns``. Stuck taxels
+    The onset is the first event of the first qualifying burst. Stuck taxels
     (:class:`.stuck_taxels.StuckTaxels`) are left out of it until they quiet, and windows cut while
     one is stuck are degraded.
     """

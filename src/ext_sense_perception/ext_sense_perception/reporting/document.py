@@ -78,9 +78,8 @@ def source_lines(prov: dict[str, Any]) -> list[str]:
     """The sentence under a data set's heading saying where its windows come from."""
     if prov["source"] != "simulator":
         return ["Recorded data (not simulated).", ""]
-    commit = f"simulator commit {prov['sim_commit']}" if prov["sim_commit"] else "simulator "
-    commit += "" if prov["sim_commit"] else "commit not given"
-    return [f"Simulated: scene `{prov['scene']}`, seed {prov['seed']}, {commit}.", ""]
+    scene, seed, commit = prov["scene"], prov["seed"], prov["sim_commit"] or "not given"
+    return [f"Simulated: scene `{scene}`, seed {seed}, simulator commit {commit}.", ""]
 
 
 def sources_table(records: list[dict[str, Any]]) -> list[str]:

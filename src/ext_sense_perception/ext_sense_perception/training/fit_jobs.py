@@ -34,10 +34,9 @@ def _kept(key: str, value: Any) -> Any:
 
 
 class FitCache:
-    """Finished fits on disk by key, in ``joblib.Memory`` stores under ``directory``.
+    """Finished fits on disk by key, in ``joblib.Memory`` stores under ``directory`` (made on put).
 
-    Joblib writes entries atomically and empties a store when :func:`_kept`'s code changes. The
-    directory is made by the first :meth:`put`.
+    Joblib writes entries atomically and empties a store when :func:`_kept`'s code changes.
     """
 
     def __init__(self, directory: str | Path) -> None:
@@ -115,12 +114,9 @@ class _Lines:
 
 
 class FitRunner:
-    """Runs fit jobs with joblib, here or on a Dask client; caches results by key.
+    """Runs fit jobs with joblib, here or on a Dask ``client`` (None: here); caches results by key.
 
-    Args:
-        client: A ``distributed.Client`` (None: run in this process).
-        cache: Where finished fits are kept (None: nowhere).
-        progress: Show a progress line on stderr (into a log: a line every :data:`LOG_EVERY_S`).
+    ``progress`` shows a progress line on stderr (into a log: a line every :data:`LOG_EVERY_S`).
     """
 
     def __init__(

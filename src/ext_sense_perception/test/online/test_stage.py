@@ -255,20 +255,18 @@ def test_scoreboard_lists_a_degraded_final_estimate_and_does_not_score_it():
     assert [e.onset_ns for e in board.degraded] == [T0]
 
 
-def test_next_due_is_the_earliest_pending_window_end_and_an_empty_batch_closes_it():
+def test_an_empty_batch_stamped_past_a_window_end_closes_it():
     config = WindowConfig.for_task("tap_localization", "nuskin")
     stage = WindowStage(config)
-    assert stage.next_due_ns() is None
     batches = tap_stream([10.0], 60.0, noise_per_s=0.0)
     got = _feed(stage, batches)
     onset = stage.windower.pending_onsets[0]
     done = {w.post_onset_ns for w in got}
     assert done == {25 * MS}  # the batches (empty ones too) reached onset + 49 ms
-    assert stage.next_due_ns() == onset + 50 * MS
     # an empty batch stamped past the final window's end: its stamp is stream time
     late = taxel_event_batch(onset + 260 * MS, [], [], [], [])
     closed = stage.on_events(late)
     assert [w.post_onset_ns for w in closed] == [50 * MS, 100 * MS, 150 * MS, 250 * MS]
     assert not closed[-1].provisional
     assert not closed[-1].truncated
-    assert stage.next_due_ns() is None
+    assert not stage.windower.pending_onsets
