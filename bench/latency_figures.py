@@ -116,12 +116,14 @@ class Source:
 
 
 class NodeWork(NamedTuple):
-    """Per final window, ms, measured in this process on the same stream."""
+    """Per final window, ms, measured here on the same stream.
+
+    ``cut``: the window node's decode and cut of the input that closed it; ``compute``: the
+    model's features + ONNX Runtime on it.
+    """
 
     cut: list[float]
-    """The window node's core on the input that closed the window (decode + cut)."""
     compute: list[float]
-    """The model: features + ONNX Runtime on the window."""
 
 
 def node_work(model_dir: Path, inputs: list[Any]) -> NodeWork:
@@ -155,16 +157,16 @@ def node_work(model_dir: Path, inputs: list[Any]) -> NodeWork:
 
 
 class Final(NamedTuple):
-    """One final estimate as the bench saw it, wall ns (the driver's clock)."""
+    """One final estimate as the bench saw it, wall ns (the driver's clock).
+
+    Window end (onset + post-onset time), the window at the bench's subscriber, the estimate
+    ready (``end_ns`` + its ``compute_latency``) and at the bench.
+    """
 
     end_ns: int
-    """Window end: onset + post-onset time."""
     window_received_ns: int
-    """The window reached the bench's subscriber (beside ``contact_inference``'s)."""
     ready_ns: int
-    """The estimate was ready: ``end_ns`` + its ``compute_latency``."""
     received_ns: int
-    """The estimate reached the bench."""
 
 
 def hops(finals: list[Final], published: list[tuple[int, int]]) -> dict[str, object]:

@@ -9,27 +9,13 @@ from dataclasses import dataclass
 class LineCounters:
     """What a :class:`~ext_sense_drivers.aces.decoder.LineDecoder` has seen so far.
 
-    Attributes:
-        samples: Line samples taken in (including replaced non-finite ones).
-        nonfinite_samples: NaN/inf samples replaced by 0.
-        bytes_dropped: Trailing odd byte discarded at ``flush``.
-        detections: Events emitted.
-        cancellations: Signatures cancelled, including look-ahead ones found again later.
-        tested: Code correlations evaluated at single starts.
-        passes: Decoding passes run.
-        refreshes: Passes on which the matched filter ran after the onset decoder.
-        undone: Detections reversed by a later one of the other sign (same taxel and start).
-        input_energy: Sum of squared samples taken in, line units squared.
-        residual_energy: Sum of squared residual of the decided samples; a high ratio to
-            ``input_energy`` means missed events, a wrong bank, a gain error, noise or a lost
-            byte.
-        overload_samples: Samples the overload gate blanked.
-        rejected: Detections withheld by the residual test.
-        unresolved: Estimated signatures not resolved: the overloaded energy in signatures,
-            plus the rejected detections, rounded.
-        mean_amplitude: Mean correlation per chip of all detections, line units (0 before
-            the first): the chip amplitude actually on the line.
-        amplitude_in_use: The chip amplitude cancelled with now (nominal or tracked).
+    ``nonfinite_samples`` were replaced by 0; ``cancellations`` include look-ahead ones found
+    again later; ``refreshes``: passes on which the matched filter ran after the onset decoder;
+    ``undone``: detections reversed by a later one of the other sign. Energies are sums of
+    squares in line units: a high residual to input ratio means missed events, a wrong bank, a
+    gain error, noise or a lost byte. ``unresolved``: the overloaded energy in signatures plus
+    the detections the residual test withheld (``rejected``). ``mean_amplitude`` (0 before the
+    first detection) is the chip amplitude on the line, ``amplitude_in_use`` the one cancelled.
     """
 
     samples: int = 0

@@ -12,21 +12,11 @@ from ext_sense_drivers.biotac.frame_layout import MAX_SENSORS, SEQ_BACKWARD, SEQ
 
 @dataclass(frozen=True)
 class BridgeCounters:
-    """Decoder counters since it was created (monotonic).
+    """Decoder counters since it was created (monotonic; the last five per sensor slot 0..4).
 
-    Attributes:
-        bytes_total: Bytes fed.
-        frames: Standard frames decoded (all sensors).
-        skipped_bytes: Bytes not part of any CRC-valid frame.
-        crc_failures: Sync candidates whose CRC failed.
-        truncated: Sync candidates cut off by the end of the stream or a link reset.
-        other_frames: CRC-valid frames with a word count other than 44 (skipped).
-        bad_sensor_frames: CRC-valid standard frames naming a slot outside 0..4 (skipped).
-        sensor_frames: Standard frames per sensor slot 0..4.
-        dropped_frames: Frames missing from sequence gaps, per sensor.
-        parity_errors: Words failing their odd-parity check, per sensor.
-        error_replies: BioTac error replies, per sensor.
-        seq_resets: Backwards steps of the sequence number, per sensor.
+    ``skipped_bytes`` are in no CRC-valid frame; ``crc_failures`` and ``truncated`` (cut off by
+    the stream's end or a link reset) count sync candidates; ``other_frames`` (not 44 words) and
+    ``bad_sensor_frames`` (a slot outside 0..4) are CRC-valid but skipped.
     """
 
     bytes_total: int = 0

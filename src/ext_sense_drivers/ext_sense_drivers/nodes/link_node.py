@@ -91,11 +91,9 @@ def link_status(
 class ManagedLink:
     """The lifecycle of a driver's link, mixed into a ``rclpy.lifecycle.LifecycleNode``.
 
-    configure starts the reader (retrying until the device is there), activate streams,
-    deactivate stops, cleanup and shutdown release the device; a missing or returning device
-    is logged. A liveness level change is published on ``/diagnostics`` at once. The node
-    provides ``reader``, ``_tick``, ``_period_s``, ``guard``, ``liveness`` and
-    ``_diagnostics``, and calls :meth:`start_managed` at the end of ``__init__``.
+    A missing or returning device is logged, a liveness change published at once. The node
+    provides ``reader``, ``_tick``, ``_period_s``, ``guard``, ``liveness`` and ``_diagnostics``,
+    and calls :meth:`start_managed` at the end of ``__init__``.
     """
 
     reader: StreamReader
