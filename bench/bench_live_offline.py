@@ -85,8 +85,7 @@ class Score:
     stable_grasps: int = 0
     released_grasps: int = 0
     unmatched: int = 0
-    degraded: int = 0
-    """Final estimates flagged degraded: not scored, as the estimate monitor does."""
+    degraded: int = 0  # final estimates flagged degraded: not scored, as the monitor does
 
 
 @dataclass
@@ -108,8 +107,7 @@ class RunResult:
     live_releases: int = -1
     packets: int = 0
     packet_seq_gaps: int = 0
-    emulator: str = ""
-    """The emulated sensor's own count of late writes."""
+    emulator: str = ""  # the emulated sensor's own count of late writes
 
 
 # ------------------------------------------------------------------------------ environment
@@ -407,14 +405,10 @@ def live_run(
     t0 = time.monotonic()
     try:
         time.sleep(1.0 if hog else 0.0)
-        with recording(bag, topics, env, tmp / f"{tag}_record.log"):
-            if task is HANDOVER:
-                with gripper_emulator() as port:
-                    summary = run_graph(
-                        task, args | {"gripper_port": port}, env, tmp / f"{tag}.log", timeout
-                    )
-            else:
-                summary = run_graph(task, args, env, tmp / f"{tag}.log", timeout)
+        gripper = gripper_emulator() if task is HANDOVER else contextlib.nullcontext()
+        with recording(bag, topics, env, tmp / f"{tag}_record.log"), gripper as port:
+            more = {"gripper_port": port} if port else {}
+            summary = run_graph(task, args | more, env, tmp / f"{tag}.log", timeout)
         after = loadavg()
     finally:
         stop_hog(hog)

@@ -31,19 +31,11 @@ class Frame(NamedTuple):
 class BridgeFrames(NamedTuple):
     """A batch of decoded standard frames as parallel arrays (``n`` frames).
 
-    Attributes:
-        sensor_id: ``(n,)`` uint8, 0..4.
-        seq: ``(n,)`` uint16.
-        gap: ``(n,)`` int64, frames of that sensor missing just before this one.
-        seq_reset: ``(n,)`` bool, ``seq`` stepped backwards (bridge restart): no gap counted.
-        words: ``(n, 44)`` uint16 reply words as received.
-        pac: ``(n, 22)`` uint16 PAC samples (0 where invalid).
-        electrodes: ``(n, 19)`` uint16 E01..E19 (0 where invalid).
-        pdc, tac, tdc: ``(n,)`` uint16 (0 where invalid).
-        invalid_mask: ``(n,)`` uint64, bit i set when word i failed parity or was an error reply.
-        parity_errors: ``(n,)`` uint8, words of the frame failing parity.
-        error_replies: ``(n,)`` uint8, BioTac error replies in the frame.
-        offset: ``(n,)`` int64 stream position of each frame's first byte.
+    ``gap``: frames of that sensor missing just before this one; ``seq_reset``: ``seq`` stepped
+    backwards (bridge restart), no gap counted; ``words`` (n, 44) as received; ``pac`` (n, 22),
+    ``electrodes`` (n, 19: E01..E19), ``pdc``, ``tac``, ``tdc``: 0 where invalid;
+    ``invalid_mask`` bit i: word i failed parity or was an error reply; ``offset``: stream
+    position of each frame's first byte.
     """
 
     sensor_id: NDArray[np.uint8]
