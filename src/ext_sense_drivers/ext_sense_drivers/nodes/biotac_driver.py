@@ -1,9 +1,8 @@
 """``biotac_driver`` node: BioTac bridge bytes in, ``SensorPacket`` out.
 
-A reader thread owns the link (serial, CAN or a capture file); a timer publishes what arrived
-on ``packets`` (``biotac-bridge-v1``). The node decodes its own packets (cheap at 100 frames/s)
-only to watch each expected sensor: ``/diagnostics`` carries the link state, frames/s, the
-decode counters and liveness (a bridge sends every sensor's frames at 100 Hz).
+A timer publishes what the link (serial, CAN or a capture file) read on ``packets``
+(``biotac-bridge-v1``). The node decodes its own packets (cheap at 100 frames/s) only to watch
+each expected sensor's rate, counters and liveness on ``/diagnostics``.
 """
 
 from __future__ import annotations

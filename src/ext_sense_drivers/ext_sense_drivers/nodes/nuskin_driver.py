@@ -1,10 +1,9 @@
 """``nuskin_driver`` node: NUSkin receiver bytes in, ``SensorPacket`` out.
 
-A reader thread owns the port (serial, CAN or a capture file); every ``batch_period_s`` the
-bytes that arrived go out on ``packets`` (``nuskin-words-v1`` or ``aces-line-v1``) undecoded.
-In words mode a silent stream gets a "nothing read" packet every ``quiet_packets_period_s``
-and each connection an "opened" packet, so consumers and replays close the same windows.
-``/diagnostics``: link state, word rate and liveness (a powered receiver is never silent).
+Every ``batch_period_s`` the bytes read (serial, CAN or a capture file) go out undecoded on
+``packets`` (``nuskin-words-v1`` or ``aces-line-v1``). In words mode a silent stream gets a
+"nothing read" packet every ``quiet_packets_period_s`` and each connection an "opened" packet,
+so consumers and replays close the same windows.
 """
 
 from __future__ import annotations

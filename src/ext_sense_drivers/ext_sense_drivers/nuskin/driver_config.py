@@ -44,13 +44,10 @@ class DriverConfig(LinkConfig):
         return self.choice("mode", Mode)
 
     def file_rate(self) -> float | None:
-        """Replay rate of a file in bytes/s, or ``None`` for flat out.
+        """Replay rate of a file in bytes/s, or ``None`` for flat out (NuskinError if unknown).
 
         ``file_bytes_per_s > 0`` wins; else ``file_pace``: ``flat``, ``recorded`` (from the
-        lab capture's ``.tact`` markers) or ``serial`` (8N1 at ``baud``).
-
-        Raises:
-            NuskinError: Unknown pace, or no ``.tact`` beside the capture for ``recorded``.
+        lab capture's ``.tact`` markers, which must be there) or ``serial`` (8N1 at ``baud``).
         """
         if self.file_bytes_per_s > 0:
             return float(self.file_bytes_per_s)

@@ -47,14 +47,10 @@ class FlagPolarity(IntEnum):
 
 
 class DecodedWords(NamedTuple):
-    """Words decoded from one chunk, parallel arrays in stream order.
+    """Words decoded from one chunk, ``(n,)`` arrays in stream order.
 
-    Attributes:
-        taxel: Taxel ids 1..80, ``(n,)`` uint16.
-        value: 10-bit value field, ``(n,)`` uint16.
-        flag: The flag bit, ``(n,)`` uint8.
-        polarity: The flag mapped by the decoder's :class:`FlagPolarity`, ``(n,)`` int8.
-        end: Stream offset just past each word's last byte, ``(n,)`` int64.
+    ``polarity`` is the flag bit mapped by the decoder's :class:`FlagPolarity`; ``end`` the stream
+    offset just past each word's last byte.
     """
 
     taxel: npt.NDArray[np.uint16]

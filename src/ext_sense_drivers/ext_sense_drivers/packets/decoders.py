@@ -161,8 +161,7 @@ class NuskinPacketDecoder(_SeqDecoder):
     def decode(self, packet: Any) -> DecodedEvents:
         """Decode one packet; the stream restarts at a new connection, a gap or its end.
 
-        Raises:
-            PacketError: The packet is malformed or of another encoding (counted, dropped).
+        PacketError (counted, dropped) for a malformed packet or another encoding.
         """
         from ext_sense_drivers.nuskin.streams import FlaggedEvents
 
@@ -225,9 +224,7 @@ class BioTacPacketDecoder(_SeqDecoder):
         """Decode one packet; each frame keeps the arrival of the read that completed it.
 
         No flush at a reconnection (a cut-off frame fails its CRC), only at ``end_of_stream``.
-
-        Raises:
-            PacketError: The packet is malformed or of another encoding (counted, dropped).
+        PacketError (counted, dropped) for a malformed packet or another encoding.
         """
         from ext_sense_drivers.biotac.frame_layout import STANDARD_FRAME_SIZE
 

@@ -223,12 +223,7 @@ class RobotiqClient:
         )
 
     def read_status(self, raise_on_fault: bool = False) -> GripperStatus:
-        """Poll the status registers.
-
-        Raises:
-            RobotiqError: The exchange failed, or (``raise_on_fault``) gFLT is not zero
-                (``kind`` GRIPPER_FAULT).
-        """
+        """Poll the status (RobotiqError; GRIPPER_FAULT if ``raise_on_fault`` and gFLT != 0)."""
         status = GripperStatus.from_registers(self.read_registers(STATUS_REGISTER, self.read_count))
         self.last_status = status
         if raise_on_fault and status.fault:
