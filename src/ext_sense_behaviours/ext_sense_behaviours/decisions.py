@@ -22,11 +22,7 @@ class Decision:
 
 @dataclass
 class DecisionLog:
-    """Keeps decisions in order and hands each to an optional sink (a node's logger).
-
-    Only the last ``max_entries`` are kept, so a node that runs for days does not grow; the sink
-    sees every one.
-    """
+    """Keeps the last ``max_entries`` decisions (a node runs for days); a sink sees every one."""
 
     sink: Callable[[Decision], None] | None = None
     entries: list[Decision] = field(default_factory=list)

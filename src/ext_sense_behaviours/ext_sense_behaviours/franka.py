@@ -74,16 +74,11 @@ def _raised(v: Any) -> bool:
 
 
 def reading_from_robot_state(msg: Any) -> RobotReading:
-    """Convert a ``FrankaRobotState`` into the adapter's reading.
+    """Convert a ``FrankaRobotState`` into the adapter's reading (BehaviourError if malformed).
 
-    Uses ``header.stamp``, ``o_f_ext_hat_k.wrench.force`` (external force, base frame),
-    ``o_t_ee.pose.position.z``, ``measured_joint_state`` and ``collision_indicators``. The vertical
-    velocity is ``J(q) dq`` from the measured joint velocities (the message carries no measured
-    Cartesian velocity; under the trajectory controller the commanded twist is not set); NaN
-    when the velocities are missing.
-
-    Raises:
-        BehaviourError: A field is missing or malformed (another franka_msgs version).
+    Force from ``o_f_ext_hat_k`` (base frame), height from ``o_t_ee``. The vertical velocity is
+    ``J(q) dq`` from the measured joint velocities (NaN without them): the message carries no
+    measured Cartesian velocity, and the trajectory controller sets no commanded twist.
     """
     try:
         stamp_ns = stamp_to_ns(msg.header.stamp)
@@ -122,9 +117,7 @@ def collision_behavior_values(
     ``force_n`` (Cartesian x, y, z) and ``torque_nm`` (about x, y, z) and then needs error
     recovery, while the software stop at 10 N does not. Contact ("lower") thresholds are half
     the collision ("upper") ones; acceleration and nominal phases share the values.
-
-    Raises:
-        BehaviourError: A threshold is not positive.
+    BehaviourError if a threshold is not positive.
     """
     for name, value in (
         ("force_n", force_n),
