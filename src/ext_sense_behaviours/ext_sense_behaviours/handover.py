@@ -172,9 +172,8 @@ class HandoverMachine:
     def on_fault(self, reason: str, now_ns: int) -> Decision:
         """The gripper or its link failed: keep holding, stop commanding, re-read the status.
 
-        After the open command a link error leaves its outcome unknown (the write may have
-        been carried out), and the reason says so; :meth:`on_status_after_fault` then records
-        the real finger state once the link answers.
+        After the open command the outcome is unknown (the write may have been carried out):
+        :meth:`on_status_after_fault` records the real finger state once the link answers.
         """
         if self.state in (HandoverState.RELEASED, HandoverState.FAULT):
             return self._note(now_ns, f"fault after the end: {reason}")
