@@ -25,6 +25,11 @@ INPUT_NAME = "window"
 _registered = False
 
 
+def _ints(*values: int) -> np.ndarray:
+    """An int64 constant: a shape, axes or slice bounds."""
+    return np.array(values, np.int64)
+
+
 def _shape_calculator(operator) -> None:
     from skl2onnx.common.data_types import FloatTensorType
 
@@ -33,87 +38,60 @@ def _shape_calculator(operator) -> None:
 
 
 def _converter(scope, operator, container) -> None:
-    from skl2onnx.algebra.onnx_ops import (
-        OnnxAbs,
-        OnnxAdd,
-        OnnxConcat,
-        OnnxGather,
-        OnnxIdentity,
-        OnnxLog,
-        OnnxMatMul,
-        OnnxMul,
-        OnnxReduceSum,
-        OnnxRelu,
-        OnnxReshape,
-        OnnxSlice,
-        OnnxSqrt,
-        OnnxSub,
-    )
+    from skl2onnx.algebra import onnx_ops as ops
 
     op: WindowFeatures = operator.raw_operator
     v = container.target_opset
     f32 = np.float32
-    x = OnnxReshape(
-        operator.inputs[0], np.array([-1, op.n_channels, op.n_samples], np.int64), op_version=v
-    )
+    x = ops.OnnxReshape(operator.inputs[0], _ints(-1, op.n_channels, op.n_samples), op_version=v)
     if len(op.channel_index_) != op.n_channels or np.any(
         op.channel_index_ != np.arange(op.n_channels)
     ):
-        x = OnnxGather(x, op.channel_index_.astype(np.int64), axis=1, op_version=v)
+        x = ops.OnnxGather(x, op.channel_index_.astype(np.int64), axis=1, op_version=v)
     n_sel = len(op.channel_index_)
     kind = op.kind_
     maps = [m.astype(f32) for m in op.time_maps_]
     if kind in (FeatureKind.BASELINE, FeatureKind.EST):
-        y = OnnxMatMul(x, maps[0], op_version=v)
-        y = OnnxReshape(y, np.array([-1, n_sel * maps[0].shape[1]], np.int64), op_version=v)
+        y = ops.OnnxMatMul(x, maps[0], op_version=v)
+        y = ops.OnnxReshape(y, _ints(-1, n_sel * maps[0].shape[1]), op_version=v)
     elif kind in (FeatureKind.FFT, FeatureKind.AUTOENCODER):
-        re = OnnxMatMul(x, maps[0], op_version=v)
-        im = OnnxMatMul(x, maps[1], op_version=v)
-        power = OnnxAdd(OnnxMul(re, re, op_version=v), OnnxMul(im, im, op_version=v), op_version=v)
-        y = OnnxMul(
-            OnnxSqrt(power, op_version=v),
+        re = ops.OnnxMatMul(x, maps[0], op_version=v)
+        im = ops.OnnxMatMul(x, maps[1], op_version=v)
+        power = ops.OnnxAdd(
+            ops.OnnxMul(re, re, op_version=v), ops.OnnxMul(im, im, op_version=v), op_version=v
+        )
+        y = ops.OnnxMul(
+            ops.OnnxSqrt(power, op_version=v),
             np.array([FFT_SCALE_IN * FFT_SCALE_OUT], f32),
             op_version=v,
         )
-        y = OnnxReshape(y, np.array([-1, n_sel * maps[0].shape[1]], np.int64), op_version=v)
+        y = ops.OnnxReshape(y, _ints(-1, n_sel * maps[0].shape[1]), op_version=v)
         if kind is FeatureKind.AUTOENCODER:
-            y = OnnxMul(
-                OnnxSub(y, op.ae_mean_.astype(f32), op_version=v),
+            y = ops.OnnxMul(
+                ops.OnnxSub(y, op.ae_mean_.astype(f32), op_version=v),
                 (1.0 / op.ae_scale_).astype(f32),
                 op_version=v,
             )
             for w, b in op.ae_layers_:
-                y = OnnxRelu(
-                    OnnxAdd(
-                        OnnxMatMul(y, w.astype(f32), op_version=v), b.astype(f32), op_version=v
+                y = ops.OnnxRelu(
+                    ops.OnnxAdd(
+                        ops.OnnxMatMul(y, w.astype(f32), op_version=v), b.astype(f32), op_version=v
                     ),
                     op_version=v,
                 )
     else:  # ACTIVITY
         nb = op.activity_bins_
         n_seg = maps[0].shape[1] - nb
-        a = OnnxMatMul(OnnxAbs(x, op_version=v), maps[0], op_version=v)
+        a = ops.OnnxMatMul(ops.OnnxAbs(x, op_version=v), maps[0], op_version=v)
         one = np.array([1.0], f32)
-        over = OnnxSlice(
-            a,
-            np.array([0], np.int64),
-            np.array([nb], np.int64),
-            np.array([2], np.int64),
-            op_version=v,
-        )
-        over = OnnxReduceSum(over, np.array([1], np.int64), keepdims=0, op_version=v)
-        over = OnnxLog(OnnxAdd(over, one, op_version=v), op_version=v)
-        seg = OnnxSlice(
-            a,
-            np.array([nb], np.int64),
-            np.array([nb + n_seg], np.int64),
-            np.array([2], np.int64),
-            op_version=v,
-        )
-        seg = OnnxLog(OnnxAdd(seg, one, op_version=v), op_version=v)
-        seg = OnnxReshape(seg, np.array([-1, n_sel * n_seg], np.int64), op_version=v)
-        y = OnnxConcat(over, seg, axis=1, op_version=v)
-    final = OnnxIdentity(y, op_version=v, output_names=operator.outputs[:1])
+        over = ops.OnnxSlice(a, _ints(0), _ints(nb), _ints(2), op_version=v)
+        over = ops.OnnxReduceSum(over, _ints(1), keepdims=0, op_version=v)
+        over = ops.OnnxLog(ops.OnnxAdd(over, one, op_version=v), op_version=v)
+        seg = ops.OnnxSlice(a, _ints(nb), _ints(nb + n_seg), _ints(2), op_version=v)
+        seg = ops.OnnxLog(ops.OnnxAdd(seg, one, op_version=v), op_version=v)
+        seg = ops.OnnxReshape(seg, _ints(-1, n_sel * n_seg), op_version=v)
+        y = ops.OnnxConcat(over, seg, axis=1, op_version=v)
+    final = ops.OnnxIdentity(y, op_version=v, output_names=operator.outputs[:1])
     final.add_to(scope, container)
 
 
@@ -129,15 +107,7 @@ def _svr_converter(scope, operator, container) -> None:
     RBF distances are expanded on inputs centred on the support vectors' mean (less float32
     cancellation) and clipped at 0.
     """
-    from skl2onnx.algebra.onnx_ops import (
-        OnnxAdd,
-        OnnxExp,
-        OnnxMatMul,
-        OnnxMax,
-        OnnxMul,
-        OnnxReduceSum,
-        OnnxSub,
-    )
+    from skl2onnx.algebra import onnx_ops as ops
 
     op = operator.raw_operator
     v = container.target_opset
@@ -149,21 +119,21 @@ def _svr_converter(scope, operator, container) -> None:
     out = operator.outputs[:1]
     if op.kernel == "linear":
         w = (sv.T @ coef).astype(f32)
-        y = OnnxAdd(OnnxMatMul(x, w, op_version=v), b, op_version=v, output_names=out)
+        y = ops.OnnxAdd(ops.OnnxMatMul(x, w, op_version=v), b, op_version=v, output_names=out)
     elif op.kernel == "rbf":
         centre = sv.mean(axis=0)
         svc = sv - centre
-        xc = OnnxSub(x, centre.astype(f32)[None, :], op_version=v)
-        axes = np.array([1], np.int64)
-        xx = OnnxReduceSum(OnnxMul(xc, xc, op_version=v), axes, keepdims=1, op_version=v)
-        cross = OnnxMatMul(xc, (-2.0 * svc.T).astype(f32), op_version=v)
+        xc = ops.OnnxSub(x, centre.astype(f32)[None, :], op_version=v)
+        axes = _ints(1)
+        xx = ops.OnnxReduceSum(ops.OnnxMul(xc, xc, op_version=v), axes, keepdims=1, op_version=v)
+        cross = ops.OnnxMatMul(xc, (-2.0 * svc.T).astype(f32), op_version=v)
         ss = (svc * svc).sum(axis=1).astype(f32)[None, :]
-        d2 = OnnxAdd(OnnxAdd(cross, xx, op_version=v), ss, op_version=v)
-        d2 = OnnxMax(d2, np.array([0.0], f32), op_version=v)
+        d2 = ops.OnnxAdd(ops.OnnxAdd(cross, xx, op_version=v), ss, op_version=v)
+        d2 = ops.OnnxMax(d2, np.array([0.0], f32), op_version=v)
         gamma = np.array([-float(op._gamma)], f32)
-        k = OnnxExp(OnnxMul(d2, gamma, op_version=v), op_version=v)
-        y = OnnxAdd(
-            OnnxMatMul(k, coef.astype(f32), op_version=v), b, op_version=v, output_names=out
+        k = ops.OnnxExp(ops.OnnxMul(d2, gamma, op_version=v), op_version=v)
+        y = ops.OnnxAdd(
+            ops.OnnxMatMul(k, coef.astype(f32), op_version=v), b, op_version=v, output_names=out
         )
     else:
         raise PerceptionError(f"SVR kernel {op.kernel!r} has no ONNX export here (linear, rbf).")
@@ -175,37 +145,29 @@ def _taxel_stack_converter(scope, operator, container) -> None:
 
     Uses :meth:`TaxelStackSVR.onnx_arrays`; distances as in :func:`_svr_converter`.
     """
-    from skl2onnx.algebra.onnx_ops import (
-        OnnxAdd,
-        OnnxExp,
-        OnnxMatMul,
-        OnnxMax,
-        OnnxMul,
-        OnnxReduceSum,
-        OnnxReshape,
-        OnnxSub,
-        OnnxTranspose,
-    )
+    from skl2onnx.algebra import onnx_ops as ops
 
     op = operator.raw_operator
     v = container.target_opset
     f32 = np.float32
     arr = op.onnx_arrays()
     n_ch, _, d = arr["sv"].shape
-    x = OnnxReshape(operator.inputs[0], np.array([-1, n_ch, d], np.int64), op_version=v)
-    xc = OnnxSub(x, arr["centre"].astype(f32)[None, :, :], op_version=v)
-    xc = OnnxTranspose(xc, perm=[1, 0, 2], op_version=v)  # (n_ch, n, d)
-    xx = OnnxReduceSum(
-        OnnxMul(xc, xc, op_version=v), np.array([2], np.int64), keepdims=1, op_version=v
-    )
-    cross = OnnxMatMul(xc, (-2.0 * arr["sv"].transpose(0, 2, 1)).astype(f32), op_version=v)
+    x = ops.OnnxReshape(operator.inputs[0], _ints(-1, n_ch, d), op_version=v)
+    xc = ops.OnnxSub(x, arr["centre"].astype(f32)[None, :, :], op_version=v)
+    xc = ops.OnnxTranspose(xc, perm=[1, 0, 2], op_version=v)  # (n_ch, n, d)
+    xx = ops.OnnxReduceSum(ops.OnnxMul(xc, xc, op_version=v), _ints(2), keepdims=1, op_version=v)
+    cross = ops.OnnxMatMul(xc, (-2.0 * arr["sv"].transpose(0, 2, 1)).astype(f32), op_version=v)
     ss = (arr["sv"] ** 2).sum(axis=2)[:, None, :].astype(f32)  # (n_ch, 1, n_sv)
-    d2 = OnnxAdd(OnnxAdd(cross, xx, op_version=v), ss, op_version=v)
-    d2 = OnnxMax(d2, np.array([0.0], f32), op_version=v)
-    k = OnnxExp(OnnxMul(d2, (-arr["gamma"]).astype(f32)[:, None, None], op_version=v), op_version=v)
-    per_channel = OnnxMatMul(k, arr["coef"].astype(f32)[:, :, None], op_version=v)  # (n_ch, n, 1)
-    total = OnnxReduceSum(per_channel, np.array([0], np.int64), keepdims=0, op_version=v)
-    y = OnnxAdd(
+    d2 = ops.OnnxAdd(ops.OnnxAdd(cross, xx, op_version=v), ss, op_version=v)
+    d2 = ops.OnnxMax(d2, np.array([0.0], f32), op_version=v)
+    k = ops.OnnxExp(
+        ops.OnnxMul(d2, (-arr["gamma"]).astype(f32)[:, None, None], op_version=v), op_version=v
+    )
+    per_channel = ops.OnnxMatMul(
+        k, arr["coef"].astype(f32)[:, :, None], op_version=v
+    )  # (n_ch, n, 1)
+    total = ops.OnnxReduceSum(per_channel, _ints(0), keepdims=0, op_version=v)
+    y = ops.OnnxAdd(
         total,
         np.array([[arr["intercept"]]], f32),
         op_version=v,
