@@ -132,21 +132,13 @@ def stream_windows(
 ) -> tuple[list[ContactWindow], int, int]:
     """The final windows, decoded word count and skipped bytes of :func:`cut_stream`."""
     cut = cut_stream(
-        writes,
-        config,
-        baud=baud,
-        read_period_ns=read_period_ns,
-        read_jitter=read_jitter,
-        seed=seed,
+        writes, config, baud=baud, read_period_ns=read_period_ns, read_jitter=read_jitter, seed=seed
     )
     return cut.windows, cut.words, cut.skipped_bytes
 
 
 def recut(
-    events: EventBlock,
-    onsets_ns: np.ndarray,
-    config: WindowConfig,
-    shifts_ns: np.ndarray | int = 0,
+    events: EventBlock, onsets_ns: np.ndarray, config: WindowConfig, shifts_ns: np.ndarray | int = 0
 ) -> np.ndarray:
     """Windows ``(n, n_taxels, n_samples)`` of ``events`` cut again with each onset shifted.
 

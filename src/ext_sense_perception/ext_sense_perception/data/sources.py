@@ -16,24 +16,14 @@ from ext_sense_perception.data.importers import (
     load_sim_dataset,
 )
 from ext_sense_perception.data.refractory import refractory_mask
-from ext_sense_perception.data.validation import (
-    RULE_LABEL,
-    RULE_TAXEL,
-    RULE_WINDOW,
-    InputPolicy,
-)
+from ext_sense_perception.data.validation import RULE_LABEL, RULE_TAXEL, RULE_WINDOW, InputPolicy
 from ext_sense_perception.data.window_set import WindowSet, file_hash, labels_of, window_set_of
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.model_card import HeldObject
 from ext_sense_perception.online.model_input import Geometry
 from ext_sense_perception.online.window import ContactWindow, WindowConfig, window_from_recording
 from ext_sense_perception.online.windowers import EventWindower
-from ext_sense_perception.profiles import (
-    CAPTURE_LEAD_NS,
-    PAC_PERIOD_NS,
-    Anchor,
-    capture_profile,
-)
+from ext_sense_perception.profiles import CAPTURE_LEAD_NS, PAC_PERIOD_NS, Anchor, capture_profile
 from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_runtime.records import EventBlock
 from ext_sense_runtime.stamps import MS
@@ -200,12 +190,7 @@ def from_food_poking(
     ]
     files = [p for p in files if p.stem.split("_zero_")[0] != "empty" or include_empty]
     ws = window_set_of(
-        config,
-        windows,
-        labels,
-        str(directory),
-        file_hash(*files),
-        excluded=tuple(excluded),
+        config, windows, labels, str(directory), file_hash(*files), excluded=tuple(excluded)
     )
     return ws._replace(anchor=anchor.value)
 

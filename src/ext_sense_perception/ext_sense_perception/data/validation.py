@@ -69,11 +69,7 @@ def _integer_in(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
 
 
 def check_event_rows(
-    t_s: np.ndarray,
-    taxel: np.ndarray,
-    value: np.ndarray | None,
-    where: str,
-    policy: InputPolicy,
+    t_s: np.ndarray, taxel: np.ndarray, value: np.ndarray | None, where: str, policy: InputPolicy
 ) -> np.ndarray:
     """Mask of the rows of a NUSkin event file that satisfy every rule (strict: all, or an error).
 

@@ -66,8 +66,7 @@ class InferenceParameters:
         read_only=True,
     )
     publish_provisional: bool = param(
-        True,
-        "Publish estimates of provisional (anytime) windows on contact_estimate/provisional.",
+        True, "Publish estimates of provisional (anytime) windows on contact_estimate/provisional."
     )
     held_object: str = param(
         "",

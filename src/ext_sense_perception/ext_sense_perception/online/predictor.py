@@ -16,12 +16,7 @@ import onnxruntime as ort
 
 from ext_sense_perception.errors import PerceptionError
 from ext_sense_perception.online.label_set import restrict
-from ext_sense_perception.online.model_card import (
-    ONNX_FILE,
-    SKLEARN_FILE,
-    ModelCard,
-    read_card,
-)
+from ext_sense_perception.online.model_card import ONNX_FILE, SKLEARN_FILE, ModelCard, read_card
 from ext_sense_perception.online.model_input import as_model_input
 from ext_sense_runtime.enums import Sensor, Task
 from ext_sense_runtime.records import Estimate
@@ -143,10 +138,7 @@ class ModelBundle:
 
 
 def load_model(
-    directory: str | Path,
-    backend: str = "onnx",
-    task: str | None = None,
-    sensor: str | None = None,
+    directory: str | Path, backend: str = "onnx", task: str | None = None, sensor: str | None = None
 ) -> ModelBundle:
     """Load a bundle with its anytime models, checked before use rather than at the first window.
 

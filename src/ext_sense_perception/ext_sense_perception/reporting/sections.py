@@ -45,12 +45,7 @@ def dataset_name_of(task: str, sensor: str, path: Path | str) -> str:
 
 
 def taxel_section(
-    ws: WindowSet,
-    run: Runner,
-    name: str,
-    feat0: str,
-    model0: str,
-    n_top: int,
+    ws: WindowSet, run: Runner, name: str, feat0: str, model0: str, n_top: int
 ) -> list[str]:
     """Both fingers against one finger against one taxel, default and linear model side by side.
 

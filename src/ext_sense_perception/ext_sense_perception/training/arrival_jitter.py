@@ -127,11 +127,7 @@ def rechunk_writes(
 
 
 def jitter_window(
-    x: np.ndarray,
-    period_ns: int,
-    onset_bin: int | None,
-    delay: ReadDelay,
-    rng: np.random.Generator,
+    x: np.ndarray, period_ns: int, onset_bin: int | None, delay: ReadDelay, rng: np.random.Generator
 ) -> np.ndarray:
     """One binned NUSkin window as a late reader would have stamped its events (same events, moved).
 

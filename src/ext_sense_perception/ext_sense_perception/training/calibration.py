@@ -122,11 +122,7 @@ def with_calibration(base: WindowSet, calib: WindowSet, weight: int) -> WindowSe
 
 
 def calibrate(
-    bundle: str | Path,
-    calib: Session,
-    out: str | Path,
-    weight: int = DEFAULT_WEIGHT,
-    seed: int = 0,
+    bundle: str | Path, calib: Session, out: str | Path, weight: int = DEFAULT_WEIGHT, seed: int = 0
 ) -> ModelCard:
     """The card (``calibration``, ``label_set`` set) of ``bundle`` adapted to ``calib``'s session.
 

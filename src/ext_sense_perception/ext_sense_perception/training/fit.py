@@ -169,11 +169,7 @@ def fit_model(
 
 
 def fit_anytime(
-    ws: WindowSet,
-    features: str,
-    model: str,
-    posts_ns: tuple[int, ...],
-    **kwargs: Any,
+    ws: WindowSet, features: str, model: str, posts_ns: tuple[int, ...], **kwargs: Any
 ) -> list[TrainedModel]:
     """Models for shortened post-contact windows (anytime estimates), shortest first.
 

@@ -168,10 +168,7 @@ def _taxel_stack_converter(scope, operator, container) -> None:
     )  # (n_ch, n, 1)
     total = ops.OnnxReduceSum(per_channel, _ints(0), keepdims=0, op_version=v)
     y = ops.OnnxAdd(
-        total,
-        np.array([[arr["intercept"]]], f32),
-        op_version=v,
-        output_names=operator.outputs[:1],
+        total, np.array([[arr["intercept"]]], f32), op_version=v, output_names=operator.outputs[:1]
     )
     y.add_to(scope, container)
 

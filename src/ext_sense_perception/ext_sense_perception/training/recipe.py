@@ -87,10 +87,7 @@ def resolve(ws: WindowSet, recipe: Recipe) -> Choice:
     return Choice(features, model, params, default_feature_grid(ws.task, ws.sensor, features))
 
 
-def fit_recipe(
-    ws: WindowSet,
-    recipe: Recipe = Recipe(),
-) -> tuple[TrainedModel, list[TrainedModel]]:
+def fit_recipe(ws: WindowSet, recipe: Recipe = Recipe()) -> tuple[TrainedModel, list[TrainedModel]]:
     """The model and its anytime models the recipe fits on ``ws``, not yet saved."""
     fraction = default_fraction(ws.task) if recipe.arrival_jitter is None else recipe.arrival_jitter
     if fraction:
@@ -116,11 +113,7 @@ def fit_recipe(
     return trained, anytime
 
 
-def train_bundle(
-    ws: WindowSet,
-    out: str | Path,
-    recipe: Recipe = Recipe(),
-) -> ModelCard:
+def train_bundle(ws: WindowSet, out: str | Path, recipe: Recipe = Recipe()) -> ModelCard:
     """Train the recipe's model and anytime models on ``ws`` and save them as a bundle in ``out``.
 
     PerceptionError: too few windows or classes, unknown features or model, failed export.

@@ -63,10 +63,7 @@ class SplitResult(NamedTuple):
 
 def run_split(task: SplitTask, X: np.ndarray, y: np.ndarray) -> SplitResult:
     """Grid search on the split's training part, refit, score its test part (BLAS on one thread)."""
-    with (
-        threadpool_limits(limits=1),
-        tempfile.TemporaryDirectory(prefix="ext_sense_cv_") as cache,
-    ):
+    with threadpool_limits(limits=1), tempfile.TemporaryDirectory(prefix="ext_sense_cv_") as cache:
         pipe = clone(task.pipe)
         if task.cache_features:
             pipe.set_params(memory=Memory(cache, verbose=0))
