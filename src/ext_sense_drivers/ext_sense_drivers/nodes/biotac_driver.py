@@ -72,7 +72,8 @@ class BioTacParameters(LinkParameters):
     )
     frame_id_prefix: str = param(
         BioTacDriverConfig.frame_id_prefix,
-        "header.frame_id is this prefix plus the sensor slot (biotac_0 ... biotac_4).",
+        "header.frame_id of the packets: this prefix without its trailing '_' (one link "
+        "carries every sensor slot; a frame's slot is in its bytes).",
         read_only=True,
     )
     expected_sensors: tuple[int, ...] = param(
