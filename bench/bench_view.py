@@ -1,6 +1,6 @@
 """CPU cost of the live view: the tap graph with ``view:=true`` beside the same graph without it.
 
-    python bench/bench_view.py            # 15 s warm-up, 30 s measured per configuration
+    python bench/bench_view.py            # 15 s warm-up, 60 s measured per configuration
     python bench/bench_view.py --quick    # 8 s and 10 s
 
 The emulated NUSkin's tap graph (``trials:=0``) without the view, with it and no client, and with
@@ -91,7 +91,7 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="a small version in seconds")
     parser.add_argument("--model", default="", help="tap model bundle (default: the demo's)")
     args = parser.parse_args()
-    warm_s, span_s = (8.0, 10.0) if args.quick else (15.0, 30.0)
+    warm_s, span_s = (8.0, 10.0) if args.quick else (15.0, 60.0)
     with tempfile.TemporaryDirectory(prefix="bench_view_") as tmp_name:
         tmp = Path(tmp_name)
         model, _ = tap_model(args.model, tmp, 100 if args.quick else 300)
