@@ -37,6 +37,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))  # foxglov
 GRAPH = "tap_localization"
 DROPPED = re.compile(r"so far: (\d+) bytes dropped")
 LOST = re.compile(r"\((\d+) contact\(s\) lost, \d+ degraded\)")
+PLAYED = re.compile(r"\[sim_device\]: trial (\d+) ")
+ESTIMATED = re.compile(r"^tap +\d+ \(trial (\d+)\)", re.MULTILINE)
 
 
 def _free_port() -> int:
@@ -75,6 +77,8 @@ def measure(model: Path, tmp: Path, view: bool, client: bool, warm_s: float, spa
     text = log.read()
     log.close()
     wall = t1 - t0
+    # the last trial played may still be in its window when the graph is stopped
+    played = set(sorted(set(PLAYED.findall(text)), key=int)[:-1])
     per = {names[p]: v for p, v in cpu_percent(c0, c1, wall).items() if v == v}
     return {
         "graph_pct": sum(per.values()),
@@ -83,6 +87,8 @@ def measure(model: Path, tmp: Path, view: bool, client: bool, warm_s: float, spa
         "nodes": len(per),
         "dropped_bytes": max((int(m) for m in DROPPED.findall(text)), default=0),
         "contacts_lost": max((int(m) for m in LOST.findall(text)), default=0),
+        "played": len(played),
+        "estimated": len(played & set(ESTIMATED.findall(text))),
     }
 
 
@@ -114,7 +120,8 @@ def main() -> int:
             print(
                 f"  {label:38s} view node {r['view_pct']:5.1f} %  rest of the graph {rest:6.1f} %"
                 f"{extra}{msgs}  device dropped {r['dropped_bytes']} B, "
-                f"{r['contacts_lost']} contacts lost",
+                f"{r['contacts_lost']} contacts lost, {r['estimated']} of {r['played']} trials "
+                "estimated",
                 flush=True,
             )
     return 0
