@@ -247,33 +247,43 @@ def test_a_bag_with_an_unparsable_definition_gives_a_clear_error(tmp_path, old_s
 
 def test_an_old_simulator_bag_gives_the_same_windows(tmp_path, old_store):
     """Training data: an old bag windows exactly as its current-definition twin (the simulator's
-    packets decoded into batches, as a driver publishing decoded arrays sent them)."""
-    from ext_sense_drivers.packets import make_decoder
+    events in 1 ms batches, as a driver publishing decoded arrays sent them)."""
     from ext_sense_perception.data.bags import window_set_from_bag
     from ext_sense_sim.run import run_scene
     from ext_sense_sim.scene import load_scene
 
-    run_scene(load_scene("tap_rod30_nuskin"), tmp_path / "sim", trials=3, formats=("bag",))
-    new, old, decoder = tmp_path / "new", tmp_path / "old", None
-    with BagReader(tmp_path / "sim" / "bag") as src, BagWriter(new) as cur, BagWriter(old) as dst:
-        for key, value in src.custom_data.items():
-            cur.set_custom_data(key, value)
-            dst.set_custom_data(key, value)
+    run_scene(load_scene("tap_rod30_nuskin"), tmp_path / "sim", trials=3, formats=("npz",))
+    d = np.load(tmp_path / "sim" / "dataset.npz")
+    t = T0 + d["ev_trial"].astype(np.int64) * int(d["trial_ns"]) + d["ev_t_ns"]
+    order = np.argsort(t, kind="stable")
+    t, taxel, polarity, value = (
+        t[order],
+        *(d[k][order] for k in ("ev_taxel", "ev_polarity", "ev_value")),
+    )
+    new, old = tmp_path / "new", tmp_path / "old"
+    with BagWriter(new) as cur, BagWriter(old) as dst:
+        for bag in (cur, dst):
+            bag.set_custom_data("task", "tap_localization")
+            bag.set_custom_data("sensor", "nuskin")
         _register_old(dst, old_store)
-        for rec, msg in src.messages():
-            if rec.topic == TRUTH:
-                cur.write_raw(rec.topic, rec.log_time_ns, rec.data, rec.msgtype)
-                dst.write_raw(rec.topic, rec.log_time_ns, rec.data, rec.msgtype)
-                continue
-            decoder = decoder or make_decoder(str(msg.encoding), str(msg.encoding_options))
-            e = decoder.decode(msg).events
-            if e.size:
-                first = int(e.t_ns[0])
-                batch = taxel_event_batch(first, e.taxel, e.polarity, e.value, e.t_ns - first)
-                cur.write(EVENTS, rec.log_time_ns, batch)
-                fields = {n: getattr(batch, n) for n, _ in old_store.fielddefs[BATCH][1]}
-                data = old_store.serialize_cdr(old_store.types[BATCH](**fields), BATCH)
-                dst.write_raw(EVENTS, rec.log_time_ns, data)
+        for i in range(len(d["y"])):
+            onset = T0 + i * int(d["trial_ns"]) + int(d["onset_ns"][i])
+            truth = ground_truth(
+                onset, "tap_localization", i, tap_position_m=float(d["y"][i]), rod_length_m=0.3
+            )
+            cur.write(TRUTH, onset, truth)
+            dst.write(TRUTH, onset, truth)
+        bins = t // STEP_NS
+        edges = np.flatnonzero(np.diff(bins)) + 1
+        for lo, hi in zip(np.r_[0, edges], np.r_[edges, t.size], strict=True):
+            stamp = int(bins[lo]) * STEP_NS
+            batch = taxel_event_batch(
+                stamp, taxel[lo:hi], polarity[lo:hi], value[lo:hi], t[lo:hi] - stamp
+            )
+            cur.write(EVENTS, stamp + STEP_NS, batch)
+            fields = {n: getattr(batch, n) for n, _ in old_store.fielddefs[BATCH][1]}
+            data = old_store.serialize_cdr(old_store.types[BATCH](**fields), BATCH)
+            dst.write_raw(EVENTS, stamp + STEP_NS, data)
     with BagReader(old) as bag:
         assert bag.topics[EVENTS].type_hash != type_hash(BATCH)
         assert bag.topics[EVENTS].count > 100
