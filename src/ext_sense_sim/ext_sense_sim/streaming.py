@@ -162,6 +162,13 @@ DEVICE_PRIORITY = 60
 """SCHED_FIFO priority of a live emulated device's pacing and pty writer threads: above a
 driver's reader (``reader_priority`` 50), as hardware is never late for the host's load."""
 
+FRAME_NS = 1_000_000
+"""A device writes at most once a millisecond, all that is due: a USB full-speed link delivers
+in 1 ms frames, and the training streams are read in 1 ms ticks
+(:mod:`ext_sense_perception.data.device_stream`). Word by word (every 21 us at the receiver's
+48k words/s), a real-time device woke tens of thousands of times a second and delayed the hot
+path it feeds."""
+
 LATE_WRITE_NS = 2_000_000
 """A write whose oldest chunk is due more than this long ago counts in ``late_writes``."""
 
@@ -344,14 +351,19 @@ def _play(
             len(c[1]) for c in plan.chunks[:i]
         )
     sent_onset = False
+    next_write_ns = 0
     while i < times.size and not stop.is_set():
         now = clock()
+        if now < next_write_ns:
+            sleep((next_write_ns - now) / 1e9)
+            continue
         j = int(np.searchsorted(times, now - t0, side="right"))
         if j <= i:
             sleep(min(0.001, max(0.0, (t0 + int(times[i]) - now) / 1e9)))
             continue
         data = b"".join(c[1] for c in plan.chunks[i:j])
         write(data)
+        next_write_ns = now + FRAME_NS
         stats.bytes += len(data)
         stats.writes += 1
         # how late the oldest chunk of this write is (a late device sends bursts the driver's

@@ -201,6 +201,7 @@ def test_a_trial_simulated_late_starts_when_ready_at_its_own_pace(monkeypatch):
     late_trial = [t for t, _ in written if start + 0.8e9 <= t < start + 1.0e9]
     assert len(late_trial) > 10  # written over time, not in one burst
     assert max(late_trial) - min(late_trial) > 0.05e9
+    assert min(np.diff([t for t, _ in written])) >= streaming.FRAME_NS  # in 1 ms frames
 
 
 def test_stream_refuses_a_scene_without_wire():
