@@ -130,34 +130,40 @@ def test_tap_events_follow_the_onset():
     assert ev.value.max() <= 1023
 
 
-def test_streaming_stamps_onset_on_a_fake_clock():
-    sc = scene(
-        ["contact_impulse", "beam_modes", "grasp_transfer", "nuskin_transduction", "nuskin_wire"]
-    )
-    now = [10**18]
+STREAMED = ["contact_impulse", "beam_modes", "grasp_transfer", "nuskin_transduction", "nuskin_wire"]
+START_NS = 10**18
+
+
+def _stream_on_fake_clock(now: list[int], trials: int):
+    """``stream`` of a tap scene, 0.2 s apart, on a clock that moves only when it sleeps (or
+    when the caller moves ``now[0]``): its stats, its writes as ``(time, bytes)`` and truths."""
     written, truths = [], []
 
     def sleep(s):
         now[0] += max(int(s * 1e9), 1000)
 
     stats = stream(
-        sc,
-        written.append,
+        scene(STREAMED),
+        lambda data: written.append((now[0], data)),
         seed=1,
-        trials=2,
+        trials=trials,
         period_s=0.2,
         on_onset=truths.append,
         clock=lambda: now[0],
         sleep=sleep,
     )
+    return stats, written, truths
+
+
+def test_streaming_stamps_onset_on_a_fake_clock():
+    stats, written, truths = _stream_on_fake_clock([START_NS], trials=2)
     assert stats.trials == 2
     assert len(truths) == 2
-    assert stats.bytes == sum(len(w) for w in written)
+    assert stats.bytes == sum(len(w) for _, w in written)
     assert stats.bytes % 4 == 0
-    start = 10**18
     for k, gt in enumerate(truths):
         assert 0.03 < gt.tap_position_m < 0.3
-        onset_wall = gt.onset_ns - start - k * 200_000_000
+        onset_wall = gt.onset_ns - START_NS - k * 200_000_000
         assert 0.045e9 <= onset_wall <= 0.055e9 + 0.002e9  # onset + 1 ms receiver latency
 
 
@@ -165,12 +171,7 @@ def test_a_trial_simulated_late_starts_when_ready_at_its_own_pace(monkeypatch):
     """A slow simulator delays the tap; it never squeezes the tap's bytes into one burst."""
     import ext_sense_sim.streaming as streaming
 
-    sc = scene(
-        ["contact_impulse", "beam_modes", "grasp_transfer", "nuskin_transduction", "nuskin_wire"]
-    )
-    start = 10**18
-    now = [start]
-    written, truths = [], []
+    now = [START_NS]
 
     def slow_plans(scene, seed):
         for plan in plan_trials(scene, seed):
@@ -178,27 +179,15 @@ def test_a_trial_simulated_late_starts_when_ready_at_its_own_pace(monkeypatch):
                 now[0] += 700_000_000  # drawn after trial 0's 0.1 s: due at 0.2 s, ready at 0.8 s
             yield plan
 
-    def sleep(s):
-        now[0] += max(int(s * 1e9), 1000)
-
     plan_trials = streaming.plan_trials
     monkeypatch.setattr(streaming, "plan_trials", slow_plans)
-    stats = stream(
-        sc,
-        lambda data: written.append((now[0], data)),
-        seed=1,
-        trials=3,
-        period_s=0.2,
-        on_onset=truths.append,
-        clock=lambda: now[0],
-        sleep=sleep,
-    )
+    stats, written, truths = _stream_on_fake_clock(now, trials=3)
     assert stats.trials == 3
     assert stats.late_trials == 1
-    onsets = [gt.onset_ns - start for gt in truths]
+    onsets = [gt.onset_ns - START_NS for gt in truths]
     assert onsets[1] - onsets[0] == pytest.approx(0.8e9, abs=15e6)  # 0.2 s period + 0.6 s late
     assert onsets[2] - onsets[1] == pytest.approx(0.2e9, abs=15e6)  # the spacing is kept
-    late_trial = [t for t, _ in written if start + 0.8e9 <= t < start + 1.0e9]
+    late_trial = [t for t, _ in written if START_NS + 0.8e9 <= t < START_NS + 1.0e9]
     assert len(late_trial) > 10  # written over time, not in one burst
     assert max(late_trial) - min(late_trial) > 0.05e9
     assert min(np.diff([t for t, _ in written])) >= streaming.FRAME_NS  # in 1 ms frames
