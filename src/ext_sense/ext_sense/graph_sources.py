@@ -25,6 +25,8 @@ STARTUP_SPARE_TRIALS = 3
 MONITOR_WAIT_S = 60.0
 """How long the simulated device waits for the monitor before its first trial, s (discovery
 under load can take seconds)."""
+MONITOR_NODE = "estimate_monitor"
+"""The monitor's node name: the subscriber to ground truth the simulated device waits for."""
 
 SIM_TRIGGERS = {
     "handover_stability": (TOPIC_HANDOVER_OFFER, "start"),
@@ -126,6 +128,7 @@ def source_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
         }
         if as_bool(args["monitor"]):  # no trial before the monitor can hear its estimate
             stream["wait_for_listener_s"] = MONITOR_WAIT_S
+            stream["listener_node"] = MONITOR_NODE  # not a view or recorder listening first
         # a trial within the task's debounce of the last would be one contact with it (food:
         # 8 s, longer than a 6.5 s trial, so every other trial was lost)
         stream["trial_period_s"] = max(1.0, profile_for(task).debounce_ns / 1e9 + 0.5)

@@ -19,7 +19,7 @@ from ext_sense.graph import (
 )
 from ext_sense.graph_process import PROCESS_ARGUMENTS, place_hot_path
 from ext_sense.graph_sources import DEFAULT_SCENES as DEFAULT_SCENES
-from ext_sense.graph_sources import PACKET_ARGUMENTS, needed_files, source_nodes
+from ext_sense.graph_sources import MONITOR_NODE, PACKET_ARGUMENTS, needed_files, source_nodes
 from ext_sense.graph_sources import SIM_TRIGGERS as SIM_TRIGGERS
 from ext_sense.topics import (
     ESTIMATE_REMAPS,
@@ -181,7 +181,7 @@ def _monitor_nodes(task: str, args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
         NodeSpec(
             package="ext_sense",
             executable="estimate_monitor",
-            name="estimate_monitor",
+            name=MONITOR_NODE,
             plugin="ext_sense.nodes.estimate_monitor:EstimateMonitorNode",
             parameters={
                 "task": task,

@@ -69,6 +69,12 @@ class SimDeviceParameters:
         low=0.0,
         high=3600.0,
     )
+    listener_node: str = _ro(
+        "",
+        "With wait_for_listener_s: the node whose subscription to ground_truth starts the "
+        "trials (e.g. estimate_monitor: a view or recorder listening first does not); empty: "
+        "any subscriber.",
+    )
     mode: str = _ro(
         "free",
         "free: trials every trial_period_s from start-up; trigger: trials_per_trigger "
@@ -125,6 +131,7 @@ class SimDeviceNode(Node):
         self.triggers: queue.Queue[Trigger] = queue.Queue()
         self.played = 0
         self._ready = threading.Event()
+        self.listener_node = p.listener_node
         wait_ns = round(p.wait_for_listener_s * 1e9)
         self._listener_deadline_ns = time.monotonic_ns() + wait_ns if wait_ns else None
         common = dict(
@@ -186,15 +193,24 @@ class SimDeviceNode(Node):
     def _listener_or_deadline(self) -> bool:
         """Whether the first trial may start: ground truth has a listener, or the wait is over."""
         deadline = self._listener_deadline_ns
-        if deadline is None or self.pub.get_subscription_count() > 0:
+        if deadline is None or self._listener_heard():
             return True
         if time.monotonic_ns() < deadline:
             return False
         self._listener_deadline_ns = None
         self.get_logger().warning(
-            "no subscriber to ground_truth within wait_for_listener_s: streaming anyway"
+            f"no subscriber {self.listener_node} to ground_truth within "
+            "wait_for_listener_s: streaming anyway"
         )
         return True
+
+    def _listener_heard(self) -> bool:
+        """Whether ``listener_node`` (any node when empty) subscribes to ``ground_truth``."""
+        name = self.listener_node
+        if not name:
+            return self.pub.get_subscription_count() > 0
+        subscribers = self.get_subscriptions_info_by_topic(self.pub.topic_name)
+        return any(info.node_name == name for info in subscribers)
 
     def _publish(self, gt: GroundTruth) -> None:
         msg = ContactGroundTruth(

@@ -9,8 +9,9 @@ pytestmark = pytest.mark.ros
 
 @contextlib.contextmanager
 def _device_and_listener(**params):
-    """A ``sim_device`` with ``params`` and a ground-truth listener node (created by the caller
-    through the returned ``listen``), torn down with their context."""
+    """A ``sim_device`` with ``params`` and ground-truth listener nodes (created by the caller
+    through the returned ``listen(name)``, each appending to ``got``), torn down with their
+    context."""
     rclpy = pytest.importorskip("rclpy")
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
@@ -30,8 +31,8 @@ def _device_and_listener(**params):
         executor.add_node(node)
         got: list = []
 
-        def listen() -> None:
-            listener = rclpy.create_node("gt_listener", context=context)
+        def listen(name: str = "gt_listener") -> None:
+            listener = rclpy.create_node(name, context=context)
             nodes.append(listener)
             listener.create_subscription(
                 ContactGroundTruth, "ground_truth", got.append, GROUND_TRUTH_QOS
@@ -99,3 +100,26 @@ def test_with_wait_for_listener_the_first_trial_waits_for_a_ground_truth_subscri
         while time.monotonic() < deadline and not got:
             executor.spin_once(timeout_sec=0.05)
         assert [m.trial for m in got][:1] == [0]
+
+
+def test_with_a_listener_node_only_that_node_starts_the_trials(tmp_path):
+    """A view or recorder subscribing first does not start the trials; the monitor does."""
+    device = _device_and_listener(
+        scene="tap_rod20_nuskin",
+        port_link=str(tmp_path / "nuskin_port"),
+        trial_period_s=0.4,
+        wait_for_listener_s=60.0,
+        listener_node="estimate_monitor",
+    )
+    with device as (node, executor, listen, got):
+        listen("view")
+        deadline = time.monotonic() + 5.0  # the first trial is simulated in about 1.5 s
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert node.pub.get_subscription_count() == 1  # the view is matched ...
+        assert node.played == 0  # ... and nothing was streamed for it alone
+        listen("estimate_monitor")
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and not got:
+            executor.spin_once(timeout_sec=0.05)
+        assert got[0].trial == 0  # the view and the monitor both hear trial 0 first
