@@ -30,9 +30,11 @@ TAP_FREE = (
     FreeParameter("beam_modes", "grasp_damping_ratio", 0.001, 0.2),
     FreeParameter("grasp_transfer", "finger_load_share", 0.01, 0.6, spread=(1 / 3, 5 / 3)),
     FreeParameter("grasp_transfer", "strip_sigma_m", 0.0008, 0.004),
+    FreeParameter("contact_impulse", "moment_exponent", 0.2, 3.0),
 )
-"""The tap's force, length and impact, the grasp's damping, the fingers' load share and the
-pads' contact strip. Ranges keep their ends' ratio to the centre: one person's taps, x0.8-1.25."""
+"""The tap's force, length and impact, the grasp's damping, the fingers' load share, the
+pads' contact strip and how the tap's force falls with its lever arm. Ranges keep their ends'
+ratio to the centre: one person's taps, x0.8-1.25."""
 
 TAP_TOLERANCES = {
     "events": (math.log(1.4), True),
@@ -42,6 +44,7 @@ TAP_TOLERANCES = {
     "finger_imbalance": (0.07, False),
     "active_taxels": (10.0, False),
     "taxel_rate_max": (math.log(1.4), True),
+    "events_p75_over_p25": (math.log(1.2), True),
 }
 """Statistic to ``(tolerance, compared as log ratio)``."""
 
