@@ -135,7 +135,7 @@ class ForkPenetration(Effect):
                 travelled - food.gap_m - jitter[i], food, crunch, food.crunch_n
             )
             hit = np.flatnonzero(force >= stop_n)
-            if hit.size:  # collision: the arm holds where it was when the force crossed 10 N
+            if hit.size:  # collision: the arm holds where it was when the force crossed stop_n
                 force[hit[0] :] = force[hit[0]]
                 stop[i] = t[hit[0]]
             else:

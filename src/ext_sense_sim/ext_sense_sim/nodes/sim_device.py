@@ -198,9 +198,9 @@ class SimDeviceNode(Node):
         if time.monotonic_ns() < deadline:
             return False
         self._listener_deadline_ns = None
+        who = f"{self.listener_node}'s subscription" if self.listener_node else "a subscriber"
         self.get_logger().warning(
-            f"no subscriber {self.listener_node} to ground_truth within "
-            "wait_for_listener_s: streaming anyway"
+            f"no {who} to ground_truth within wait_for_listener_s: streaming anyway"
         )
         return True
 
