@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import pytest
 
-from ext_sense.collect.graph import SIM_TRIGGER_TOPIC, SIM_TRUTH_TOPIC, collect_nodes
+from ext_sense.collect.graph import (
+    COLLECTOR_NODE,
+    SIM_TRIGGER_TOPIC,
+    SIM_TRUTH_TOPIC,
+    collect_nodes,
+)
 from ext_sense.collect.session import (
     HANDOVER_CLASSES,
     Answers,
@@ -124,6 +129,8 @@ def test_collect_graph_moves_the_simulator_truth_and_stops_self_started_probes()
     assert all(s.executable != "estimate_monitor" for s in nodes)
     sim = next(s for s in nodes if s.executable == "sim_device")
     assert ("ground_truth", SIM_TRUTH_TOPIC) in sim.remappings
+    assert sim.parameters["listener_node"] == COLLECTOR_NODE  # no trial before the bag hears
+    assert sim.parameters["wait_for_listener_s"] > 0
     food = next(s for s in nodes if s.executable == "food_behaviour")
     assert food.parameters["auto_start"] is False
     assert food.parameters["repeat_s"] == 0.0

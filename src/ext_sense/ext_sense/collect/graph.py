@@ -2,7 +2,9 @@
 
 The simulator's truth moves to ``/extsense/sim/ground_truth`` (the session's labels are the
 operator's); the food behaviour starts probes only when asked; a scripted handover on the
-simulator plays each grasp when collect triggers it, as the pending answer's class.
+simulator plays each grasp when collect triggers it, as the pending answer's class. The
+simulated device starts its trials once the collector subscribes to its truth, so the first
+trial is in the bag even when discovery takes seconds.
 """
 
 from __future__ import annotations
@@ -13,6 +15,10 @@ from collections.abc import Sequence
 from ext_sense.graph import NodeSpec
 
 SIM_TRUTH_TOPIC = "/extsense/sim/ground_truth"
+COLLECTOR_NODE = "collector"
+"""The node recording the session: the simulated device waits for its subscription."""
+COLLECTOR_WAIT_S = 60.0
+"""How long the simulated device waits for the collector before its first trial, s."""
 SIM_TRIGGER_TOPIC = "/extsense/sim/trigger"
 GROUND_TRUTH = "/extsense/ground_truth"
 
@@ -36,6 +42,8 @@ def collect_nodes(
         if sim_trigger and task == "handover_stability" and spec.executable == "sim_device":
             remaps = tuple((a, SIM_TRIGGER_TOPIC if a == "trigger" else b) for a, b in remaps)
         params = dict(spec.parameters)
+        if spec.executable == "sim_device":  # no trial before the session's bag can hear it
+            params |= {"wait_for_listener_s": COLLECTOR_WAIT_S, "listener_node": COLLECTOR_NODE}
         if spec.executable == "food_behaviour":
             params |= {"auto_start": False, "repeat_s": 0.0}
             if sim:

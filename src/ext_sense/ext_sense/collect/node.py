@@ -17,7 +17,7 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import Bool, String
 
-from ext_sense.collect.graph import SIM_TRIGGER_TOPIC, SIM_TRUTH_TOPIC
+from ext_sense.collect.graph import COLLECTOR_NODE, SIM_TRIGGER_TOPIC, SIM_TRUTH_TOPIC
 from ext_sense.nodes.bag_player import message_class
 from ext_sense.nodes.recorder import subscription_qos
 from ext_sense_bags import BagError, BagWriter, ground_truth
@@ -50,7 +50,7 @@ class CollectorNode(Node):
         mocap_topic: str = "",
         **kwargs: Any,
     ) -> None:
-        super().__init__("collector", **kwargs)
+        super().__init__(COLLECTOR_NODE, **kwargs)
         self.guard = CallbackGuard(self.get_logger().error)
         self.writer = writer
         self.events: queue.Queue[tuple[str, Any]] = queue.Queue()
