@@ -98,6 +98,16 @@ class Effect:
         _check_bounds(self.name, key, x, low, high)
         return x
 
+    def flag(self, key: str) -> bool:
+        """A boolean parameter (``true`` / ``false`` in a scene), checked."""
+        value = self.params[key]
+        if not isinstance(value, bool):
+            raise SceneError(
+                f"Effect '{self.name}': parameter '{key}' must be true or false. "
+                f"Got {value!r} instead."
+            )
+        return value
+
     def draw(
         self,
         key: str,

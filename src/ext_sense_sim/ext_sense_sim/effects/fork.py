@@ -186,9 +186,10 @@ class ArmVibration(Effect):
         contact: Contact = signals.need("contact", self.name)
         motion: Motion = signals.need("motion", self.name)
         t = time.t()
-        moving = (t[None, :] >= motion.start_s[:, None]) & (t[None, :] < motion.stop_s[:, None])
-        if self.params["whole_trial"]:
-            moving[:] = True
+        if self.flag("whole_trial"):
+            moving = np.ones((time.n_trials, time.n_samples), dtype=bool)
+        else:
+            moving = (t[None, :] >= motion.start_s[:, None]) & (t[None, :] < motion.stop_s[:, None])
         alpha = np.exp(-2 * np.pi * self.scalar("corner_hz", 1.0) * time.dt)
         white = rng.standard_normal((time.n_trials, time.n_samples))
         colored = lfilter([1 - alpha], [1, -alpha], white, axis=-1)

@@ -144,7 +144,7 @@ class NuskinTransduction(Effect):
         # each row of the (trials * taxels, samples) reading gets its taxel's offset
         offset = np.tile(np.resize(self.offsets, n_taxels), _n_trials)[:, None]
         filtered = front_end(pressure, self.scalar("bandwidth_hz", 1.0), time.rate_hz)
-        if _flag(self.name, "clip_reading", self.params["clip_reading"]):
+        if self.flag("clip_reading"):
             # the 10-bit reading bounds what the encoder sees (pressure-equivalent units)
             flat = filtered.reshape(-1, n_samples)
             np.clip(flat, -offset * per_count, (1023 - offset) * per_count, out=flat)
@@ -169,12 +169,3 @@ class NuskinTransduction(Effect):
             np.clip(np.round(value), 0, 1023).astype(np.uint16),
         )
         signals["events"] = by_trial(channel // n_taxels, events)
-
-
-def _flag(effect: str, key: str, value: object) -> bool:
-    """A boolean parameter, or a :class:`SceneError` naming it."""
-    if not isinstance(value, bool):
-        raise SceneError(
-            f"Effect '{effect}': parameter '{key}' must be true or false. Got {value!r} instead."
-        )
-    return value
