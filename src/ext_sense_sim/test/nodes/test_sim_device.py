@@ -46,6 +46,13 @@ def _device_and_listener(**params):
         rclpy.try_shutdown(context=context)
 
 
+def _spin(executor, seconds: float, done=lambda: False) -> None:
+    """Spin ``executor`` for ``seconds`` or until ``done()``."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and not done():
+        executor.spin_once(timeout_sec=0.05)
+
+
 def test_node_streams_bytes_and_publishes_ground_truth(tmp_path):
     from ext_sense_runtime.stamps import stamp_to_ns
 
@@ -90,15 +97,11 @@ def test_with_wait_for_listener_the_first_trial_waits_for_a_ground_truth_subscri
         wait_for_listener_s=60.0,
     )
     with device as (node, executor, listen, got):
-        deadline = time.monotonic() + 5.0  # the first trial is simulated in about 1.5 s
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
+        _spin(executor, 5.0)  # the first trial is simulated in about 1.5 s
         assert node.played == 0  # nobody listens: nothing streamed
         assert node.stats.writes == 0
         listen()
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline and not got:
-            executor.spin_once(timeout_sec=0.05)
+        _spin(executor, 20, lambda: bool(got))
         assert [m.trial for m in got][:1] == [0]
 
 
@@ -113,13 +116,9 @@ def test_with_a_listener_node_only_that_node_starts_the_trials(tmp_path):
     )
     with device as (node, executor, listen, got):
         listen("view")
-        deadline = time.monotonic() + 5.0  # the first trial is simulated in about 1.5 s
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
+        _spin(executor, 5.0)  # the first trial is simulated in about 1.5 s
         assert node.pub.get_subscription_count() == 1  # the view is matched ...
         assert node.played == 0  # ... and nothing was streamed for it alone
         listen("estimate_monitor")
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline and not got:
-            executor.spin_once(timeout_sec=0.05)
+        _spin(executor, 20, lambda: bool(got))
         assert got[0].trial == 0  # the view and the monitor both hear trial 0 first
