@@ -5,7 +5,8 @@ tap model (trained here, or ``--model DIR``) is scored on fresh taps of another 
 ideal reads (``fresh``) and from reads late by ``bench_arrival.py``'s delays (``late reads``);
 each fresh window is cut again with its onset moved +-0.5, +-1 and +-2 ms: the estimate's move,
 median and p90 (issue 30: at most 0.3 cm and 1 cm up to 2 ms), beside the CV and fresh-tap MAE.
-Without ``--quick`` or ``--model`` a model on the paper's box bins is trained beside it.
+Without ``--quick`` or ``--model`` models without the FFT taper, and on the paper's box bins
+without it, are trained beside it on the same windows.
 
     python bench/bench_window_shift.py            # 300 training taps, 200 fresh taps
     python bench/bench_window_shift.py --quick    # 100 / 60
@@ -99,10 +100,17 @@ def row(
         both = 100 * np.concatenate([moves[d], moves[-d]])
         cells.append(f"{np.median(both):5.2f} / {np.percentile(both, 90):4.2f}")
     return (
-        f"  {name:16s} {cv_cm:6.2f} {fresh_mae:5.2f}+-{fresh_se:4.2f}"
+        f"  {name:26s} {cv_cm:6.2f} {fresh_mae:5.2f}+-{fresh_se:4.2f}"
         f" {late_mae:5.2f}+-{late_se:4.2f} {cv_cm / fresh_mae:6.2f} {late_mae / fresh_mae:6.2f}   "
         + "   ".join(cells)
     )
+
+
+def _bins(feature_params: dict) -> str:
+    """How a card's features bin and taper, e.g. ``gauss, taper 0.2``."""
+    kernel = feature_params.get("bin_kernel", "box")
+    taper = feature_params.get("taper", 0.0)
+    return f"{kernel}, taper {taper:g}" if taper else kernel
 
 
 def main() -> int:
@@ -156,7 +164,7 @@ def main() -> int:
     models: list[tuple[str, float, Predict]] = []
     if bundle is not None:
         card = bundle.card
-        label = f"{card.feature_params.get('bin_kernel', 'box')} bins"
+        label = _bins(card.feature_params)
         models.append((label, 100 * card.metrics["cv_mae_m"], lambda x: bundle.raw_predict(x)[0]))
         print(f"  model {args.model} ({card.n_train} training windows)")
     else:
@@ -165,11 +173,13 @@ def main() -> int:
         recipe = dataclasses.replace(recipe, anytime_post_ns=())  # the anytime models aside
         variants = [("default", recipe)]
         if not args.quick:
-            variants.append(("box bins", dataclasses.replace(recipe, bin_kernel="box")))
+            variants.append(("no taper", dataclasses.replace(recipe, taper=0.0)))
+            variants.append(
+                ("box, no taper", dataclasses.replace(recipe, bin_kernel="box", taper=0.0))
+            )
         for name, r in variants:
             trained, _ = fit_recipe(ws, r)
-            kernel = trained.card.feature_params.get("bin_kernel", "box")
-            label = f"{name} ({kernel})" if name == "default" else name
+            label = f"{name} ({_bins(trained.card.feature_params)})" if name == "default" else name
             models.append((label, 100 * trained.card.metrics["cv_mae_m"], trained.pipeline.predict))
         print(
             f"  trained on {len(ws.y)} taps (seed {TRAIN_SEED}) in "
@@ -178,9 +188,9 @@ def main() -> int:
         )
     header = "   ".join(f"+-{s:g} ms".center(12) for s in SHIFTS_MS)
     print(
-        f"  {'model':16s} {'cv':>6s} {'fresh':>11s} {'late':>11s} {'cv/fr':>6s} {'lt/fr':>6s}"
+        f"  {'model':26s} {'cv':>6s} {'fresh':>11s} {'late':>11s} {'cv/fr':>6s} {'lt/fr':>6s}"
         f"   estimate moves, cm, median / p90, onset moved by:\n"
-        f"  {'':16s} {'MAE cm':>6s} {'MAE+-se cm':>11s} {'MAE+-se cm':>11s} {'':6s} {'':6s}"
+        f"  {'':26s} {'MAE cm':>6s} {'MAE+-se cm':>11s} {'MAE+-se cm':>11s} {'':6s} {'':6s}"
         f"   {header}"
     )
     for name, cv_cm, predict in models:

@@ -15,6 +15,7 @@ import warnings
 from typing import Any, ClassVar
 
 import numpy as np
+from scipy.signal.windows import tukey
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.neural_network import MLPRegressor
@@ -228,12 +229,47 @@ class BaselineFeatures(_Reduced):
 
 
 class FFTFeatures(_Reduced):
-    """|FFT| of each channel's binned (NUSkin) or decimated (BioTac) series, the paper's scaling."""
+    """|FFT| of each channel's binned (NUSkin) or decimated (BioTac) series, the paper's scaling.
+
+    ``taper`` is the share of the series a Tukey window tapers before the transform (0: none,
+    the paper's; 1: a Hann window). A rod still rings when the window ends, so without it the
+    cut at each end leaks into every frequency, and moving the onset by a millisecond or two
+    moves that leakage (docs/perception.md, "The default tap model's figures").
+    """
 
     kind = "fft"
 
+    def __init__(
+        self,
+        n_channels: int = 80,
+        n_samples: int = 300,
+        period_ns: int = 1 * MS,
+        pre_ns: int = 50 * MS,
+        sensor: str = "nuskin",
+        post_ns: int | None = None,
+        channels: str | None = None,
+        bin_ns: int = 5 * MS,
+        rate_hz: float | None = None,
+        bin_kernel: str = "box",
+        taper: float = 0.0,
+    ) -> None:
+        super().__init__(
+            n_channels, n_samples, period_ns, pre_ns, sensor, post_ns, channels, bin_ns, rate_hz,
+            bin_kernel,
+        )  # fmt: skip
+        self.taper = taper
+
+    def _check_params(self) -> None:
+        super()._check_params()
+        if not (isinstance(self.taper, (int, float)) and 0.0 <= self.taper <= 1.0):
+            raise PerceptionError(
+                f"The 'taper' parameter must be a share in [0, 1]. Got {self.taper!r} instead."
+            )
+
     def _time_maps(self, used: int) -> list[np.ndarray]:
         r = self._reduce_matrix(used)
+        if self.taper > 0:
+            r = r * tukey(r.shape[1], float(self.taper))[None, :]
         cos, sin = dft_matrices(r.shape[1])
         return [r @ cos, r @ sin]
 
@@ -264,6 +300,7 @@ class AutoencoderFeatures(FFTFeatures):
         ae_max_iter: int = 200,
         random_state: int = 0,
         bin_kernel: str = "box",
+        taper: float = 0.0,
     ) -> None:
         super().__init__(
             n_channels,
@@ -276,6 +313,7 @@ class AutoencoderFeatures(FFTFeatures):
             bin_ns,
             rate_hz,
             bin_kernel,
+            taper,
         )
         self.ae_code = ae_code
         self.ae_max_iter = ae_max_iter

@@ -70,7 +70,7 @@ def training_windows(bundle: str | Path, card: ModelCard | None = None) -> Windo
 
 
 def recipe_of(card: ModelCard, seed: int = 0) -> Recipe:
-    """The recipe that trained a bundle (its features, model, channels and feature bin)."""
+    """The recipe that trained a bundle (its features, model, channels, feature bin and taper)."""
     fp = card.feature_params
     return Recipe(
         features=card.features,
@@ -78,6 +78,7 @@ def recipe_of(card: ModelCard, seed: int = 0) -> Recipe:
         channels=fp.get("channels"),
         feature_bin_ns=fp.get("bin_ns"),
         bin_kernel=fp.get("bin_kernel", "box") if "bin_ns" in fp else None,
+        taper=float(fp.get("taper", 0.0)),  # cards from before the taper: none
         rate_hz=card.rate_hz if card.sensor == "biotac" else None,
         anytime_post_ns=tuple(round(p * MS) for p in card.anytime_post_ms),
         seed=seed,

@@ -33,6 +33,13 @@ DEFAULT_BIN_KERNEL: dict[Task, str] = {Task.TAP_LOCALIZATION: "gauss"}
 """
 
 
+DEFAULT_TAPER: dict[Task, float] = {Task.TAP_LOCALIZATION: 0.2}
+"""The NUSkin FFT features' Tukey taper share when the recipe names none, by task (others: 0,
+the paper's). Tapered ends halve how far a tap estimate moves when the onset moves by 2 ms, at
+the same fresh-tap error (docs/perception.md, ``bench/bench_window_shift.py``).
+"""
+
+
 @dataclass(frozen=True)
 class Recipe:
     """The choices of a training run; every default (None) is the task's own.
@@ -42,8 +49,9 @@ class Recipe:
     NUSkin the card only records it). ``anytime_post_ns`` ``()`` trains no anytime models.
     ``arrival_jitter`` is the fraction of NUSkin windows re-stamped with the measured arrival jitter
     (default :data:`~.arrival_jitter.DEFAULT_FRACTION`); ``bin_kernel`` ``box`` or ``gauss``
-    (default :data:`DEFAULT_BIN_KERNEL`); ``onset_shifts`` adds copies of each NUSkin window at
-    onsets moved by up to 2 ms.
+    (default :data:`DEFAULT_BIN_KERNEL`); ``taper`` the FFT features' Tukey taper share
+    (default :data:`DEFAULT_TAPER`); ``onset_shifts`` adds copies of each NUSkin window at onsets
+    moved by up to 2 ms.
     """
 
     features: str | None = None
@@ -56,6 +64,7 @@ class Recipe:
     n_jobs: int = 1
     arrival_jitter: float | None = None
     bin_kernel: str | None = None
+    taper: float | None = None
     onset_shifts: int = 0
 
 
@@ -84,6 +93,10 @@ def resolve(ws: WindowSet, recipe: Recipe) -> Choice:
     family = FAMILIES[FeatureKind.parse(features)]
     if kernel and ws.sensor == "nuskin" and "bin_kernel" in family._get_param_names():
         params["bin_kernel"] = kernel
+    taper = DEFAULT_TAPER.get(Task.parse(ws.task, PerceptionError), 0.0)
+    taper = taper if recipe.taper is None else recipe.taper
+    if taper and ws.sensor == "nuskin" and "taper" in family._get_param_names():
+        params["taper"] = float(taper)
     return Choice(features, model, params, default_feature_grid(ws.task, ws.sensor, features))
 
 
