@@ -8,7 +8,7 @@ median and p90 (issue 30: at most 0.3 cm and 1 cm up to 2 ms), beside the CV and
 Without ``--quick`` or ``--model`` models without the FFT taper, and on the paper's box bins
 without it, are trained beside it on the same windows.
 
-    python bench/bench_window_shift.py            # 300 training taps, 200 fresh taps
+    python bench/bench_window_shift.py            # the default model's 600 training taps, 200 fresh
     python bench/bench_window_shift.py --quick    # 100 / 60
     python bench/bench_window_shift.py --model DIR  # a tap bundle, e.g. the demo's
 """
@@ -114,7 +114,7 @@ def _bins(feature_params: dict) -> str:
 
 
 def main() -> int:
-    from ext_sense_sim.default_models import TRAIN_SEED, TRIAL_PERIOD_S, training_set
+    from ext_sense_sim.default_models import TRAIN_SEED, TRIAL_PERIOD_S, TRIALS, training_set
     from ext_sense_sim.errors import SceneError
     from ext_sense_sim.scene import DEFAULT_SCENES, load_scene
     from ext_sense_sim.trial_plan import lay_out_stream
@@ -123,10 +123,12 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="100 training and 60 fresh taps")
     parser.add_argument("--model", type=Path, help="score this tap bundle instead of training")
     parser.add_argument("--scene", default=DEFAULT_SCENES[("tap_localization", "nuskin")])
-    parser.add_argument("--train", type=int, help="training taps (default 300, quick 100)")
+    parser.add_argument(
+        "--train", type=int, help="training taps (default: the default model's, quick 100)"
+    )
     parser.add_argument("--fresh", type=int, help="fresh taps (default 200, quick 60)")
     args = parser.parse_args()
-    n_train = args.train or (100 if args.quick else 300)
+    n_train = args.train or (100 if args.quick else TRIALS[("tap_localization", "nuskin")])
     n_fresh = args.fresh or (60 if args.quick else 200)
     config = WindowConfig.for_task(Task.TAP_LOCALIZATION, Sensor.NUSKIN)
     if min(n_train, n_fresh) < 8:

@@ -46,7 +46,7 @@ def test_create_trains_every_task_through_the_project_paths(store, monkeypatch, 
     rc, out = _main("models", "create")
     assert rc == 0
     assert calls == [
-        ("tap_localization", "nuskin", "tap_rod30_nuskin", 300),
+        ("tap_localization", "nuskin", "tap_rod30_nuskin", 600),
         ("handover_stability", "nuskin", "handover_rod_nuskin", 400),
         ("food_identification", "nuskin", "food_fork_nuskin", 70),
     ]

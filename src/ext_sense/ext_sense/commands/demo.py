@@ -37,8 +37,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--train-trials",
         type=int,
-        default=300,
-        help="simulated taps to train on when the model is missing",
+        default=None,
+        help="simulated taps to train on when the model is missing (default: as 'ext-sense "
+        "models create', so both keep the same model)",
     )
     parser.add_argument("--retrain", action="store_true", help="train even if the model exists")
     parser.add_argument("--seed", type=int, default=1, help="seed of the demo's taps")
