@@ -48,7 +48,7 @@ def test_create_trains_every_task_through_the_project_paths(store, monkeypatch, 
     assert calls == [
         ("tap_localization", "nuskin", "tap_rod30_nuskin", 600),
         ("handover_stability", "nuskin", "handover_rod_nuskin", 400),
-        ("food_identification", "nuskin", "food_fork_nuskin", 70),
+        ("food_identification", "nuskin", "food_fork_nuskin", 140),
     ]
     assert str(store) in out
     assert not any((tmp_path / "cwd").iterdir())

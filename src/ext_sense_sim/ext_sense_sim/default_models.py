@@ -38,7 +38,7 @@ TRIALS: dict[tuple[str, str], int] = {
     ("tap_localization", "biotac"): 300,
     ("handover_stability", "nuskin"): 400,
     ("handover_stability", "biotac"): 80,
-    ("food_identification", "nuskin"): 70,
+    ("food_identification", "nuskin"): 140,
     ("food_identification", "biotac"): 70,
 }
 """Simulated training trials per task and sensor: small sets where a minute's training does;
