@@ -150,7 +150,8 @@ def test_a_stop_signal_to_the_runner_alone_ends_every_node_and_leaves_none(
 ):
     tag = f"{TAG}_{signum.name.lower()}"
     with _runner(tmp_path, tag) as proc:
-        assert wait_for(lambda: _names(graph_probe, tag) == _names_of(tag), 60.0)
+        started = wait_for(lambda: _names(graph_probe, tag) == _names_of(tag), 60.0)
+        assert started, _names(graph_probe, tag)
         time.sleep(0.5)  # the lifecycle driver configured and activated
         os.kill(proc.pid, signum)  # the runner alone, not its group
         _, err = proc.communicate(timeout=STOP_LIMIT_S + 5)
@@ -167,7 +168,8 @@ def test_a_stop_signal_to_the_runner_alone_ends_every_node_and_leaves_none(
 def test_a_runner_killed_outright_takes_its_nodes_with_it(graph_probe, tmp_path):
     tag = f"{TAG}_sigkill"
     with _runner(tmp_path, tag) as proc:
-        assert wait_for(lambda: _names(graph_probe, tag) == _names_of(tag), 60.0)
+        started = wait_for(lambda: _names(graph_probe, tag) == _names_of(tag), 60.0)
+        assert started, _names(graph_probe, tag)
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=10)
         assert wait_for(lambda: not _group_alive(proc.pid), STOP_LIMIT_S), "orphaned nodes"
