@@ -27,6 +27,16 @@ from sim_models import EXE, write_card
 from ext_sense_perception.training.bundle_io import LOCK_FILE, place_lock
 from ext_sense_sim import default_models
 
+FOOD_TRIALS = default_models.TRIALS[("food_identification", "nuskin")]
+NEEDED_MB = (
+    sum(
+        default_models.BYTES_PER_TRIAL[t] * default_models.TRIALS[(t, "nuskin")]
+        for t in default_models.TASKS
+    )
+    / 2**20
+)
+"""What ``models create`` asks of a place for the three NUSkin models (about 690 MB)."""
+
 
 def _in_namespace(place: Path, mount_options: str, command: list[str]) -> list[str]:
     """``command`` run where ``place`` is a fresh tmpfs mounted with ``mount_options``."""
@@ -49,7 +59,7 @@ def _create(out: Path, mount_options: str) -> subprocess.CompletedProcess:
     ("mount_options", "message"),
     [
         ("ro,size=1m", "cannot write into {out}: Read-only file system"),
-        ("size=5m", "not enough free space in {out}: 5.0 MB free, 649 MB needed"),
+        ("size=5m", f"not enough free space in {{out}}: 5.0 MB free, {NEEDED_MB:.0f} MB needed"),
     ],
     ids=["read_only", "full"],
 )
@@ -64,7 +74,9 @@ def test_an_unwritable_place_is_refused_before_training(tmp_path, mount_options,
 def test_current_models_on_a_read_only_place_are_used_as_they_are(tmp_path):
     out = tmp_path / "models"
     bundle = out / "food_identification_nuskin"
-    fingerprint = default_models.training_fingerprint("nuskin", "food_fork_nuskin", 70, "dataset")
+    fingerprint = default_models.training_fingerprint(
+        "nuskin", "food_fork_nuskin", FOOD_TRIALS, "dataset"
+    )
     make = (
         "import sys, pathlib; from sim_models import write_card; "
         "b = write_card(pathlib.Path(sys.argv[1]), 'food_identification', 'nuskin'); "
@@ -140,7 +152,7 @@ def test_a_second_create_into_the_same_place_waits_then_keeps_the_first_ones_mod
         # the first create's bundle, complete before it lets go of the place
         write_card(bundle, "food_identification", "nuskin")
         fingerprint = default_models.training_fingerprint(
-            "nuskin", "food_fork_nuskin", 70, "dataset"
+            "nuskin", "food_fork_nuskin", FOOD_TRIALS, "dataset"
         )
         (bundle / default_models.FINGERPRINT_FILE).write_text(fingerprint + "\n")
         card = (bundle / "model_card.json").read_text()

@@ -137,8 +137,8 @@ def test_demo_uses_the_same_model_and_is_accurate_live(newcomer):
     The demo's model is trained on the device's own stream. Before the streaming fixes (trials
     simulated at their own start, so sent in one late burst; pty overflow losing words) the live
     estimates were nearly constant, MAE about 5-7 cm on the 30 cm rod whatever the model; a
-    constant guess at the rod's middle scores about 5 cm. This 300-tap model's cross-validated
-    MAE is 2.2 cm. (A 120-tap model scored on 8 live taps gave 3.53 and 4.03 cm on slow 2-core
+    constant guess at the rod's middle scores about 5 cm. This 600-tap model's cross-validated
+    MAE is 1.8 cm. (A 120-tap model scored on 8 live taps gave 3.53 and 4.03 cm on slow 2-core
     machines running the whole suite: too close to the bound.)
     """
     proc = subprocess.run(
