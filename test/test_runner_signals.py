@@ -27,7 +27,9 @@ import pytest
 from rosutil import wait_for
 from sim_models import STOP_LIMIT_S
 
-pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(120)]
+"""A graph of node processes whose leave is timed: the graph lane, alone on the machine (in the
+parallel lane a clean leave was seen 3 s late twice: the probe's view of discovery under load)."""
 
 TAG = f"sig{os.getpid()}"
 LEAVE_S = 3.0
