@@ -89,14 +89,15 @@ def resolve(ws: WindowSet, recipe: Recipe) -> Choice:
         params["bin_ns"] = int(recipe.feature_bin_ns)
     if recipe.rate_hz is not None and ws.sensor == "biotac":
         params["rate_hz"] = float(recipe.rate_hz)
-    kernel = recipe.bin_kernel or DEFAULT_BIN_KERNEL.get(Task.parse(ws.task, PerceptionError))
-    family = FAMILIES[FeatureKind.parse(features)]
-    if kernel and ws.sensor == "nuskin" and "bin_kernel" in family._get_param_names():
-        params["bin_kernel"] = kernel
-    taper = DEFAULT_TAPER.get(Task.parse(ws.task, PerceptionError), 0.0)
-    taper = taper if recipe.taper is None else recipe.taper
-    if taper and ws.sensor == "nuskin" and "taper" in family._get_param_names():
-        params["taper"] = float(taper)
+    task = Task.parse(ws.task, PerceptionError)
+    kernel = recipe.bin_kernel or DEFAULT_BIN_KERNEL.get(task)
+    taper = DEFAULT_TAPER.get(task, 0.0) if recipe.taper is None else recipe.taper
+    family_params = FAMILIES[FeatureKind.parse(features)]._get_param_names()
+    if ws.sensor == "nuskin":
+        if kernel and "bin_kernel" in family_params:
+            params["bin_kernel"] = kernel
+        if taper and "taper" in family_params:
+            params["taper"] = float(taper)
     return Choice(features, model, params, default_feature_grid(ws.task, ws.sensor, features))
 
 
