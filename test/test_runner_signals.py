@@ -6,8 +6,8 @@ without its supervisor, and no node is left in the ROS graph (``ros2 node list``
 the runner exited (``LEAVE_S``): each process destroys its nodes and its context, so its
 participant leaves at once instead of when its lease runs out. A runner killed outright
 (SIGKILL, no handler) still takes its nodes with it (``PR_SET_PDEATHSIG``). Each test names
-its nodes apart, so a participant left to its lease fails only the test that left it; one the
-teardown guard ended (``GUARD_EXIT`` on its output) is an expected failure, shown with its stacks.
+its nodes apart, so a participant left to its lease fails only the test that left it, with the
+runner's output.
 
 The graph: a lifecycle sensor driver (configured, no device: it retries), the estimate monitor
 and the tap marker, each a process of its own, in the test run's ROS domain (conftest.py).
@@ -36,10 +36,6 @@ LEAVE_S = 3.0
 """How soon a stopped node's participant must be gone from the probe's graph: far under the
 15-19 s of a lease running out (what a node that never destroys its context leaves behind); the
 suite's parallel lane once delayed the probe's view of a clean leave past 1 s."""
-GUARD_EXIT = "rclpy's teardown hung"
-"""What ``ext_sense_runtime.teardown_guard`` prints when it ends a process whose rclpy teardown
-hung (a rare hang in ``destroy_when_not_in_use``, cause unknown: docs/benchmarks.md): that
-participant cannot leave at once, it stays until its lease runs out."""
 
 
 def _names_of(tag: str) -> set[str]:
@@ -106,12 +102,9 @@ def _assert_left(probe, tag: str, since: float, err: str) -> None:
     """No node of ``tag`` is in the probe's graph ``LEAVE_S`` after ``since``.
 
     Each test has its own tag, so a participant one test leaves behind fails that test alone.
-    A node whose teardown guard ended it is reported as an expected failure with its output.
     """
     wait_for(lambda: not _names(probe, tag), LEAVE_S)
     left = _names(probe, tag)
-    if left and GUARD_EXIT in err:
-        pytest.xfail(f"{sorted(left)} left to its lease by the teardown guard: {err[-1500:]}")
     assert not left, (
         f"{sorted(left)} still in the graph {time.monotonic() - since:.1f} s on: {err[-3000:]}"
     )
