@@ -109,7 +109,7 @@ def test_each_tap_scene_is_within_the_real_sessions_spread(rod_days, scene, rod)
     result = _fidelity(scene, tuple(rod_days))
     assert result["rod_cm"] == rod
     assert result["groups"][POOLED]["windows"] >= 20
-    assert result["groups"]["simulated"]["windows"] >= 150
+    assert result["groups"][SIMULATED]["windows"] >= 150
     failing = [t["stat"] for t in result["targets"] if not t["pass"]]
     assert not failing, f"{scene}: {', '.join(failing)} off target\n{format_table(result)}"
 
