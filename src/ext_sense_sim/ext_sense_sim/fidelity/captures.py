@@ -1,7 +1,8 @@
 """Real captures and simulated trials, both at the host's 10 ms time resolution.
 
 The lab's host wrote each event's time with two decimals, so a simulated trial is reduced to the
-same: its event times shifted by a random phase within one bin and floored to 10 ms bins.
+same: its event times shifted by a random phase within one bin and floored to 10 ms bins. A
+simulated tap is first read the way the rod demo's host read its receiver (:func:`read_times`).
 """
 
 from __future__ import annotations
@@ -27,6 +28,13 @@ from ext_sense_sim.fidelity.errors import FidelityError
 from ext_sense_sim.scene import Scene
 
 BIN_NS = 10 * MS
+TRANSFER_WORDS = 510
+"""Words in one full USB transfer from the rod demo's receiver: in the real tap windows 11.7 %
+of the 10 ms bins of 24 March hold exactly 510 events, 24.1 % of 25 March's exactly 496 (a
+2 KB transfer of a high- and of a full-speed adapter); no other count is a tenth as common."""
+LATENCY_NS = 16 * MS
+"""The USB serial adapter's latency timer (the FTDI default): a transfer that has not filled
+within it goes to the host short. It sets the real rate spectrum's 24-48 Hz power."""
 TAP_FILES = "temp_signal*.tact"
 """The lab's real-time rod demo wrote one capture per tap under this name."""
 FOOD_FILES = "*_zero_*.tact"
@@ -179,11 +187,37 @@ def read_sessions(scene: Scene, paths: Sequence[str | Path]) -> list[Session]:
     return [read_tap_session(path, rod_cm(scene)) for path in paths]
 
 
+def read_times(
+    t_ns: npt.NDArray[np.int64], words: int = TRANSFER_WORDS, latency_ns: int = LATENCY_NS
+) -> npt.NDArray[np.int64]:
+    """When a host reading a USB serial adapter gets each word of one trial (sorted times).
+
+    A transfer opens with the first word after the previous one closed and closes when it holds
+    ``words`` words or ``latency_ns`` after it opened; the host stamps all its words then. So
+    a burst arrives in full transfers (the real captures' bins of exactly 510 or 496 events)
+    and a slower stream every latency period (their empty bins between busy ones).
+    """
+    t_ns = np.asarray(t_ns, np.int64)
+    out = np.empty_like(t_ns)
+    i = 0
+    while i < t_ns.size:
+        close = int(t_ns[i]) + latency_ns
+        full = i + words - 1
+        if full < t_ns.size and t_ns[full] <= close:
+            close, end = int(t_ns[full]), full + 1
+        else:
+            end = int(np.searchsorted(t_ns, close, side="right"))
+        out[i:end] = close
+        i = end
+    return out
+
+
 def simulate(scene: Scene, trials: int, seed: int, extra_s: float = 0.0) -> Session:
     """Simulate ``trials`` trials of a NUSkin scene and reduce them to 10 ms host bins.
 
     ``extra_s`` lengthens each trial (a tap's window may run past ``trial_s``); the host-clock
-    phases come from a generator of their own.
+    phases come from a generator of their own. Taps are read through :func:`read_times`; food
+    trials are not (their few hundred events a second show no transfers to fit it to).
     """
     longer = dataclasses.replace(scene, trial_s=scene.trial_s + extra_s)
     sim = Simulator(longer)
@@ -199,15 +233,17 @@ def simulate(scene: Scene, trials: int, seed: int, extra_s: float = 0.0) -> Sess
     captures = []
     for i in range(n):
         sl = slice(bounds[i], bounds[i + 1])
+        t_ns = arrays["ev_t_ns"][sl] if food else read_times(arrays["ev_t_ns"][sl])
+        end_ns = max(trial_ns, int(t_ns[-1]) if t_ns.size else 0)  # the last read may be later
         captures.append(
             Capture(
                 name=f"trial_{i:04d}",
                 label=str(arrays["y"][i]) if food else "",
-                bins=(arrays["ev_t_ns"][sl] + phase[i]) // BIN_NS,
+                bins=(t_ns + phase[i]) // BIN_NS,
                 taxel=arrays["ev_taxel"][sl],
                 polarity=arrays["ev_polarity"][sl],
                 value=arrays["ev_value"][sl],
-                span_bins=int(-(-(trial_ns + phase[i]) // BIN_NS)),
+                span_bins=int(-(-(end_ns + phase[i]) // BIN_NS)),
                 mark_bin=int((arrays["onset_ns"][i] + phase[i]) // BIN_NS),
             )
         )
