@@ -69,6 +69,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--evaluations", type=int, default=60, help="simulations per stage at most (default 60)"
     )
+    p.add_argument(
+        "--hold",
+        default="",
+        metavar="EFFECT.KEY,...",
+        help="free parameters kept at the scene's value (e.g. a sensor property fitted on "
+        "another scene: nuskin_transduction.refractory_s)",
+    )
     p.add_argument("--out", default=None, metavar="PATH", help="write the fitted scene here")
     p.set_defaults(func=_calibrate)
 
@@ -172,8 +179,9 @@ def _calibrate(args: argparse.Namespace) -> int:
             raise SceneError(f"--evaluations must be >= 1. Got {args.evaluations} instead.")
         stages = tuple(s.strip() for s in args.stages.split(",")) if args.stages else None
         scene = load_scene(args.scene)
+        hold = tuple(h.strip() for h in args.hold.split(",") if h.strip())
         text = calibrate_scene(
-            scene, args.real, stages, args.trials, args.seed, args.evaluations, print
+            scene, args.real, stages, args.trials, args.seed, args.evaluations, print, hold
         )
     except (SceneError, FidelityError) as err:
         print(f"ext-sense sim calibrate: {err}", file=sys.stderr)

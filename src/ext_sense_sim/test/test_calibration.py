@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 import yaml
 
@@ -16,6 +17,7 @@ from ext_sense_sim.calibration.search import (
     start_values,
     with_values,
 )
+from ext_sense_sim.calibration.stages import TAP_TOLERANCES, Stage, window_medians
 from ext_sense_sim.errors import SceneError
 from ext_sense_sim.scene import load_scene, scene_from_dict
 
@@ -110,6 +112,7 @@ def test_a_stage_of_another_task_is_refused_before_reading_anything() -> None:
         (["tap_rod30_nuskin", "--real", "/tmp", "--stages", "food"], "calibrates the stages"),
         (["handover_rod_nuskin", "--real", "/tmp"], "has no real captures"),
         (["tap_rod30_nuskin", "--real", "/tmp", "--evaluations", "0"], "--evaluations"),
+        (["tap_rod30_nuskin", "--real", "/tmp", "--hold", "beam_modes.x"], "Cannot hold"),
     ],
 )
 def test_the_command_refuses_bad_input_in_one_line(argv, message, capsys) -> None:
@@ -125,3 +128,58 @@ def test_the_command_refuses_bad_input_in_one_line(argv, message, capsys) -> Non
     assert message in err
     assert err.count("\n") == 1
     assert "Traceback" not in err
+
+
+def test_window_medians_add_how_varied_all_events_and_the_busiest_taxels_events_are() -> None:
+    stats = {
+        "events": np.array([1000.0, 2000.0, 3000.0, 4000.0, 5000.0]),
+        "busiest_10": np.array([0.5, 0.25, 1 / 6, 0.125, 0.1]),  # 500 events each time
+    }
+    medians = window_medians(stats)
+    assert medians["events"] == 3000.0
+    assert medians["events_p75_over_p25"] == pytest.approx(4000.0 / 2000.0)
+    assert medians["busiest_10_events_p75_over_p25"] == pytest.approx(1.0)
+    assert "busiest_10_events_p75_over_p25" in TAP_TOLERANCES
+
+
+def test_a_held_parameter_keeps_the_scenes_value_while_the_others_fit(monkeypatch) -> None:
+    import ext_sense_sim.calibration as calibration
+
+    def measure(trials, seed):
+        return lambda scene: {
+            "force": start_values(scene, (FORCE,))[0],
+            "damping": start_values(scene, (DAMPING,))[0],
+        }
+
+    stage = Stage(
+        (FORCE, DAMPING),
+        {"force": (0.1, False), "damping": (0.01, False)},
+        measure,
+        lambda captures: {"force": 2.0, "damping": 0.1},
+        1,
+    )
+    monkeypatch.setitem(calibration.STAGES, "taps", stage)
+    monkeypatch.setattr(calibration, "read_sessions", lambda scene, real: [])
+    scene = load_scene("tap_rod30_nuskin")
+    held = start_values(scene, (DAMPING,))[0]
+    text = calibrate_scene(scene, [], ("taps",), hold=(DAMPING.name,), log=lambda line: None)
+    fitted = scene_from_dict(yaml.safe_load(text), "fitted")
+    assert start_values(fitted, (DAMPING,))[0] == pytest.approx(held)
+    assert start_values(fitted, (FORCE,))[0] == pytest.approx(2.0, rel=0.05)
+
+
+def test_holding_a_parameter_no_stage_frees_is_refused_before_reading_anything() -> None:
+    with pytest.raises(SceneError, match=r"Cannot hold \['beam_modes.rod_damping'\]"):
+        calibrate_scene(
+            load_scene("tap_rod30_nuskin"), ["/nonexistent"], hold=("beam_modes.rod_damping",)
+        )
+
+
+@pytest.mark.parametrize("end", ["low", "high"])
+def test_the_tap_stage_bounds_are_values_the_effects_accept(end) -> None:
+    from ext_sense_sim.calibration.stages import TAP_FREE
+    from ext_sense_sim.fidelity.captures import simulate
+
+    scene = load_scene("tap_rod30_nuskin")
+    at_end = with_values(scene, TAP_FREE, [getattr(p, end) for p in TAP_FREE])
+    assert len(simulate(at_end, 1, seed=3).captures) == 1  # raises SceneError when refused

@@ -27,15 +27,18 @@ def calibrate_scene(
     seed: int = 5,
     max_evaluations: int = 60,
     log: Callable[[str], None] = print,
+    hold: Sequence[str] = (),
 ) -> str:
     """Run a NUSkin tap or food scene's calibration stages and return the fitted scene's YAML.
 
     ``real`` are session folders as for ``sim fidelity``; ``stages`` default to ``noise, taps``
     for taps, ``food`` for food; every evaluation simulates ``trials`` (default: the stage's)
-    with ``seed``, at most ``max_evaluations`` per stage.
+    with ``seed``, at most ``max_evaluations`` per stage. ``hold`` names free parameters
+    (``effect.key``) kept at the scene's value: a sensor property fitted on another scene.
 
     Raises:
-        SceneError: An unknown stage, or one that does not fit the scene's task.
+        SceneError: An unknown stage, one that does not fit the scene's task, or a held
+            parameter that none of the stages frees.
         FidelityError: Missing or unreadable real captures.
     """
     food = scene.task is Task.FOOD_IDENTIFICATION
@@ -47,9 +50,14 @@ def calibrate_scene(
             f"Scene '{scene.name}' ({scene.task.label}) calibrates the stages {allowed}. "
             f"Got {wrong} instead."
         )
+    freed = {p.name for name in stages for p in STAGES[name].free}
+    unknown = sorted(set(hold) - freed)
+    if unknown:
+        raise SceneError(f"Cannot hold {unknown}: the stages {stages} free only {sorted(freed)}.")
     captures = [cap for session in read_sessions(scene, real) for cap in session.captures]
     for name in stages:
         stage = STAGES[name]
+        free = tuple(p for p in stage.free if p.name not in hold)
         stats = stage.real(captures)
         n = trials or stage.trials
         log(f"[{name}] {n} simulated trials a step, seed {seed}; real medians:")
@@ -64,13 +72,13 @@ def calibrate_scene(
         ]
         values, history = fit(
             scene,
-            stage.free,
+            free,
             targets,
             stage.measure(n, seed),
             max_evaluations=max_evaluations,
             on_step=show,
         )
-        scene = with_values(scene, stage.free, values)
+        scene = with_values(scene, free, values)
         first, best = history[0], min(history, key=lambda step: step.loss)
         log(f"[{name}] loss {first.loss:.3f} -> {best.loss:.3f} in {len(history)} simulations")
         for target in targets:

@@ -8,8 +8,10 @@ windows:
 - share of the window's events in its first 30 ms and in its last 100 ms: within +-0.07;
 - share held by the 10 busiest taxels: within +-0.10;
 - random-forest two-sample ROC AUC, simulated vs pooled real windows on those four
-  statistics: at most the AUC between the two real sessions + 0.05 (not met yet: a strict
-  expected failure, so the day it passes the test says so).
+  statistics: at most the AUC between the two real sessions + 0.05 (met on the 20 cm rod; not
+  yet on the 30 and 50 cm rods: strict expected failures, so the day one passes the test says
+  so);
+- the 10 busiest taxels' events vary from tap to tap as little as in the real taps.
 
 The tolerances are the issue's: about the spread between the real sessions on each statistic
 (docs/simulator.md, "Fidelity against the real sensor"); 200 simulated taps at the scene's
@@ -24,8 +26,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ext_sense_sim.calibration.stages import window_medians
 from ext_sense_sim.fidelity.captures import read_food_session, read_tap_session
-from ext_sense_sim.fidelity.check import POOLED, SIMULATED, run_fidelity
+from ext_sense_sim.fidelity.check import POOLED, SIMULATED, FidelityRun, run_fidelity
 from ext_sense_sim.fidelity.compare import summarise
 from ext_sense_sim.fidelity.table import format_table
 from ext_sense_sim.fidelity.taps import tap_windows
@@ -97,8 +100,12 @@ taps left a median that jumped from seed to seed; 200 hold it to about 0.02."""
 
 
 @functools.cache
+def _run(scene: str, days: tuple[Path, ...]) -> FidelityRun:
+    return run_fidelity(load_scene(scene), list(days), trials=TAP_TRIALS)
+
+
 def _fidelity(scene: str, days: tuple[Path, ...]) -> dict:
-    return run_fidelity(load_scene(scene), list(days), trials=TAP_TRIALS).result
+    return _run(scene, days).result
 
 
 @pytest.mark.slow
@@ -132,13 +139,37 @@ def test_each_tap_scene_varies_from_tap_to_tap_as_the_real_taps(rod_days, scene,
 @pytest.mark.slow
 @pytest.mark.real_data
 @pytest.mark.timeout(900)
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 30's two-sample target is not met yet: small offsets of the shares with "
-    "tight quartiles still tell the simulated windows apart (AUC 0.91-0.97 against limits "
-    "0.72-0.84; docs/simulator.md, 'Calibration against the real sensor')",
-)
 @pytest.mark.parametrize(("scene", "rod"), TAP_SCENES)
+def test_the_busiest_taxels_fire_about_as_often_in_every_tap_as_the_real_ones(rod_days, scene, rod):
+    # The same few taxels lead every real tap with nearly the same count (p75 / p25 of the 10
+    # busiest taxels' events 1.08-1.19 by rod; grasp_transfer.gain_spread, docs/simulator.md).
+    tables = _run(scene, tuple(rod_days)).tables
+    real_stats = [tables[day.name].stats for day in rod_days]
+    real = {k: np.concatenate([t[k] for t in real_stats]) for k in real_stats[0]}
+    key = "busiest_10_events_p75_over_p25"
+    sim, pooled = window_medians(tables[SIMULATED].stats)[key], window_medians(real)[key]
+    assert abs(np.log(sim / pooled)) <= np.log(1.1), (scene, sim, pooled)
+
+
+NOT_YET = pytest.mark.xfail(
+    strict=True,
+    reason="issue 30's two-sample target is not met yet on this rod: a forest still tells its "
+    "windows from the real ones (30 cm AUC 0.86 against 0.84, 50 cm 0.89 against 0.72; "
+    "docs/simulator.md, 'Calibration against the real sensor')",
+)
+
+
+@pytest.mark.slow
+@pytest.mark.real_data
+@pytest.mark.timeout(900)
+@pytest.mark.parametrize(
+    ("scene", "rod"),
+    [
+        TAP_SCENES[0],
+        pytest.param(*TAP_SCENES[1], marks=NOT_YET),
+        pytest.param(*TAP_SCENES[2], marks=NOT_YET),
+    ],
+)
 def test_a_forest_cannot_tell_each_tap_scene_from_the_real_taps(rod_days, scene, rod):
     result = _fidelity(scene, tuple(rod_days))
     assert result["auc"]["target"]["pass"], format_table(result)
