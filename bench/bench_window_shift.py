@@ -179,6 +179,7 @@ def main() -> int:
             variants.append(
                 ("box, no taper", dataclasses.replace(recipe, bin_kernel="box", taper=0.0))
             )
+            variants.append(("arrival jitter 0.5", dataclasses.replace(recipe, arrival_jitter=0.5)))
         for name, r in variants:
             trained, _ = fit_recipe(ws, r)
             label = f"{name} ({_bins(trained.card.feature_params)})" if name == "default" else name
