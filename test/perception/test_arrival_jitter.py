@@ -125,7 +125,14 @@ def tap_set():
 
 @pytest.mark.parametrize(
     ("task", "asked", "applied"),
-    [("handover", None, 0.5), ("handover", 0.0, None), ("tap", None, None), ("tap", 0.3, 0.3)],
+    [
+        ("handover", None, 0.5),
+        ("handover", 0.0, None),
+        ("tap", None, 0.25),
+        ("tap", 0.0, None),
+        ("tap", 0.3, 0.3),
+        ("food", None, None),
+    ],
 )
 def test_the_recipe_augments_by_the_task_default_unless_told(
     tap_set, monkeypatch, task, asked, applied

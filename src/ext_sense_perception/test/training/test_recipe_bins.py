@@ -11,7 +11,6 @@ import pytest
 
 from ext_sense_perception.data.sources import from_sim_dataset
 from ext_sense_perception.online.predictor import load_model
-from ext_sense_perception.training.arrival_jitter import augment, default_fraction
 from ext_sense_perception.training.calibration import recipe_of
 from ext_sense_perception.training.recipe import Recipe, resolve, train_bundle
 from ext_sense_runtime.stamps import MS
@@ -57,11 +56,3 @@ def test_the_recipe_tapers_nuskin_tap_spectra_by_default(tap_npz: Path, asked, t
     assert resolve(ws, Recipe(taper=asked)).feature_params.get("taper") == taper
     assert "taper" not in resolve(ws, Recipe(features="baseline", taper=asked)).feature_params
     assert "taper" not in resolve(ws._replace(sensor="biotac"), Recipe(taper=asked)).feature_params
-
-
-def test_the_recipe_re_stamps_a_quarter_of_the_nuskin_tap_windows_by_default(tap_npz: Path):
-    ws = from_sim_dataset(tap_npz)
-    assert default_fraction(ws.task) == 0.25
-    changed = np.any(augment(ws, default_fraction(ws.task), seed=0).X != ws.X, axis=(1, 2))
-    assert 0.1 < changed.mean() < 0.4  # a quarter of the windows, drawn per window
-    assert default_fraction("food_identification") == 0.0
