@@ -29,9 +29,8 @@ from ext_sense_sim import default_models
 
 FOOD_TRIALS = default_models.TRIALS[("food_identification", "nuskin")]
 NEEDED_MB = (
-    sum(
-        default_models.BYTES_PER_TRIAL[t] * default_models.TRIALS[(t, "nuskin")]
-        for t in default_models.TASKS
+    default_models.space_needed(
+        (t, default_models.TRIALS[(t, "nuskin")]) for t in default_models.TASKS
     )
     / 2**20
 )

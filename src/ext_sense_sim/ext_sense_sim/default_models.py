@@ -11,7 +11,7 @@ import hashlib
 import os
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -68,6 +68,11 @@ BYTES_PER_TRIAL = {
 }
 """Free space asked of a place per training trial before training: about 1.5x what the NUSkin
 bundles take (docs/benchmarks.md), an upper bound for the BioTac ones."""
+
+
+def space_needed(jobs: Iterable[tuple[str, int]]) -> int:
+    """Bytes asked of a place before training ``(task, trials)`` jobs."""
+    return sum(BYTES_PER_TRIAL[task] * trials for task, trials in jobs)
 
 
 def _quiet(_line: str) -> None:
@@ -185,7 +190,7 @@ def _ensure_all(
             todo.append((task, model_dir, trials, scene))
     if not todo:
         return False
-    check_place(place, sum(BYTES_PER_TRIAL[task] * trials for task, _, trials, _ in todo))
+    check_place(place, space_needed((task, trials) for task, _, trials, _ in todo))
     with place_lock(place, log):
         trained = [_train(d, task, sensor, n, scene, force, log) for task, d, n, scene in todo]
     return any(trained)

@@ -50,6 +50,11 @@ POOLED = "real pooled"
 Table = taps.TapWindows | food.FoodTrials
 
 
+def pooled(tables: dict[str, Table], names: list[str]) -> dict[str, np.ndarray]:
+    """The per-window statistics of the tables ``names``, pooled (the real sessions)."""
+    return {k: np.concatenate([tables[n].stats[k] for n in names]) for k in tables[names[0]].stats}
+
+
 class FidelityRun(NamedTuple):
     """A run's result (JSON-ready) and its tables by group (session names, ``simulated``)."""
 
@@ -101,9 +106,7 @@ def _compare(
     if not tables[SIMULATED].names:
         raise FidelityError(f"No simulated trial of '{scene.name}' gave a window.")
     real_names = [s.name for s in sessions]
-    pooled_stats = {
-        k: np.concatenate([tables[n].stats[k] for n in real_names]) for k in tables[SIMULATED].stats
-    }
+    pooled_stats = pooled(tables, real_names)
     groups: dict[str, Any] = {}
     for s in sessions:
         groups[s.name] = _group(tables[s.name], s.path, len(s.captures))

@@ -28,7 +28,7 @@ import pytest
 
 from ext_sense_sim.calibration.stages import window_medians
 from ext_sense_sim.fidelity.captures import read_food_session, read_tap_session
-from ext_sense_sim.fidelity.check import POOLED, SIMULATED, FidelityRun, run_fidelity
+from ext_sense_sim.fidelity.check import POOLED, SIMULATED, FidelityRun, pooled, run_fidelity
 from ext_sense_sim.fidelity.compare import summarise
 from ext_sense_sim.fidelity.table import format_table
 from ext_sense_sim.fidelity.taps import tap_windows
@@ -144,11 +144,10 @@ def test_the_busiest_taxels_fire_about_as_often_in_every_tap_as_the_real_ones(ro
     # The same few taxels lead every real tap with nearly the same count (p75 / p25 of the 10
     # busiest taxels' events 1.08-1.19 by rod; grasp_transfer.gain_spread, docs/simulator.md).
     tables = _run(scene, tuple(rod_days)).tables
-    real_stats = [tables[day.name].stats for day in rod_days]
-    real = {k: np.concatenate([t[k] for t in real_stats]) for k in real_stats[0]}
+    real = pooled(tables, [day.name for day in rod_days])
     key = "busiest_10_events_p75_over_p25"
-    sim, pooled = window_medians(tables[SIMULATED].stats)[key], window_medians(real)[key]
-    assert abs(np.log(sim / pooled)) <= np.log(1.1), (scene, sim, pooled)
+    sim, in_real = window_medians(tables[SIMULATED].stats)[key], window_medians(real)[key]
+    assert abs(np.log(sim / in_real)) <= np.log(1.1), (scene, sim, in_real)
 
 
 NOT_YET = pytest.mark.xfail(
