@@ -3,8 +3,9 @@
 The simulator's truth moves to ``/extsense/sim/ground_truth`` (the session's labels are the
 operator's); the food behaviour starts probes only when asked; a scripted handover on the
 simulator plays each grasp when collect triggers it, as the pending answer's class. The
-simulated device starts its trials once the collector subscribes to its truth, so the first
-trial is in the bag even when discovery takes seconds.
+simulated device starts its trials once the collector subscribes to its truth, which the
+collector does only once the sensor stream reaches its recording: discovery matches each topic
+on its own, so the first trial is in the bag, packets included, even when that takes seconds.
 """
 
 from __future__ import annotations
@@ -19,6 +20,11 @@ COLLECTOR_NODE = "collector"
 """The node recording the session: the simulated device waits for its subscription."""
 COLLECTOR_WAIT_S = 60.0
 """How long the simulated device waits for the collector before its first trial, s."""
+STREAM_WAIT_S = 30.0
+"""How long the collector waits for the sensor stream to reach it before it subscribes to the
+simulator's truth anyway (which lets the simulated device start), s."""
+MATCH_SETTLE_S = 1.0
+"""After a publisher shows in the graph, how long its connection to our subscription may take."""
 SIM_TRIGGER_TOPIC = "/extsense/sim/trigger"
 GROUND_TRUTH = "/extsense/ground_truth"
 

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
+from ext_sense.collect.graph import MATCH_SETTLE_S
 from ext_sense.collect.session import (
     DISCARD,
     FOOD_CLASSES,
@@ -39,8 +40,6 @@ MATCH_NS = 150_000_000
 """A detected contact and an independent truth (simulator, mocap) closer than this are one."""
 START_TRIES = 10
 """Food: ``/food/start`` requests, 2 s apart, before collect gives up on a probe."""
-MATCH_SETTLE_S = 1.0
-"""After a publisher shows in the graph, how long its connection to our subscription may take."""
 GRASP_SETTLE_S = 1.5
 """After a grasp's end decision, how long its last windows may still be in flight."""
 

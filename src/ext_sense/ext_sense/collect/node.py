@@ -4,6 +4,11 @@ Raw subscriptions write the sensor stream and the arm and gripper state into the
 windows, estimates, motion starts, offers, decisions and any independent truth are also queued
 on :attr:`events` for the operator's loop. Labels go in as ``ContactGroundTruth``. It lives in
 the command's process (not a graph node), which shares its bag writer and event queue.
+
+The simulated device starts its trials when the collector subscribes to the simulator's truth,
+so that subscription waits until the sensor stream's publisher has matched the recording (and
+:data:`MATCH_SETTLE_S` more, for the publisher's side): without it, a loaded machine could play
+the first trials before the stream reached the bag.
 """
 
 from __future__ import annotations
@@ -17,7 +22,13 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import Bool, String
 
-from ext_sense.collect.graph import COLLECTOR_NODE, SIM_TRIGGER_TOPIC, SIM_TRUTH_TOPIC
+from ext_sense.collect.graph import (
+    COLLECTOR_NODE,
+    MATCH_SETTLE_S,
+    SIM_TRIGGER_TOPIC,
+    SIM_TRUTH_TOPIC,
+    STREAM_WAIT_S,
+)
 from ext_sense.nodes.bag_player import message_class
 from ext_sense.nodes.recorder import subscription_qos
 from ext_sense_bags import BagError, BagWriter, ground_truth
@@ -59,9 +70,14 @@ class CollectorNode(Node):
         # topic -> the subscription recording it (not "_subscriptions": rclpy's Node has that)
         self._recorded_by: dict[str, Any] = {}
         self.failed = ""
+        self.stream_topic = stream_topic
         self._record(stream_topic, message_class(writer.specs[stream_topic].msgtype))
         for topic, cls in DECODED.items():
-            self._record(topic, cls, decode=cls)
+            if topic != SIM_TRUTH_TOPIC:
+                self._record(topic, cls, decode=cls)
+        self._stream_wait_end = time.monotonic() + STREAM_WAIT_S
+        self._stream_matched_at: float | None = None
+        self._truth_timer = self.create_timer(0.05, self.guard(self._subscribe_truth_when_streamed))
         if mocap_topic:
             self._record(mocap_topic, PoseStamped, decode=PoseStamped, kind="mocap")
         self.food_start = self.create_publisher(Bool, "/food/start", COMMAND_QOS)
@@ -96,6 +112,25 @@ class CollectorNode(Node):
             subscription_qos(topic),
             raw=True,
         )
+
+    def _subscribe_truth_when_streamed(self) -> None:
+        """Subscribe to the simulator's truth once the stream is recorded (or after its wait)."""
+        now = time.monotonic()
+        if self._stream_matched_at is None:
+            if self.matched_publishers(self.stream_topic) == 0:
+                if now < self._stream_wait_end:
+                    return
+                self.get_logger().warning(
+                    f"no publisher of {self.stream_topic} within {STREAM_WAIT_S:.0f} s: the "
+                    "simulated device may start before the stream is recorded"
+                )
+            self._stream_matched_at = now
+        if now - self._stream_matched_at < MATCH_SETTLE_S:
+            return
+        self._truth_timer.cancel()  # once
+        self.destroy_timer(self._truth_timer)
+        if SIM_TRUTH_TOPIC not in self.received:
+            self._record(SIM_TRUTH_TOPIC, ContactGroundTruth, decode=ContactGroundTruth)
 
     def _discover(self) -> None:
         """Record the arm and gripper state topics the graph has (found by name, typed by it)."""
