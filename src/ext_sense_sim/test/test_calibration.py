@@ -145,7 +145,7 @@ def test_window_medians_add_how_varied_all_events_and_the_busiest_taxels_events_
 def test_a_held_parameter_keeps_the_scenes_value_while_the_others_fit(monkeypatch) -> None:
     import ext_sense_sim.calibration as calibration
 
-    def measure(trials, seed):
+    def measure(trials, seed, real):
         return lambda scene: {
             "force": start_values(scene, (FORCE,))[0],
             "damping": start_values(scene, (DAMPING,))[0],

@@ -74,7 +74,7 @@ def calibrate_scene(
             scene,
             free,
             targets,
-            stage.measure(n, seed),
+            stage.measure(n, seed, captures),
             max_evaluations=max_evaluations,
             on_step=show,
         )
