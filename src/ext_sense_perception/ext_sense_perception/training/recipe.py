@@ -104,10 +104,14 @@ def resolve(ws: WindowSet, recipe: Recipe) -> Choice:
 def fit_recipe(ws: WindowSet, recipe: Recipe = Recipe()) -> tuple[TrainedModel, list[TrainedModel]]:
     """The model and its anytime models the recipe fits on ``ws``, not yet saved."""
     fraction = default_fraction(ws.task) if recipe.arrival_jitter is None else recipe.arrival_jitter
+    as_cut = ws
     if fraction:
         ws = augment(ws, fraction, recipe.seed)
-    if recipe.onset_shifts:
+    if recipe.onset_shifts:  # copies: the card scores the augmented folds
         ws = onset_shifted(ws, recipe.onset_shifts, seed=recipe.seed)
+        as_cut = None
+    elif ws is as_cut:
+        as_cut = None  # nothing re-stamped
     choice = resolve(ws, recipe)
     kwargs: dict[str, Any] = {
         "feature_params": choice.feature_params,
@@ -117,7 +121,7 @@ def fit_recipe(ws: WindowSet, recipe: Recipe = Recipe()) -> tuple[TrainedModel, 
         "rate_hz": recipe.rate_hz,
         "cv_folds": REGRESSION_FOLDS,
     }
-    trained = fit_model(ws, choice.features, choice.model, **kwargs)
+    trained = fit_model(ws, choice.features, choice.model, as_cut=as_cut, **kwargs)
     posts = (
         ws.task_profile.anytime_post_ns
         if recipe.anytime_post_ns is None

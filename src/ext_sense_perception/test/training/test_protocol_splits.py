@@ -92,3 +92,33 @@ def test_a_recipe_tap_model_scores_itself_on_more_folds_when_it_has_the_trials(
     assert plain.metrics["cv_folds"] == 4
     classes = _set(200, 0, classes=True)
     assert fit_recipe(classes, recipe)[0].card.metrics["cv_folds"] == 4  # classes: the paper's
+
+
+def test_a_model_trained_on_augmented_windows_is_scored_on_the_windows_as_cut():
+    from ext_sense_perception.errors import PerceptionError
+    from ext_sense_perception.training.fit import fit_model
+
+    ws = _set(120, 0, classes=False)
+    rng = np.random.default_rng(1)
+    X = ws.X.copy()  # noqa: N806
+    X[::2] += rng.normal(0.0, 3.0, X[::2].shape)  # half the windows blurred, as re-stamping does
+    noisy = ws._replace(X=X)
+    params = {"feature_params": {"bin_ns": 5 * MS}, "cv_folds": 5}
+    same = fit_model(noisy, "baseline", "svm_rbf", as_cut=noisy, **params).card.metrics
+    assert same["cv_mae_m"] == pytest.approx(same["cv_mae_augmented_m"])  # nothing told apart
+    clean = fit_model(noisy, "baseline", "svm_rbf", as_cut=ws, **params).card.metrics
+    assert clean["cv_mae_augmented_m"] == pytest.approx(same["cv_mae_augmented_m"])
+    assert clean["cv_mae_m"] < clean["cv_mae_augmented_m"]  # the clean windows are easier
+    with pytest.raises(PerceptionError, match="'as_cut' windows must be those of 'ws'"):
+        fit_model(noisy, "baseline", "svm_rbf", as_cut=_set(60, 0, classes=False), **params)
+
+
+def test_a_tap_recipe_that_restamps_keeps_both_scores_on_its_card():
+    from ext_sense_perception.training.recipe import Recipe, fit_recipe
+
+    ws = _set(80, 0, classes=False)
+    recipe = Recipe(features="baseline", feature_bin_ns=5 * MS, anytime_post_ns=())
+    metrics = fit_recipe(ws, recipe)[0].card.metrics  # the tap default re-stamps a quarter
+    assert {"cv_mae_m", "cv_mae_augmented_m"} <= set(metrics)
+    plain = fit_recipe(ws, Recipe(**{**recipe.__dict__, "arrival_jitter": 0.0}))[0].card.metrics
+    assert "cv_mae_augmented_m" not in plain
