@@ -1,7 +1,8 @@
 """What each calibration stage fits, to which real statistics, and how it measures a scene.
 
 ``noise``: a NUSkin tap scene's noise against the quiet stretch before each real tap; ``taps``:
-its tap, rod damping, load share and contact strip against the real tap windows; ``food``: the
+its tap, rod damping, load share and contact strip against the real tap windows (their medians
+and, by a two-sample AUC, how their statistics go together); ``food``: the
 food scene's noise, resting readings, strip and grip against the real trials' motion. The
 tolerances: docs/simulator.md, "Calibration against the real sensor".
 """
@@ -47,9 +48,9 @@ differs and how soon a taxel can fire again. Ranges keep their ends' ratio to th
 person's taps, x0.8-1.25."""
 
 AUC_TOLERANCE = 0.15
-"""The two-sample AUC's tolerance about 0.5 (no forest tells the sets apart): how the targeted
-statistics go together, which their medians do not see, weighs as much as a median 2.4
-tolerances off at the fidelity check's 0.86."""
+"""The two-sample AUC's tolerance about 0.5 (no forest tells the sets apart): it carries how the
+targeted statistics go together, which their medians do not see; an AUC of 0.86 weighs as much
+as a median 2.4 tolerances off."""
 AUC_SEED = 0
 """Folds and forests of the calibration's two-sample AUC: the same for every step."""
 AUC_REPEATS = 3
