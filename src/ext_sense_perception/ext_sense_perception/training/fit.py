@@ -152,7 +152,7 @@ def fit_model(
                 head = clone(head_of(best))
                 head_input = F
                 scored = (
-                    (search.best_estimator_, F, fitted_features.transform(as_cut.X.reshape(n, -1)))
+                    (head, F, fitted_features.transform(as_cut.X.reshape(n, -1)))
                     if as_cut is not None
                     else None
                 )
@@ -166,11 +166,7 @@ def fit_model(
                 best.steps[0] = ("features", clone(best.steps[0][1]).fit(X))
                 head = clone(head_of(best))
                 head_input = best.steps[0][1].transform(X)
-                scored = (
-                    (clone(pipe).set_params(**search.best_params_), X, as_cut.X.reshape(n, -1))
-                    if as_cut is not None
-                    else None
-                )
+                scored = (clone(best), X, as_cut.X.reshape(n, -1)) if as_cut is not None else None
             splits = cv if isinstance(cv, list) else list(cv.split(X, ws.y))
             metrics: dict[str, Any] = {"cv_folds": len(splits)}
             best_score = float(search.best_score_)
