@@ -67,13 +67,21 @@ class Recorder:
     def __call__(self, context):
         import rclpy
 
-        from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS, GROUND_TRUTH_QOS
+        from ext_sense_runtime.qos import (
+            COMMAND_QOS,
+            DECISION_QOS,
+            ESTIMATE_QOS,
+            GROUND_TRUTH_QOS,
+        )
 
+        by_name = {
+            "contact_estimate": ESTIMATE_QOS,
+            "ground_truth": GROUND_TRUTH_QOS,
+            "decision": DECISION_QOS,  # latched: the first decision may precede the match
+        }
         node = rclpy.create_node("scenario_recorder", context=context)
         for topic, kind in self.topics.items():
-            qos = {"contact_estimate": ESTIMATE_QOS, "ground_truth": GROUND_TRUTH_QOS}.get(
-                topic.rsplit("/", 1)[-1], COMMAND_QOS
-            )
+            qos = by_name.get(topic.rsplit("/", 1)[-1], COMMAND_QOS)
             node.create_subscription(
                 kind, topic, lambda m, t=topic: self.got[t].append((time.time_ns(), m)), qos
             )

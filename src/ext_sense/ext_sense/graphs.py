@@ -231,6 +231,11 @@ for a loaded machine (docs/decisions.md, "The simulated food arm")."""
 SIM_FOOD_STOP_HEIGHT_M = 0.125
 """The probe's preset stop over the simulated arm: the scene's 35 mm travel from the start."""
 
+SIM_FOOD_START_DELAY_S = 2.0
+"""The simulated food probe's first start, s after start-up at the earliest: a recorder started
+with the graph missed the simulated sensor's first truth, published 0.1 s after the graph came
+up, about one run in five (``test_behaviour_scenarios.py``)."""
+
 SIM_ARM_STATE_TIMEOUT_S = 2.0
 """The probe's arm-state timeout over the simulated arm (0.5 s on a robot): ``sim_arm``'s 100 Hz
 Python states share the CPU with the graph (a 0.62 s pause was seen)."""
@@ -274,7 +279,13 @@ def _food_behaviours(args: Mapping[str, str]) -> tuple[NodeSpec, ...]:
         arm = (NodeSpec("ext_sense_sim", "sim_arm", "sim_arm", plugin, dict(SIM_FOOD_ARM)),)
     if args["source"] == "sim":
         # probe by itself, once the window node and the simulated device hear the motion start
-        food |= {"auto_start": True, "repeat_s": 2.0, "start_subscribers": 2}
+        # and listeners started beside the graph have had time to match the device's truth
+        food |= {
+            "auto_start": True,
+            "repeat_s": 2.0,
+            "start_subscribers": 2,
+            "start_delay_s": SIM_FOOD_START_DELAY_S,
+        }
     probe = _behaviour(
         "food_behaviour",
         "FoodBehaviourNode",

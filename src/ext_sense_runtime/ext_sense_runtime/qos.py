@@ -5,6 +5,10 @@
   4 kHz (``bench/bench_runtime.py --only worst``).
 - Windows, estimates and commands: reliable with an explicit depth; rare, and each matters.
   Volatile, so late joiners do not act on a stale contact.
+- Behaviour decisions: reliable and transient local, the last 20 kept: a decision is a log
+  line, not a command, so a late joiner (an operator's echo, a view, a test's recorder matched
+  after the behaviour's first step) is shown how the behaviour reached its state instead of
+  missing its first decisions.
 - Ground truth: reliable, deep (one per trial, recorded beside the data).
 - Diagnostics: reliable, depth 10, as diagnostic_aggregator expects.
 """
@@ -14,13 +18,13 @@ from __future__ import annotations
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 
-def keep_last(depth: int, reliable: bool) -> QoSProfile:
-    """A volatile keep-last profile of ``depth``, reliable or best effort."""
+def keep_last(depth: int, reliable: bool, latched: bool = False) -> QoSProfile:
+    """A keep-last profile of ``depth``, reliable or best effort, volatile unless ``latched``."""
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
         depth=depth,
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.VOLATILE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
     )
 
 
@@ -28,5 +32,6 @@ SENSOR_STREAM_QOS = keep_last(1000, reliable=False)
 WINDOW_QOS = keep_last(20, reliable=True)
 ESTIMATE_QOS = keep_last(50, reliable=True)
 COMMAND_QOS = keep_last(10, reliable=True)
+DECISION_QOS = keep_last(20, reliable=True, latched=True)
 GROUND_TRUTH_QOS = keep_last(1000, reliable=True)
 DIAGNOSTICS_QOS = keep_last(10, reliable=True)

@@ -31,7 +31,7 @@ from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare_all, param
-from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
+from ext_sense_runtime.qos import COMMAND_QOS, DECISION_QOS, ESTIMATE_QOS
 from ext_sense_runtime.records import estimate_of
 from ext_sense_runtime.stamps import S, fill_stamp, stamp_to_ns
 
@@ -79,6 +79,13 @@ class FoodParameters:
         "simulated sensor), so none misses the motion start.",
         low=0,
         high=100,
+    )
+    start_delay_s: float = _ro(
+        0.0,
+        "auto_start no sooner than this after start-up, s (lets listeners started with the "
+        "graph, such as a recorder, match the simulated sensor's truth before the first probe).",
+        low=0.0,
+        high=600.0,
     )
     repeat_s: float = _ro(
         0.0, "Start the next probe this long after one ends, s (0: no).", low=0.0, high=3600.0
@@ -165,6 +172,7 @@ class FoodBehaviourNode(Node):
         p = declare_all(self, FoodParameters)
         self.auto_start = p.auto_start
         self.start_subscribers = p.start_subscribers
+        self.start_delay_ns = round(p.start_delay_s * S)
         self.repeat_ns = round(p.repeat_s * S)
         self._done_ns: int | None = None
         arm: Any
@@ -196,7 +204,7 @@ class FoodBehaviourNode(Node):
         )
         self.motion_pub = self.create_publisher(ContactGroundTruth, "motion_start", COMMAND_QOS)
         self.result_pub = self.create_publisher(ContactEstimate, "food/result", ESTIMATE_QOS)
-        self.decision_pub = self.create_publisher(String, "food/decision", COMMAND_QOS)
+        self.decision_pub = self.create_publisher(String, "food/decision", DECISION_QOS)
         self.arm_pub = self.create_publisher(JointState, "arm/state", COMMAND_QOS)
         for topic in ("contact_estimate", "contact_estimate/provisional"):
             self.create_subscription(
@@ -205,6 +213,7 @@ class FoodBehaviourNode(Node):
         self.create_subscription(Bool, "food/start", self.guard(self._on_start), COMMAND_QOS)
         self._estimate_msgs: dict[int, ContactEstimate] = {}
         self.results = 0
+        self._started_ns = self.get_clock().now().nanoseconds
         self.create_timer(1.0 / p.control_rate_hz, self.guard(self._on_timer))
         self.updater = Updater(hardware_id=f"arm:{p.arm}")
         self.updater.add_check("food", self._check)
@@ -254,7 +263,10 @@ class FoodBehaviourNode(Node):
     def _on_timer(self) -> None:
         now = self.get_clock().now().nanoseconds
         if self.auto_start and self.machine.state == FoodState.IDLE:
-            if self.motion_pub.get_subscription_count() < self.start_subscribers:
+            if (
+                self.motion_pub.get_subscription_count() < self.start_subscribers
+                or now - self._started_ns < self.start_delay_ns
+            ):
                 return
             if self.probe.start(now) is not None:
                 self.auto_start = False

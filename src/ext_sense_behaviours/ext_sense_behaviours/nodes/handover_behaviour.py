@@ -36,7 +36,7 @@ from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare_all, param
-from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS
+from ext_sense_runtime.qos import COMMAND_QOS, DECISION_QOS, ESTIMATE_QOS
 from ext_sense_runtime.records import estimate_of
 from ext_sense_runtime.stamps import S, fill_stamp
 
@@ -123,7 +123,7 @@ class HandoverBehaviourNode(Node):
         self.gripper_level = Level.STALE
         self.gripper_message = "no gripper status yet"
         self.estimates = 0
-        self.decision_pub = self.create_publisher(String, "handover/decision", COMMAND_QOS)
+        self.decision_pub = self.create_publisher(String, "handover/decision", DECISION_QOS)
         self.offer_pub = self.create_publisher(ContactGroundTruth, "handover/offer", COMMAND_QOS)
         for topic in ("contact_estimate", "contact_estimate/provisional"):
             self.create_subscription(
