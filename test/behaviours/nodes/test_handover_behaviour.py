@@ -19,7 +19,7 @@ from visualization_msgs.msg import Marker  # noqa: E402
 
 from ext_sense_drivers.robotiq import ObjectStatus  # noqa: E402
 from ext_sense_msgs.msg import ContactEstimate, ContactGroundTruth  # noqa: E402
-from ext_sense_runtime.qos import COMMAND_QOS, ESTIMATE_QOS  # noqa: E402
+from ext_sense_runtime.qos import COMMAND_QOS, DECISION_QOS, ESTIMATE_QOS  # noqa: E402
 from ext_sense_runtime.stamps import stamp_to_ns  # noqa: E402
 from ext_sense_sim.devices.robotiq_emulator import (  # noqa: E402
     GripperModel,
@@ -266,6 +266,23 @@ def test_food_node_on_the_simulated_arm(ros):
     assert spin_until(lambda: "DONE: PUBLISH" in decisions[-1].data)
     states = [d.data.split("] ")[1].split(":")[0] for d in decisions]
     assert states == ["LOWERING", "COLLECTING", "CLASSIFYING", "RETRACTING", "DONE"]
+
+
+def test_a_subscriber_that_joins_late_still_gets_the_first_decision(ros):
+    """Decisions are transient local: one joining after the behaviour's first step gets it, and
+    a volatile subscriber (``ros2 topic echo`` without options) still matches."""
+    from ext_sense_behaviours.food import FoodState
+    from ext_sense_behaviours.nodes.food_behaviour import FoodBehaviourNode
+
+    add, spin_until = ros
+    food = add(FoodBehaviourNode, parameter_overrides=[Parameter("auto_start", value=True)])
+    assert spin_until(lambda: food.machine.state != FoodState.IDLE)
+    probe = add(Probe)
+    probe.listen(String, "food/decision", DECISION_QOS)
+    assert spin_until(lambda: probe.got["food/decision"]), "no decision reached a late subscriber"
+    assert "LOWERING" in probe.got["food/decision"][0].data
+    probe.create_subscription(String, "food/decision", lambda _: None, COMMAND_QOS)
+    assert spin_until(lambda: food.decision_pub.get_subscription_count() == 2)
 
 
 def _handover_on_the_gripper(add, port: str, consecutive: int, gripper: list[Parameter]):
