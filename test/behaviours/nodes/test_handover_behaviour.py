@@ -249,7 +249,7 @@ def test_food_node_on_the_simulated_arm(ros):
     probe = add(Probe)
     probe.listen(ContactGroundTruth, "motion_start")
     probe.listen(ContactEstimate, "food/result", ESTIMATE_QOS)
-    probe.listen(String, "food/decision")
+    probe.listen(String, "food/decision", DECISION_QOS)  # from the first, whenever it matched
     est_pub = probe.publisher(ContactEstimate, "contact_estimate", ESTIMATE_QOS)
     decisions = probe.got["food/decision"]
     assert spin_until(lambda: probe.got["motion_start"])
