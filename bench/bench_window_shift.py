@@ -75,10 +75,19 @@ def fresh_taps(
     )
 
 
+def errors_cm(predict: Predict, taps: FreshTaps) -> np.ndarray:
+    """Absolute error of each tap's estimate, cm."""
+    return np.abs(predict(taps.X.reshape(len(taps.y), -1)) - taps.y) * 100
+
+
+def mean_se(err: np.ndarray) -> tuple[float, float]:
+    """Mean of ``err`` and its standard error."""
+    return float(np.mean(err)), float(np.std(err, ddof=1) / np.sqrt(err.size))
+
+
 def mae_cm(predict: Predict, taps: FreshTaps) -> tuple[float, float]:
     """Mean absolute error on the taps and its standard error, cm."""
-    err = np.abs(predict(taps.X.reshape(len(taps.y), -1)) - taps.y) * 100
-    return float(np.mean(err)), float(np.std(err, ddof=1) / np.sqrt(err.size))
+    return mean_se(errors_cm(predict, taps))
 
 
 def row(
@@ -114,13 +123,13 @@ def by_seed(
     name: str, cv_cm: float, predict: Predict, seeds: list[int], sets: list[FreshTaps]
 ) -> str:
     """One model's fresh-tap MAE on each set and pooled, and the CV against the pooled."""
-    errors = [np.abs(predict(t.X.reshape(len(t.y), -1)) - t.y) * 100 for t in sets]
+    errors = [errors_cm(predict, taps) for taps in sets]
     each = ", ".join(f"{seed} {e.mean():.2f}" for seed, e in zip(seeds, errors, strict=True))
     pooled = np.concatenate(errors)
-    se = np.std(pooled, ddof=1) / np.sqrt(pooled.size)
+    mae, se = mean_se(pooled)
     return (
         f"  {name:26s} fresh MAE by seed: {each}; pooled ({pooled.size} taps) "
-        f"{pooled.mean():.2f}+-{se:.2f}, cv/pooled {cv_cm / pooled.mean():.2f}"
+        f"{mae:.2f}+-{se:.2f}, cv/pooled {cv_cm / mae:.2f}"
     )
 
 
