@@ -26,9 +26,11 @@ demo-sessions: setup
 ## Lint and every test (unit, node, system). CI runs exactly this. Every test but the graphs of
 ## node processes (marked slow and ros) runs on both cores, test-fast's and the slow training
 ## ones; the graphs, which assert on live timing, then one at a time, alone on the machine.
+## Each lane ends with its 15 slowest tests. A test that outlives its timeout by a minute (hung
+## in C, or in a teardown) ends its process with every thread's stack (conftest.py).
 test: setup lint
-	@$(VENV)/bin/pytest -m "not (slow and ros)" -n 2
-	@$(VENV)/bin/pytest -m "slow and ros"
+	@$(VENV)/bin/pytest -m "not (slow and ros)" -n 2 --durations=15
+	@$(VENV)/bin/pytest -m "slow and ros" --durations=15
 
 ## The everyday lane: lint and the tests not marked slow (no graph subprocesses, no training on
 ## hundreds of taps), on both cores. Run `make test` before you push.

@@ -4,11 +4,16 @@ Each pytest run gets its own ROS_DOMAIN_ID (from the process id; under pytest-xd
 worker) and localhost-only discovery, so parallel runs on one machine never see each other's
 topics; logs go under build/.
 Shared-memory segments that crashed participants leave in /dev/shm are cleaned at the end.
+A test that outlives its timeout by a grace period (hung in C, or in a teardown after the
+timeout fired) ends its process with every thread's stack on stderr, instead of hanging CI.
 """
 
 from __future__ import annotations
 
+import contextlib
+import faulthandler
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -67,6 +72,67 @@ def food_sessions(shared_data: Path) -> list[Path]:
     if absent:
         pytest.skip(f"real food sessions not available: {', '.join(absent)} absent")
     return paths
+
+
+# pytest-timeout's signal method raises in the main thread, so it cannot stop a test blocked in
+# C (a DDS call, a native thread pool) or one whose teardown hangs after the timeout has fired:
+# either held a pytest-xdist worker, and with it `make test`, until CI's own limit. This watchdog,
+# faulthandler's C thread, dumps every thread's stack and ends the process: the worker is reported
+# as crashed on the test that hung (and replaced), or the serial lane fails there. It is armed per
+# phase (setup, call, teardown), since pytest cancels faulthandler's timer when a phase fails.
+HANG_GRACE_S = float(os.environ.get("EXT_SENSE_HANG_GRACE_S", "60"))
+"""Beyond a test's timeout, per phase; the environment variable shortens it for its own test."""
+_STDERR_FD: list[int] = []
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Keep a copy of the real stderr (output capture replaces fd 2 while tests run)."""
+    _STDERR_FD.append(os.dup(2))
+
+
+def _timeout_s(item: pytest.Item) -> float | None:
+    """The item's pytest-timeout limit: its ``timeout`` marker, else the configured one."""
+    marker = item.get_closest_marker("timeout")
+    value = None
+    if marker is not None:
+        value = marker.kwargs.get("timeout", marker.args[0] if marker.args else None)
+    if value is None:
+        value = item.config.getini("timeout") or None
+    return float(value) if value is not None and float(value) > 0 else None
+
+
+@contextlib.contextmanager
+def _hang_watchdog(item: pytest.Item) -> Iterator[None]:
+    timeout = _timeout_s(item)
+    if timeout is None or not _STDERR_FD:
+        yield
+        return
+    faulthandler.dump_traceback_later(timeout + HANG_GRACE_S, exit=True, file=_STDERR_FD[0])
+    try:
+        yield
+    finally:
+        faulthandler.cancel_dump_traceback_later()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_setup(item: pytest.Item) -> Iterator[None]:
+    """The setup phase, under the hang watchdog."""
+    with _hang_watchdog(item):
+        return (yield)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
+    """The call phase, under the hang watchdog."""
+    with _hang_watchdog(item):
+        return (yield)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
+    """The teardown phase, under the hang watchdog."""
+    with _hang_watchdog(item):
+        return (yield)
 
 
 SHM = Path("/dev/shm")

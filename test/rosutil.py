@@ -16,6 +16,7 @@ def spinning(*node_factories: Callable[..., Any]) -> Iterator[list[Any]]:
     from rclpy.context import Context
 
     from ext_sense_runtime.executor import make_executor
+    from ext_sense_runtime.node_main import destroy_node
 
     context = Context()
     rclpy.init(context=context, args=[])
@@ -44,11 +45,12 @@ def spinning(*node_factories: Callable[..., Any]) -> Iterator[list[Any]]:
         finally:
             stop.set()
             thread.join(timeout=5)
-    finally:
+    finally:  # the order of a node process's own teardown (node_main.RosSession.close)
+        executor.shutdown()  # before the nodes: it lets go of their entities
         for node in nodes:
-            node.destroy_node()
-        executor.shutdown()
+            destroy_node(node)
         rclpy.try_shutdown(context=context)
+        context.destroy()
 
 
 def wait_for(predicate: Callable[[], bool], timeout: float = 10.0, step: float = 0.02) -> bool:

@@ -159,6 +159,8 @@ class FoxgloveViewNode(Node):
         self._estimates: dict[int, tuple[Image, dict[str, Any]]] = {}
         """Estimates waiting for the next frame, by onset: a contact's final replaces its
         provisional ones, and each contact is drawn even when several wait for one frame."""
+        self._final_onsets: deque[int] = deque(maxlen=MAX_PENDING_ESTIMATES)
+        """Onsets of the latest final estimates: a provisional one for them comes too late."""
         self._diag_dirty = False
         self.feed = SensorFeed(self.sensor, self.taxels, self.electrodes, self.pac)
 
@@ -265,6 +267,12 @@ class FoxgloveViewNode(Node):
 
     def _on_estimate(self, msg: ContactEstimate) -> None:
         est = estimate_of(msg)
+        # the two estimate topics are two subscriptions, taken in either order when both are
+        # ready: a contact's provisional estimate handled after its final one is stale
+        if est.provisional and est.onset_ns in self._final_onsets:
+            return
+        if not est.provisional:
+            self._final_onsets.append(est.onset_ns)
         truth = matching_truth(est, self.truths, self.tolerance_ns)
         self._estimates[est.onset_ns] = (
             estimate_image(est, truth, self.rod_m),

@@ -227,8 +227,15 @@ def test_the_view_lowers_every_thread_of_its_process() -> None:
         "late = []\n"
         "u = threading.Thread(target=lambda: late.append(os.getpriority(os.PRIO_PROCESS, 0)))\n"
         "u.start(); u.join()\n"
-        "print(sorted({os.getpriority(os.PRIO_PROCESS, int(x)) "
-        "for x in os.listdir('/proc/self/task')}), late)\n"
+        "def priorities():\n"
+        "    out = set()\n"
+        "    for x in os.listdir('/proc/self/task'):\n"
+        "        try:\n"
+        "            out.add(os.getpriority(os.PRIO_PROCESS, int(x)))\n"
+        "        except ProcessLookupError:  # a thread that ended after the listing (u)\n"
+        "            pass\n"
+        "    return sorted(out)\n"
+        "print(priorities(), late)\n"
         "_lower_priority(3)\n"
         "print(os.getpriority(os.PRIO_PROCESS, 0))\n"
     )
@@ -280,3 +287,59 @@ def test_every_contact_is_drawn_when_several_wait_for_one_frame() -> None:
             client.close()
     assert onsets == [1_000_000_000, 2_000_000_000, 3_000_000_000]
     assert len(pictures) == 3
+
+
+def test_a_provisional_estimate_handled_after_its_final_does_not_replace_it() -> None:
+    """The two estimate topics are two subscriptions: when both are ready, the executor may take
+    a contact's final before its provisional. The picture stays the final one, in that frame
+    and after (a replay at twice the speed lost the first contact's final picture so)."""
+    import time
+
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+
+    from ext_sense.view import channels as ch
+    from ext_sense.view.node import FoxgloveViewNode
+    from ext_sense_msgs.msg import ContactEstimate
+    from ext_sense_runtime.qos import ESTIMATE_QOS
+    from ext_sense_runtime.stamps import fill_stamp
+
+    def view(**kw):
+        return FoxgloveViewNode(
+            parameter_overrides=[
+                Parameter("port", value=0),
+                Parameter("display_rate_hz", value=2.0),
+                Parameter("nice", value=0),
+            ],
+            **kw,
+        )
+
+    def estimate(onset_s: int, provisional: bool) -> ContactEstimate:
+        msg = _estimate()
+        fill_stamp(msg.header.stamp, onset_s * 1_000_000_000)
+        msg.provisional = provisional
+        return msg
+
+    with spinning(view, lambda **kw: Node("view_test_source", **kw)) as (node, src):
+        client = FoxgloveClient(f"ws://127.0.0.1:{node.port}")
+        try:
+            assert wait_for(lambda: ch.ESTIMATE_INFO in client.topics())
+            final = src.create_publisher(ContactEstimate, "contact_estimate", ESTIMATE_QOS)
+            anytime = src.create_publisher(
+                ContactEstimate, "contact_estimate/provisional", ESTIMATE_QOS
+            )
+            pubs = (final, anytime)
+            assert wait_for(lambda: all(p.get_subscription_count() for p in pubs))
+            assert wait_for(lambda: client.messages(ch.DIAGNOSTICS), timeout=10)  # a frame went
+            final.publish(estimate(1, provisional=False))  # within one frame
+            anytime.publish(estimate(1, provisional=True))
+            passed = "/extsense/contact_estimate/provisional"
+            assert wait_for(lambda: client.messages(passed))
+            assert wait_for(lambda: client.messages(ch.ESTIMATE_INFO), timeout=10)
+            anytime.publish(estimate(1, provisional=True))  # in a later frame
+            assert wait_for(lambda: len(client.messages(passed)) >= 2)
+            time.sleep(1.5)  # three frames
+            drawn = [client.decode(m) for m in client.messages(ch.ESTIMATE_INFO)]
+        finally:
+            client.close()
+    assert [(d["onset_ns"], d["kind"]) for d in drawn] == [(1_000_000_000, "final")]
