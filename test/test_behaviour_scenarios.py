@@ -71,12 +71,13 @@ class Recorder:
             COMMAND_QOS,
             DECISION_QOS,
             ESTIMATE_QOS,
-            GROUND_TRUTH_QOS,
+            GROUND_TRUTH_OFFERED_QOS,
         )
 
         by_name = {
             "contact_estimate": ESTIMATE_QOS,
-            "ground_truth": GROUND_TRUTH_QOS,
+            # latched as the simulated device offers it: its first truth may precede the match
+            "ground_truth": GROUND_TRUTH_OFFERED_QOS,
             "decision": DECISION_QOS,  # latched: the first decision may precede the match
         }
         node = rclpy.create_node("scenario_recorder", context=context)

@@ -9,7 +9,10 @@
   line, not a command, so a late joiner (an operator's echo, a view, a test's recorder matched
   after the behaviour's first step) is shown how the behaviour reached its state instead of
   missing its first decisions.
-- Ground truth: reliable, deep (one per trial, recorded beside the data).
+- Ground truth: reliable, deep (one per trial, recorded beside the data). Subscribers ask for
+  volatile, which matches any publisher; the simulated device offers transient local
+  (``GROUND_TRUTH_OFFERED_QOS``), so a subscriber that asks for it (a test's recorder matched
+  after the first trial) gets the trials it joined too late for.
 - Diagnostics: reliable, depth 10, as diagnostic_aggregator expects.
 """
 
@@ -34,4 +37,5 @@ ESTIMATE_QOS = keep_last(50, reliable=True)
 COMMAND_QOS = keep_last(10, reliable=True)
 DECISION_QOS = keep_last(20, reliable=True, latched=True)
 GROUND_TRUTH_QOS = keep_last(1000, reliable=True)
+GROUND_TRUTH_OFFERED_QOS = keep_last(1000, reliable=True, latched=True)
 DIAGNOSTICS_QOS = keep_last(10, reliable=True)

@@ -28,7 +28,7 @@ from ext_sense_runtime.diagnostics import Level, Updater
 from ext_sense_runtime.diagnostics_ros import DiagnosticsPublisher
 from ext_sense_runtime.node_main import run_node
 from ext_sense_runtime.parameters import declare_all, param
-from ext_sense_runtime.qos import COMMAND_QOS, GROUND_TRUTH_QOS
+from ext_sense_runtime.qos import COMMAND_QOS, GROUND_TRUTH_OFFERED_QOS
 from ext_sense_runtime.records import GroundTruth
 from ext_sense_runtime.stamps import fill_stamp, stamp_to_ns
 from ext_sense_sim.links import open_link
@@ -120,7 +120,9 @@ class SimDeviceNode(Node):
             link, link_path=p.port_link, can_channel=can_channel, priority=DEVICE_PRIORITY
         )
         self.port = getattr(self.sink, "path", f"can:{can_channel}")
-        self.pub = self.create_publisher(ContactGroundTruth, "ground_truth", GROUND_TRUTH_QOS)
+        self.pub = self.create_publisher(
+            ContactGroundTruth, "ground_truth", GROUND_TRUTH_OFFERED_QOS
+        )
         self.stats = StreamStats()
         self.error = ""
         self._stop = threading.Event()

@@ -17,7 +17,7 @@ def _device_and_listener(**params):
     from rclpy.parameter import Parameter
 
     from ext_sense_msgs.msg import ContactGroundTruth
-    from ext_sense_runtime.qos import GROUND_TRUTH_QOS
+    from ext_sense_runtime.qos import GROUND_TRUTH_OFFERED_QOS, GROUND_TRUTH_QOS
     from ext_sense_sim.nodes.sim_device import SimDeviceNode
 
     context = rclpy.Context()
@@ -31,12 +31,11 @@ def _device_and_listener(**params):
         executor.add_node(node)
         got: list = []
 
-        def listen(name: str = "gt_listener") -> None:
+        def listen(name: str = "gt_listener", latched: bool = False) -> None:
             listener = rclpy.create_node(name, context=context)
             nodes.append(listener)
-            listener.create_subscription(
-                ContactGroundTruth, "ground_truth", got.append, GROUND_TRUTH_QOS
-            )
+            qos = GROUND_TRUTH_OFFERED_QOS if latched else GROUND_TRUTH_QOS
+            listener.create_subscription(ContactGroundTruth, "ground_truth", got.append, qos)
             executor.add_node(listener)
 
         yield node, executor, listen, got
@@ -86,6 +85,30 @@ def test_node_streams_bytes_and_publishes_ground_truth(tmp_path):
         assert words.taxel.min() >= 1
         assert words.taxel.max() <= 80
     assert not link.exists()
+
+
+def test_a_listener_asking_for_transient_local_gets_the_truths_from_before_it_joined(tmp_path):
+    """The device offers its truths latched: a recorder matched after the first trials (as a
+    test's recorder under load was) still gets them; a volatile listener still matches."""
+    link = tmp_path / "nuskin_port"
+    device = _device_and_listener(
+        scene="tap_rod20_nuskin", port_link=str(link), trials=0, trial_period_s=0.4
+    )
+    with device as (node, executor, listen, got):
+        fd = os.open(link, os.O_RDONLY | os.O_NONBLOCK)
+        try:
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and node.played < 2:
+                executor.spin_once(timeout_sec=0.05)
+                with contextlib.suppress(BlockingIOError):
+                    os.read(fd, 65536)
+            assert node.played >= 2  # two trials published before anyone listened
+            listen("late_volatile")
+            listen("late_recorder", latched=True)
+            _spin(executor, 10, lambda: len(got) >= 2)
+        finally:
+            os.close(fd)
+        assert [m.trial for m in got][:2] == [0, 1]
 
 
 def test_with_wait_for_listener_the_first_trial_waits_for_a_ground_truth_subscriber(tmp_path):
