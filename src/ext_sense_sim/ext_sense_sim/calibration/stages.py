@@ -38,6 +38,7 @@ TAP_FREE = (
     FreeParameter("beam_modes", "grasp_damping_ratio", 0.001, 0.2),
     FreeParameter("grasp_transfer", "finger_load_share", 0.01, 0.57, spread=(1 / 3, 5 / 3)),
     FreeParameter("grasp_transfer", "strip_sigma_m", 0.0008, 0.004),
+    FreeParameter("grasp_transfer", "strip_profile_power", 1.0, 8.0),
     FreeParameter("contact_impulse", "moment_exponent", 0.2, 3.0),
     FreeParameter("grasp_transfer", "gain_spread", 0.01, 0.9),
     FreeParameter("nuskin_transduction", "refractory_s", 0.00025, 0.001),

@@ -3,9 +3,11 @@
 Each finger has 40 taxels on an 8 x 5 lattice (ids 1-40 left, 41-80 right; ``id - 1 (mod 40)``
 row-major, rows along the object's axis, row 7 nearest the free span); the pads press on
 opposite sides of the object. Model (a rigid object on a Winkler pad): the object touches each
-pad along a strip ``w(c) = exp(-(c - c0)^2 / (2 s^2))``, ``c0`` its lateral offset there (drawn
-per trial and pad). With ``A = sum w a``, ``I = sum w u^2 a`` (``u`` axial from the pad centre),
-a finger of side ``s = +1`` (left) / ``-1`` (right) feels
+pad along a strip ``w(c) = exp(-|c - c0|^q / (2 s^q))``, ``c0`` its lateral offset there (drawn
+per trial and pad); ``q`` (``strip_profile_power``) is 2 for a Gaussian strip, more for a
+flatter top with a sharper edge (fitted on the 50 cm rod). With ``A = sum w a``,
+``I = sum w u^2 a`` (``u`` axial from the pad centre), a finger of side ``s = +1`` (left) /
+``-1`` (right) feels
 
 ``p = w * (F_grip / A + s (V_n / A + M_n u / I)
        + k_t (c - c0) / s_w (V_t / A + M_t u / I) + k_a (u / u_max) F_ax / A)``
@@ -53,6 +55,7 @@ class GraspTransfer(Effect):
         "pitch_m": 0.003,
         "grip_force_n": [15.0, 25.0],
         "strip_sigma_m": 0.0015,
+        "strip_profile_power": 2.0,
         "lateral_offset_m": [-0.003, 0.003],
         "tangential_coupling": 0.3,
         "axial_coupling": 0.2,
@@ -71,6 +74,7 @@ class GraspTransfer(Effect):
     def weights(self, offsets: np.ndarray, rng: np.random.Generator, n: int) -> np.ndarray:
         """Per-trial weights ``(n, 80, 7)`` for ``[grip, V_n, M_n, V_t, M_t, F_ax, T]``."""
         sigma = self.scalar("strip_sigma_m", 1e-5, 0.1)
+        power = self.scalar("strip_profile_power", 0.5, 20.0)
         k_t = self.scalar("tangential_coupling", 0.0, 10.0)
         k_a = self.scalar("axial_coupling", 0.0, 10.0)
         grip = self.draw("grip_force_n", rng, n, 0.0)
@@ -79,7 +83,7 @@ class GraspTransfer(Effect):
         half_gap = self.context.geometry.width_m / 2.0  # pad to axis (round rods: the radius)
         for finger, side in ((0, 1.0), (1, -1.0)):
             lateral = self.c[None, :] - offsets[:, finger : finger + 1]  # (n, 40)
-            w = np.exp(-0.5 * (lateral / sigma) ** 2)
+            w = np.exp(-0.5 * np.abs(lateral / sigma) ** power)
             area = w.sum(axis=1, keepdims=True) * self.area
             inertia = (w * u**2).sum(axis=1, keepdims=True) * self.area
             sl = slice(finger * PER_FINGER, (finger + 1) * PER_FINGER)

@@ -24,3 +24,28 @@ def test_torque_loads_the_two_pads_with_opposite_sign_and_shear_with_the_same():
     np.testing.assert_allclose(left[:, 3], right[:, 3])  # shear along the pads: same
     np.testing.assert_allclose(left[:, 1], -right[:, 1])  # load toward the pads: opposite
     assert np.abs(left[:, 6]).max() > 0
+
+
+def test_a_higher_strip_profile_power_flattens_the_strip_and_sharpens_its_edge():
+    """``strip_profile_power`` 2 is the Gaussian strip; 4 gives the taxels near the strip's
+    middle more of the load and those at its edge less."""
+    from ext_sense_sim.effects.grasp import GraspTransfer
+    from ext_sense_sim.scene import load_scene
+
+    def grip_weights(**params) -> np.ndarray:
+        grasp = GraspTransfer(
+            {"gain_spread": 0.0, "grip_force_n": 20.0, **params}, load_scene("tap_rod30_nuskin")
+        )
+        w = grasp.weights(np.zeros((1, 2)), np.random.default_rng(0), 1)[0, :40, 0]
+        return w.reshape(8, 5)[0]  # one row: the lateral profile, columns -6 .. +6 mm
+
+    sigma = 0.004  # the columns at 3 and 6 mm: inside and outside the strip's half width
+    gaussian = grip_weights(strip_sigma_m=sigma)
+    lateral = np.array([-6.0, -3.0, 0.0, 3.0, 6.0]) * 1e-3
+    want = np.exp(-0.5 * (lateral / sigma) ** 2)
+    np.testing.assert_allclose(gaussian / gaussian[2], want, rtol=1e-12)
+    assert np.array_equal(gaussian, grip_weights(strip_sigma_m=sigma, strip_profile_power=2.0))
+    flat = grip_weights(strip_sigma_m=sigma, strip_profile_power=4.0)
+    assert flat[1] / flat[2] > gaussian[1] / gaussian[2]  # flatter top (one pitch off the middle)
+    assert flat[0] / flat[2] < gaussian[0] / gaussian[2]  # sharper edge (two pitches off)
+    assert flat.sum() == pytest.approx(gaussian.sum())  # the grip force spread either way
