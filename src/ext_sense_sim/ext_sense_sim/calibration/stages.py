@@ -44,9 +44,9 @@ TAP_FREE = (
     FreeParameter("nuskin_transduction", "refractory_s", 0.00025, 0.001),
 )
 """The tap's force, length and impact, the grasp's damping, the fingers' load share, the
-pads' contact strip, how the tap's force falls with its lever arm, how the taxels' sensitivity
-differs and how soon a taxel can fire again. Ranges keep their ends' ratio to the centre: one
-person's taps, x0.8-1.25."""
+pads' contact strip (its width and profile), how the tap's force falls with its lever arm, how
+the taxels' sensitivity differs and how soon a taxel can fire again. Ranges keep their ends'
+ratio to the centre: one person's taps, x0.8-1.25."""
 
 AUC_TOLERANCE = 0.15
 """The two-sample AUC's tolerance about 0.5 (no forest tells the sets apart): it carries how the
