@@ -15,6 +15,7 @@ import faulthandler
 import os
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -90,21 +91,22 @@ def pytest_configure(config: pytest.Config) -> None:
     _STDERR_FD.append(os.dup(2))
 
 
-def _timeout_s(item: pytest.Item) -> float | None:
-    """The item's pytest-timeout limit: its ``timeout`` marker, else the configured one."""
-    marker = item.get_closest_marker("timeout")
-    value = None
-    if marker is not None:
-        value = marker.kwargs.get("timeout", marker.args[0] if marker.args else None)
-    if value is None:
-        value = item.config.getini("timeout") or None
-    return float(value) if value is not None and float(value) > 0 else None
+_TIMEOUT_S = pytest.StashKey[float]()
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_timeout_set_timer(item: pytest.Item, settings: Any) -> None:
+    """Keep pytest-timeout's limit for the watchdog (then pytest-timeout sets its own timer).
+
+    The limit it settled on: the marker, ``--timeout``, ``PYTEST_TIMEOUT`` or the ini file.
+    """
+    item.stash[_TIMEOUT_S] = settings.timeout
 
 
 @contextlib.contextmanager
 def _hang_watchdog(item: pytest.Item) -> Iterator[None]:
-    timeout = _timeout_s(item)
-    if timeout is None or not _STDERR_FD:
+    timeout = item.stash.get(_TIMEOUT_S, None)
+    if not timeout or not _STDERR_FD:
         yield
         return
     faulthandler.dump_traceback_later(timeout + HANG_GRACE_S, exit=True, file=_STDERR_FD[0])
@@ -114,21 +116,21 @@ def _hang_watchdog(item: pytest.Item) -> Iterator[None]:
         faulthandler.cancel_dump_traceback_later()
 
 
-@pytest.hookimpl(wrapper=True)
+@pytest.hookimpl(wrapper=True, trylast=True)  # inside pytest-timeout's: its limit is set
 def pytest_runtest_setup(item: pytest.Item) -> Iterator[None]:
     """The setup phase, under the hang watchdog."""
     with _hang_watchdog(item):
         return (yield)
 
 
-@pytest.hookimpl(wrapper=True)
+@pytest.hookimpl(wrapper=True, trylast=True)  # inside pytest-timeout's: its limit is set
 def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
     """The call phase, under the hang watchdog."""
     with _hang_watchdog(item):
         return (yield)
 
 
-@pytest.hookimpl(wrapper=True)
+@pytest.hookimpl(wrapper=True, trylast=True)  # inside pytest-timeout's: its limit is set
 def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
     """The teardown phase, under the hang watchdog."""
     with _hang_watchdog(item):

@@ -60,6 +60,16 @@ def test_a_teardown_hanging_after_the_timeout_ends_the_run_with_its_stack(tmp_pa
     assert "in sticky" in done.stderr, done.stderr[-2000:]  # the hanging frame is named
 
 
+def test_the_limit_is_the_one_pytest_timeout_settled_on_here_from_the_command_line(tmp_path):
+    """No marker and no ini file: ``--timeout`` alone sets the limit the watchdog adds to."""
+    test_file = tmp_path / "test_scratch_hang.py"
+    test_file.write_text(textwrap.dedent(HANGING_TEARDOWN).replace("@pytest.mark.timeout(1)\n", ""))
+    done, took_s = _run_pytest(test_file, "--timeout", "1", str(test_file))
+    assert done.returncode != 0, done.stdout[-2000:]
+    assert took_s < 30, took_s
+    assert "Timeout (0:00:02)!" in done.stderr, done.stderr[-2000:]
+
+
 def test_an_xdist_worker_that_hangs_is_reported_crashed_and_the_run_goes_on(tmp_path):
     test_file = tmp_path / "test_scratch_hang.py"
     test_file.write_text(
