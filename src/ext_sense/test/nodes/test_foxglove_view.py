@@ -18,14 +18,31 @@ from synthetic import stream_packets, tap_stream
 pytestmark = pytest.mark.ros
 
 
-def _estimate():
+def _view(display_rate_hz: float | None = None):
+    """A ``spinning`` factory of the view: any free port, the test process's own priority."""
+
+    def make(**kw):
+        from rclpy.parameter import Parameter
+
+        from ext_sense.view.node import FoxgloveViewNode
+
+        overrides = [Parameter("port", value=0), Parameter("nice", value=0)]
+        if display_rate_hz is not None:
+            overrides.append(Parameter("display_rate_hz", value=display_rate_hz))
+        return FoxgloveViewNode(parameter_overrides=overrides, **kw)
+
+    return make
+
+
+def _estimate(onset_ns: int = 1_000_000_000, provisional: bool = False):
     from builtin_interfaces.msg import Duration
 
     from ext_sense_msgs.msg import ContactEstimate
     from ext_sense_runtime.stamps import fill_stamp
 
     msg = ContactEstimate()
-    fill_stamp(msg.header.stamp, 1_000_000_000)
+    fill_stamp(msg.header.stamp, onset_ns)
+    msg.provisional = provisional
     msg.task, msg.sensor, msg.model_id = "tap_localization", "nuskin", "m-1"
     msg.compute_latency = Duration(sec=0, nanosec=4_000_000)
     msg.tap_position_m, msg.tap_position_std_m = 0.12, 0.02
@@ -56,10 +73,7 @@ def _window():
 
 
 def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
-    from rclpy.parameter import Parameter
-
     from ext_sense.view import channels as ch
-    from ext_sense.view.node import FoxgloveViewNode
     from ext_sense_drivers.nodes.link_node import packet_message
     from ext_sense_msgs.msg import (
         ContactEstimate,
@@ -74,22 +88,12 @@ def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
         WINDOW_QOS,
     )
 
-    def view(**kw):
-        return FoxgloveViewNode(
-            parameter_overrides=[
-                Parameter("port", value=0),
-                Parameter("display_rate_hz", value=20.0),
-                Parameter("nice", value=0),  # in the test's own process: leave its priority
-            ],
-            **kw,
-        )
-
     def source(**kw):
         from rclpy.node import Node
 
         return Node("view_test_source", **kw)
 
-    with spinning(view, source) as (node, src):
+    with spinning(_view(20.0), source) as (node, src):
         assert node.packets_subscription is None  # no client: the view decodes nothing
         client = FoxgloveClient(f"ws://127.0.0.1:{node.port}")
         try:
@@ -112,8 +116,8 @@ def test_every_channel_decodes_and_the_picture_shows_the_taxels() -> None:
             pubs["truth"].publish(_truth())
             assert wait_for(lambda: client.messages("/extsense/ground_truth"))
             pubs["win"].publish(_window())
-            early = _estimate()
-            early.provisional, early.tap_position_m = True, 0.10
+            early = _estimate(provisional=True)
+            early.tap_position_m = 0.10
             pubs["anytime"].publish(early)  # an anytime estimate, then the final one
             assert wait_for(lambda: client.messages("/extsense/contact_estimate/provisional"))
             pubs["est"].publish(_estimate())
@@ -169,7 +173,6 @@ def test_a_client_connecting_as_the_server_starts_is_offered_every_channel(
     import foxglove
 
     from ext_sense.view import channels as ch
-    from ext_sense.view.node import FoxgloveViewNode
     from ext_sense_msgs.msg import ContactGroundTruth
     from ext_sense_runtime.qos import GROUND_TRUTH_QOS
 
@@ -189,19 +192,13 @@ def test_a_client_connecting_as_the_server_starts_is_offered_every_channel(
 
     monkeypatch.setattr(foxglove, "start_server", start_and_connect)
 
-    def view(**kw):
-        from rclpy.parameter import Parameter
-
-        overrides = [Parameter("port", value=0), Parameter("nice", value=0)]
-        return FoxgloveViewNode(parameter_overrides=overrides, **kw)
-
     def source(**kw):
         from rclpy.node import Node
 
         return Node("view_test_early_source", **kw)
 
     try:
-        with spinning(view, source) as (_node, src):
+        with spinning(_view(), source) as (_node, src):
             client = early[0]
             assert offered == [wanted]
             pub = src.create_publisher(ContactGroundTruth, "ground_truth", GROUND_TRUTH_QOS)
@@ -251,25 +248,13 @@ def test_the_view_lowers_every_thread_of_its_process() -> None:
 def test_every_contact_is_drawn_when_several_wait_for_one_frame() -> None:
     """Three contacts' estimates within one display period: three pictures, none overwritten."""
     from rclpy.node import Node
-    from rclpy.parameter import Parameter
 
     from ext_sense.view import channels as ch
-    from ext_sense.view.node import FoxgloveViewNode
     from ext_sense_msgs.msg import ContactEstimate
     from ext_sense_runtime.qos import ESTIMATE_QOS
-    from ext_sense_runtime.stamps import fill_stamp
 
-    def view(**kw):
-        return FoxgloveViewNode(
-            parameter_overrides=[
-                Parameter("port", value=0),
-                Parameter("display_rate_hz", value=1.0),  # one frame a second
-                Parameter("nice", value=0),
-            ],
-            **kw,
-        )
-
-    with spinning(view, lambda **kw: Node("view_test_source", **kw)) as (node, src):
+    one_frame_a_second = _view(1.0)
+    with spinning(one_frame_a_second, lambda **kw: Node("view_test_source", **kw)) as (node, src):
         client = FoxgloveClient(f"ws://127.0.0.1:{node.port}")
         try:
             assert wait_for(lambda: ch.ESTIMATE_INFO in client.topics())
@@ -277,9 +262,7 @@ def test_every_contact_is_drawn_when_several_wait_for_one_frame() -> None:
             assert wait_for(lambda: pub.get_subscription_count() > 0)
             assert wait_for(lambda: client.messages(ch.DIAGNOSTICS), timeout=10)  # a frame went
             for k in range(3):
-                msg = _estimate()
-                fill_stamp(msg.header.stamp, (k + 1) * 1_000_000_000)
-                pub.publish(msg)
+                pub.publish(_estimate((k + 1) * 1_000_000_000))
             assert wait_for(lambda: len(client.messages(ch.ESTIMATE_INFO)) >= 3, timeout=10)
             onsets = sorted(client.decode(m)["onset_ns"] for m in client.messages(ch.ESTIMATE_INFO))
             pictures = {m.log_time_ns for m in client.messages(ch.ESTIMATE)}
@@ -296,31 +279,12 @@ def test_a_provisional_estimate_handled_after_its_final_does_not_replace_it() ->
     import time
 
     from rclpy.node import Node
-    from rclpy.parameter import Parameter
 
     from ext_sense.view import channels as ch
-    from ext_sense.view.node import FoxgloveViewNode
     from ext_sense_msgs.msg import ContactEstimate
     from ext_sense_runtime.qos import ESTIMATE_QOS
-    from ext_sense_runtime.stamps import fill_stamp
 
-    def view(**kw):
-        return FoxgloveViewNode(
-            parameter_overrides=[
-                Parameter("port", value=0),
-                Parameter("display_rate_hz", value=2.0),
-                Parameter("nice", value=0),
-            ],
-            **kw,
-        )
-
-    def estimate(onset_s: int, provisional: bool) -> ContactEstimate:
-        msg = _estimate()
-        fill_stamp(msg.header.stamp, onset_s * 1_000_000_000)
-        msg.provisional = provisional
-        return msg
-
-    with spinning(view, lambda **kw: Node("view_test_source", **kw)) as (node, src):
+    with spinning(_view(2.0), lambda **kw: Node("view_test_source", **kw)) as (node, src):
         client = FoxgloveClient(f"ws://127.0.0.1:{node.port}")
         try:
             assert wait_for(lambda: ch.ESTIMATE_INFO in client.topics())
@@ -331,12 +295,12 @@ def test_a_provisional_estimate_handled_after_its_final_does_not_replace_it() ->
             pubs = (final, anytime)
             assert wait_for(lambda: all(p.get_subscription_count() for p in pubs))
             assert wait_for(lambda: client.messages(ch.DIAGNOSTICS), timeout=10)  # a frame went
-            final.publish(estimate(1, provisional=False))  # within one frame
-            anytime.publish(estimate(1, provisional=True))
+            final.publish(_estimate(provisional=False))  # within one frame
+            anytime.publish(_estimate(provisional=True))
             passed = "/extsense/contact_estimate/provisional"
             assert wait_for(lambda: client.messages(passed))
             assert wait_for(lambda: client.messages(ch.ESTIMATE_INFO), timeout=10)
-            anytime.publish(estimate(1, provisional=True))  # in a later frame
+            anytime.publish(_estimate(provisional=True))  # in a later frame
             assert wait_for(lambda: len(client.messages(passed)) >= 2)
             time.sleep(1.5)  # three frames
             drawn = [client.decode(m) for m in client.messages(ch.ESTIMATE_INFO)]
