@@ -45,11 +45,17 @@ def _device_and_listener(**params):
         rclpy.try_shutdown(context=context)
 
 
-def _spin(executor, seconds: float, done=lambda: False) -> None:
-    """Spin ``executor`` for ``seconds`` or until ``done()``."""
+def _spin(executor, seconds: float, done=lambda: False, fd: int | None = None) -> bytes:
+    """Spin ``executor`` for ``seconds`` or until ``done()``; what was read from ``fd`` (the
+    device's pty, non-blocking) meanwhile."""
+    data = b""
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline and not done():
         executor.spin_once(timeout_sec=0.05)
+        if fd is not None:
+            with contextlib.suppress(BlockingIOError):
+                data += os.read(fd, 65536)
+    return data
 
 
 def test_node_streams_bytes_and_publishes_ground_truth(tmp_path):
@@ -62,12 +68,7 @@ def test_node_streams_bytes_and_publishes_ground_truth(tmp_path):
     with device as (_node, executor, listen, got):
         listen()
         fd = os.open(link, os.O_RDONLY | os.O_NONBLOCK)
-        data = b""
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline and len(got) < 2:
-            executor.spin_once(timeout_sec=0.05)
-            with contextlib.suppress(BlockingIOError):
-                data += os.read(fd, 65536)
+        data = _spin(executor, 20, lambda: len(got) >= 2, fd)
         os.close(fd)
         # the first trials may be published before discovery matched the listener (volatile
         # QoS), so the stream runs forever and any two consecutive trials will do
@@ -97,11 +98,7 @@ def test_a_listener_asking_for_transient_local_gets_the_truths_from_before_it_jo
     with device as (node, executor, listen, got):
         fd = os.open(link, os.O_RDONLY | os.O_NONBLOCK)
         try:
-            deadline = time.monotonic() + 30
-            while time.monotonic() < deadline and node.played < 2:
-                executor.spin_once(timeout_sec=0.05)
-                with contextlib.suppress(BlockingIOError):
-                    os.read(fd, 65536)
+            _spin(executor, 30, lambda: node.played >= 2, fd)
             assert node.played >= 2  # two trials published before anyone listened
             listen("late_volatile")
             listen("late_recorder", latched=True)
