@@ -11,6 +11,7 @@ import yaml
 from ext_sense_sim.calibration import calibrate_scene
 from ext_sense_sim.calibration.search import (
     FreeParameter,
+    FreeWidth,
     Target,
     effect_lines,
     fit,
@@ -29,14 +30,53 @@ def _params(scene, effect):
     return dict(scene.effects)[effect]
 
 
+WIDTH = FreeWidth("contact_impulse", "force_n", 1.0, 3.0)
+CENTRE = FreeParameter("contact_impulse", "force_n", 0.01, 10.0, spread=(0.8, 1.25))
+"""A centre whose spread is even in log, so it is the range's geometric centre."""
+
+
+def _with_force(force_n):
+    data = yaml.safe_load(load_scene("tap_rod30_nuskin").path.read_text())
+    data["effects"][0]["contact_impulse"]["force_n"] = force_n
+    return scene_from_dict(data, "force")
+
+
 def test_with_values_writes_scalars_and_ranges_and_start_values_reads_them_back() -> None:
-    scene = load_scene("tap_rod30_nuskin")
+    scene = _with_force(1.0)
     fitted = with_values(scene, (FORCE, DAMPING), [0.4, 0.05])
-    assert _params(fitted, "contact_impulse")["force_n"] == [0.2, 1.0]
+    assert _params(fitted, "contact_impulse")["force_n"] == [0.2, 1.0]  # a scalar: the spread
     assert _params(fitted, "beam_modes")["grasp_damping_ratio"] == 0.05
     assert start_values(fitted, (FORCE, DAMPING)) == pytest.approx([0.4, 0.05])
     # the scene it came from is untouched
-    assert _params(scene, "contact_impulse")["force_n"] != [0.2, 1.0]
+    assert _params(scene, "contact_impulse")["force_n"] == 1.0
+
+
+def test_a_range_keeps_its_width_as_its_centre_moves() -> None:
+    fitted = with_values(_with_force([0.5, 2.0]), (FORCE,), [0.4])
+    low, high = _params(fitted, "contact_impulse")["force_n"]
+    assert high / low == pytest.approx(4.0, rel=1e-5)  # not the spread's 5
+    assert start_values(fitted, (FORCE, WIDTH)) == pytest.approx([0.4, 2.0], rel=1e-5)
+
+
+def test_a_range_from_zero_is_written_at_the_spread() -> None:
+    fitted = with_values(_with_force([0.0, 2.0]), (CENTRE,), [0.4])
+    assert _params(fitted, "contact_impulse")["force_n"] == pytest.approx([0.32, 0.5])
+
+
+def test_a_width_keeps_its_ranges_centre_and_commutes_with_the_centre() -> None:
+    scene = _with_force([0.5, 2.0])
+    widened = with_values(scene, (WIDTH,), [4.0])
+    assert _params(widened, "contact_impulse")["force_n"] == pytest.approx([0.25, 4.0])
+    one = with_values(scene, (CENTRE, WIDTH), [0.4, 1.5])
+    other = with_values(scene, (WIDTH, CENTRE), [1.5, 0.4])
+    assert _params(one, "contact_impulse")["force_n"] == pytest.approx([0.4 / 1.5, 0.6], 1e-5)
+    assert _params(other, "contact_impulse")["force_n"] == pytest.approx([0.4 / 1.5, 0.6], 1e-5)
+    assert start_values(_with_force(0.7), (WIDTH,)) == [1.0]  # a scalar is a point
+
+
+def test_a_width_of_a_range_that_is_not_positive_is_refused_by_name() -> None:
+    with pytest.raises(SceneError, match=r"'contact_impulse\.force_n\.width' needs a positive"):
+        start_values(_with_force([0.0, 1.0]), (WIDTH,))
 
 
 def test_start_values_fall_back_to_the_effects_defaults_and_stay_in_bounds() -> None:

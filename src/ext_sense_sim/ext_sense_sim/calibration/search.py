@@ -23,7 +23,10 @@ from ext_sense_sim.scene import Scene
 class FreeParameter:
     """One parameter of one effect that the fit may move, within ``[low, high]``.
 
-    With ``spread = (a, b)`` the parameter is a range written ``[a v, b v]`` for the value ``v``.
+    With ``spread = (a, b)`` the parameter is a range with the centre ``v``: a scalar in the scene
+    (or a range from zero) is written ``[a v, b v]``; a range in the scene is scaled to the new
+    centre, so its width (fitted by a :class:`FreeWidth` or not) stays. Its centre is
+    ``sqrt(lo hi / (a b))``.
     """
 
     effect: str
@@ -37,11 +40,19 @@ class FreeParameter:
         """``effect.key``, as printed and documented."""
         return f"{self.effect}.{self.key}"
 
-    def written(self, value: float) -> float | list[float]:
-        """The scene value for a fitted value (a range when ``spread`` is set)."""
+    def apply(self, params: dict[str, Any], value: float) -> None:
+        """Set the parameter in an effect's parameters ``params`` to the fitted ``value``."""
+        current = params.get(self.key)
         if self.spread is None:
-            return float(value)
-        return [round(value * self.spread[0], 6), round(value * self.spread[1], 6)]
+            params[self.key] = float(value)
+        elif isinstance(current, (list, tuple)) and self.read(params) > 0:
+            scale = value / self.read(params)
+            params[self.key] = [
+                round(float(current[0]) * scale, 6),
+                round(float(current[1]) * scale, 6),
+            ]
+        else:
+            params[self.key] = [round(value * self.spread[0], 6), round(value * self.spread[1], 6)]
 
     def read(self, params: Mapping[str, Any]) -> float:
         """The fitted value a scene's parameters hold (a range's centre by ``spread``)."""
@@ -55,7 +66,49 @@ class FreeParameter:
             return float(value)
         if not isinstance(value, (list, tuple)):
             return float(value)
-        return float(value[0]) / self.spread[0]
+        return math.sqrt(float(value[0]) * float(value[1]) / (self.spread[0] * self.spread[1]))
+
+
+@dataclass(frozen=True)
+class FreeWidth:
+    """How wide a range parameter is, ``r`` in ``[low, high]``: the range ``[g / r, g r]``.
+
+    ``g`` is the range's geometric centre, which the width keeps (and a centre fitted by a
+    :class:`FreeParameter` keeps the width), so the two commute. A scalar is a range of width 1.
+    """
+
+    effect: str
+    key: str
+    low: float = 1.0
+    high: float = 3.0
+
+    @property
+    def name(self) -> str:
+        """``effect.key.width``, as printed and documented."""
+        return f"{self.effect}.{self.key}.width"
+
+    def apply(self, params: dict[str, Any], value: float) -> None:
+        """Set the range's width to ``value``, about its geometric centre."""
+        current = params[self.key]
+        lo, hi = (current, current) if not isinstance(current, (list, tuple)) else current
+        centre = math.sqrt(float(lo) * float(hi))
+        params[self.key] = [round(centre / value, 6), round(centre * value, 6)]
+
+    def read(self, params: Mapping[str, Any]) -> float:
+        """The width of the range the parameters hold (1 for a scalar)."""
+        value = params[self.key]
+        if not isinstance(value, (list, tuple)):
+            return 1.0
+        lo, hi = float(value[0]), float(value[1])
+        if lo <= 0 or hi < lo:
+            raise SceneError(
+                f"Parameter '{self.name}' needs a positive range to have a width, got {value!r}."
+            )
+        return math.sqrt(hi / lo)
+
+
+Free = FreeParameter | FreeWidth
+"""A fitted value: a parameter (or a range's centre) or a range's width."""
 
 
 @dataclass(frozen=True)
@@ -91,17 +144,20 @@ class FitStep:
     stats: dict[str, float]
 
 
-def with_values(scene: Scene, free: Sequence[FreeParameter], values: Sequence[float]) -> Scene:
+def with_values(scene: Scene, free: Sequence[Free], values: Sequence[float]) -> Scene:
     """A copy of ``scene`` with each free parameter set to its value."""
     effects = [(name, dict(params)) for name, params in scene.effects]
     for parameter, value in zip(free, values, strict=True):
         params = _params_of(scene, effects, parameter)
-        params[parameter.key] = parameter.written(value)
+        defaults = REGISTRY[parameter.effect].defaults
+        if parameter.key not in params and parameter.key in defaults:
+            params[parameter.key] = defaults[parameter.key]
+        parameter.apply(params, value)
     return dataclasses.replace(scene, effects=tuple(effects))
 
 
 def _params_of(
-    scene: Scene, effects: list[tuple[str, dict[str, Any]]], parameter: FreeParameter
+    scene: Scene, effects: list[tuple[str, dict[str, Any]]], parameter: Free
 ) -> dict[str, Any]:
     for name, params in effects:
         if name == parameter.effect:
@@ -112,7 +168,7 @@ def _params_of(
     )
 
 
-def start_values(scene: Scene, free: Sequence[FreeParameter]) -> list[float]:
+def start_values(scene: Scene, free: Sequence[Free]) -> list[float]:
     """The free parameters' values in the scene, or their effects' defaults."""
     effects = [(name, dict(params)) for name, params in scene.effects]
     values = []
@@ -130,7 +186,7 @@ def loss(stats: Mapping[str, float], targets: Sequence[Target]) -> float:
 
 def fit(
     scene: Scene,
-    free: Sequence[FreeParameter],
+    free: Sequence[Free],
     targets: Sequence[Target],
     measure: Measure,
     *,

@@ -16,7 +16,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ext_sense_sim.calibration.search import FreeParameter, Measure, with_values
+from ext_sense_sim.calibration.search import FreeParameter, FreeWidth, Measure, with_values
 from ext_sense_sim.fidelity.captures import BIN_NS, simulate
 from ext_sense_sim.fidelity.compare import two_sample_auc
 from ext_sense_sim.fidelity.food import food_trials
@@ -33,6 +33,7 @@ from ext_sense_sim.scene import Scene
 
 TAP_FREE = (
     FreeParameter("contact_impulse", "force_n", 0.02, 5.0, spread=(0.8, 1.25)),
+    FreeWidth("contact_impulse", "force_n", 1.0, 3.0),
     FreeParameter("contact_impulse", "duration_s", 0.002, 0.08, spread=(0.8, 1.25)),
     FreeParameter("contact_impulse", "impact_force_n", 0.01, 10.0, spread=(0.8, 1.25)),
     FreeParameter("beam_modes", "grasp_damping_ratio", 0.001, 0.2),
@@ -43,10 +44,12 @@ TAP_FREE = (
     FreeParameter("grasp_transfer", "gain_spread", 0.01, 0.9),
     FreeParameter("nuskin_transduction", "refractory_s", 0.00025, 0.001),
 )
-"""The tap's force, length and impact, the grasp's damping, the fingers' load share, the
-pads' contact strip (its width and profile), how the tap's force falls with its lever arm, how
-the taxels' sensitivity differs and how soon a taxel can fire again. Ranges keep their ends'
-ratio to the centre: one person's taps, x0.8-1.25."""
+"""The tap's force (and how much one person's taps vary in force), length and impact, the
+grasp's damping, the fingers' load share, the pads' contact strip (its width and profile), how
+the tap's force falls with its lever arm, how the taxels' sensitivity differs and how soon a
+taxel can fire again. A range starts at x0.8-1.25 about its centre and keeps its width as the
+centre moves; only the force's width is fitted (the real taps' spread of events, and how the
+statistics go together, say how much the taps' force varies)."""
 
 AUC_TOLERANCE = 0.15
 """The two-sample AUC's tolerance about 0.5 (no forest tells the sets apart): it carries how the

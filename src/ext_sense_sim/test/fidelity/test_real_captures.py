@@ -150,25 +150,10 @@ def test_the_busiest_taxels_fire_about_as_often_in_every_tap_as_the_real_ones(ro
     assert abs(np.log(sim / in_real)) <= np.log(1.1), (scene, sim, in_real)
 
 
-NOT_YET = pytest.mark.xfail(
-    strict=True,
-    reason="issue 30's two-sample target is not met yet on the 50 cm rod at the scene's seed: a "
-    "forest still tells its windows from the real ones by a hair (AUC 0.727 against 0.722; 0.72 "
-    "over four seeds; docs/simulator.md, 'Calibration against the real sensor')",
-)
-
-
 @pytest.mark.slow
 @pytest.mark.real_data
 @pytest.mark.timeout(900)
-@pytest.mark.parametrize(
-    ("scene", "rod"),
-    [
-        TAP_SCENES[0],
-        TAP_SCENES[1],
-        pytest.param(*TAP_SCENES[2], marks=NOT_YET),
-    ],
-)
+@pytest.mark.parametrize(("scene", "rod"), TAP_SCENES)
 def test_a_forest_cannot_tell_each_tap_scene_from_the_real_taps(rod_days, scene, rod):
     result = _fidelity(scene, tuple(rod_days))
     assert result["auc"]["target"]["pass"], format_table(result)
