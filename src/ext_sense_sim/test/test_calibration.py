@@ -58,6 +58,12 @@ def test_a_range_keeps_its_width_as_its_centre_moves() -> None:
     assert start_values(fitted, (FORCE, WIDTH)) == pytest.approx([0.4, 2.0], rel=1e-5)
 
 
+def test_a_parameter_without_a_spread_writes_a_scalar_over_a_range() -> None:
+    silenced = FreeParameter("contact_impulse", "force_n", 0.0, 0.0)  # the noise stage's
+    fitted = with_values(_with_force([0.5, 2.0]), (silenced,), [0.0])
+    assert _params(fitted, "contact_impulse")["force_n"] == 0.0
+
+
 def test_a_range_from_zero_is_written_at_the_spread() -> None:
     fitted = with_values(_with_force([0.0, 2.0]), (CENTRE,), [0.4])
     assert _params(fitted, "contact_impulse")["force_n"] == pytest.approx([0.32, 0.5])
@@ -77,6 +83,8 @@ def test_a_width_keeps_its_ranges_centre_and_commutes_with_the_centre() -> None:
 def test_a_width_of_a_range_that_is_not_positive_is_refused_by_name() -> None:
     with pytest.raises(SceneError, match=r"'contact_impulse\.force_n\.width' needs a positive"):
         start_values(_with_force([0.0, 1.0]), (WIDTH,))
+    with pytest.raises(SceneError, match="needs a positive range"):
+        with_values(_with_force([0.0, 1.0]), (WIDTH,), [2.0])
 
 
 def test_start_values_fall_back_to_the_effects_defaults_and_stay_in_bounds() -> None:

@@ -42,11 +42,13 @@ class FreeParameter:
 
     def apply(self, params: dict[str, Any], value: float) -> None:
         """Set the parameter in an effect's parameters ``params`` to the fitted ``value``."""
-        current = params.get(self.key)
-        if self.spread is None:
+        if self.spread is None:  # a scalar, whatever the scene held
             params[self.key] = float(value)
-        elif isinstance(current, (list, tuple)) and self.read(params) > 0:
-            scale = value / self.read(params)
+            return
+        current = params.get(self.key)
+        centre = self.read(params) if isinstance(current, (list, tuple)) else 0.0
+        if centre > 0:
+            scale = value / centre
             params[self.key] = [
                 round(float(current[0]) * scale, 6),
                 round(float(current[1]) * scale, 6),
@@ -89,6 +91,7 @@ class FreeWidth:
 
     def apply(self, params: dict[str, Any], value: float) -> None:
         """Set the range's width to ``value``, about its geometric centre."""
+        self.read(params)  # refuses a range that has no width
         current = params[self.key]
         lo, hi = (current, current) if not isinstance(current, (list, tuple)) else current
         centre = math.sqrt(float(lo) * float(hi))
