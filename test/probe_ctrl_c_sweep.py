@@ -28,6 +28,11 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--delays", help="comma-separated seconds (default: 0.1 to 4 s)")
     parser.add_argument("--repeat", type=int, default=1, help="runs per delay (default 1)")
+    parser.add_argument(
+        "--sigint-ignored",
+        action="store_true",
+        help="start the graph with SIGINT ignored, as a shell without job control does",
+    )
     args = parser.parse_args()
     delays = [float(d) for d in args.delays.split(",")] if args.delays else DEFAULT_DELAYS
     delays = [d for d in delays for _ in range(args.repeat)]
@@ -35,7 +40,12 @@ def main() -> int:
     model, _ = train_sim_model(tmp, "tap_rod30_nuskin", "tap_localization", 16)
     unclean = 0
     for i, delay in enumerate(delays):
-        graph = Graph("trials:=0", f"model:={model}", f"port:={tmp / f'n{i}.pty'}")
+        graph = Graph(
+            "trials:=0",
+            f"model:={model}",
+            f"port:={tmp / f'n{i}.pty'}",
+            sigint_ignored=args.sigint_ignored,
+        )
         time.sleep(delay)
         took = graph.stop([(0.0, signal.SIGINT)])
         out, err = "".join(graph.out), "".join(graph.err)

@@ -24,6 +24,9 @@ EXE = [sys.executable, "-m", "ext_sense.cli"]
 CRASH_MARKERS = ("Traceback", "terminate called", "Fatal Python error", "Aborted")
 """Output of a process that did not stop cleanly (a Python traceback, a C++ abort)."""
 
+STACK_LINES = 30
+"""Output lines kept after each crash marker: the stack that follows it."""
+
 EXIT_CODES = re.compile(r"^\[run\] exit codes: (.*)$", re.MULTILINE)
 
 
@@ -91,7 +94,8 @@ def child_exit_codes(stderr: str) -> dict[str, int]:
 
 def stop_problems(proc: subprocess.Popen, stdout: str, stderr: str) -> list[str]:
     """What was not clean about a graph's end: the runner's exit code, any node's exit code
-    (as the runner reported them), and every output line of a crash (:data:`CRASH_MARKERS`).
+    (as the runner reported them), and every output line of a crash (:data:`CRASH_MARKERS`)
+    with the :data:`STACK_LINES` after it (a traceback's or faulthandler's stack).
 
     Returns:
         One line per problem; empty when the runner and every node exited with 0.
@@ -103,11 +107,14 @@ def stop_problems(proc: subprocess.Popen, stdout: str, stderr: str) -> list[str]
     if not codes and NOT_STARTED not in stderr:
         problems.append("the runner reported no exit codes of its nodes")
     problems += [f"{name} exited with {code}" for name, code in codes.items() if code != 0]
-    problems += [
-        f"output: {line.strip()[:200]}"
-        for line in (stdout + "\n" + stderr).splitlines()
-        if any(marker in line for marker in CRASH_MARKERS)
-    ]
+    lines = (stdout + "\n" + stderr).splitlines()
+    for i, line in enumerate(lines):
+        if any(marker in line for marker in CRASH_MARKERS):
+            problems.append(f"output: {line.strip()[:200]}")
+            # the stack a traceback or faulthandler printed after it, to find the crash by
+            problems += [
+                f"  {after.rstrip()[:200]}" for after in lines[i + 1 : i + 1 + STACK_LINES]
+            ]
     return problems
 
 
