@@ -49,12 +49,9 @@ class FreeParameter:
         centre = self.read(params) if isinstance(current, (list, tuple)) else 0.0
         if centre > 0:
             scale = value / centre
-            params[self.key] = [
-                round(float(current[0]) * scale, 6),
-                round(float(current[1]) * scale, 6),
-            ]
+            params[self.key] = _range(float(current[0]) * scale, float(current[1]) * scale)
         else:
-            params[self.key] = [round(value * self.spread[0], 6), round(value * self.spread[1], 6)]
+            params[self.key] = _range(value * self.spread[0], value * self.spread[1])
 
     def read(self, params: Mapping[str, Any]) -> float:
         """The fitted value a scene's parameters hold (a range's centre by ``spread``)."""
@@ -91,23 +88,31 @@ class FreeWidth:
 
     def apply(self, params: dict[str, Any], value: float) -> None:
         """Set the range's width to ``value``, about its geometric centre."""
-        self.read(params)  # refuses a range that has no width
-        current = params[self.key]
-        lo, hi = (current, current) if not isinstance(current, (list, tuple)) else current
-        centre = math.sqrt(float(lo) * float(hi))
-        params[self.key] = [round(centre / value, 6), round(centre * value, 6)]
+        lo, hi = self._ends(params)
+        centre = math.sqrt(lo * hi)
+        params[self.key] = _range(centre / value, centre * value)
 
     def read(self, params: Mapping[str, Any]) -> float:
         """The width of the range the parameters hold (1 for a scalar)."""
+        lo, hi = self._ends(params)
+        return 1.0 if lo == hi else math.sqrt(hi / lo)
+
+    def _ends(self, params: Mapping[str, Any]) -> tuple[float, float]:
+        """The range's ends (a scalar's twice); a range that is not positive is refused."""
         value = params[self.key]
         if not isinstance(value, (list, tuple)):
-            return 1.0
+            return float(value), float(value)
         lo, hi = float(value[0]), float(value[1])
         if lo <= 0 or hi < lo:
             raise SceneError(
                 f"Parameter '{self.name}' needs a positive range to have a width, got {value!r}."
             )
-        return math.sqrt(hi / lo)
+        return lo, hi
+
+
+def _range(low: float, high: float) -> list[float]:
+    """A range as the scenes write it: both ends to 6 decimals."""
+    return [round(low, 6), round(high, 6)]
 
 
 Free = FreeParameter | FreeWidth
