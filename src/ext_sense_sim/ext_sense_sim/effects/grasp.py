@@ -15,7 +15,9 @@ flatter top with a sharper edge (fitted on the 50 cm rod). With ``A = sum w a``,
 times a fixed per-taxel gain, never below zero (unilateral contact). A torque about the axis is
 held by friction, ``T / (2 r)`` on each pad in opposite directions, through ``k_t``.
 ``finger_load_share`` scales the left pad's dynamic loads by ``1 + s`` and the right's by
-``1 - s``, ``|s|`` drawn per trial from its range with a random sign.
+``1 - s``, ``|s|`` drawn per trial from its range. Its sign, which pad is the louder, belongs to
+the grasp: drawn once per scene from its seed (as the taxels' gains), so every tap of a session
+shares it, as in every real rod-tap session.
 """
 
 from __future__ import annotations
@@ -70,6 +72,7 @@ class GraspTransfer(Effect):
         spread = self.scalar("gain_spread", 0.0, 0.9)
         sensor_rng = np.random.default_rng([int(self.context.seed), 7])  # fixed per sensor
         self.gain = np.clip(1.0 + spread * sensor_rng.standard_normal(N_TAXELS), 0.1, None)
+        self.louder = float(sensor_rng.choice(np.array([-1.0, 1.0])))  # +1: the left pad
 
     def weights(self, offsets: np.ndarray, rng: np.random.Generator, n: int) -> np.ndarray:
         """Per-trial weights ``(n, 80, 7)`` for ``[grip, V_n, M_n, V_t, M_t, F_ax, T]``."""
@@ -105,8 +108,7 @@ class GraspTransfer(Effect):
         offsets = np.stack([self.draw("lateral_offset_m", rng, n) for _ in range(2)], axis=1)
         w = self.weights(offsets, rng, n).astype(np.float32)
         if self.params["finger_load_share"] != 0.0:  # drawn only when asked: other streams stay
-            share = self.draw("finger_load_share", rng, n, 0.0, 0.95)
-            share *= rng.choice(np.array([-1.0, 1.0]), size=n)
+            share = self.louder * self.draw("finger_load_share", rng, n, 0.0, 0.95)
             w[:, :PER_FINGER, 1:] *= (1.0 + share)[:, None, None].astype(np.float32)
             w[:, PER_FINGER:, 1:] *= (1.0 - share)[:, None, None].astype(np.float32)
         if load.shape[1] == 5:  # loads without the torque channel

@@ -49,3 +49,35 @@ def test_a_higher_strip_profile_power_flattens_the_strip_and_sharpens_its_edge()
     assert flat[1] / flat[2] > gaussian[1] / gaussian[2]  # flatter top (one pitch off the middle)
     assert flat[0] / flat[2] < gaussian[0] / gaussian[2]  # sharper edge (two pitches off)
     assert flat.sum() == pytest.approx(gaussian.sum())  # the grip force spread either way
+
+
+def _louder_pad(scene_name: str, n_trials: int = 64) -> np.ndarray:
+    """Per trial, +1 where the left pad feels more of a load toward the pads, -1 the right."""
+    from ext_sense_sim.effects.base import Signals, TimeBase
+    from ext_sense_sim.effects.grasp import GraspTransfer
+    from ext_sense_sim.scene import load_scene
+
+    scene = load_scene(scene_name)
+    grasp = GraspTransfer(dict(scene.effects)["grasp_transfer"], scene)
+    grasp.setup()
+    time = TimeBase(rate_hz=1000.0, n_samples=2, n_trials=n_trials)
+    load = np.zeros((n_trials, 6, 2), np.float32)
+    load[:, 0, 1] = 1.0  # a shear toward the pads in the second sample only
+    signals = Signals(clamp_load=load)
+    grasp.run(signals, time, np.random.default_rng(0))
+    dynamic = np.abs(np.diff(signals["taxel_pressure"], axis=2))[:, :, 0]
+    left, right = dynamic[:, :40].sum(axis=1), dynamic[:, 40:].sum(axis=1)
+    return np.sign(left - right)
+
+
+@pytest.mark.parametrize("scene_name", ["tap_rod20_nuskin", "tap_rod30_nuskin", "tap_rod50_nuskin"])
+def test_the_louder_finger_is_the_grasps_and_the_same_in_every_trial(scene_name):
+    """The real rod-tap sessions keep the sign of the fingers' imbalance from tap to tap
+    (docs/simulator.md); only its size varies."""
+    louder = _louder_pad(scene_name)
+    assert louder[0] != 0
+    assert np.all(louder == louder[0])
+
+
+def test_scenes_of_other_seeds_may_have_the_other_finger_louder():
+    assert {_louder_pad("tap_rod20_nuskin")[0], _louder_pad("tap_rod30_nuskin")[0]} == {-1, 1}
