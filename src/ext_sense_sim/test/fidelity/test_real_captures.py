@@ -8,10 +8,9 @@ windows:
 - share of the window's events in its first 30 ms and in its last 100 ms: within +-0.07;
 - share held by the 10 busiest taxels: within +-0.10;
 - random-forest two-sample ROC AUC, simulated vs pooled real windows on those four
-  statistics: at most the AUC between the two real sessions + 0.05 (met on the 20 and 30 cm
-  rods; not yet on the 50 cm rod, by 0.003: a strict expected failure, so the day it passes
-  the test says so);
-- the 10 busiest taxels' events vary from tap to tap as little as in the real taps.
+  statistics: at most the AUC between the two real sessions + 0.05;
+- the 10 busiest taxels' events vary from tap to tap as little as in the real taps;
+- one finger is the louder in at least 9 taps of 10, as in every real session.
 
 The tolerances are the issue's: about the spread between the real sessions on each statistic
 (docs/simulator.md, "Fidelity against the real sensor"); 200 simulated taps at the scene's
@@ -27,7 +26,7 @@ import numpy as np
 import pytest
 
 from ext_sense_sim.calibration.stages import window_medians
-from ext_sense_sim.fidelity.captures import read_food_session, read_tap_session
+from ext_sense_sim.fidelity.captures import read_food_session, read_tap_session, simulate
 from ext_sense_sim.fidelity.check import POOLED, SIMULATED, FidelityRun, pooled, run_fidelity
 from ext_sense_sim.fidelity.compare import summarise
 from ext_sense_sim.fidelity.table import format_table
@@ -157,3 +156,25 @@ def test_the_busiest_taxels_fire_about_as_often_in_every_tap_as_the_real_ones(ro
 def test_a_forest_cannot_tell_each_tap_scene_from_the_real_taps(rod_days, scene, rod):
     result = _fidelity(scene, tuple(rod_days))
     assert result["auc"]["target"]["pass"], format_table(result)
+
+
+def _same_louder_finger(captures: list) -> float:
+    """Share of the tap windows whose louder finger is the one louder in most of them."""
+    counts = tap_windows(captures).taxel_counts
+    left_louder = counts[:, :40].sum(axis=1) > counts[:, 40:].sum(axis=1)
+    return float(max(left_louder.mean(), 1.0 - left_louder.mean()))
+
+
+@pytest.mark.slow
+@pytest.mark.real_data
+@pytest.mark.timeout(900)
+@pytest.mark.parametrize(("scene", "rod"), TAP_SCENES)
+def test_each_tap_scene_keeps_its_louder_finger_from_tap_to_tap_as_the_real_sessions(
+    rod_days, scene, rod
+):
+    # In every real session one finger is the louder in 9 or 10 taps of 10 (the grasp's, not
+    # the tap's); a louder finger drawn per tap gave about half (docs/simulator.md).
+    real = {day.name: _same_louder_finger(read_tap_session(day, rod).captures) for day in rod_days}
+    assert min(real.values()) >= 0.9, real
+    simulated = _same_louder_finger(simulate(load_scene(scene), TAP_TRIALS, seed=1).captures)
+    assert simulated >= 0.9, (scene, simulated, real)
