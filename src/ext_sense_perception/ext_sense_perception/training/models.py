@@ -1,13 +1,8 @@
 """The paper's models and their hyper-parameter grids (no ROS).
 
 A model is a ``Pipeline``: ``features`` -> ``scale`` -> ``model``. The C grid is the public
-code's on cm labels; labels here are metres, so C and epsilon are divided by 100. The scaler
-standardises each feature, except for two models whose scaler is the identity: the GRU scales
-its own inputs, and the RBF SVR (``svm_rbf``) takes the features as they come, as the paper's
-public code does (constant factors only): its ``gamma="scale"`` is one length scale from all the
-features' variance, where per-feature standardisation gives every feature, the quiet taxels'
-noise bins included, an equal say in the distance (docs/perception.md, "The scaler, not the
-kernel alone"). ``svm``, whose grid also holds the linear kernel, keeps the standardisation.
+code's on cm labels; labels here are metres, so C and epsilon are divided by 100. The GRU
+scales its own inputs (its scaler is the identity).
 """
 
 from __future__ import annotations
@@ -29,8 +24,6 @@ from ext_sense_perception.training.taxel_stack import TaxelStackSVR
 
 MODEL_NAMES = ("svm_linear", "svm_rbf", "svm", "mlp", "gru", "random_forest", "taxel_svr")
 C_GRID = (1.0, 3.0, 10.0, 30.0, 100.0)
-UNSCALED = ("svm_rbf", "gru")
-"""Models whose pipeline scaler is the identity (see the module docstring)."""
 REGRESSION_EPSILON_M = 0.001  # 0.1 cm, scikit-learn's default epsilon on the paper's cm labels
 # the taxel stack's grid has one point (C 100 on cm): its 4-fold search on 1000 taps takes about
 # a minute on the shared machine already (80 channels x (3 inner + 1) SVR fits per fit)
@@ -99,13 +92,12 @@ def make_pipeline(
     PerceptionError: as :func:`make_estimator`, or ``taxel_svr`` on features not per channel.
     """
     est, grid = make_estimator(name, regression, seed)
-    scaler = (
-        StandardScaler(with_mean=False, with_std=False) if name in UNSCALED else StandardScaler()
-    )
+    scaler = StandardScaler()
     if name == "gru":
         # the GRU steps over time with one input per selected channel of the features and
         # scales its inputs per channel itself (a per-(channel, step) scaler measured worse)
         est.set_params(n_channels=len(select_channels(features.channels, features.n_channels)))
+        scaler = StandardScaler(with_mean=False, with_std=False)
     if name == "taxel_svr":
         # one SVR per selected channel's block; the pipeline's per-feature scaler is exactly
         # per-block standardisation
