@@ -173,7 +173,7 @@ def test_each_tap_scene_keeps_its_louder_finger_from_tap_to_tap_as_the_real_sess
     rod_days, scene, rod
 ):
     # In every real session one finger is the louder in 9 or 10 taps of 10 (the grasp's, not
-    # the tap's); a louder finger drawn per tap gave about half (docs/simulator.md).
+    # the tap's); a louder finger drawn per tap gave 0.53 on each rod (docs/simulator.md).
     real = {day.name: _same_louder_finger(read_tap_session(day, rod).captures) for day in rod_days}
     assert min(real.values()) >= 0.9, real
     simulated = _same_louder_finger(simulate(load_scene(scene), TAP_TRIALS, seed=1).captures)
