@@ -58,8 +58,8 @@ def _louder_pad(scene_name: str, n_trials: int = 64) -> np.ndarray:
     from ext_sense_sim.scene import load_scene
 
     scene = load_scene(scene_name)
+    # constructing it sets it up: its gains and its louder pad
     grasp = GraspTransfer(dict(scene.effects)["grasp_transfer"], scene)
-    grasp.setup()
     time = TimeBase(rate_hz=1000.0, n_samples=2, n_trials=n_trials)
     load = np.zeros((n_trials, 6, 2), np.float32)
     load[:, 0, 1] = 1.0  # a shear toward the pads in the second sample only
