@@ -108,13 +108,13 @@ def stop_problems(proc: subprocess.Popen, stdout: str, stderr: str) -> list[str]
         problems.append("the runner reported no exit codes of its nodes")
     problems += [f"{name} exited with {code}" for name, code in codes.items() if code != 0]
     lines = (stdout + "\n" + stderr).splitlines()
+    kept_until = 0  # lines up to here are already shown as a stack
     for i, line in enumerate(lines):
-        if any(marker in line for marker in CRASH_MARKERS):
+        if i >= kept_until and any(marker in line for marker in CRASH_MARKERS):
             problems.append(f"output: {line.strip()[:200]}")
             # the stack a traceback or faulthandler printed after it, to find the crash by
-            problems += [
-                f"  {after.rstrip()[:200]}" for after in lines[i + 1 : i + 1 + STACK_LINES]
-            ]
+            kept_until = i + 1 + STACK_LINES
+            problems += [f"  {after.rstrip()[:200]}" for after in lines[i + 1 : kept_until]]
     return problems
 
 
