@@ -6,6 +6,10 @@ stable (probability ``p_stable``) a second-order settling to ``pull_force_n``; w
 spring-block stick-slip (skin ``skin_k`` dragged at ``pull_speed``, friction rising from
 ``mu_k N`` to ``mu_s N`` and slipping back within ``slip_tau_s``, the stick period jittered 15%),
 each slip knocking the object across its axis with ``slip_kick`` of the force drop.
+
+A hand never holds still: its force fluctuates by ``tremor_fraction`` (RMS) of the force it
+holds, in a band about the physiological tremor's ``tremor_hz`` (a resonance of quality
+``tremor_q``), along the object and across it independently, in both classes.
 """
 
 from __future__ import annotations
@@ -13,7 +17,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.signal import lfilter
+from scipy.signal import iirpeak, lfilter
 
 from ext_sense_sim.effects.base import Effect, Signals, TimeBase
 from ext_sense_sim.effects.contact import Contact, Labels, half_sine_bins
@@ -54,6 +58,29 @@ def stick_slip(
     return force, slips
 
 
+def tremor(
+    n_samples: int, rate_hz: float, freq_hz: np.ndarray, q: float, rng: np.random.Generator
+) -> np.ndarray:
+    """Unit-RMS narrow-band noise per trial, ``(len(freq_hz), n_samples)``, already stationary.
+
+    White noise through a resonance at each trial's ``freq_hz`` of quality ``q``, run in for
+    ``_TREMOR_RUN_IN_S`` first and scaled by the resonance's own noise gain.
+    """
+    run_in = int(_TREMOR_RUN_IN_S * rate_hz)
+    out = np.empty((len(freq_hz), n_samples))
+    impulse = np.zeros(run_in)
+    impulse[0] = 1.0
+    for i, f in enumerate(freq_hz):
+        b, a = iirpeak(f, q, fs=rate_hz)
+        gain = np.sqrt(np.sum(lfilter(b, a, impulse) ** 2))
+        noise = rng.standard_normal(run_in + n_samples)
+        out[i] = lfilter(b, a, noise)[run_in:] / gain
+    return out
+
+
+_TREMOR_RUN_IN_S = 1.0
+
+
 class HumanGrasp(Effect):
     """Handover grasp (see module docstring). Gives ``contact`` and ``labels``."""
 
@@ -76,6 +103,9 @@ class HumanGrasp(Effect):
         "pull_speed": [0.02, 0.08],
         "slip_tau_s": 0.001,
         "slip_kick": 0.3,
+        "tremor_fraction": [0.01, 0.05],
+        "tremor_hz": [8.0, 12.0],
+        "tremor_q": 2.0,
     }
 
     def run(self, signals: Signals, time: TimeBase, rng: np.random.Generator) -> None:
@@ -122,7 +152,15 @@ class HumanGrasp(Effect):
                     time.n_samples,
                 ).sum(axis=0)
         angle = np.deg2rad(self.draw("angle_deg", rng, n, -90.0, 90.0))
-        signals["contact"] = Contact(touch + kicks, axial, position, angle)
+        across = touch + kicks
+        if np.any(self.params["tremor_fraction"]):
+            held = self.draw("tremor_fraction", rng, n, 0.0, 1.0)[:, None] * np.abs(axial)
+            freq = self.draw("tremor_hz", rng, n, 0.1, time.rate_hz / 4)
+            q = self.scalar("tremor_q", 0.1, 100.0)
+            along = held * tremor(time.n_samples, time.rate_hz, freq, q, rng)
+            across = across + held * tremor(time.n_samples, time.rate_hz, freq, q, rng)
+            axial = axial + along
+        signals["contact"] = Contact(across, axial, position, angle)
         signals["labels"] = Labels(
             onset_ns=np.round(onset * 1e9).astype(np.int64),
             y_m=np.full(n, np.nan),
