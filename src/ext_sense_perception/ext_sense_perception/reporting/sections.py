@@ -120,28 +120,43 @@ def taxel_section(
 def latency_section(
     ws: WindowSet, run: Runner, name: str, out: Path, feat0: str, model0: str
 ) -> list[str]:
-    """Score against the post-contact window (decision latency), with anytime calibration."""
+    """Score against the post-contact window (decision latency), with anytime calibration.
+
+    The paper's linear model is scored beside the default on the same splits, as in the taxel
+    section: the two weigh the later part of a window differently.
+    """
     lower = ws.is_regression
     g = ws.geometry
     full_post = g.n_samples * g.period_ns - g.pre_ns
     posts = [p for p in ws.task_profile.study_post_ns() if p <= full_post]
+    linear = [LINEAR_MODEL] if model0 != LINEAR_MODEL else []
     lines = [
         f"### Decision latency ({feat0} + {model0}); anytime calibration",
         "",
         "| post-contact window ms | score | "
-        + ("95% PI coverage | PI half-width cm |" if lower else "ECE | Brier |"),
-        "|---|---|---|---|",
+        + ("95% PI coverage | PI half-width cm |" if lower else "ECE | Brier |")
+        + "".join(f" {m} score |" for m in linear),
+        "|---|---|---|---|" + "---|" * len(linear),
     ]
     dx, dy, derr = [], [], []
     for p in posts:
         res = run(ws.crop(p), name, feat0, model0)
+        run.row(res, Study.DECISION_LATENCY)
         if lower:
             cal = f"{coverage(res):.2f} | {1.959964 * float(np.mean(res.y_std)) * 100:.2f}"
         else:
             calibration_error, brier = ece(res)
             cal = f"{calibration_error:.3f} | {brier:.3f}"
-        lines.append(f"| {p / MS:g} | {fmt(res)} | {cal} |")
-        run.row(res, Study.DECISION_LATENCY)
+        beside = []
+        for m in linear:
+            try:
+                other = run(ws.crop(p), name, feat0, m)
+            except PerceptionError as err:
+                beside.append(f"failed: {err}")
+                continue
+            beside.append(fmt(other))
+            run.row(other, Study.DECISION_LATENCY)
+        lines.append(f"| {p / MS:g} | {fmt(res)} | {cal} |" + "".join(f" {c} |" for c in beside))
         dx.append(p / MS)
         dy.append(score(res))
         derr.append(spread(res))

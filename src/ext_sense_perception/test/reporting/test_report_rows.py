@@ -54,7 +54,10 @@ def test_every_row_says_its_study_parameters_and_source(quick_report):
         ("fft", "svm_rbf"),
         ("baseline", "svm_rbf"),
     ]
-    assert [r["post_ms"] for r in by[Study.DECISION_LATENCY]] == [25, 50, 100, 150, 250]
+    # the default model, then the paper's linear one beside it, at every window
+    assert [(r["model"], r["post_ms"]) for r in by[Study.DECISION_LATENCY]] == [
+        (m, p) for p in (25, 50, 100, 150, 250) for m in ("svm_rbf", "svm_linear")
+    ]
     assert all(r["rate_hz"] is None for s in Study if s is not Study.SAMPLING_RATE for r in by[s])
     assert [r["rate_hz"] for r in by[Study.SAMPLING_RATE]] == [50, 250, 1000, 4000]
     main = by[Study.MODELS][0]

@@ -185,6 +185,12 @@ def test_report_quick_writes_tables_and_plots(tmp_path, make_tap_dataset):
     assert len(pngs) == 3
     records = json.loads((tmp_path / "rep" / "report.json").read_text())
     assert {r["post_ms"] for r in records} >= {25.0, 250.0}
+    latency = {(r["model"], r["post_ms"]) for r in records if r["study"] == "decision_latency"}
+    assert {("svm_rbf", 25.0), ("svm_linear", 25.0), ("svm_linear", 150.0)} <= latency
+    assert (
+        "| post-contact window ms | score | 95% PI coverage | PI half-width cm | svm_linear score |"
+        in text
+    )
 
 
 def test_protocol_classification_probabilities_are_calibrated_per_split(handover_npz):
