@@ -58,6 +58,10 @@ def stick_slip(
     return force, slips
 
 
+_TREMOR_RUN_IN_S = 1.0
+"""Seconds a tremor's resonance runs before its trial starts, so the trial sees it stationary."""
+
+
 def tremor(
     n_samples: int, rate_hz: float, freq_hz: np.ndarray, q: float, rng: np.random.Generator
 ) -> np.ndarray:
@@ -76,9 +80,6 @@ def tremor(
         noise = rng.standard_normal(run_in + n_samples)
         out[i] = lfilter(b, a, noise)[run_in:] / gain
     return out
-
-
-_TREMOR_RUN_IN_S = 1.0
 
 
 class HumanGrasp(Effect):
