@@ -140,7 +140,8 @@ def latency_section(
     ]
     dx, dy, derr = [], [], []
     for p in posts:
-        res = run(ws.crop(p), name, feat0, model0)
+        cut = ws.crop(p)  # one copy of the shorter windows for both models
+        res = run(cut, name, feat0, model0)
         run.row(res, Study.DECISION_LATENCY)
         if lower:
             cal = f"{coverage(res):.2f} | {1.959964 * float(np.mean(res.y_std)) * 100:.2f}"
@@ -150,7 +151,7 @@ def latency_section(
         beside = []
         for m in linear:
             try:
-                other = run(ws.crop(p), name, feat0, m)
+                other = run(cut, name, feat0, m)
             except PerceptionError as err:
                 beside.append(f"failed: {err}")
                 continue
