@@ -89,19 +89,25 @@ def graph(tmp_path, request):
 
 
 class _Decoded:
-    """The events of a list of received packets, decoded as they come (one decoder per list)."""
+    """The events of a list of received packets, decoded as they come (one decoder per list).
+
+    Each entry keeps its list: an id alone can be reused by a later test's list once the
+    earlier one is collected, which handed the new list another stream's decoder.
+    """
 
     def __init__(self):
         self._seen = {}
 
     def __call__(self, packets):
-        decoder, blocks = self._seen.setdefault(id(packets), (None, []))
+        kept, decoder, blocks = self._seen.get(id(packets), (None, None, []))
+        if kept is not packets:
+            decoder, blocks = None, []
         for msg in packets[len(blocks) :]:
             packet = packet_of(msg)
             if decoder is None:
                 decoder = NuskinPacketDecoder(packet.encoding, packet.options)
             blocks.append(decoder.decode(packet))
-        self._seen[id(packets)] = (decoder, blocks)
+        self._seen[id(packets)] = (packets, decoder, blocks)
         return decoder, blocks
 
 
